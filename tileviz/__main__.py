@@ -1,0 +1,37 @@
+"""``python -m tileviz COMMAND ...``: serve, record, replay, extract, evaluate."""
+
+from __future__ import annotations
+
+import importlib
+import sys
+
+COMMANDS: dict[str, tuple[str, str]] = {
+    "serve": ("tileviz.app.server", "start the live demo server (viser)"),
+    "record": ("tileviz.cli", "simulate a run and write a tileviz-dataset/1 folder"),
+    "replay": ("tileviz.cli", "replay a dataset through vision and the localizer"),
+    "extract": ("tileviz.vision.cli", "extract tile parameters from images"),
+    "evaluate": ("tileviz.evaluate", "evaluate the localizer and baselines over many runs"),
+}
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Dispatch to a sub-command's ``main(command, argv)``."""
+    args = list(sys.argv[1:] if argv is None else argv)
+    if not args or args[0] in ("-h", "--help"):
+        lines = ["usage: python -m tileviz COMMAND [options]", "", "commands:"]
+        lines += [f"  {name:<9} {text}" for name, (_, text) in COMMANDS.items()]
+        lines += ["", "python -m tileviz COMMAND --help shows a command's options."]
+        print("\n".join(lines))
+        return 0 if args else 2
+    command = args[0]
+    if command not in COMMANDS:
+        sys.stderr.write(
+            f"tileviz: error: unknown command {command!r} (choose from {', '.join(COMMANDS)})\n"
+        )
+        return 2
+    module = importlib.import_module(COMMANDS[command][0])
+    return int(module.main(command, args[1:]))
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,78 @@
+"""Helpers shared by the command-line entry points: one-line errors, never a traceback."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from collections.abc import Callable
+from typing import NoReturn
+
+
+class CliError(Exception):
+    """An error for the user: printed as one line, exit status 2."""
+
+
+class Parser(argparse.ArgumentParser):
+    """An ArgumentParser whose errors are one line on stderr and exit status 2."""
+
+    def error(self, message: str) -> NoReturn:
+        sys.stderr.write(f"{self.prog}: error: {message}\n")
+        raise SystemExit(2)
+
+
+def positive_float(name: str) -> Callable[[str], float]:
+    """argparse type: a finite float > 0, the error naming the option."""
+
+    def parse(text: str) -> float:
+        try:
+            v = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name} must be a number, got {text!r}") from None
+        if not math.isfinite(v) or v <= 0:
+            raise argparse.ArgumentTypeError(f"{name} must be a finite number > 0, got {text!r}")
+        return v
+
+    return parse
+
+
+def nonneg_float(name: str) -> Callable[[str], float]:
+    """argparse type: a finite float >= 0, the error naming the option."""
+
+    def parse(text: str) -> float:
+        try:
+            v = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name} must be a number, got {text!r}") from None
+        if not math.isfinite(v) or v < 0:
+            raise argparse.ArgumentTypeError(f"{name} must be a finite number >= 0, got {text!r}")
+        return v
+
+    return parse
+
+
+def positive_int(name: str) -> Callable[[str], int]:
+    """argparse type: an integer >= 1, the error naming the option."""
+
+    def parse(text: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name} must be an integer, got {text!r}") from None
+        if v < 1:
+            raise argparse.ArgumentTypeError(f"{name} must be >= 1, got {text!r}")
+        return v
+
+    return parse
+
+
+def run_cli(prog: str, body: Callable[[], int]) -> int:
+    """Run ``body``; turn expected errors into one line on stderr and exit status 2."""
+    try:
+        return body()
+    except KeyboardInterrupt:
+        sys.stderr.write(f"{prog}: interrupted\n")
+        return 130
+    except (CliError, ValueError, OSError) as e:
+        sys.stderr.write(f"{prog}: error: {e}\n")
+        return 2

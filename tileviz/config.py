@@ -1,0 +1,317 @@
+"""Configuration dataclasses shared by the CLI, the GUI, the runner and a dataset's meta.json.
+
+Units: metres, seconds, radians, pixels. Frames: see ``shared/dataset-format.md`` (world x east,
+y north, heading counter-clockwise from +x; camera offset ``[forward, left]`` in the robot frame).
+
+Every dataclass is frozen: change a configuration with :func:`dataclasses.replace`.
+Two presets exist: ``default`` (1 m tiles, 200 px/m, 320x240) and ``seed`` (the constants of the
+original implementation, ``shared/seed-code-facts.md``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field, fields, is_dataclass, replace
+from typing import Any
+
+EXTRACTORS = ("faithful", "robust")
+MODES = ("autonomous", "truth", "odometry")
+SETPOINTS = ("lissajous", "manual", "waypoints")
+
+
+def _check_positive(name: str, value: float) -> None:
+    if not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
+        raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
+
+
+def _check_nonneg(name: str, value: float) -> None:
+    if not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
+        raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
+
+
+@dataclass(frozen=True)
+class FloorConfig:
+    """The tiled floor. Grout line centres lie on x = kL and y = kL (world frame)."""
+
+    tile_size: float = 1.0
+    """L, the period of the tiling, metres."""
+    grout_width: float = 0.012
+    """Visible width of a grout line, metres."""
+    tile_rgb: tuple[int, int, int] = (214, 206, 190)
+    grout_rgb: tuple[int, int, int] = (92, 88, 84)
+    tile_brightness_jitter: float = 0.06
+    """Relative brightness variation between tiles (0 = uniform)."""
+    texture_strength: float = 0.05
+    """Relative amplitude of the fixed surface texture."""
+    stains_per_tile: float = 0.3
+    """Mean number of dark stains per tile (fixed to the floor)."""
+    seed: int = 1
+    """Seed of the floor's appearance (tile brightness, texture, stains)."""
+
+    def __post_init__(self) -> None:
+        _check_positive("tile_size", self.tile_size)
+        _check_nonneg("grout_width", self.grout_width)
+        if self.grout_width >= self.tile_size / 2:
+            raise ValueError(
+                f"grout_width must be < tile_size/2, got {self.grout_width} for L={self.tile_size}"
+            )
+
+
+@dataclass(frozen=True)
+class CameraConfig:
+    """A downward orthographic camera. Image up = robot forward, image left = robot left."""
+
+    ppm: float = 200.0
+    """Pixels per metre on the floor."""
+    width: int = 320
+    """Image width, pixels."""
+    height: int = 240
+    """Image height, pixels."""
+    offset: tuple[float, float] = (0.3, 0.0)
+    """Optical centre on the floor in the robot frame, [forward, left], metres (lever arm)."""
+    noise_sigma: float = 3.0
+    """Std dev of additive Gaussian pixel noise, gray levels (0..255)."""
+    blur_sigma: float = 0.7
+    """Gaussian blur, pixels (0 = none)."""
+    vignetting: float = 0.15
+    """Relative darkening at the image corners (0 = none)."""
+    jpeg_quality: int = 0
+    """JPEG re-encoding quality 1..100; 0 = no JPEG artefacts."""
+
+    def __post_init__(self) -> None:
+        _check_positive("ppm", self.ppm)
+        if int(self.width) != self.width or self.width < 16 or self.width > 8192:
+            raise ValueError(f"image width must be an integer in [16, 8192], got {self.width!r}")
+        if int(self.height) != self.height or self.height < 16 or self.height > 8192:
+            raise ValueError(f"image height must be an integer in [16, 8192], got {self.height!r}")
+        for name in ("noise_sigma", "blur_sigma", "vignetting"):
+            _check_nonneg(name, getattr(self, name))
+        if not 0 <= self.jpeg_quality <= 100:
+            raise ValueError(f"jpeg_quality must be in [0, 100], got {self.jpeg_quality!r}")
+
+
+@dataclass(frozen=True)
+class NoiseConfig:
+    """Bounds on the sensor errors (declared, written to datasets) and the simulated noise.
+
+    The simulator draws each error uniformly within ``fraction`` of its bound, so the bound holds.
+    """
+
+    speed_error: float = 0.02
+    """Bound on |measured speed - true speed|, m/s."""
+    yaw_rate_error: float = 0.01
+    """Bound on |measured yaw rate - true yaw rate|, rad/s."""
+    compass_error: float = 0.02
+    """Bound on the compass angular error, rad."""
+    fraction: float = 1.0
+    """Simulated errors are drawn uniformly in +-fraction*bound (1.0 = use the whole bound)."""
+
+    def __post_init__(self) -> None:
+        for name in ("speed_error", "yaw_rate_error", "compass_error", "fraction"):
+            _check_nonneg(name, getattr(self, name))
+
+
+@dataclass(frozen=True)
+class VisionConfig:
+    """Image pipeline constants. Defaults are the original implementation's (report ch. 4)."""
+
+    extractor: str = "robust"
+    """``faithful`` (report chapter 4, corrected) or ``robust`` (checks, refuses bad frames)."""
+    laplacian_ksize: int = 1
+    canny_low: float = 50.0
+    canny_high: float = 255.0
+    canny_aperture: int = 3
+    close_kernel: int = 1
+    dilate_kernel: int = 3
+    dilate_iterations: int = 1
+    hough_rho: float = 1.0
+    hough_theta: float = math.pi / 180
+    hough_threshold: int = 60
+    hough_min_line_length: float = 100.0
+    hough_max_line_gap: float = 50.0
+    l1_threshold: float = 0.15
+    """Outlier filter on (cos 4a, sin 4a): keep segments with L1 distance to the median < this."""
+    bag_threshold: float = 0.2
+    """|cos| (resp. |sin|) below this after de-rotation puts a segment in the vertical
+    (resp. horizontal) bag."""
+    min_segments: int = 2
+    """Continue only with at least this many good segments."""
+    position_error_px: float = 2.0
+    """Declared bound on the error of y1, y2, in pixels (converted with ppm)."""
+    heading_error: float = 0.02
+    """Declared bound on the error of y3, rad."""
+
+    def __post_init__(self) -> None:
+        if self.extractor not in EXTRACTORS:
+            raise ValueError(f"extractor must be one of {EXTRACTORS}, got {self.extractor!r}")
+        _check_positive("position_error_px", self.position_error_px)
+        _check_positive("heading_error", self.heading_error)
+
+
+@dataclass(frozen=True)
+class LocalizerConfig:
+    """The interval localizer."""
+
+    mode: str = "autonomous"
+    """``autonomous`` (only the initial pose known), ``truth`` (reset to the inflated truth every
+    frame, report 7.1) or ``odometry`` (prediction only, report Fig 7.1)."""
+    max_boxes: int = 16
+    """Cap on the number of disjoint boxes; past it the set is replaced by its hull."""
+    passes: int = 3
+    """Maximum contraction passes (stops earlier at a fixpoint)."""
+    truth_inflation: tuple[float, float, float] = (0.3, 0.3, 0.2)
+    """Truth mode: half-widths (m, m, rad) added around the true pose every frame."""
+    max_rejections: int = 20
+    """Consecutive rejected observations after which the status becomes ``lost``."""
+
+    def __post_init__(self) -> None:
+        if self.mode not in MODES:
+            raise ValueError(f"mode must be one of {MODES}, got {self.mode!r}")
+        if int(self.max_boxes) != self.max_boxes or self.max_boxes < 1:
+            raise ValueError(f"max_boxes must be an integer >= 1, got {self.max_boxes!r}")
+        if int(self.passes) != self.passes or self.passes < 1:
+            raise ValueError(f"passes must be an integer >= 1, got {self.passes!r}")
+        for i, v in enumerate(self.truth_inflation):
+            _check_nonneg(f"truth_inflation[{i}]", v)
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    """The pymunk simulation and its setpoint."""
+
+    dt: float = 0.05
+    """Frame period (simulation step between frames), s."""
+    seed: int = 0
+    """Seed of the sensor noise (and anything else random in the run)."""
+    setpoint: str = "lissajous"
+    lissajous_amplitude: float = 4.0
+    """A in x = A cos(w t + pi/2), y = A sin(2 (w t + pi/2)), metres."""
+    lissajous_omega: float = 0.04
+    """w, rad/s."""
+    waypoints: tuple[tuple[float, float], ...] = ((2.0, 0.0), (2.0, 2.0), (-2.0, 2.0), (-2.0, 0.0))
+    manual_target: tuple[float, float] = (1.0, 1.0)
+    room_half_size: float = 6.0
+    """Half side of the square room, metres; walls at +-this when ``walls``."""
+    walls: bool = False
+    obstacles: tuple[tuple[float, float, float], ...] = ()
+    """Round obstacles (x, y, radius), metres."""
+    max_wheel_speed: float = 0.8
+    """Wheel speed saturation, m/s."""
+    wheel_base: float = 0.4
+    """Distance between the wheels, metres."""
+    initial_pose: tuple[float, float, float] = (0.0, 4.0, math.pi)
+    """Pose at t = 0 (x, y, theta); the default is the Lissajous start."""
+    initial_pose_error: tuple[float, float, float] = (0.05, 0.05, 0.02)
+    """The true start lies within initial_pose +- these (m, m, rad)."""
+
+    def __post_init__(self) -> None:
+        _check_positive("dt", self.dt)
+        if self.setpoint not in SETPOINTS:
+            raise ValueError(f"setpoint must be one of {SETPOINTS}, got {self.setpoint!r}")
+        _check_positive("lissajous_amplitude", self.lissajous_amplitude)
+        _check_nonneg("lissajous_omega", self.lissajous_omega)
+        _check_positive("room_half_size", self.room_half_size)
+        _check_positive("max_wheel_speed", self.max_wheel_speed)
+        _check_positive("wheel_base", self.wheel_base)
+        for i, v in enumerate(self.initial_pose_error):
+            _check_nonneg(f"initial_pose_error[{i}]", v)
+
+
+@dataclass(frozen=True)
+class Config:
+    """Everything a run needs."""
+
+    floor: FloorConfig = field(default_factory=FloorConfig)
+    camera: CameraConfig = field(default_factory=CameraConfig)
+    noise: NoiseConfig = field(default_factory=NoiseConfig)
+    vision: VisionConfig = field(default_factory=VisionConfig)
+    localizer: LocalizerConfig = field(default_factory=LocalizerConfig)
+    sim: SimConfig = field(default_factory=SimConfig)
+
+    @property
+    def tile_size(self) -> float:
+        """L, metres."""
+        return self.floor.tile_size
+
+    @property
+    def position_error(self) -> float:
+        """Declared bound on the error of y1, y2, metres."""
+        return self.vision.position_error_px / self.camera.ppm
+
+    def to_dict(self) -> dict[str, Any]:
+        """A JSON-able nested dict."""
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> Config:
+        """Inverse of :meth:`to_dict`; unknown keys raise ValueError naming them."""
+        return _from_dict(cls, d, "config")
+
+
+def _from_dict(cls: type, d: dict[str, Any], where: str) -> Any:
+    if not isinstance(d, dict):
+        raise ValueError(f"{where} must be an object, got {type(d).__name__}")
+    names = {f.name for f in fields(cls)}
+    defaults = cls()
+    kwargs: dict[str, Any] = {}
+    for key, value in d.items():
+        if key not in names:
+            raise ValueError(f"unknown option {where}.{key}")
+        default = getattr(defaults, key)
+        if is_dataclass(default):
+            kwargs[key] = _from_dict(type(default), value, f"{where}.{key}")
+        elif isinstance(default, tuple):
+            kwargs[key] = _to_tuple(value)
+        else:
+            kwargs[key] = value
+    try:
+        return cls(**kwargs)
+    except TypeError as e:
+        raise ValueError(f"bad {where}: {e}") from None
+
+
+def _to_tuple(value: Any) -> Any:
+    if isinstance(value, list | tuple):
+        return tuple(_to_tuple(v) for v in value)
+    return value
+
+
+def preset(name: str) -> Config:
+    """Return a named preset: ``default`` or ``seed``."""
+    if name == "default":
+        return Config()
+    if name == "seed":
+        # Constants of the original implementation (shared/seed-code-facts.md).
+        return Config(
+            floor=FloorConfig(tile_size=0.166, grout_width=0.004),
+            camera=CameraConfig(ppm=620.48, width=256, height=384, offset=(0.875, 0.0)),
+            noise=NoiseConfig(speed_error=0.02, yaw_rate_error=0.01, compass_error=0.02),
+            vision=VisionConfig(extractor="faithful"),
+            sim=SimConfig(
+                dt=0.05,
+                lissajous_amplitude=10.0,
+                lissajous_omega=0.01,
+                room_half_size=12.0,
+                initial_pose=(0.0, 10.0, math.pi),
+            ),
+        )
+    raise ValueError(f"unknown preset {name!r}; choose 'default' or 'seed'")
+
+
+PRESETS = ("default", "seed")
+
+
+def with_overrides(cfg: Config, **sections: dict[str, Any]) -> Config:
+    """Return ``cfg`` with some fields of some sections replaced, e.g.
+    ``with_overrides(cfg, camera={"ppm": 300})``. Raises ValueError on unknown names."""
+    out = cfg
+    for section, values in sections.items():
+        if not hasattr(out, section):
+            raise ValueError(f"unknown config section {section!r}")
+        sub = getattr(out, section)
+        names = {f.name for f in fields(sub)}
+        for k in values:
+            if k not in names:
+                raise ValueError(f"unknown option {section}.{k}")
+        out = replace(out, **{section: replace(sub, **values)})
+    return out
