@@ -18,28 +18,10 @@ import numpy as np
 from tileviz.config import Config
 from tileviz.localizer import Localizer, LocalizerStep
 from tileviz.tiles import equivalence_residuals
-from tileviz.types import Box, BoxSet, Odometry, Pose, SensorBounds
+from tileviz.types import Box, BoxSet, FrameInput, Odometry, Pose, SensorBounds
 from tileviz.vision import VisionResult, extract
 
-
-@dataclass(frozen=True)
-class FrameInput:
-    """What a source delivers for frame k.
-
-    ``image``: HxWx3 uint8 RGB (or HxW gray) taken at pose k. ``odometry``: the measured motion
-    from frame k to k+1 (None on the last frame or when unknown). ``compass``: heading measured at
-    frame k, rad, wrapped to (-pi, pi], or None. ``truth``: the true pose k when known.
-    ``setpoint``: the controller's target (x, y) in metres, for display, or None.
-    """
-
-    index: int
-    t: float
-    image: np.ndarray
-    odometry: Odometry | None
-    compass: float | None
-    truth: Pose | None = None
-    setpoint: tuple[float, float] | None = None
-    image_name: str = ""
+__all__ = ["FrameInput", "FrameRecord", "Runner", "Source", "initial_box"]
 
 
 class Source(Protocol):
@@ -139,12 +121,15 @@ class Runner:
             keep_stages=self.keep_stages,
         )
         t1 = time.perf_counter()
-        step: LocalizerStep = self.localizer.step(
-            odometry=self._pending_odometry,
-            compass=frame.compass,
-            observation=vision.observation,
-            truth=frame.truth,
-        )
+        try:
+            step: LocalizerStep = self.localizer.step(
+                odometry=self._pending_odometry,
+                compass=frame.compass,
+                observation=vision.observation,
+                truth=frame.truth,
+            )
+        except ValueError as e:
+            raise ValueError(f"frame {frame.index}: {e}") from None
         t2 = time.perf_counter()
         self._pending_odometry = frame.odometry
         residuals = None

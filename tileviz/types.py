@@ -9,6 +9,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
 TWO_PI = 2.0 * math.pi
 
 STATUSES = ("contracted", "predicted", "rejected", "lost")
@@ -138,3 +140,23 @@ class BoxSet:
     def contains(self, x: float, y: float, theta: float) -> bool:
         """True when some box contains the pose (heading modulo 2 pi)."""
         return any(b.contains(x, y, theta) for b in self.boxes)
+
+
+@dataclass(frozen=True)
+class FrameInput:
+    """What a source delivers for frame k.
+
+    ``image``: HxWx3 uint8 RGB (or HxW gray) taken at pose k. ``odometry``: the measured motion
+    from frame k to k+1 (None on the last frame or when unknown). ``compass``: heading measured at
+    frame k, rad, wrapped to (-pi, pi], or None. ``truth``: the true pose k when known.
+    ``setpoint``: the controller's target (x, y) in metres, for display, or None.
+    """
+
+    index: int
+    t: float
+    image: np.ndarray
+    odometry: Odometry | None
+    compass: float | None
+    truth: Pose | None = None
+    setpoint: tuple[float, float] | None = None
+    image_name: str = ""

@@ -1,0 +1,175 @@
+"""``python -m tileviz record`` and ``python -m tileviz replay``."""
+
+from __future__ import annotations
+
+import math
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+from tileviz.cliutil import (
+    CliError,
+    Parser,
+    nonneg_float,
+    positive_float,
+    positive_int,
+    run_cli,
+)
+from tileviz.config import EXTRACTORS, MODES, PRESETS, SETPOINTS, Config, preset
+
+
+def _progress(total: int | None, desc: str, enabled: bool) -> object:
+    from tqdm import tqdm
+
+    return tqdm(total=total, desc=desc, unit="frame", disable=not enabled, file=sys.stderr,
+                dynamic_ncols=True)
+
+
+def record_parser() -> Parser:
+    p = Parser(prog="tileviz record", description="Simulate a run and write a "
+               "tileviz-dataset/1 folder (meta.json, frames.csv, images/).")
+    p.add_argument("out", help="output folder (must not exist or be empty)")
+    p.add_argument("--duration", type=positive_float("--duration"), required=True,
+                   help="simulated seconds")
+    p.add_argument("--preset", choices=PRESETS, default="default")
+    p.add_argument("--seed", type=int, default=0, help="seed of the run (noise, floor)")
+    p.add_argument("--tile-size", type=positive_float("--tile-size"), help="L, metres")
+    p.add_argument("--ppm", type=positive_float("--ppm"), help="pixels per metre")
+    p.add_argument("--width", type=positive_int("--width"), help="image width, px")
+    p.add_argument("--height", type=positive_int("--height"), help="image height, px")
+    p.add_argument("--dt", type=positive_float("--dt"), help="frame period, s")
+    p.add_argument("--setpoint", choices=SETPOINTS, help="setpoint kind")
+    p.add_argument("--speed-error", type=nonneg_float("--speed-error"), help="m/s bound")
+    p.add_argument("--yaw-rate-error", type=nonneg_float("--yaw-rate-error"), help="rad/s bound")
+    p.add_argument("--compass-error", type=nonneg_float("--compass-error"), help="rad bound")
+    p.add_argument("--no-compass", action="store_true", help="leave the compass column empty")
+    p.add_argument("--jpg", action="store_true", help="write JPEG images instead of PNG")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    return p
+
+
+def config_from_args(cfg: Config, args: object) -> Config:
+    """Apply the common command-line overrides to a preset."""
+    a = vars(args)
+    floor, camera, noise, sim = cfg.floor, cfg.camera, cfg.noise, cfg.sim
+    if a.get("tile_size") is not None:
+        floor = replace(floor, tile_size=a["tile_size"],
+                        grout_width=min(floor.grout_width, a["tile_size"] / 8))
+    cam = {k: a[k] for k in ("ppm", "width", "height") if a.get(k) is not None}
+    camera = replace(camera, **cam)
+    nz = {k: a[k] for k in ("speed_error", "yaw_rate_error", "compass_error")
+          if a.get(k) is not None}
+    noise = replace(noise, **nz)
+    sm: dict[str, object] = {}
+    if a.get("dt") is not None:
+        sm["dt"] = a["dt"]
+    if a.get("setpoint") is not None:
+        sm["setpoint"] = a["setpoint"]
+    if a.get("seed") is not None:
+        sm["seed"] = a["seed"]
+        floor = replace(floor, seed=a["seed"] + 1)
+    sim = replace(sim, **sm)
+    out = replace(cfg, floor=floor, camera=camera, noise=noise, sim=sim)
+    if a.get("extractor") is not None:
+        out = replace(out, vision=replace(out.vision, extractor=a["extractor"]))
+    if a.get("mode") is not None:
+        out = replace(out, localizer=replace(out.localizer, mode=a["mode"]))
+    return out
+
+
+def record(argv: list[str]) -> int:
+    args = record_parser().parse_args(argv)
+
+    def body() -> int:
+        from tileviz.dataset import DatasetMeta, DatasetWriter
+        from tileviz.sim.source import SimSource
+
+        cfg = config_from_args(preset(args.preset), args)
+        frames = int(math.floor(args.duration / cfg.sim.dt + 1e-9)) + 1
+        out = Path(args.out)
+        meta = DatasetMeta.from_config(cfg, name=f"tileviz {args.preset} seed {args.seed}")
+        writer = DatasetWriter(out, meta, image_format="jpg" if args.jpg else "png")
+        bar = _progress(frames, "record", not args.quiet)
+        try:
+            for i, frame in enumerate(SimSource(cfg)):
+                if i >= frames:
+                    break
+                if args.no_compass:
+                    frame = replace(frame, compass=None)
+                writer.write(frame)
+                bar.update(1)  # type: ignore[attr-defined]
+        finally:
+            bar.close()  # type: ignore[attr-defined]
+            writer.close()
+        print(f"wrote {writer.count} frames to {out}")
+        return 0
+
+    return run_cli("tileviz record", body)
+
+
+def replay_parser() -> Parser:
+    p = Parser(prog="tileviz replay", description="Replay a tileviz-dataset/1 folder through "
+               "vision and the localizer; write one CSV row per frame.")
+    p.add_argument("dataset", help="dataset folder")
+    p.add_argument("--mode", choices=MODES, default="autonomous")
+    p.add_argument("--out", required=True, help="replay output CSV (dataset-format.md)")
+    p.add_argument("--output-file", help="CSV of the six equivalence residuals per frame "
+                   "(report table 6.1, corrected signs; needs ground truth)")
+    p.add_argument("--extractor", choices=EXTRACTORS, default=None,
+                   help="vision extractor (default: the dataset's, else robust)")
+    p.add_argument("--max-boxes", type=positive_int("--max-boxes"), default=None)
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    return p
+
+
+def replay(argv: list[str]) -> int:
+    args = replay_parser().parse_args(argv)
+
+    def body() -> int:
+        from tileviz.dataset import (
+            REPLAY_COLUMNS,
+            RESIDUAL_COLUMNS,
+            CsvOut,
+            DatasetSource,
+            replay_row,
+            residual_row,
+        )
+        from tileviz.runner import Runner
+
+        source = DatasetSource(args.dataset)
+        cfg = source.meta.to_config()
+        cfg = replace(cfg, localizer=replace(cfg.localizer, mode=args.mode))
+        if args.extractor:
+            cfg = replace(cfg, vision=replace(cfg.vision, extractor=args.extractor))
+        if args.max_boxes:
+            cfg = replace(cfg, localizer=replace(cfg.localizer, max_boxes=args.max_boxes))
+        out = CsvOut(args.out, REPLAY_COLUMNS)
+        eq = CsvOut(args.output_file, RESIDUAL_COLUMNS) if args.output_file else None
+        runner = Runner(cfg)
+        bar = _progress(None, "replay", not args.quiet)
+        n = 0
+        try:
+            for rec in runner.run(source):
+                out.row(replay_row(rec))
+                if eq is not None:
+                    eq.row(residual_row(rec))
+                n += 1
+                bar.update(1)  # type: ignore[attr-defined]
+        finally:
+            bar.close()  # type: ignore[attr-defined]
+            out.close()
+            if eq is not None:
+                eq.close()
+        print(f"replayed {n} frames into {args.out}")
+        return 0
+
+    return run_cli("tileviz replay", body)
+
+
+def main(command: str, argv: list[str]) -> int:
+    """Entry for ``python -m tileviz record|replay``."""
+    if command == "record":
+        return record(argv)
+    if command == "replay":
+        return replay(argv)
+    raise CliError(f"unknown command {command!r}")

@@ -1,0 +1,448 @@
+"""tileviz-dataset/1: write, read and validate datasets; write replay outputs.
+
+The contract is ``shared/dataset-format.md``. A dataset is a folder with ``meta.json``,
+``frames.csv`` and images. Row k of ``frames.csv``: the image taken at pose k, the compass measured
+at frame k, and the odometry (speed, yaw rate) describing the motion from frame k to frame k+1,
+held over ``t[k+1] - t[k]`` seconds (``meta.dt`` when ``t`` is missing on the next row or there is
+no next row).
+
+Errors are :class:`DatasetError` (a ValueError) whose message names the file and, for rows, the
+row number (1-based line number of ``frames.csv`` counting the header as line 1).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+from collections.abc import Iterator
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import IO, TYPE_CHECKING, Any
+
+import cv2
+import numpy as np
+
+from tileviz.config import Config
+from tileviz.types import FrameInput, Odometry, Pose
+
+if TYPE_CHECKING:
+    from tileviz.runner import FrameRecord
+
+FORMAT = "tileviz-dataset/1"
+FRAME_COLUMNS = ("index", "t", "image", "speed", "yaw_rate", "compass", "x", "y", "theta")
+REQUIRED_COLUMNS = ("index", "t", "image", "speed", "yaw_rate")
+REPLAY_COLUMNS = (
+    "index", "t", "status", "x_lo", "x_hi", "y_lo", "y_hi", "theta_lo", "theta_hi", "boxes",
+)
+RESIDUAL_COLUMNS = ("index", "t", "r1", "r2", "r3", "r4", "r5", "r6")
+
+
+class DatasetError(ValueError):
+    """A dataset that does not follow tileviz-dataset/1; the message names file and row."""
+
+
+def _num(x: float) -> str:
+    """A float written so that it round-trips exactly (``repr``)."""
+    return repr(float(x))
+
+
+@dataclass(frozen=True)
+class DatasetMeta:
+    """The contents of ``meta.json`` (units: metres, seconds, radians, pixels)."""
+
+    name: str
+    tile_size: float
+    ppm: float
+    image_width: int
+    image_height: int
+    camera_offset: tuple[float, float]
+    dt: float
+    initial_pose: tuple[float, float, float]
+    initial_pose_error: tuple[float, float, float]
+    speed_error: float
+    yaw_rate_error: float
+    compass_error: float
+    extra: dict[str, Any] = field(default_factory=dict)
+    """Unknown keys, kept and ignored."""
+
+    @classmethod
+    def from_config(cls, cfg: Config, name: str = "tileviz run") -> DatasetMeta:
+        return cls(
+            name=name,
+            tile_size=cfg.floor.tile_size,
+            ppm=cfg.camera.ppm,
+            image_width=cfg.camera.width,
+            image_height=cfg.camera.height,
+            camera_offset=tuple(cfg.camera.offset),  # type: ignore[arg-type]
+            dt=cfg.sim.dt,
+            initial_pose=tuple(cfg.sim.initial_pose),  # type: ignore[arg-type]
+            initial_pose_error=tuple(cfg.sim.initial_pose_error),  # type: ignore[arg-type]
+            speed_error=cfg.noise.speed_error,
+            yaw_rate_error=cfg.noise.yaw_rate_error,
+            compass_error=cfg.noise.compass_error,
+            extra={"tileviz_config": cfg.to_dict()},
+        )
+
+    def to_json(self) -> dict[str, Any]:
+        d: dict[str, Any] = dict(self.extra)
+        d.update(
+            format=FORMAT,
+            name=self.name,
+            tile_size=self.tile_size,
+            ppm=self.ppm,
+            image_width=self.image_width,
+            image_height=self.image_height,
+            camera_offset=list(self.camera_offset),
+            dt=self.dt,
+            initial_pose=list(self.initial_pose),
+            initial_pose_error=list(self.initial_pose_error),
+            speed_error=self.speed_error,
+            yaw_rate_error=self.yaw_rate_error,
+            compass_error=self.compass_error,
+        )
+        return d
+
+    @classmethod
+    def from_json(cls, d: Any, where: str = "meta.json") -> DatasetMeta:
+        """Validate and parse; errors name the key."""
+        if not isinstance(d, dict):
+            raise DatasetError(f"{where}: must be a JSON object")
+        if d.get("format") != FORMAT:
+            raise DatasetError(
+                f"{where}: format must be {FORMAT!r}, got {d.get('format', '(missing)')!r}"
+            )
+        known = {
+            "format", "name", "tile_size", "ppm", "image_width", "image_height", "camera_offset",
+            "dt", "initial_pose", "initial_pose_error", "speed_error", "yaw_rate_error",
+            "compass_error",
+        }
+        missing = sorted(k for k in known - {"name"} if k not in d)
+        if missing:
+            raise DatasetError(f"{where}: missing key(s) {', '.join(missing)}")
+
+        def number(key: str, *, positive: bool) -> float:
+            v = d[key]
+            if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+                raise DatasetError(f"{where}: {key} must be a finite number, got {v!r}")
+            if positive and v <= 0 or not positive and v < 0:
+                raise DatasetError(f"{where}: {key} must be {'> 0' if positive else '>= 0'}, "
+                                   f"got {v!r}")
+            return float(v)
+
+        def integer(key: str) -> int:
+            v = d[key]
+            if isinstance(v, bool) or not isinstance(v, int) or v <= 0:
+                raise DatasetError(f"{where}: {key} must be an integer > 0, got {v!r}")
+            return v
+
+        def vector(key: str, n: int, *, nonneg: bool = False) -> tuple[float, ...]:
+            v = d[key]
+            ok = isinstance(v, list) and len(v) == n and all(
+                not isinstance(e, bool) and isinstance(e, int | float) and math.isfinite(e)
+                and (e >= 0 or not nonneg) for e in v
+            )
+            if not ok:
+                what = "non-negative " if nonneg else ""
+                raise DatasetError(f"{where}: {key} must be a list of {n} finite {what}numbers, "
+                                   f"got {v!r}")
+            return tuple(float(e) for e in v)
+
+        name = d.get("name", "")
+        return cls(
+            name=str(name),
+            tile_size=number("tile_size", positive=True),
+            ppm=number("ppm", positive=True),
+            image_width=integer("image_width"),
+            image_height=integer("image_height"),
+            camera_offset=vector("camera_offset", 2),  # type: ignore[arg-type]
+            dt=number("dt", positive=True),
+            initial_pose=vector("initial_pose", 3),  # type: ignore[arg-type]
+            initial_pose_error=vector("initial_pose_error", 3, nonneg=True),  # type: ignore[arg-type]
+            speed_error=number("speed_error", positive=False),
+            yaw_rate_error=number("yaw_rate_error", positive=False),
+            compass_error=number("compass_error", positive=False),
+            extra={k: v for k, v in d.items() if k not in known},
+        )
+
+    def to_config(self, base: Config | None = None) -> Config:
+        """A Config for replaying: geometry, bounds and start from the meta, the rest from
+        ``base`` (or, for datasets tileviz recorded, from the stored ``tileviz_config``)."""
+        if base is None:
+            stored = self.extra.get("tileviz_config")
+            base = Config()
+            if isinstance(stored, dict):
+                try:
+                    base = Config.from_dict(stored)
+                except (ValueError, TypeError):
+                    base = Config()
+        floor_grout = min(base.floor.grout_width, self.tile_size / 4)
+        return replace(
+            base,
+            floor=replace(base.floor, tile_size=self.tile_size, grout_width=floor_grout)
+            if base.floor.tile_size != self.tile_size else base.floor,
+            camera=replace(
+                base.camera, ppm=self.ppm, width=self.image_width, height=self.image_height,
+                offset=self.camera_offset,
+            ),
+            noise=replace(
+                base.noise, speed_error=self.speed_error, yaw_rate_error=self.yaw_rate_error,
+                compass_error=self.compass_error,
+            ),
+            sim=replace(
+                base.sim, dt=self.dt, initial_pose=self.initial_pose,
+                initial_pose_error=self.initial_pose_error,
+            ),
+        )
+
+
+def read_meta(folder: str | os.PathLike[str]) -> DatasetMeta:
+    """Read and validate ``folder/meta.json``."""
+    path = Path(folder) / "meta.json"
+    if not Path(folder).is_dir():
+        raise DatasetError(f"{folder}: not a dataset folder (no such directory)")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as e:
+        raise DatasetError(f"{path}: cannot read ({e.strerror or e})") from None
+    try:
+        d = json.loads(text)
+    except json.JSONDecodeError as e:
+        raise DatasetError(f"{path}: not valid JSON ({e.msg} at line {e.lineno})") from None
+    return DatasetMeta.from_json(d, where=str(path))
+
+
+def _rgb(image: np.ndarray) -> np.ndarray:
+    if image.ndim == 2:
+        return cv2.cvtColor(image, cv2.COLOR_GRAY2RGB)
+    return image
+
+
+class DatasetWriter:
+    """Write a dataset frame by frame; every row is flushed as soon as it is written, so a crash
+    leaves a valid (shorter) dataset.
+
+    ``image_format``: ``png`` (lossless, replays bit-exactly) or ``jpg``.
+    """
+
+    def __init__(
+        self,
+        folder: str | os.PathLike[str],
+        meta: DatasetMeta,
+        *,
+        image_format: str = "png",
+        overwrite: bool = False,
+    ) -> None:
+        if image_format not in ("png", "jpg"):
+            raise ValueError(f"image_format must be 'png' or 'jpg', got {image_format!r}")
+        self.folder = Path(folder)
+        if self.folder.exists() and any(self.folder.iterdir()) and not overwrite:
+            raise ValueError(f"{self.folder}: output folder exists and is not empty")
+        (self.folder / "images").mkdir(parents=True, exist_ok=True)
+        self.meta = meta
+        self.image_format = image_format
+        (self.folder / "meta.json").write_text(
+            json.dumps(meta.to_json(), indent=2) + "\n", encoding="utf-8"
+        )
+        self._file: IO[str] | None = open(  # noqa: SIM115 - closed in close()
+            self.folder / "frames.csv", "w", newline="", encoding="utf-8"
+        )
+        self._csv = csv.writer(self._file)
+        self._csv.writerow(FRAME_COLUMNS)
+        self._file.flush()
+        self.count = 0
+
+    def write(self, frame: FrameInput | FrameRecord) -> None:
+        """Append one frame (its image, odometry, compass and truth)."""
+        if self._file is None:
+            raise ValueError("dataset writer is closed")
+        name = f"images/{self.count:06d}.{self.image_format}"
+        image = _rgb(frame.image)
+        params = [cv2.IMWRITE_JPEG_QUALITY, 95] if self.image_format == "jpg" else []
+        if not cv2.imwrite(str(self.folder / name), image[:, :, ::-1], params):
+            raise OSError(f"cannot write {self.folder / name}")
+        odo = frame.odometry
+        truth = frame.truth
+        self._csv.writerow([
+            self.count,
+            _num(frame.t),
+            name,
+            _num(odo.speed) if odo is not None else "0.0",
+            _num(odo.yaw_rate) if odo is not None else "0.0",
+            _num(frame.compass) if frame.compass is not None else "",
+            *((_num(truth.x), _num(truth.y), _num(truth.theta)) if truth else ("", "", "")),
+        ])
+        self._file.flush()
+        self.count += 1
+
+    def close(self) -> None:
+        if self._file is not None:
+            self._file.close()
+            self._file = None
+
+    def __enter__(self) -> DatasetWriter:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+@dataclass(frozen=True)
+class _Row:
+    line: int
+    index: int
+    t: float
+    image: str
+    speed: float
+    yaw_rate: float
+    compass: float | None
+    truth: Pose | None
+
+
+def _parse_float(text: str, column: str, where: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise DatasetError(f"{where}: {column} is not a number ({text!r})") from None
+    if not math.isfinite(v):
+        raise DatasetError(f"{where}: {column} is not finite ({text!r})")
+    return v
+
+
+class DatasetSource:
+    """Read a dataset as :class:`FrameInput` objects, validating every row as it goes.
+
+    Images may be PNG or JPEG with any names; they are returned as HxWx3 uint8 RGB.
+    """
+
+    def __init__(self, folder: str | os.PathLike[str]) -> None:
+        self.folder = Path(folder)
+        self.meta = read_meta(folder)
+        self.frames_path = self.folder / "frames.csv"
+        if not self.frames_path.is_file():
+            raise DatasetError(f"{self.frames_path}: missing")
+        with open(self.frames_path, newline="", encoding="utf-8") as f:
+            header = next(csv.reader(f), None)
+        if header is None:
+            raise DatasetError(f"{self.frames_path}: empty (no header row)")
+        header = [h.strip() for h in header]
+        missing = [c for c in REQUIRED_COLUMNS if c not in header]
+        if missing:
+            raise DatasetError(f"{self.frames_path}: missing column(s) {', '.join(missing)}")
+        self.columns = header
+
+    def _rows(self) -> Iterator[_Row]:
+        with open(self.frames_path, newline="", encoding="utf-8") as f:
+            reader = csv.reader(f)
+            next(reader)
+            expected_index = 0
+            last_t = -math.inf
+            for lineno, cells in enumerate(reader, start=2):
+                where = f"{self.frames_path} row {lineno}"
+                if not cells or all(not c.strip() for c in cells):
+                    continue
+                if len(cells) < len(self.columns):
+                    raise DatasetError(f"{where}: truncated ({len(cells)} of "
+                                       f"{len(self.columns)} columns)")
+                rec = {c: cells[i].strip() for i, c in enumerate(self.columns)}
+                try:
+                    index = int(rec["index"])
+                except ValueError:
+                    raise DatasetError(f"{where}: index is not an integer "
+                                       f"({rec['index']!r})") from None
+                if index != expected_index:
+                    raise DatasetError(f"{where}: index {index}, expected {expected_index}")
+                expected_index += 1
+                t = _parse_float(rec["t"], "t", where)
+                if t <= last_t:
+                    raise DatasetError(f"{where}: t={t!r} does not increase")
+                last_t = t
+                if not rec["image"]:
+                    raise DatasetError(f"{where}: image is empty")
+                speed = _parse_float(rec["speed"], "speed", where)
+                yaw_rate = _parse_float(rec["yaw_rate"], "yaw_rate", where)
+                comp_text = rec.get("compass", "")
+                compass = _parse_float(comp_text, "compass", where) if comp_text else None
+                if compass is not None and not -math.pi - 1e-9 <= compass <= math.pi + 1e-9:
+                    raise DatasetError(f"{where}: compass {compass!r} is not in (-pi, pi]")
+                cells_truth = [rec.get(c, "") for c in ("x", "y", "theta")]
+                truth = None
+                if any(cells_truth):
+                    if not all(cells_truth):
+                        raise DatasetError(f"{where}: x, y, theta must be all given or all empty")
+                    truth = Pose(*(_parse_float(v, c, where)
+                                   for v, c in zip(cells_truth, ("x", "y", "theta"), strict=True)))
+                yield _Row(lineno, index, t, rec["image"], speed, yaw_rate, compass, truth)
+
+    def load_image(self, name: str, where: str) -> np.ndarray:
+        """Read one image as HxWx3 RGB uint8; errors name the row and the file."""
+        path = (self.folder / name)
+        if not path.is_file():
+            raise DatasetError(f"{where}: image {name!r} is missing")
+        data = np.fromfile(path, dtype=np.uint8)
+        image = cv2.imdecode(data, cv2.IMREAD_COLOR) if data.size else None
+        if image is None:
+            raise DatasetError(f"{where}: image {name!r} is not a readable PNG/JPEG")
+        h, w = image.shape[:2]
+        if (w, h) != (self.meta.image_width, self.meta.image_height):
+            raise DatasetError(f"{where}: image {name!r} is {w}x{h}, meta.json says "
+                               f"{self.meta.image_width}x{self.meta.image_height}")
+        return image[:, :, ::-1]
+
+    def __iter__(self) -> Iterator[FrameInput]:
+        rows = self._rows()
+        current = next(rows, None)
+        while current is not None:
+            nxt = next(rows, None)
+            dt = (nxt.t - current.t) if nxt is not None else self.meta.dt
+            where = f"{self.frames_path} row {current.line}"
+            image = self.load_image(current.image, where)
+            yield FrameInput(
+                index=current.index,
+                t=current.t,
+                image=np.ascontiguousarray(image),
+                odometry=Odometry(current.speed, current.yaw_rate, dt) if nxt is not None else None,
+                compass=current.compass,
+                truth=current.truth,
+                image_name=current.image,
+            )
+            current = nxt
+
+
+class CsvOut:
+    """A CSV file written row by row and flushed after every row (rows already written stay
+    valid if the run stops)."""
+
+    def __init__(self, path: str | os.PathLike[str], columns: tuple[str, ...]) -> None:
+        p = Path(path)
+        if p.parent and not p.parent.exists():
+            raise OSError(f"{p.parent}: output directory does not exist")
+        self._file: IO[str] = open(p, "w", newline="", encoding="utf-8")  # noqa: SIM115
+        self._csv = csv.writer(self._file)
+        self._csv.writerow(columns)
+        self._file.flush()
+
+    def row(self, values: list[Any]) -> None:
+        self._csv.writerow(values)
+        self._file.flush()
+
+    def close(self) -> None:
+        self._file.close()
+
+
+def replay_row(rec: FrameRecord) -> list[Any]:
+    """One row of the replay output (dataset-format.md, 'Replay output')."""
+    hull = rec.updated.hull()
+    if hull is None:
+        bounds = ["nan"] * 6
+    else:
+        bounds = [_num(v) for v in hull.as_tuple()]
+    return [rec.index, _num(rec.t), rec.status, *bounds, len(rec.updated)]
+
+
+def residual_row(rec: FrameRecord) -> list[Any]:
+    """One row of the ``--output-file`` CSV: the six equivalence residuals (empty when there is
+    no observation or no truth)."""
+    r = rec.residuals
+    return [rec.index, _num(rec.t), *([_num(v) for v in r] if r is not None else [""] * 6)]
