@@ -199,8 +199,9 @@ class SimConfig:
     """Wheel speed saturation, m/s."""
     wheel_base: float = 0.4
     """Distance between the wheels, metres."""
-    initial_pose: tuple[float, float, float] = (0.0, 4.0, math.pi)
-    """Pose at t = 0 (x, y, theta); the default is the Lissajous start."""
+    initial_pose: tuple[float, float, float] = (0.0, 0.0, math.atan2(-2.0, -1.0))
+    """Pose at t = 0 (x, y, theta); the default is the Lissajous start (the curve passes through
+    the origin at t = 0 heading along (-1, -2))."""
     initial_pose_error: tuple[float, float, float] = (0.05, 0.05, 0.02)
     """The true start lies within initial_pose +- these (m, m, rad)."""
 
@@ -292,7 +293,7 @@ def preset(name: str) -> Config:
                 lissajous_amplitude=10.0,
                 lissajous_omega=0.01,
                 room_half_size=12.0,
-                initial_pose=(0.0, 10.0, math.pi),
+                initial_pose=(0.0, 0.0, math.atan2(-2.0, -1.0)),
             ),
         )
     raise ValueError(f"unknown preset {name!r}; choose 'default' or 'seed'")
