@@ -101,7 +101,9 @@ def test_kidnap_teleports_and_the_odometry_does_not_know() -> None:
     src = _src()
     before = _take(src, 30)
     src.kidnap(2.5, -1.0, 0.3)
-    after = _take(src, 40)
+    labelled = _take_steps(src, 40)
+    assert [faults for _, _, faults in labelled[:2]] == [("kidnap",), ()]
+    after = [f for f, _, _ in labelled]
     assert after[0].truth == Pose(2.5, -1.0, 0.3)
     assert after[0].index == before[-1].index + 1
     assert not _inside(before[-1], after[0], src.cfg.noise)  # the jump is not in the odometry

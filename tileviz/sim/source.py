@@ -103,7 +103,8 @@ class SimSource:
         init_ss, sensor_ss, image_ss, fault_ss = np.random.SeedSequence(s.seed).spawn(4)
         rng0 = np.random.default_rng(init_ss)
         err = np.asarray(s.initial_pose_error, dtype=float)
-        start = np.asarray(s.initial_pose, dtype=float) + rng0.uniform(-1.0, 1.0, 3) * err
+        # strictly inside the declared error, so rounding never puts the truth outside the box
+        start = np.asarray(s.initial_pose, dtype=float) + rng0.uniform(-0.999, 0.999, 3) * err
         self.world = World(s, pose=Pose(*(float(v) for v in start)), substeps=self.substeps)
         self.controller = Controller(s.wheel_base, s.max_wheel_speed, self.gains)
         self.sensors = Sensors(cfg.noise, np.random.default_rng(sensor_ss))
@@ -111,17 +112,20 @@ class SimSource:
         self._fault_rng = np.random.default_rng(fault_ss)
         if self._renderer_given is not None:
             self.renderer: Renderer = self._renderer_given
-        else:
+        elif getattr(self, "_rendered_for", None) != (cfg.floor, cfg.camera):
             from tileviz.sim.camera import FloorRenderer  # lazy: it pulls OpenCV in
 
             self.renderer = FloorRenderer(cfg.floor, cfg.camera)
+            self._rendered_for = (cfg.floor, cfg.camera)
         self.index = 0
         """Index of the next frame ``next()`` returns."""
         self.faults: list[ActiveFault] = []
         self.last_step: StepTruth | None = None
         """The true motion of the last frame returned (pose k to k+1)."""
         self.last_faults: tuple[str, ...] = ()
-        """Fault kinds active on the last frame returned."""
+        """Fault kinds active on the last frame returned (``kidnap`` on the first frame at the
+        teleported pose)."""
+        self._labels: list[str] = []
         self.setpoint: Setpoint = self._build_setpoint()
 
     def _build_setpoint(self) -> Setpoint:
@@ -149,7 +153,8 @@ class SimSource:
         step = self.world.step()
         odometry = self.sensors.odometry(step, self._odometry_fault(step))
         self.last_step = step
-        self.last_faults = tuple(f.kind for f in self.faults)
+        self.last_faults = tuple(self._labels) + tuple(f.kind for f in self.faults)
+        self._labels = []
         for f in self.faults:
             f.remaining -= 1
         self.faults = [f for f in self.faults if f.remaining > 0]
@@ -229,6 +234,7 @@ class SimSource:
                     _check_finite("kidnap theta", theta))
         self.world.teleport(pose)
         self.controller.reset()
+        self._labels.append("kidnap")
 
     def reset(self, seed: int | None = None, cfg: Config | None = None) -> None:
         """Start again at frame 0 (same seed unless ``seed``; new config if ``cfg``). The current
