@@ -3,7 +3,6 @@ frames (setpoints, kidnap, reset, noise, faults)."""
 
 from __future__ import annotations
 
-import importlib.util
 import itertools
 import math
 from dataclasses import replace
@@ -211,6 +210,8 @@ def test_bad_commands_raise_one_clear_error() -> None:
         src.inject("slip", speeed=1.0)
     with pytest.raises(ValueError, match="slip speed"):
         src.inject("slip", speed=-1.0)
+    with pytest.raises(ValueError, match="unknown fault 'earthquake'"):
+        src.inject("earthquake")
     with pytest.raises(ValueError, match="kidnap needs theta"):
         src.inject("kidnap", x=0.0, y=0.0)
     with pytest.raises(ValueError, match="seed"):
@@ -221,8 +222,6 @@ def test_bad_commands_raise_one_clear_error() -> None:
     assert len(_take(src, 3)) == 3
 
 
-@pytest.mark.skipif(importlib.util.find_spec("tileviz.sim.camera") is None,
-                    reason="tileviz.sim.camera (vision helper) not written yet")
 def test_default_renderer_draws_the_floor_at_the_true_pose() -> None:
     cfg = _cfg()
     src = SimSource(cfg)
@@ -231,3 +230,15 @@ def test_default_renderer_draws_the_floor_at_the_true_pose() -> None:
     assert img.shape == (cfg.camera.height, cfg.camera.width, 3) and img.dtype == np.uint8
     assert img.std() > 1.0  # not blank
     assert not np.array_equal(frames[0].image, frames[-1].image)  # it moved
+    # the image is the floor at the true pose (same render without noise, same pose)
+    quiet = replace(cfg, camera=replace(cfg.camera, noise_sigma=0.0))
+    src = SimSource(quiet)
+    f = next(src)
+    assert np.array_equal(f.image, src.renderer.render(f.truth))
+    # a camera dropout of 3 frames: uniform frames, then the floor again
+    src.inject("dropout", frames=3)
+    drop = _take(src, 4)
+    assert all(fr.image.std() == 0 for fr in drop[:3]) and drop[3].image.std() > 1.0
+    with pytest.raises(ValueError, match="glare"):
+        src.inject("glare", radius=-5.0)
+    assert next(src).image.std() > 1.0  # refused at injection, the run goes on

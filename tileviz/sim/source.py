@@ -262,8 +262,10 @@ class SimSource:
         - ``odometry_outlier`` (default 1 frame): readings off by +-``speed`` (default 0.5 m/s)
           and +-``yaw_rate`` (default 0.5 rad/s), random signs.
         - ``kidnap``: same as :meth:`kidnap` with ``x``, ``y``, ``theta``.
-        - any other kind is a camera fault handed to the renderer as ``faults=[(kind, params)]``
-          for ``frames`` frames (default 1).
+        - a camera fault of ``tileviz.sim.camera.FAULT_KINDS`` (cable, box, shadow, glare,
+          motion_blur, dropout) is handed to the renderer as ``faults=[(kind, params)]`` for
+          ``frames`` frames (default 1); parameters left out are drawn anew every frame from the
+          image noise stream. A 2 s dropout at 20 Hz: ``inject("dropout", frames=40)``.
         """
         if kind == "kidnap":
             missing = [k for k in ("x", "y", "theta") if k not in params]
@@ -280,7 +282,7 @@ class SimSource:
         if int(n) != n or n < 1:
             raise ValueError(f"fault frames must be an integer >= 1, got {frames!r}")
         if kind not in defaults:
-            # a camera fault: the renderer checks its own parameters
+            self._check_camera_fault(kind, params)
             self.faults.append(ActiveFault(kind, int(n), dict(params)))
             return
         values = dict(defaults[kind])
@@ -291,6 +293,18 @@ class SimSource:
             if values[name] < 0:
                 raise ValueError(f"{kind} {name} must be >= 0, got {v!r}")
         self.faults.append(ActiveFault(kind, int(n), values))
+
+    def _check_camera_fault(self, kind: str, params: dict[str, Any]) -> None:
+        """Refuse a bad camera fault now, not on every frame it would last."""
+        from tileviz.sim.camera import FAULT_KINDS, FloorRenderer
+
+        if kind not in FAULT_KINDS:
+            raise ValueError(
+                f"unknown fault {kind!r} (choose from kidnap, {', '.join(ODOMETRY_FAULTS)}, "
+                f"{', '.join(FAULT_KINDS)})")
+        if isinstance(self.renderer, FloorRenderer):
+            # a dry run without noise: the renderer names any bad parameter
+            self.renderer.render(self.world.pose, rng=None, faults=[(kind, dict(params))])
 
     def clear_faults(self) -> None:
         """Stop every fault in progress."""
