@@ -201,3 +201,15 @@ def test_writer_refuses_non_empty_folder(tmp_path: Path) -> None:
     with pytest.raises(ValueError, match="exists and is not empty"):
         DatasetWriter(tmp_path / "x", DatasetMeta.from_config(Config()))
     assert (tmp_path / "x" / "keep.txt").read_text() == "precious"
+
+
+def test_fault_labels_round_trip(tmp_path: Path) -> None:
+    meta = DatasetMeta.from_config(Config())
+    meta = DatasetMeta(**{**meta.__dict__, "image_width": W, "image_height": H})
+    img = np.zeros((H, W, 3), np.uint8)
+    with DatasetWriter(tmp_path / "f", meta) as w:
+        for k, faults in enumerate([(), ("slip",), (), ("cable", "glare")]):
+            w.write(FrameInput(index=k, t=0.1 * k, image=img, odometry=Odometry(0, 0, 0.1),
+                               compass=None, faults=faults))
+    back = list(DatasetSource(tmp_path / "f"))
+    assert [f.faults for f in back] == [(), ("slip",), (), ("cable", "glare")]

@@ -37,6 +37,8 @@ REPLAY_COLUMNS = (
     "index", "t", "status", "x_lo", "x_hi", "y_lo", "y_hi", "theta_lo", "theta_hi", "boxes",
 )
 RESIDUAL_COLUMNS = ("index", "t", "r1", "r2", "r3", "r4", "r5", "r6")
+FAULTS_FILE = "faults.csv"
+"""Optional tileviz extension: ``index,faults`` with ``;``-separated labels of injected faults."""
 
 
 class DatasetError(ValueError):
@@ -251,6 +253,7 @@ class DatasetWriter:
         self._csv = csv.writer(self._file)
         self._csv.writerow(FRAME_COLUMNS)
         self._file.flush()
+        self._faults_file: IO[str] | None = None
         self.count = 0
 
     def write(self, frame: FrameInput | FrameRecord) -> None:
@@ -274,12 +277,28 @@ class DatasetWriter:
             *((_num(truth.x), _num(truth.y), _num(truth.theta)) if truth else ("", "", "")),
         ])
         self._file.flush()
+        faults = getattr(frame, "faults", ())
+        if faults:
+            self._write_faults(faults)
         self.count += 1
+
+    def _write_faults(self, faults: tuple[str, ...]) -> None:
+        """``faults.csv`` (a tileviz extension other readers may ignore): index, labels."""
+        if self._faults_file is None:
+            self._faults_file = open(  # noqa: SIM115 - closed in close()
+                self.folder / FAULTS_FILE, "w", newline="", encoding="utf-8"
+            )
+            self._faults_file.write("index,faults\n")
+        self._faults_file.write(f"{self.count},{';'.join(faults)}\n")
+        self._faults_file.flush()
 
     def close(self) -> None:
         if self._file is not None:
             self._file.close()
             self._file = None
+        if self._faults_file is not None:
+            self._faults_file.close()
+            self._faults_file = None
 
     def __enter__(self) -> DatasetWriter:
         return self
@@ -331,6 +350,22 @@ class DatasetSource:
         if missing:
             raise DatasetError(f"{self.frames_path}: missing column(s) {', '.join(missing)}")
         self.columns = header
+        self.faults = self._read_faults()
+
+    def _read_faults(self) -> dict[int, tuple[str, ...]]:
+        path = self.folder / FAULTS_FILE
+        if not path.is_file():
+            return {}
+        out: dict[int, tuple[str, ...]] = {}
+        with open(path, newline="", encoding="utf-8") as f:
+            for lineno, cells in enumerate(csv.reader(f), start=1):
+                if lineno == 1 or not cells:
+                    continue
+                try:
+                    out[int(cells[0])] = tuple(x for x in cells[1].split(";") if x)
+                except (ValueError, IndexError):
+                    raise DatasetError(f"{path} row {lineno}: expected 'index,labels'") from None
+        return out
 
     def _rows(self) -> Iterator[_Row]:
         with open(self.frames_path, newline="", encoding="utf-8") as f:
@@ -406,6 +441,7 @@ class DatasetSource:
                 compass=current.compass,
                 truth=current.truth,
                 image_name=current.image,
+                faults=self.faults.get(current.index, ()),
             )
             current = nxt
 

@@ -150,6 +150,8 @@ class FrameInput:
     from frame k to k+1 (None on the last frame or when unknown). ``compass``: heading measured at
     frame k, rad, wrapped to (-pi, pi], or None. ``truth``: the true pose k when known.
     ``setpoint``: the controller's target (x, y) in metres, for display, or None.
+    ``faults``: labels of the faults injected at this frame (simulation only, e.g. ``slip``,
+    ``cable``, ``kidnap``), for evaluation; recorded in a dataset's optional ``faults.csv``.
     """
 
     index: int
@@ -160,3 +162,4 @@ class FrameInput:
     truth: Pose | None = None
     setpoint: tuple[float, float] | None = None
     image_name: str = ""
+    faults: tuple[str, ...] = ()

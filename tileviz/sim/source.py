@@ -167,6 +167,7 @@ class SimSource:
             compass=compass,
             truth=pose,
             setpoint=(target.x, target.y),
+            faults=self.last_faults,
         )
 
     def _render(self, pose: Pose, camera_faults: list[ActiveFault]) -> np.ndarray:
