@@ -1,0 +1,218 @@
+"""Benchmark: predict + contract of one box per frame, ours against codac 2.
+
+Usage: ``python bench/bench_localizer.py [--frames N] [--repeats R]``
+
+For each scenario (the ``default`` and ``seed`` presets' tile size, lever arm and bounds; mode
+``autonomous``, i.e. tracking, and mode ``truth``, where every frame starts from the truth
++- (0.3 m, 0.3 m, 0.2 rad), report 7.1) a robot drives a smooth curve; its sensors read within
+their bounds (uniform, 90 % of each bound). Per frame we time:
+
+- ``ours step``: ``Localizer.step`` (validation, prediction, compass, contraction over the four
+  branches, box-set housekeeping, the frozen result objects) -- what the runner calls;
+- ``ours core``: the same maths on plain tuples (``predict_box``, ``compass_pieces``,
+  ``contract_box``);
+- codac: the contraction alone of the same predicted boxes (recorded from our run) by the union
+  (``CtcUnion``) over the four branches of ``CtcInverse`` of the sin constraints
+  (``tests/codac_oracle_worker.py``), single pass and to a fixpoint, with and without the
+  centered form. codac runs in its own process (it switches its process to upward rounding).
+
+Timings are the best of ``--repeats`` runs over all frames. Also printed: statuses, the number of
+contraction passes per frame, and whether the truth stayed in the set.
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import json
+import math
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from tileviz.config import Config, preset, with_overrides  # noqa: E402
+from tileviz.intervals import TWO_PI  # noqa: E402
+from tileviz.localizer import (  # noqa: E402
+    Localizer,
+    compass_pieces,
+    contract_box,
+    lever_enclosure,
+    observation_windows,
+    predict_box,
+)
+from tileviz.tiles import observe  # noqa: E402
+from tileviz.types import Box, Observation, Odometry, Pose, SensorBounds  # noqa: E402
+
+WORKER = Path(__file__).resolve().parents[1] / "tests" / "codac_oracle_worker.py"
+
+
+def initial_box(cfg: Config) -> Box:
+    """The initial pose +- its declared error (as the runner builds it)."""
+    (x, y, th), (ex, ey, et) = cfg.sim.initial_pose, cfg.sim.initial_pose_error
+    return Box(x - ex, x + ex, y - ey, y + ey, th - et, th + et)
+
+
+def _drive(p: Pose, v: float, w: float, h: float) -> Pose:
+    """The unicycle's exact arc over h seconds: a chord of length v h sinc(w h / 2) along the
+    mid-step heading (np.sinc(u) = sin(pi u) / (pi u))."""
+    chord = v * h * float(np.sinc(w * h / (2 * math.pi)))
+    mid = p.theta + 0.5 * w * h
+    return Pose(p.x + chord * math.cos(mid), p.y + chord * math.sin(mid), p.theta + w * h)
+
+
+def make_run(cfg: Config, frames: int, seed: int) -> list[dict]:
+    """A drive and its sensor readings: per frame the odometry of the previous step, the compass,
+    the observation, the truth."""
+    rng = np.random.default_rng(seed)
+    dt = cfg.sim.dt
+    L = cfg.floor.tile_size
+    off = cfg.camera.offset
+    nz = cfg.noise
+    e = cfg.position_error
+    e3 = cfg.vision.heading_error
+    pose = Pose(*cfg.sim.initial_pose)
+    out = []
+    odo = None
+    for k in range(frames):
+        y1, y2, y3 = observe(pose, L, off)
+        u = rng.uniform(-0.9, 0.9, 6)
+        out.append({
+            "odometry": odo,
+            "compass": math.remainder(pose.theta + u[0] * nz.compass_error, TWO_PI),
+            "observation": Observation(y1 + u[1] * e, y2 + u[2] * e, y3 + u[3] * e3, e, e3),
+            "truth": pose,
+        })
+        v = 0.5 + 0.3 * math.sin(0.07 * k)
+        w = 0.6 * math.sin(0.013 * k)
+        for _ in range(10):
+            pose = _drive(pose, v, w, dt / 10)
+        odo = Odometry(v + u[4] * nz.speed_error, w + u[5] * nz.yaw_rate_error, dt)
+    return out
+
+
+def run_ours(cfg: Config, run: list[dict]) -> tuple[list[tuple], dict]:
+    """One pass through the run with the Localizer; returns the predicted boxes and stats."""
+    bounds = SensorBounds(cfg.noise.speed_error, cfg.noise.yaw_rate_error, cfg.noise.compass_error)
+    loc = Localizer(tile_size=cfg.floor.tile_size, camera_offset=cfg.camera.offset, bounds=bounds,
+                    config=cfg.localizer, initial=initial_box(cfg))
+    predicted = []
+    statuses: collections.Counter[str] = collections.Counter()
+    passes: collections.Counter[int] = collections.Counter()
+    inside = boxes_max = 0
+    for f in run:
+        step = loc.step(f["odometry"], f["compass"], f["observation"], f["truth"])
+        predicted.append(step.predicted.hull().as_tuple())
+        statuses[step.status] += 1
+        passes[step.passes] += 1
+        inside += step.updated.contains(*f["truth"].as_tuple())
+        boxes_max = max(boxes_max, len(step.updated))
+    return predicted, {"statuses": dict(statuses), "passes": dict(sorted(passes.items())),
+                       "truth_inside": inside, "frames": len(run), "max_boxes": boxes_max}
+
+
+def time_step(cfg: Config, run: list[dict], repeats: int) -> float:
+    bounds = SensorBounds(cfg.noise.speed_error, cfg.noise.yaw_rate_error, cfg.noise.compass_error)
+    best = math.inf
+    args = [(f["odometry"], f["compass"], f["observation"], f["truth"]) for f in run]
+    for _ in range(repeats):
+        loc = Localizer(tile_size=cfg.floor.tile_size, camera_offset=cfg.camera.offset,
+                        bounds=bounds, config=cfg.localizer, initial=initial_box(cfg))
+        step = loc.step
+        t0 = time.perf_counter()
+        for a in args:
+            step(*a)
+        best = min(best, time.perf_counter() - t0)
+    return best / len(run) * 1e6
+
+
+def time_core(cfg: Config, run: list[dict], repeats: int) -> float:
+    """The maths alone on tuples, one box carried frame to frame (the hull of the result)."""
+    L = cfg.floor.tile_size
+    lever = lever_enclosure(cfg.camera.offset)
+    nz = cfg.noise
+    n = cfg.localizer.passes
+    cap = cfg.localizer.max_boxes
+    prepared = []
+    for f in run:
+        o = f["odometry"]
+        odo = None if o is None else (o.speed - nz.speed_error, o.speed + nz.speed_error,
+                                      o.yaw_rate - nz.yaw_rate_error,
+                                      o.yaw_rate + nz.yaw_rate_error, o.dt)
+        c = f["compass"]
+        tbox = None
+        if cfg.localizer.mode == "truth":
+            p = f["truth"]
+            ix, iy, it = cfg.localizer.truth_inflation
+            tbox = (p.x - ix, p.x + ix, p.y - iy, p.y + iy, p.theta - it, p.theta + it)
+        prepared.append((odo, c - nz.compass_error, c + nz.compass_error, f["observation"], tbox))
+    best = math.inf
+    for _ in range(repeats):
+        box = initial_box(cfg).as_tuple()
+        t0 = time.perf_counter()
+        for odo, c_lo, c_hi, obs, tbox in prepared:
+            if tbox is not None:
+                box = tbox
+            elif odo is not None:
+                box = predict_box(box, *odo)
+            cut = compass_pieces(box, c_lo, c_hi)
+            if cut:
+                box = cut[0]
+            got, _, _ = contract_box(box, observation_windows(obs), L, lever, n, cap)
+            if got:
+                box = (min(b[0] for b in got), max(b[1] for b in got), min(b[2] for b in got),
+                       max(b[3] for b in got), min(b[4] for b in got), max(b[5] for b in got))
+        best = min(best, time.perf_counter() - t0)
+    return best / len(run) * 1e6
+
+
+def time_codac(cfg: Config, run: list[dict], predicted: list[tuple], repeats: int) -> dict:
+    off = cfg.camera.offset
+    boxes = []
+    for f, b in zip(run, predicted, strict=True):
+        w = observation_windows(f["observation"])[0]
+        boxes.append([[b[0], b[1]], [b[2], b[3]], [b[4], b[5]],
+                      [w[0], w[1]], [w[2], w[3]], [w[4], w[5]]])
+    spec = {"task": "bench", "L": cfg.floor.tile_size, "rho": math.hypot(*off),
+            "phi": math.atan2(off[1], off[0]), "boxes": boxes, "repeats": repeats}
+    r = subprocess.run([sys.executable, str(WORKER)], input=json.dumps(spec),
+                       capture_output=True, text=True, timeout=900)
+    if r.returncode != 0:
+        raise SystemExit(f"codac worker failed: {r.stderr.strip()}")
+    return json.loads(r.stdout)
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--frames", type=int, default=2000)
+    ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--seed", type=int, default=7)
+    args = ap.parse_args()
+    for name, mode in (("default", "autonomous"), ("seed", "autonomous"),
+                       ("default", "truth"), ("seed", "truth")):
+        cfg = with_overrides(preset(name), localizer={"mode": mode})
+        run = make_run(cfg, args.frames, args.seed)
+        predicted, stats = run_ours(cfg, run)
+        step_us = time_step(cfg, run, args.repeats)
+        core_us = time_core(cfg, run, args.repeats)
+        codac = time_codac(cfg, run, predicted, args.repeats)
+        print(f"== {name} preset, mode {mode}: L={cfg.floor.tile_size} m, "
+              f"camera offset {cfg.camera.offset} m, "
+              f"{args.frames} frames, best of {args.repeats}")
+        print(f"   statuses {stats['statuses']}, passes/frame {stats['passes']}, "
+              f"truth inside {stats['truth_inside']}/{stats['frames']}, "
+              f"max boxes {stats['max_boxes']}")
+        print(f"   ours step (Localizer.step: predict+compass+contract): {step_us:7.1f} us/frame")
+        print(f"   ours core (tuples: predict+compass+contract):         {core_us:7.1f} us/frame")
+        for variant, us in codac["us_per_box"].items():
+            print(f"   codac {variant:<28s} (contract only): {us:7.1f} us/frame   "
+                  f"ours step / codac = {step_us / us:4.2f}   core / codac = {core_us / us:4.2f}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,744 @@
+"""The guaranteed interval localizer: a set of robot poses kept as a few disjoint boxes.
+
+Each frame: predict the set with the bounded odometry, intersect its heading with the compass,
+then contract it with the tile observation (design.md). Frames and units as in
+``shared/dataset-format.md``: metres, radians, heading continuous (not wrapped).
+
+What is guaranteed, and when
+----------------------------
+Hypotheses: (H1) the initial box (and every box given to :meth:`Localizer.reset`) contains the
+true pose; (H2) over every step the true speed and yaw rate stay within ``speed_error`` and
+``yaw_rate_error`` of the measured ones (they may vary within the bounds); ``odometry=None`` is
+passed only when the robot did not move since the previous step (frame 0, after a reset);
+(H3) every compass reading is within ``compass_error`` of the true heading, modulo 2 pi; (H4) every
+observation that the localizer *uses* is within its declared ``position_error`` /
+``heading_error`` of the exact observation of the true pose (``tiles.observe``, modulo L and
+modulo the quarter turns of design.md).
+
+Then, at every frame whose status is not ``lost``, the true pose is inside ``predicted`` and
+inside ``updated`` (heading modulo 2 pi). All bounds are outward rounded, so this holds for the
+real numbers, not only up to rounding.
+
+Statuses (dataset-format.md):
+
+- ``contracted``: an observation was used and the contracted set is non-empty.
+- ``predicted``: no observation (or mode ``odometry``): the prediction is kept.
+- ``rejected``: the contraction with the observation is empty, so the observation cannot satisfy
+  H4 if H1-H3 hold: it is judged an outlier, not used, and the prediction is kept. A rejected view
+  never weakens the guarantee. (An outlier that happens to be consistent with the set *is* used and
+  can break H4 without being noticed: that is the method's residual risk.)
+- ``lost``: ``max_rejections`` consecutive rejections (frames without an observation neither
+  count nor reset the streak; a successful contraction resets it). So many inconsistent views mean
+  H1-H3 probably failed (a kidnap, a wheel slip beyond the bounds): the method no longer vouches for
+  its set. It keeps predicting and outputs the hull of the prediction as one box, ignores views
+  (with a periodic floor any view fits a wide enough set, so a contraction would only look
+  confident), and stays ``lost`` until :meth:`Localizer.reset`.
+
+A compass reading that misses the predicted set entirely (H1-H3 cannot all hold) is ignored for
+that frame and flagged in ``LocalizerStep.compass_rejected``.
+
+Modes (``LocalizerConfig.mode``): ``autonomous``; ``truth`` (report 7.1: every frame the set is
+reset to the true pose inflated by ``truth_inflation``, then the compass and the view contract it;
+never ``lost``); ``odometry`` (prediction and compass only, views ignored, status ``predicted``).
+
+The hot path works on plain 6-tuples ``(x_lo, x_hi, y_lo, y_hi, t_lo, t_hi)``; the public API
+speaks :class:`tileviz.types.Box` / :class:`tileviz.types.BoxSet`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from tileviz.config import LocalizerConfig
+from tileviz.intervals import (
+    HALF_PI,
+    HALF_PI_ERROR,
+    HALF_PI_HI,
+    HALF_PI_LO,
+    TWO_PI,
+    TWO_PI_ERROR,
+    acos_preimage,
+    asin_preimage,
+    cos_range,
+    lattice_hull,
+    lattice_intersect,
+    lattice_pieces_indexed,
+    mul,
+    sin_range,
+)
+from tileviz.types import Box, BoxSet, Observation, Odometry, Pose, SensorBounds
+
+__all__ = [
+    "Lever",
+    "Localizer",
+    "LocalizerStep",
+    "Tuple6",
+    "compass_pieces",
+    "contract_box",
+    "contract_branch",
+    "lever_enclosure",
+    "observation_windows",
+    "predict_box",
+]
+
+Tuple6 = tuple[float, float, float, float, float, float]
+"""A box as (x_lo, x_hi, y_lo, y_hi, t_lo, t_hi): metres, metres, radians (continuous)."""
+Lever = tuple[float, float, float, float]
+"""Enclosures (rho_lo, rho_hi, phi_lo, phi_hi) of the lever arm in polar form: forward * cos t -
+left * sin t = rho cos(t + phi) and forward * sin t + left * cos t = rho sin(t + phi)."""
+Window = tuple[float, float, float, float, float, float]
+"""Per rotation branch m: (u1_lo, u1_hi, u2_lo, u2_hi, h_lo, h_hi) with
+[u] = R(m pi/2)([y1 +- e], [y2 +- e]) and [h] = [y3 +- e3] + m pi/2."""
+
+_INF = math.inf
+_nextafter = math.nextafter
+FIXPOINT_TOL = 1e-12
+"""A contraction pass that moves the heading bounds by less than this (rad, in total) ends the
+fixpoint iteration."""
+
+_QUARTER_LO = (0.0, HALF_PI_LO, _nextafter(2.0 * HALF_PI_LO, -_INF),
+               _nextafter(3.0 * HALF_PI_LO, -_INF))
+_QUARTER_HI = (0.0, HALF_PI_HI, _nextafter(2.0 * HALF_PI_HI, _INF),
+               _nextafter(3.0 * HALF_PI_HI, _INF))
+"""Rigorous bounds of m pi/2, m = 0..3."""
+
+
+@dataclass(frozen=True)
+class LocalizerStep:
+    """What one :meth:`Localizer.step` did.
+
+    ``predicted``: the set after prediction and compass (before the view). ``updated``: the set
+    after this frame's update. ``status``: see the module docstring. ``passes``: the largest
+    number of contraction passes run on one cell (0 when nothing was contracted). ``hulled``: the
+    box cap (or a lattice split too fine to keep) replaced some set by its hull this frame.
+    ``compass_rejected``: the compass reading missed the predicted set and was ignored.
+    ``rejections``: the current streak of consecutive rejected views.
+    """
+
+    predicted: BoxSet
+    updated: BoxSet
+    status: str
+    passes: int
+    hulled: bool = False
+    compass_rejected: bool = False
+    rejections: int = 0
+
+
+# --- validation ---------------------------------------------------------------------------------
+
+
+def _finite(name: str, v: object) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+        raise ValueError(f"{name} must be a finite number, got {v!r}")
+    return float(v)
+
+
+def _nonneg(name: str, v: object) -> float:
+    f = _finite(name, v)
+    if f < 0:
+        raise ValueError(f"{name} must be >= 0, got {v!r}")
+    return f
+
+
+_isfinite = math.isfinite
+
+
+def _all_finite(*values: object) -> bool:
+    """True when every value is a finite number (False for NaN, inf and non-numbers)."""
+    try:
+        for v in values:
+            if not _isfinite(v):  # type: ignore[arg-type]
+                return False
+    except TypeError:
+        return False
+    return True
+
+
+def _check_box(name: str, box: Box) -> Tuple6:
+    if not isinstance(box, Box):
+        raise ValueError(f"{name} must be a Box, got {type(box).__name__}")
+    t = tuple(_finite(f"{name}.{k}", getattr(box, k)) for k in
+              ("x_lo", "x_hi", "y_lo", "y_hi", "t_lo", "t_hi"))
+    for axis, (lo, hi) in zip("xyt", (t[0:2], t[2:4], t[4:6]), strict=True):
+        if lo > hi:
+            raise ValueError(f"{name} is empty: {axis}_lo = {lo} > {axis}_hi = {hi}")
+    return t  # type: ignore[return-value]
+
+
+# --- building blocks on 6-tuples ----------------------------------------------------------------
+
+
+def lever_enclosure(offset: tuple[float, float]) -> Lever | None:
+    """Rigorous (rho, phi) enclosures of the camera lever arm (forward, left), or None when the
+    camera sits on the robot point. rho = hypot(f, l) (< 1 ulp), phi = atan2(l, f) (a few ulp)."""
+    f, left = offset
+    if f == 0.0 and left == 0.0:
+        return None
+    if left == 0.0 and f > 0.0:
+        return (f, f, 0.0, 0.0)
+    rho = math.hypot(f, left)
+    phi = math.atan2(left, f)
+    rho_lo = _nextafter(_nextafter(rho, -_INF), -_INF)
+    rho_hi = _nextafter(_nextafter(rho, _INF), _INF)
+    dphi = 4.0 * math.ulp(phi)
+    return (rho_lo, rho_hi, _nextafter(phi - dphi, -_INF), _nextafter(phi + dphi, _INF))
+
+
+def predict_box(
+    b: Tuple6, v_lo: float, v_hi: float, w_lo: float, w_hi: float, dt: float
+) -> Tuple6:
+    """Enclosure of every pose reachable from box ``b`` in ``dt`` s (design.md, "Prediction").
+
+    The true speed v(s) in [v_lo, v_hi] (m/s) and yaw rate w(s) in [w_lo, w_hi] (rad/s) may vary
+    over the step. The heading theta(s) = theta0 + int_0^s w stays in
+    H = hull([t], [t] + dt [w]); the displacement int_0^dt v(s) (cos, sin)(theta(s)) ds lies in
+    dt * hull{v cos h : v in [v], h in H} (resp. sin) because the integrand never leaves that
+    interval; the final heading is in [t] + dt [w]. Every bound is outward rounded.
+    """
+    x_lo, x_hi, y_lo, y_hi, t_lo, t_hi = b
+    n = _nextafter
+    tn_lo = n(t_lo + n(dt * w_lo, -_INF), -_INF)
+    tn_hi = n(t_hi + n(dt * w_hi, _INF), _INF)
+    h_lo = t_lo if t_lo < tn_lo else tn_lo
+    h_hi = t_hi if t_hi > tn_hi else tn_hi
+    c_lo, c_hi = cos_range(h_lo, h_hi)
+    s_lo, s_hi = sin_range(h_lo, h_hi)
+    d_lo = n(dt * v_lo, -_INF)
+    d_hi = n(dt * v_hi, _INF)
+    dx_lo, dx_hi = mul(d_lo, d_hi, c_lo, c_hi)
+    dy_lo, dy_hi = mul(d_lo, d_hi, s_lo, s_hi)
+    return (
+        n(x_lo + dx_lo, -_INF),
+        n(x_hi + dx_hi, _INF),
+        n(y_lo + dy_lo, -_INF),
+        n(y_hi + dy_hi, _INF),
+        tn_lo,
+        tn_hi,
+    )
+
+
+def compass_pieces(b: Tuple6, h_lo: float, h_hi: float) -> list[Tuple6]:
+    """Box ``b`` with its heading intersected with [h_lo, h_hi] + 2 pi Z (the compass reading
+    +- its bound, any 2 pi shift): zero, one or (for a wide heading) several boxes."""
+    return [
+        (b[0], b[1], b[2], b[3], lo, hi)
+        for lo, hi in lattice_intersect(b[4], b[5], h_lo, h_hi, TWO_PI, period_error=TWO_PI_ERROR)
+    ]
+
+
+def observation_windows(obs: Observation) -> tuple[Window, Window, Window, Window]:
+    """The four rotation branches of an observation (design.md, corrected Theorem 1):
+    for m = 0..3, [u] = R(m pi/2) ([y1 +- e], [y2 +- e]) and [h] = [y3 +- e3] + m pi/2, so the pose
+    is consistent with branch m iff c in [u] + L Z^2 and theta in [h] + 2 pi Z."""
+    n = _nextafter
+    e = obs.position_error
+    e3 = obs.heading_error
+    a_lo = n(obs.y1 - e, -_INF)
+    a_hi = n(obs.y1 + e, _INF)
+    b_lo = n(obs.y2 - e, -_INF)
+    b_hi = n(obs.y2 + e, _INF)
+    t_lo = n(obs.y3 - e3, -_INF)
+    t_hi = n(obs.y3 + e3, _INF)
+    # R(m pi/2)(a, b): m=0 (a, b), m=1 (-b, a), m=2 (-a, -b), m=3 (b, -a); negation is exact.
+    us = (
+        (a_lo, a_hi, b_lo, b_hi),
+        (-b_hi, -b_lo, a_lo, a_hi),
+        (-a_hi, -a_lo, -b_hi, -b_lo),
+        (b_lo, b_hi, -a_hi, -a_lo),
+    )
+    out = []
+    for m in range(4):
+        h_lo = t_lo if m == 0 else n(t_lo + _QUARTER_LO[m], -_INF)
+        h_hi = t_hi if m == 0 else n(t_hi + _QUARTER_HI[m], _INF)
+        out.append(us[m] + (h_lo, h_hi))
+    return (out[0], out[1], out[2], out[3])
+
+
+def _lever_ranges(
+    s_lo: float, s_hi: float, rho_lo: float, rho_hi: float
+) -> tuple[float, float, float, float]:
+    """Enclosures (gx_lo, gx_hi, gy_lo, gy_hi) of the lever arm rho (cos, sin)(s) over
+    s in [s_lo, s_hi] (s = heading + phi)."""
+    n = _nextafter
+    c_lo, c_hi = cos_range(s_lo, s_hi)
+    d_lo, d_hi = sin_range(s_lo, s_hi)
+    return (
+        n(min(rho_lo * c_lo, rho_hi * c_lo), -_INF),
+        n(max(rho_lo * c_hi, rho_hi * c_hi), _INF),
+        n(min(rho_lo * d_lo, rho_hi * d_lo), -_INF),
+        n(max(rho_lo * d_hi, rho_hi * d_hi), _INF),
+    )
+
+
+def _lever_axis(
+    v_lo: float,
+    v_hi: float,
+    g_lo: float,
+    g_hi: float,
+    p_lo: float,
+    p_hi: float,
+    rho_lo: float,
+    rho_hi: float,
+) -> tuple[float, float, tuple[float, float] | None] | None:
+    """One axis of the lever-arm constraint v + g(t) in [p] (v the robot x or y, g(t) in [g] the
+    lever arm's x or y, [p] the camera's lattice piece). The camera is in [c] = ([v] + [g]) ∩ [p],
+    so v in [c] - [g] and g(t) in [c] - [v]. Returns None when empty, else (v_lo, v_hi, w) where
+    w encloses g(t) / rho, or None when it says nothing new ([c] - [v] holds [g])."""
+    n = _nextafter
+    c_lo = n(v_lo + g_lo, -_INF)
+    c_hi = n(v_hi + g_hi, _INF)
+    if c_lo < p_lo:
+        c_lo = p_lo
+    if c_hi > p_hi:
+        c_hi = p_hi
+    if c_lo > c_hi:
+        return None
+    w = n(c_lo - g_hi, -_INF)
+    if w > v_lo:
+        v_lo = w
+    w = n(c_hi - g_lo, _INF)
+    if w < v_hi:
+        v_hi = w
+    if v_lo > v_hi:
+        return None
+    a_lo = n(c_lo - v_hi, -_INF)
+    a_hi = n(c_hi - v_lo, _INF)
+    if a_lo <= g_lo and a_hi >= g_hi:
+        return v_lo, v_hi, None
+    return v_lo, v_hi, (
+        n(a_lo / (rho_hi if a_lo >= 0.0 else rho_lo), -_INF),
+        n(a_hi / (rho_lo if a_hi >= 0.0 else rho_hi), _INF),
+    )
+
+
+def _refine_cell(
+    x_lo: float,
+    x_hi: float,
+    y_lo: float,
+    y_hi: float,
+    t_lo: float,
+    t_hi: float,
+    px_lo: float,
+    px_hi: float,
+    py_lo: float,
+    py_hi: float,
+    lever: Lever,
+    max_passes: int,
+    g0: tuple[float, float, float, float] | None = None,
+) -> tuple[Tuple6 | None, int]:
+    """Contract one cell: the camera centre c = (x, y) + rho (cos, sin)(t + phi) must lie in the
+    lattice piece [px] x [py]. Alternates the exact projections of that constraint onto x, y and
+    the heading (the latter the hull of the arccos / arcsin preimage) until the heading stops
+    moving (FIXPOINT_TOL) or ``max_passes`` passes. ``g0``: the lever-arm ranges
+    (gx_lo, gx_hi, gy_lo, gy_hi) over [t_lo, t_hi] when the caller has them. Returns (box or None
+    when empty, passes)."""
+    n = _nextafter
+    rho_lo, rho_hi, phi_lo, phi_hi = lever
+    p = 0
+    while True:
+        p += 1
+        s_lo = n(t_lo + phi_lo, -_INF)
+        s_hi = n(t_hi + phi_hi, _INF)
+        gx_lo, gx_hi, gy_lo, gy_hi = (
+            g0 if p == 1 and g0 is not None else _lever_ranges(s_lo, s_hi, rho_lo, rho_hi)
+        )
+        # x and y through the lever arm, then the heading: rho cos(t + phi) in ([c] - [x]) etc.
+        rx = _lever_axis(x_lo, x_hi, gx_lo, gx_hi, px_lo, px_hi, rho_lo, rho_hi)
+        if rx is None:
+            return None, p
+        ry = _lever_axis(y_lo, y_hi, gy_lo, gy_hi, py_lo, py_hi, rho_lo, rho_hi)
+        if ry is None:
+            return None, p
+        x_lo, x_hi, wx = rx
+        y_lo, y_hi, wy = ry
+        s0_lo = s_lo
+        s0_hi = s_hi
+        if wx is not None:
+            r = acos_preimage(s_lo, s_hi, wx[0], wx[1])
+            if r is None:
+                return None, p
+            s_lo, s_hi = r
+        if wy is not None:
+            r = asin_preimage(s_lo, s_hi, wy[0], wy[1])
+            if r is None:
+                return None, p
+            s_lo, s_hi = r
+        if s_lo == s0_lo and s_hi == s0_hi:
+            break
+        moved = 0.0
+        v = n(s_lo - phi_hi, -_INF)
+        if v > t_lo:
+            moved += v - t_lo
+            t_lo = v
+        v = n(s_hi - phi_lo, _INF)
+        if v < t_hi:
+            moved += t_hi - v
+            t_hi = v
+        if t_lo > t_hi:
+            return None, p
+        if moved <= FIXPOINT_TOL or p >= max_passes:
+            break
+    return (x_lo, x_hi, y_lo, y_hi, t_lo, t_hi), p
+
+
+def _contract_cells(
+    b: Tuple6,
+    a_lo: float,
+    a_hi: float,
+    win: Window,
+    tile_size: float,
+    lever: Lever | None,
+    max_passes: int,
+    max_cells: int,
+    out: list[Tuple6],
+) -> tuple[int, bool]:
+    """Contract box ``b`` whose heading is already cut to one piece [a_lo, a_hi] of branch
+    ``win``: the camera-centre interval [c] = [x] + rho cos([t] + phi) (resp. y, sin) is cut
+    exactly by the lattice [u] + L Z (``lattice_intersect``) and every (x piece, y piece) cell
+    becomes one box, pushed back through the lever arm (:func:`_refine_cell`). Appends the boxes
+    to ``out``; returns (largest number of passes, whether pieces were hulled)."""
+    x_lo, x_hi, y_lo, y_hi = b[0], b[1], b[2], b[3]
+    if lever is None:  # the camera centre is the robot point
+        g = (0.0, 0.0, 0.0, 0.0)
+        c = b
+    else:
+        rho_lo, rho_hi, phi_lo, phi_hi = lever
+        g = _lever_ranges(_nextafter(a_lo + phi_lo, -_INF), _nextafter(a_hi + phi_hi, _INF),
+                          rho_lo, rho_hi)
+        c = (_nextafter(x_lo + g[0], -_INF), _nextafter(x_hi + g[1], _INF),
+             _nextafter(y_lo + g[2], -_INF), _nextafter(y_hi + g[3], _INF))
+    xs = lattice_intersect(c[0], c[1], win[0], win[1], tile_size, max_pieces=max_cells)
+    if not xs:
+        return 1, False
+    ys = lattice_intersect(c[2], c[3], win[2], win[3], tile_size, max_pieces=max_cells)
+    if not ys:
+        return 1, False
+    hulled = False
+    if len(xs) * len(ys) > max_cells:
+        xs = [(xs[0][0], xs[-1][1])]
+        ys = [(ys[0][0], ys[-1][1])]
+        hulled = True
+    if lever is None:  # the camera is the robot point: the cut is exact and final
+        for px_lo, px_hi in xs:
+            for py_lo, py_hi in ys:
+                out.append((px_lo, px_hi, py_lo, py_hi, a_lo, a_hi))
+        return 1, hulled
+    passes = 0
+    for px_lo, px_hi in xs:
+        for py_lo, py_hi in ys:
+            box, p = _refine_cell(
+                x_lo, x_hi, y_lo, y_hi, a_lo, a_hi,
+                px_lo, px_hi, py_lo, py_hi, lever, max_passes, g,
+            )
+            if p > passes:
+                passes = p
+            if box is not None:
+                out.append(box)
+    return passes, hulled
+
+
+def contract_branch(
+    b: Tuple6,
+    win: Window,
+    tile_size: float,
+    lever: Lever | None,
+    max_passes: int,
+    max_cells: int,
+) -> tuple[list[Tuple6], int, bool]:
+    """Contract box ``b`` with one rotation branch ``win`` of an observation (design.md).
+
+    The heading is cut to [h] + 2 pi Z, then each heading piece is contracted by
+    :func:`_contract_cells`: one box per lattice cell of the camera centre, pushed back through
+    the lever arm; with no lever arm the cut is final (one pass). When a heading piece has more
+    than ``max_cells`` cells, the x and y pieces are replaced by their hulls (one box).
+    Returns (boxes, largest number of passes, whether a hull replaced pieces).
+    """
+    out: list[Tuple6] = []
+    passes = 0
+    hulled = False
+    for a_lo, a_hi in lattice_intersect(
+        b[4], b[5], win[4], win[5], TWO_PI, period_error=TWO_PI_ERROR
+    ):
+        p, h = _contract_cells(b, a_lo, a_hi, win, tile_size, lever, max_passes, max_cells, out)
+        if p > passes:
+            passes = p
+        hulled = hulled or h
+    return out, passes, hulled
+
+
+def contract_box(
+    b: Tuple6,
+    windows: tuple[Window, Window, Window, Window],
+    tile_size: float,
+    lever: Lever | None,
+    max_passes: int,
+    max_cells: int,
+) -> tuple[list[Tuple6], int, bool]:
+    """Union over the four rotation branches of :func:`contract_branch`.
+
+    The branches' heading windows are [h0] + m pi/2 + 2 pi Z = [h0] + k pi/2 with m = k mod 4, so
+    one pass over the pi/2-lattice finds every branch piece the box heading meets (when the
+    windows are disjoint, e3 < pi/4; otherwise each branch is cut on its own)."""
+    out: list[Tuple6] = []
+    passes = 0
+    hulled = False
+    h_lo, h_hi = windows[0][4], windows[0][5]
+    if h_hi - h_lo >= 0.5 * HALF_PI:
+        for win in windows:
+            boxes, p, h = contract_branch(b, win, tile_size, lever, max_passes, max_cells)
+            out.extend(boxes)
+            passes = max(passes, p)
+            hulled = hulled or h
+        return out, passes, hulled
+    for k, a_lo, a_hi in lattice_pieces_indexed(b[4], b[5], h_lo, h_hi, HALF_PI, HALF_PI_ERROR):
+        p, h = _contract_cells(
+            b, a_lo, a_hi, windows[k & 3], tile_size, lever, max_passes, max_cells, out
+        )
+        if p > passes:
+            passes = p
+        hulled = hulled or h
+    return out, passes, hulled
+
+
+# --- box-set housekeeping -------------------------------------------------------------------------
+
+
+def _shift_heading(b: Tuple6, ref: float) -> Tuple6:
+    """``b`` with its heading moved by the multiple of 2 pi that brings its centre nearest
+    ``ref`` (outward rounded)."""
+    k = round((ref - 0.5 * (b[4] + b[5])) / TWO_PI)
+    if k == 0:
+        return b
+    s = k * TWO_PI
+    err = abs(k) * TWO_PI_ERROR
+    return (
+        b[0], b[1], b[2], b[3],
+        _nextafter(_nextafter(b[4] + s, -_INF) - err, -_INF),
+        _nextafter(_nextafter(b[5] + s, _INF) + err, _INF),
+    )
+
+
+def _hull_all(boxes: list[Tuple6]) -> Tuple6:
+    """The bounding box; headings shifted next to the first box's first."""
+    ref = 0.5 * (boxes[0][4] + boxes[0][5])
+    x_lo, x_hi, y_lo, y_hi, t_lo, t_hi = boxes[0]
+    for raw in boxes[1:]:
+        b = _shift_heading(raw, ref)
+        x_lo = min(x_lo, b[0])
+        x_hi = max(x_hi, b[1])
+        y_lo = min(y_lo, b[2])
+        y_hi = max(y_hi, b[3])
+        t_lo = min(t_lo, b[4])
+        t_hi = max(t_hi, b[5])
+    return (x_lo, x_hi, y_lo, y_hi, t_lo, t_hi)
+
+
+def _meet(a: Tuple6, b: Tuple6) -> bool:
+    """Whether two boxes share a point (heading modulo 2 pi)."""
+    return (
+        a[0] <= b[1] and b[0] <= a[1] and a[2] <= b[3] and b[2] <= a[3]
+        and lattice_hull(a[4], a[5], b[4], b[5], TWO_PI, TWO_PI_ERROR) is not None
+    )
+
+
+def _tidy(boxes: list[Tuple6], cap: int) -> tuple[list[Tuple6], bool]:
+    """Make the boxes disjoint (boxes that meet are replaced by their hull, repeatedly) and apply
+    the cap (more than ``cap`` boxes: the hull of all). Returns (boxes, whether the cap fired).
+    Boxes are swept in order of x_lo, so only pairs whose x ranges overlap are compared."""
+    if len(boxes) > cap:
+        return [_hull_all(boxes)], True
+    if len(boxes) < 2:
+        return boxes, False
+    out = sorted(boxes)
+    i = 0
+    while i < len(out):
+        a = out[i]
+        j = i + 1
+        while j < len(out) and out[j][0] <= a[1]:
+            if _meet(a, out[j]):
+                out[i] = _hull_all([a, out[j]])
+                del out[j]
+                out.sort()
+                i = -1  # a hull can meet boxes already passed: sweep again
+                break
+            j += 1
+        i += 1
+    return out, False
+
+
+def _to_boxset(boxes: list[Tuple6]) -> BoxSet:
+    return BoxSet(tuple(Box(*b) for b in boxes))
+
+
+# --- the localizer ------------------------------------------------------------------------------
+
+
+class Localizer:
+    """Guaranteed localization on a tiled floor (see the module docstring for the guarantee).
+
+    ``tile_size``: L, metres. ``camera_offset``: (forward, left) of the camera centre in the robot
+    frame, metres. ``bounds``: odometry and compass error bounds. ``config``: mode, box cap,
+    passes, truth inflation, rejection limit. ``initial``: a box known to contain the true pose.
+    """
+
+    def __init__(
+        self,
+        *,
+        tile_size: float,
+        camera_offset: tuple[float, float],
+        bounds: SensorBounds,
+        config: LocalizerConfig,
+        initial: Box,
+    ) -> None:
+        self._L = _finite("tile_size", tile_size)
+        if self._L <= 0:
+            raise ValueError(f"tile_size must be > 0, got {tile_size!r}")
+        if len(camera_offset) != 2:
+            raise ValueError(f"camera_offset must be (forward, left), got {camera_offset!r}")
+        off = (
+            _finite("camera_offset[0]", camera_offset[0]),
+            _finite("camera_offset[1]", camera_offset[1]),
+        )
+        self._lever = lever_enclosure(off)
+        self._ev = _nonneg("speed_error", bounds.speed_error)
+        self._ew = _nonneg("yaw_rate_error", bounds.yaw_rate_error)
+        self._ec = _nonneg("compass_error", bounds.compass_error)
+        if not isinstance(config, LocalizerConfig):
+            raise ValueError(f"config must be a LocalizerConfig, got {type(config).__name__}")
+        self._cfg = config
+        self._inflation = tuple(
+            _nonneg(f"truth_inflation[{i}]", v) for i, v in enumerate(config.truth_inflation)
+        )
+        if len(self._inflation) != 3:
+            raise ValueError(f"truth_inflation needs 3 values, got {config.truth_inflation!r}")
+        self._boxes: list[Tuple6] = []
+        self._rejections = 0
+        self._lost = False
+        self.reset(initial)
+
+    def reset(self, box: Box) -> None:
+        """Start again from ``box`` (it must contain the true pose): clears the rejection streak
+        and the ``lost`` state."""
+        self._boxes = [_check_box("initial box", box)]
+        self._rejections = 0
+        self._lost = False
+
+    @property
+    def current(self) -> BoxSet:
+        """The set after the last step (or the initial box)."""
+        return _to_boxset(self._boxes)
+
+    @property
+    def lost(self) -> bool:
+        """True once the localizer declared itself lost (until :meth:`reset`)."""
+        return self._lost
+
+    def step(
+        self,
+        odometry: Odometry | None,
+        compass: float | None,
+        observation: Observation | None,
+        truth: Pose | None = None,
+    ) -> LocalizerStep:
+        """One frame: predict with ``odometry`` (the motion since the previous step; None = no
+        motion, e.g. frame 0), intersect with ``compass`` (rad, wrapped to (-pi, pi], or None),
+        contract with ``observation`` (or None). ``truth`` is needed in mode ``truth`` only.
+        Raises ValueError naming the quantity on NaN/inf, negative dt, negative bounds."""
+        cfg = self._cfg
+        mode = cfg.mode
+        cap = cfg.max_boxes
+        hulled = False
+        # validate every input first, so a bad frame changes nothing
+        if odometry is not None:
+            v, w, dt = odometry.speed, odometry.yaw_rate, odometry.dt
+            if not _all_finite(v, w, dt) or dt < 0:
+                _finite("odometry.speed", v)
+                _finite("odometry.yaw_rate", w)
+                _nonneg("odometry.dt", dt)
+        if compass is not None and not _all_finite(compass):
+            _finite("compass", compass)
+        if observation is not None:
+            o = observation
+            e, e3 = o.position_error, o.heading_error
+            if not _all_finite(o.y1, o.y2, o.y3, e, e3) or e < 0 or e3 < 0:
+                _finite("observation.y1", o.y1)
+                _finite("observation.y2", o.y2)
+                _finite("observation.y3", o.y3)
+                _nonneg("observation.position_error", e)
+                _nonneg("observation.heading_error", e3)
+        if truth is not None:
+            tx, ty, tt = truth.x, truth.y, truth.theta
+            if not _all_finite(tx, ty, tt):
+                _finite("truth.x", tx)
+                _finite("truth.y", ty)
+                _finite("truth.theta", tt)
+        elif mode == "truth":
+            raise ValueError("truth: mode 'truth' needs the true pose every frame, got None")
+
+        # prediction
+        if mode == "truth":
+            ix, iy, it = self._inflation
+            n = _nextafter
+            boxes = [(n(tx - ix, -_INF), n(tx + ix, _INF), n(ty - iy, -_INF), n(ty + iy, _INF),
+                      n(tt - it, -_INF), n(tt + it, _INF))]
+        elif odometry is not None:
+            n = _nextafter
+            v_lo, v_hi = n(v - self._ev, -_INF), n(v + self._ev, _INF)
+            w_lo, w_hi = n(w - self._ew, -_INF), n(w + self._ew, _INF)
+            boxes = [predict_box(b, v_lo, v_hi, w_lo, w_hi, dt) for b in self._boxes]
+            boxes, h = _tidy(boxes, cap)
+            hulled = hulled or h
+        else:
+            boxes = list(self._boxes)
+
+        compass_rejected = False
+        if compass is not None:
+            c_lo = _nextafter(compass - self._ec, -_INF)
+            c_hi = _nextafter(compass + self._ec, _INF)
+            cut = [p for b in boxes for p in compass_pieces(b, c_lo, c_hi)]
+            if cut:
+                boxes, h = _tidy(cut, cap)
+                hulled = hulled or h
+            else:
+                compass_rejected = True
+        predicted = _to_boxset(boxes)
+
+        passes = 0
+        if self._lost and mode != "truth":
+            status = "lost"
+            updated_boxes = [_hull_all(boxes)]
+        elif mode == "odometry" or observation is None:
+            status = "predicted"
+            updated_boxes = boxes
+        else:
+            windows = observation_windows(observation)
+            out: list[Tuple6] = []
+            for b in boxes:
+                got, p, h = contract_box(b, windows, self._L, self._lever, cfg.passes, cap)
+                out.extend(got)
+                passes = max(passes, p)
+                hulled = hulled or h
+            if out:
+                status = "contracted"
+                self._rejections = 0
+                updated_boxes, h = _tidy(out, cap)
+                hulled = hulled or h
+            else:
+                self._rejections += 1
+                status = "rejected"
+                updated_boxes = boxes
+                if mode == "autonomous" and self._rejections >= cfg.max_rejections:
+                    status = "lost"
+                    self._lost = True
+                    updated_boxes = [_hull_all(boxes)]
+        self._boxes = updated_boxes
+        return LocalizerStep(
+            predicted=predicted,
+            updated=predicted if updated_boxes is boxes else _to_boxset(updated_boxes),
+            status=status,
+            passes=passes,
+            hulled=hulled,
+            compass_rejected=compass_rejected,
+            rejections=self._rejections,
+        )
