@@ -50,7 +50,7 @@ def test_sensor_errors_stay_within_the_declared_bounds(seed, fraction, ev, ew, e
         odo = frame.odometry
         assert abs(odo.speed - step.speed) <= ev
         assert abs(odo.yaw_rate - step.yaw_rate) <= ew
-        assert odo.dt == src.cfg.sim.dt
+        assert odo.dt == step.dt == pytest.approx(src.cfg.sim.dt, rel=1e-12)
         assert -math.pi < frame.compass <= math.pi
         assert abs(wrap_pi(frame.compass - frame.truth.theta)) <= ec + 1e-15
 

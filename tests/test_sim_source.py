@@ -64,7 +64,7 @@ def test_frames_follow_the_dataset_contract() -> None:
     for k, f in enumerate(frames):
         assert f.index == k and f.t == pytest.approx(k * cfg.sim.dt)
         assert cam.calls[k][0] == f.truth  # image k is taken at pose k
-        assert f.odometry is not None and f.odometry.dt == cfg.sim.dt
+        assert f.odometry is not None and f.odometry.dt == (k + 1) * cfg.sim.dt - k * cfg.sim.dt
     for a, b in itertools.pairwise(frames):
         assert _inside(a, b, cfg.noise)  # odometry k: the motion from pose k to pose k+1
     assert src.pose == src.last_step.end  # the world waits at pose 50

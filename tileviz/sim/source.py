@@ -150,7 +150,9 @@ class SimSource:
         image = self._render(pose, camera_faults)
         target = self.setpoint.target(t, pose)
         self.world.set_wheel_speeds(*self.controller.command(pose, target, dt))
-        step = self.world.step()
+        # the step lasts t[k+1] - t[k] exactly as a replay computes it from the frame times, so a
+        # replay of a recording reproduces the live run bit for bit (dataset-format.md: t rules)
+        step = self.world.step((k + 1) * dt - t)
         odometry = self.sensors.odometry(step, self._odometry_fault(step))
         self.last_step = step
         self.last_faults = tuple(self._labels) + tuple(f.kind for f in self.faults)

@@ -222,13 +222,15 @@ class World:
             out.append(cur + min(max(cmd - cur, -step), step))
         self.wheels = (out[0], out[1])
 
-    def step(self) -> StepTruth:
-        """Advance one frame (``dt`` seconds) and return the true motion over it."""
+    def step(self, dt: float | None = None) -> StepTruth:
+        """Advance one frame of ``dt`` seconds (default ``sim.dt``) and return the true motion
+        over it."""
+        dt = self.dt if dt is None else float(dt)
         self._slew()
         left, right = self.wheels
         v_cmd = 0.5 * (left + right)
         w_cmd = (right - left) / self.sim.wheel_base
-        body, control, h = self.body, self.control, self.h
+        body, control, h = self.body, self.control, dt / self.substeps
         start = self.pose
         speeds: list[float] = []
         rates: list[float] = []
@@ -247,9 +249,9 @@ class World:
             speeds.append((d.x * c + d.y * s) / h)
             lateral = max(lateral, abs(-d.x * s + d.y * c) / h)
             rates.append((body.angle - th) / h)
-        self.time += self.dt
+        self.time += dt
         end = self.pose
-        yaw_rate = (end.theta - start.theta) / self.dt
+        yaw_rate = (end.theta - start.theta) / dt
         speed = math.fsum(speeds) / len(speeds)
         if any(r > 0 for r in rates) and any(r < 0 for r in rates):
             monotone = False
@@ -257,7 +259,7 @@ class World:
         return StepTruth(
             start=start,
             end=end,
-            dt=self.dt,
+            dt=dt,
             speed=speed,
             yaw_rate=yaw_rate,
             speed_min=min(speeds),
