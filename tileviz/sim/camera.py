@@ -1,0 +1,391 @@
+"""The downward camera: renders what it sees of the tiled floor at a robot pose.
+
+Conventions (``shared/dataset-format.md``): orthographic camera with ``ppm`` pixels per metre,
+optical centre on the floor ``c = (x, y) + R(theta) @ camera_offset``. A floor point at
+camera-frame coordinates ``(a_forward, a_left)`` metres from ``c`` lands on pixel
+``col = cx - a_left * ppm``, ``row = cy - a_forward * ppm`` with ``cx = (W - 1) / 2`` and
+``cy = (H - 1) / 2``: image up is the robot's forward direction, image left the robot's left.
+Grout line centres lie on ``x = kL`` and ``y = kL``.
+
+The floor's appearance is fixed by :class:`~tileviz.config.FloorConfig` (its ``seed`` included):
+a per-tile brightness (a random table over a 16 x 16 tile period, i.e. a hash of the tile indices
+modulo 16), a mottled surface texture and dark stains, all fixed to the floor and computed once
+per renderer. Grout lines are anti-aliased analytically (the exact coverage of each pixel's
+footprint across the line, per axis), so the rendered line centres sit where the geometry says,
+to a small fraction of a pixel. The camera then adds its own effects: optional faults (a cable, a
+box edge, a shadow edge, glare, motion blur, a dropout), Gaussian blur, vignetting, Gaussian
+noise and optional JPEG artefacts.
+
+Pure numpy/OpenCV: this module never imports pymunk.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from tileviz.config import CameraConfig, FloorConfig
+from tileviz.types import Pose
+
+__all__ = ["FAULT_KINDS", "Fault", "FloorRenderer", "pixel_of", "floor_point"]
+
+_PERIOD_TILES = 16
+"""The floor's appearance (tile brightness, texture, stains) repeats every this many tiles."""
+_TEXELS_PER_TILE = 32
+"""Resolution of the appearance texture, texels per tile side."""
+
+# Fault parameters and their meaning (image frame: x = column, y = row, pixels; an ``angle`` is
+# the direction of a straight edge as atan2(d_row, d_col), an ``offset`` the signed distance of
+# that edge from the image centre along the normal (-sin angle, cos angle)).
+_FAULT_PARAMS: dict[str, tuple[str, ...]] = {
+    "cable": ("angle", "offset", "width", "gray"),
+    "box": ("angle", "offset", "gray"),
+    "shadow": ("angle", "offset", "strength", "softness"),
+    "glare": ("x", "y", "radius", "strength"),
+    "motion_blur": ("angle", "length"),
+    "dropout": ("gray",),
+}
+FAULT_KINDS = tuple(_FAULT_PARAMS)
+"""Camera faults :meth:`FloorRenderer.render` knows (issue 7)."""
+
+
+@dataclass(frozen=True)
+class Fault:
+    """A camera fault for one rendered frame.
+
+    Kinds and parameters (pixels in the image frame; missing parameters are drawn from the
+    render's ``rng``, or take a fixed default when it is None):
+
+    - ``cable``: a dark straight band across the whole view: ``angle`` (rad), ``offset`` (px),
+      ``width`` (px, default 1 cm on the floor, at least 3 px), ``gray`` (0..255, default 35).
+    - ``box``: an object with a straight edge covering the half-plane beyond the edge line (its
+      normal side): ``angle``, ``offset``, ``gray`` (default 150).
+    - ``shadow``: the same half-plane darkened: ``strength`` (fraction of light removed, default
+      0.5) with a soft edge of ``softness`` px (default 1.5).
+    - ``glare``: a bright blob that saturates: centre ``x``, ``y`` (px), ``radius`` (px, default a
+      quarter of the smaller image side), ``strength`` (default 1.0; 1.0 adds 400 gray levels at
+      the centre).
+    - ``motion_blur``: a straight blur of ``length`` px (default 25) along ``angle``.
+    - ``dropout``: the camera delivers a uniform frame of ``gray`` (default 0).
+    """
+
+    kind: str
+    params: Mapping[str, float] = field(default_factory=dict)
+
+
+def floor_point(
+    col: float, row: float, pose: Pose, camera: CameraConfig
+) -> tuple[float, float]:
+    """World (x, y) metres of the floor point seen at pixel (col, row) (dataset-format.md)."""
+    cx_px = (camera.width - 1) / 2.0
+    cy_px = (camera.height - 1) / 2.0
+    a_fwd = (cy_px - row) / camera.ppm
+    a_left = (cx_px - col) / camera.ppm
+    f, left = camera.offset
+    ct, st = math.cos(pose.theta), math.sin(pose.theta)
+    fx, fy = f + a_fwd, left + a_left
+    return (pose.x + ct * fx - st * fy, pose.y + st * fx + ct * fy)
+
+
+def pixel_of(x: float, y: float, pose: Pose, camera: CameraConfig) -> tuple[float, float]:
+    """Pixel (col, row) where the world floor point (x, y) metres appears (may be outside)."""
+    f, left = camera.offset
+    ct, st = math.cos(pose.theta), math.sin(pose.theta)
+    dx, dy = x - pose.x, y - pose.y
+    a_fwd = ct * dx + st * dy - f
+    a_left = -st * dx + ct * dy - left
+    return (
+        (camera.width - 1) / 2.0 - a_left * camera.ppm,
+        (camera.height - 1) / 2.0 - a_fwd * camera.ppm,
+    )
+
+
+def _periodic_smooth_noise(rng: np.random.Generator, n: int, scale: float) -> np.ndarray:
+    """n x n periodic Gaussian-filtered white noise (filter sigma ``scale`` texels), unit std."""
+    white = rng.standard_normal((n, n))
+    k = np.fft.fftfreq(n)
+    k2 = k[:, None] ** 2 + k[None, :] ** 2
+    smooth = np.fft.ifft2(np.fft.fft2(white) * np.exp(-2.0 * (math.pi * scale) ** 2 * k2)).real
+    return smooth / max(float(smooth.std()), 1e-12)
+
+
+def _appearance(floor: FloorConfig) -> np.ndarray:
+    """The floor's multiplicative appearance over one period of 16 x 16 tiles, float32 texels
+    (rows = y, columns = x, 32 texels a tile): tile brightness x texture x stains."""
+    rng = np.random.default_rng(np.random.SeedSequence([int(floor.seed), 0x71E5]))
+    k, r = _PERIOD_TILES, _TEXELS_PER_TILE
+    n = k * r
+    jitter = np.clip(rng.standard_normal((k, k)), -2.5, 2.5) * floor.tile_brightness_jitter
+    tiles = np.repeat(np.repeat(1.0 + jitter, r, axis=0), r, axis=1)
+    texture = (
+        0.6 * _periodic_smooth_noise(rng, n, r / 3.0)
+        + 0.6 * _periodic_smooth_noise(rng, n, r / 12.0)
+        + 0.5 * _periodic_smooth_noise(rng, n, 1.0)
+    )
+    texture = 1.0 + floor.texture_strength * texture / texture.std()
+    stains = np.ones((n, n))
+    count = rng.poisson(floor.stains_per_tile * k * k)
+    for _ in range(int(count)):
+        cx, cy = rng.uniform(0, n, size=2)
+        radius = rng.uniform(0.04, 0.18) * r
+        depth = rng.uniform(0.08, 0.3)
+        aspect = rng.uniform(0.5, 1.0)
+        ang = rng.uniform(0, math.pi)
+        half = int(math.ceil(radius * 2.5)) + 1
+        ys = np.arange(int(cy) - half, int(cy) + half + 1)
+        xs = np.arange(int(cx) - half, int(cx) + half + 1)
+        dy = (ys - cy)[:, None]
+        dx = (xs - cx)[None, :]
+        u = dx * math.cos(ang) + dy * math.sin(ang)
+        v = (-dx * math.sin(ang) + dy * math.cos(ang)) / aspect
+        blob = depth * np.exp(-0.5 * (u * u + v * v) / (radius * radius))
+        stains[np.ix_(ys % n, xs % n)] *= 1.0 - blob
+    out = tiles * np.clip(texture, 0.3, 1.7) * stains
+    return out.astype(np.float32)
+
+
+class FloorRenderer:
+    """Renders the downward camera's view of the tiled floor (HxWx3 uint8 RGB).
+
+    ``floor``: the floor (tile size, grout, colours, appearance seed). ``camera``: ppm, image
+    size, lever arm and the camera effects (noise, blur, vignetting, JPEG). The floor's appearance
+    is computed once here; :meth:`render` then costs a few milliseconds at 320x240.
+    """
+
+    def __init__(self, floor: FloorConfig, camera: CameraConfig) -> None:
+        if not isinstance(floor, FloorConfig):
+            raise ValueError(f"floor must be a FloorConfig, got {type(floor).__name__}")
+        if not isinstance(camera, CameraConfig):
+            raise ValueError(f"camera must be a CameraConfig, got {type(camera).__name__}")
+        self.floor = floor
+        self.camera = camera
+        w, h = int(camera.width), int(camera.height)
+        self._u = (np.arange(w, dtype=np.float32) - np.float32((w - 1) / 2.0))[None, :]
+        self._v = (np.arange(h, dtype=np.float32) - np.float32((h - 1) / 2.0))[:, None]
+        self._appearance = _appearance(floor)
+        self._tile_rgb = np.array(floor.tile_rgb, np.float32)
+        self._grout_minus_tile = np.array(floor.grout_rgb, np.float32) - self._tile_rgb
+        lp = floor.tile_size * camera.ppm
+        self._tile_px = lp
+        self._grout_half_px = 0.5 * floor.grout_width * camera.ppm
+        r2 = self._u * self._u + self._v * self._v
+        r2max = float((w - 1) ** 2 + (h - 1) ** 2) / 4.0
+        self._vignette = (1.0 - camera.vignetting * r2 / max(r2max, 1.0)).astype(np.float32)
+        self._vignette = np.clip(self._vignette, 0.0, 1.0)[..., None]
+        noise_rng = np.random.default_rng(np.random.SeedSequence([int(floor.seed), 0x401E]))
+        self._noise = (noise_rng.standard_normal((2 * h, 2 * w)) * camera.noise_sigma).astype(
+            np.float32
+        )
+
+    # ------------------------------------------------------------------ floor
+    def floor_image(self, pose: Pose) -> np.ndarray:
+        """The noise-free, blur-free floor radiance seen at ``pose``: HxWx3 float32, 0..255."""
+        if not isinstance(pose, Pose):
+            raise ValueError(f"pose must be a Pose, got {type(pose).__name__}")
+        x, y, theta = float(pose.x), float(pose.y), float(pose.theta)
+        if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(theta)):
+            raise ValueError(f"pose must be finite, got {pose!r}")
+        cam = self.camera
+        lsize = self.floor.tile_size
+        f, left = cam.offset
+        ct, st = math.cos(theta), math.sin(theta)
+        cxw = x + f * ct - left * st
+        cyw = y + f * st + left * ct
+        # World point of pixel (u, v) relative to the image centre (dataset-format.md):
+        # a_fwd = -v/ppm, a_left = -u/ppm, p = c + R(theta) a; in tiles X = p_x / L, Y = p_y / L.
+        k = 1.0 / (cam.ppm * lsize)
+        x0, y0 = cxw / lsize, cyw / lsize
+        ix0, iy0 = math.floor(x0), math.floor(y0)
+        fx0, fy0 = np.float32(x0 - ix0), np.float32(y0 - iy0)
+        ax, bx = np.float32(st * k), np.float32(-ct * k)
+        ay, by = np.float32(-ct * k), np.float32(-st * k)
+        gx = fx0 + ax * self._u + bx * self._v
+        gy = fy0 + ay * self._u + by * self._v
+        # Grout coverage: the overlap of each pixel's footprint [d - 1/2, d + 1/2] (along the
+        # axis normal to the line) with the grout band [-w/2, w/2]; the union of both families.
+        cov = self._coverage(gx)
+        np.maximum(cov, self._coverage(gy), out=cov)
+        # Appearance texture (periodic over 16 tiles), sampled bilinearly.
+        per = _PERIOD_TILES
+        tpt = np.float32(_TEXELS_PER_TILE)
+        mx = (gx + np.float32(ix0 % per)) * tpt - np.float32(0.5)
+        my = (gy + np.float32(iy0 % per)) * tpt - np.float32(0.5)
+        shade = cv2.remap(self._appearance, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_WRAP)
+        img = cov[..., None] * self._grout_minus_tile
+        img += self._tile_rgb
+        img *= shade[..., None]
+        return img
+
+    def _coverage(self, g: np.ndarray) -> np.ndarray:
+        """Fraction of each pixel covered by the nearest grout line of one family (``g`` in tiles
+        along that family's normal)."""
+        d = np.abs(g - np.rint(g))
+        d *= np.float32(self._tile_px)
+        hw = np.float32(self._grout_half_px)
+        hi = np.minimum(d + np.float32(0.5), hw)
+        lo = np.maximum(d - np.float32(0.5), -hw)
+        hi -= lo
+        return np.clip(hi, 0.0, 1.0, out=hi)
+
+    # ------------------------------------------------------------------ render
+    def render(
+        self,
+        pose: Pose,
+        rng: np.random.Generator | None = None,
+        faults: Iterable[Fault | tuple[str, Mapping[str, float]]] | None = None,
+    ) -> np.ndarray:
+        """The camera image at ``pose``: HxWx3 uint8 RGB.
+
+        ``rng``: draws the image noise (and any fault parameter left unspecified); None renders
+        without noise, deterministically. ``faults``: :class:`Fault` objects or ``(kind, params)``
+        pairs (``tileviz.sim.source`` passes pairs), applied in order.
+        """
+        cam = self.camera
+        specs = self._resolve_faults(faults, rng)
+        for kind, p in specs:
+            if kind == "dropout":
+                return np.full((cam.height, cam.width, 3), int(round(p["gray"])), np.uint8)
+        img = self.floor_image(pose)
+        blur_faults = []
+        for kind, p in specs:
+            if kind == "motion_blur":
+                blur_faults.append(p)
+            else:
+                self._apply_scene_fault(img, kind, p)
+        for p in blur_faults:
+            img = cv2.filter2D(img, -1, _line_kernel(p["angle"], p["length"]))
+        if cam.blur_sigma > 0:
+            img = cv2.GaussianBlur(img, (0, 0), cam.blur_sigma)
+        if cam.vignetting > 0:
+            img *= self._vignette
+        if rng is not None and cam.noise_sigma > 0:
+            h, w = cam.height, cam.width
+            oy = int(rng.integers(0, h + 1))
+            ox = int(rng.integers(0, w + 1))
+            img += self._noise[oy : oy + h, ox : ox + w, None]
+        img += np.float32(0.5)
+        np.clip(img, 0.0, 255.0, out=img)
+        out = img.astype(np.uint8)
+        if cam.jpeg_quality > 0:
+            ok, buf = cv2.imencode(".jpg", out, [cv2.IMWRITE_JPEG_QUALITY, int(cam.jpeg_quality)])
+            if ok:
+                out = cv2.imdecode(buf, cv2.IMREAD_COLOR)  # channel order unchanged: RGB stays RGB
+        return out
+
+    # ------------------------------------------------------------------ faults
+    def _resolve_faults(
+        self,
+        faults: Iterable[Fault | tuple[str, Mapping[str, float]]] | None,
+        rng: np.random.Generator | None,
+    ) -> list[tuple[str, dict[str, float]]]:
+        """Validate the faults and fill in their missing parameters."""
+        if faults is None:
+            return []
+        out = []
+        cam = self.camera
+        side = float(min(cam.width, cam.height))
+        for item in faults:
+            if isinstance(item, Fault):
+                kind, params = item.kind, dict(item.params)
+            else:
+                try:
+                    kind, raw = item
+                    params = dict(raw)
+                except (TypeError, ValueError):
+                    raise ValueError(
+                        f"a camera fault must be a Fault or a (kind, params) pair, got {item!r}"
+                    ) from None
+            if kind not in _FAULT_PARAMS:
+                raise ValueError(f"unknown camera fault {kind!r} (choose from {FAULT_KINDS})")
+            allowed = _FAULT_PARAMS[kind]
+            for name, value in params.items():
+                if name not in allowed:
+                    raise ValueError(f"unknown parameter {name!r} for camera fault {kind!r}")
+                if not isinstance(value, (int, float)) or not math.isfinite(value):
+                    raise ValueError(f"{kind} {name} must be a finite number, got {value!r}")
+
+            def draw(name: str, lo: float, hi: float, fixed: float, p: dict = params) -> None:
+                if name not in p:
+                    p[name] = float(rng.uniform(lo, hi)) if rng is not None else fixed
+
+            if kind in ("cable", "box", "shadow", "motion_blur"):
+                draw("angle", 0.0, math.pi, 0.4)
+            if kind in ("cable", "box", "shadow"):
+                draw("offset", -0.25 * side, 0.25 * side, 0.1 * side)
+            if kind == "cable":
+                draw("width", max(3.0, 0.01 * cam.ppm), max(3.0, 0.01 * cam.ppm),
+                     max(3.0, 0.01 * cam.ppm))
+                draw("gray", 35.0, 35.0, 35.0)
+            elif kind == "box":
+                draw("gray", 150.0, 150.0, 150.0)
+            elif kind == "shadow":
+                draw("strength", 0.5, 0.5, 0.5)
+                draw("softness", 1.5, 1.5, 1.5)
+            elif kind == "glare":
+                draw("x", 0.25 * cam.width, 0.75 * cam.width, 0.5 * cam.width)
+                draw("y", 0.25 * cam.height, 0.75 * cam.height, 0.5 * cam.height)
+                draw("radius", 0.25 * side, 0.25 * side, 0.25 * side)
+                draw("strength", 1.0, 1.0, 1.0)
+            elif kind == "motion_blur":
+                draw("length", 25.0, 25.0, 25.0)
+            elif kind == "dropout":
+                draw("gray", 0.0, 0.0, 0.0)
+            for name in ("width", "radius", "length", "softness"):
+                if name in params and params[name] < 0:
+                    raise ValueError(f"{kind} {name} must be >= 0, got {params[name]!r}")
+            out.append((kind, params))
+        return out
+
+    def _signed_distance(self, angle: float, offset: float) -> np.ndarray:
+        """HxW float32: signed distance (px) of each pixel from the edge line (angle, offset)."""
+        nx, ny = np.float32(-math.sin(angle)), np.float32(math.cos(angle))
+        return nx * self._u + ny * self._v - np.float32(offset)
+
+    def _apply_scene_fault(self, img: np.ndarray, kind: str, p: dict[str, float]) -> None:
+        """Draw a fault into the scene radiance ``img`` (HxWx3 float32), in place."""
+        if kind == "cable":
+            d = np.abs(self._signed_distance(p["angle"], p["offset"]))
+            hw = 0.5 * p["width"]
+            cov = np.clip(np.minimum(d + 0.5, hw) - np.maximum(d - 0.5, -hw), 0.0, 1.0)
+            img += cov[..., None] * (np.float32(p["gray"]) - img)
+        elif kind == "box":
+            d = self._signed_distance(p["angle"], p["offset"])
+            cov = np.clip(d + 0.5, 0.0, 1.0)[..., None]
+            img += cov * (np.float32(p["gray"]) * np.float32([1.0, 0.8, 0.55]) - img)
+        elif kind == "shadow":
+            d = self._signed_distance(p["angle"], p["offset"])
+            soft = max(p["softness"], 1e-3)
+            t = np.clip(d / np.float32(soft) + 0.5, 0.0, 1.0)
+            img *= (1.0 - np.float32(p["strength"]) * t)[..., None]
+        elif kind == "glare":
+            du = self._u - np.float32(p["x"] - (self.camera.width - 1) / 2.0)
+            dv = self._v - np.float32(p["y"] - (self.camera.height - 1) / 2.0)
+            r = max(p["radius"], 1e-3)
+            blob = np.exp((du * du + dv * dv) * np.float32(-0.5 / (r * r)))
+            img += (np.float32(400.0 * p["strength"]) * blob)[..., None]
+
+
+def _line_kernel(angle: float, length: float) -> np.ndarray:
+    """A normalised straight motion-blur kernel of ``length`` px along ``angle`` (rad)."""
+    n = max(1, int(math.ceil(length)))
+    size = n + 3 if n % 2 == 0 else n + 2  # odd: the kernel is centred on a pixel
+    k = np.zeros((size, size), np.float32)
+    c = (size - 1) / 2.0
+    dx, dy = math.cos(angle), math.sin(angle)
+    for t in np.linspace(-length / 2.0, length / 2.0, 4 * n + 1):
+        x, y = c + t * dx, c + t * dy
+        x0, y0 = int(math.floor(x)), int(math.floor(y))
+        fx, fy = x - x0, y - y0
+        for yy, xx, w in (
+            (y0, x0, (1 - fx) * (1 - fy)),
+            (y0, x0 + 1, fx * (1 - fy)),
+            (y0 + 1, x0, (1 - fx) * fy),
+            (y0 + 1, x0 + 1, fx * fy),
+        ):
+            if 0 <= yy < size and 0 <= xx < size:
+                k[yy, xx] += w
+    return k / k.sum()
