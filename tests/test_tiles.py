@@ -17,6 +17,8 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
+from tileviz.config import CameraConfig, FloorConfig
+from tileviz.sim.camera import FloorRenderer
 from tileviz.tiles import (
     camera_centre,
     equivalence_residuals,
@@ -187,6 +189,53 @@ def test_equivalent_poses_lists_the_four_turns() -> None:
     assert poses[0] == pytest.approx(pose)
     for p in poses:
         assert _same_view(pose, p, (0.3, 0.0))
+
+
+# --- the same with the simulator's renderer -----------------------------------------------------
+
+_PLAIN_FLOOR = FloorConfig(tile_size=L, grout_width=0.012, tile_brightness_jitter=0.0,
+                           texture_strength=0.0, stains_per_tile=0.0)
+"""A floor without appearance marks (they would break the symmetry the theorem is about)."""
+
+
+def _renderer(offset: tuple[float, float]) -> FloorRenderer:
+    cam = CameraConfig(ppm=PPM, width=W, height=H, offset=offset, noise_sigma=0.0,
+                       blur_sigma=0.0, vignetting=0.0)
+    return FloorRenderer(_PLAIN_FLOOR, cam)
+
+
+@settings(max_examples=40, deadline=None)
+@given(coord, coord, heading, offsets, st.integers(1, 3), st.integers(-2, 2), st.integers(-2, 2))
+def test_renderer_equivalent_poses_give_the_same_image(x, y, th, offset, m, kx, ky) -> None:
+    """FloorRenderer (noise, blur, vignetting off; anti-aliased lines in float32): a pose and its
+    quarter-turned equivalent render the same image, up to one gray level of float32 rounding."""
+    r = _renderer(offset)
+    pose = Pose(x, y, th)
+    a = r.render(pose).astype(int)
+    b = r.render(equivalent_pose(pose, m, L, offset, (kx, ky))).astype(int)
+    assert np.abs(a - b).max() <= 1
+
+
+@pytest.mark.parametrize("pose", [Pose(1.23, -0.41, math.radians(30)), Pose(-2.0, 0.77, 2.5),
+                                  Pose(0.31, 0.05, -1.2)])
+def test_renderer_shows_the_original_theorem_is_wrong(pose) -> None:
+    offset = (0.3, 0.0)
+    r = _renderer(offset)
+    base = r.render(pose).astype(int)
+    cx, cy = camera_centre(pose, offset)
+
+    def robot_at(ax: float, ay: float, th: float) -> Pose:
+        return Pose(ax - 0.3 * math.cos(th), ay - 0.3 * math.sin(th), th)
+
+    quarter = pose.theta + math.pi / 2
+    half = pose.theta + math.pi
+    # corrected: R(pi/2) c = (-c_y, c_x) and R(pi) c = -c give the same image
+    assert np.abs(r.render(robot_at(-cy, cx, quarter)).astype(int) - base).max() <= 1
+    assert np.abs(r.render(robot_at(-cx, -cy, half)).astype(int) - base).max() <= 1
+    # the report's: a plain swap (c_y, c_x) for a quarter turn, the same c for a half turn
+    for wrong in (robot_at(cy, cx, quarter), robot_at(cx, cy, half)):
+        diff = np.abs(r.render(wrong).astype(int) - base)
+        assert np.count_nonzero(diff > 50) > 100
 
 
 # --- residuals for the --output-file CSV --------------------------------------------------------

@@ -34,6 +34,20 @@ Statuses (dataset-format.md):
   (with a periodic floor any view fits a wide enough set, so a contraction would only look
   confident), and stays ``lost`` until :meth:`Localizer.reset`.
 
+How tight the contraction is
+----------------------------
+Per rotation branch m (design.md, corrected Theorem 1) the camera-centre interval is cut by the
+lattice exactly, and every (heading piece, x piece, y piece) cell is kept as its own box
+(``LocalizerConfig.max_boxes`` caps the count: past it, the hull, flagged ``hulled``). With the
+camera on the robot point the cells are the exact solution set. With a lever arm each cell is
+contracted to the fixpoint of the exact projections of its constraint onto x, y and the heading
+(hull consistency): that is the exact hull of the cell's solutions unless the heading preimage
+of one axis alone has a gap inside the cell (the lever arm swinging past an extremum of cos or
+sin), where the hull of that preimage is kept -- as any forward-backward contractor (codac's
+``CtcInverse`` included) does. The fixpoint is reached after at most 2 passes in tracking (one
+when the lever arm cannot narrow the heading, the usual case; ``bench/bench_localizer.py`` prints
+the distribution), so ``LocalizerConfig.passes = 3`` is enough.
+
 A compass reading that misses the predicted set entirely (H1-H3 cannot all hold) is ignored for
 that frame and flagged in ``LocalizerStep.compass_rejected``.
 

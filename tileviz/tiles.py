@@ -155,7 +155,7 @@ def equivalence_residuals(
     r3 and r6 are the original's. When the observation is right (the corrected equivalence holds
     for some m) the triple of that m's family is zero up to rounding; the original used
     u = c (m = 0) for the first triple and u = (c_y, c_x) (a swap with no sign) for the second,
-    which is zero only by accident for m = 1, 2, 3. A ties (|d - m pi/2| equal for both m of a
+    which is zero only by accident for m = 1, 2, 3. A tie (|d - m pi/2| equal for both m of a
     family) picks the smaller m.
     """
     cx, cy = camera_centre(truth, offset)
