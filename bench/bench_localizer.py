@@ -16,6 +16,11 @@ their bounds (uniform, 90 % of each bound). Per frame we time:
   (``tests/codac_oracle_worker.py``), single pass and to a fixpoint, with and without the
   centered form. codac runs in its own process (it switches its process to upward rounding).
 
+Which codac figure to compare with: our contraction returns what codac's *fixpoint* variants
+return (``tests/test_codac_oracle.py`` checks it to 1e-9), plus the split into lattice cells; the
+single-pass variants are weaker (one forward-backward sweep). ``centered`` is codac's default
+``CtcInverse``; ``plain`` switches the centered form off (cheaper, same result here).
+
 Timings are the best of ``--repeats`` runs over all frames. Also printed: statuses, the number of
 contraction passes per frame, and whether the truth stayed in the set.
 """
