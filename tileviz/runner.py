@@ -96,19 +96,48 @@ class Runner:
         self.bounds = bounds or SensorBounds(
             cfg.noise.speed_error, cfg.noise.yaw_rate_error, cfg.noise.compass_error
         )
-        self.localizer = Localizer(
-            tile_size=cfg.floor.tile_size,
-            camera_offset=cfg.camera.offset,
-            bounds=self.bounds,
-            config=cfg.localizer,
-            initial=initial if initial is not None else initial_box(cfg),
+        self.localizer = self._make_localizer(
+            initial if initial is not None else initial_box(cfg)
         )
         self._pending_odometry: Odometry | None = None
 
+    def _make_localizer(self, initial: Box) -> Localizer:
+        return Localizer(
+            tile_size=self.cfg.floor.tile_size,
+            camera_offset=self.cfg.camera.offset,
+            bounds=self.bounds,
+            config=self.cfg.localizer,
+            initial=initial,
+        )
+
     def reset(self, initial: Box) -> None:
-        """Start again from ``initial`` (e.g. after a kidnap the user reports)."""
-        self.localizer.reset(initial)
+        """Start again from ``initial`` (e.g. after a kidnap the user reports), with the current
+        configuration (see :meth:`reconfigure`)."""
+        self.localizer = self._make_localizer(initial)
         self._pending_odometry = None
+
+    def reconfigure(self, cfg: Config, *, bounds: SensorBounds | None = None) -> None:
+        """Use ``cfg`` from the next frame on (the live server's GUI): vision options, localizer
+        options and the declared sensor bounds (``bounds``, default from ``cfg.noise``). The floor
+        and the camera must not change (start a new Runner for that).
+
+        When the localizer options or the bounds change, the localizer restarts from the hull of
+        its current set (a superset of it, so the guarantee holds) and keeps the pending odometry.
+        A localizer that is ``lost`` stays lost (its set vouches for nothing) until :meth:`reset`,
+        which builds it with the new settings; switching to mode ``truth`` needs no prior and
+        takes effect at once.
+        """
+        if (cfg.floor, cfg.camera) != (self.cfg.floor, self.cfg.camera):
+            raise ValueError("reconfigure cannot change the floor or the camera; start a new run")
+        new_bounds = bounds or SensorBounds(
+            cfg.noise.speed_error, cfg.noise.yaw_rate_error, cfg.noise.compass_error
+        )
+        changed = new_bounds != self.bounds or cfg.localizer != self.cfg.localizer
+        self.cfg = cfg
+        self.bounds = new_bounds
+        if changed and (not self.localizer.lost or cfg.localizer.mode == "truth"):
+            hull = self.localizer.current.hull()
+            self.localizer = self._make_localizer(hull if hull is not None else initial_box(cfg))
 
     def process(self, frame: FrameInput) -> FrameRecord:
         """Run one frame: predict with the previous frame's odometry, contract with this image."""
