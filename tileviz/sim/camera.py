@@ -31,7 +31,15 @@ import numpy as np
 from tileviz.config import CameraConfig, FloorConfig
 from tileviz.types import Pose
 
-__all__ = ["FAULT_KINDS", "Fault", "FloorRenderer", "pixel_of", "floor_point"]
+__all__ = [
+    "FAULT_KINDS",
+    "Fault",
+    "FloorRenderer",
+    "floor_point",
+    "pixel_of",
+    "random_camera",
+    "random_floor",
+]
 
 _PERIOD_TILES = 16
 """The floor's appearance (tile brightness, texture, stains) repeats every this many tiles."""
@@ -389,3 +397,42 @@ def _line_kernel(angle: float, length: float) -> np.ndarray:
             if 0 <= yy < size and 0 <= xx < size:
                 k[yy, xx] += w
     return k / k.sum()
+
+
+def random_floor(rng: np.random.Generator) -> FloorConfig:
+    """A random floor for studies and tests: tile size 0.166..1 m, grout 3..15 mm (at most a
+    fifth of the tile), bright tiles and darker grout of random tints, per-tile brightness
+    jitter 0..0.1, texture 0..0.12, 0..1 stains per tile, a random appearance seed."""
+    tile = float(rng.uniform(0.166, 1.0))
+    grout = float(min(rng.uniform(0.003, 0.015), 0.2 * tile))
+    base = rng.uniform(150, 230)
+    tile_rgb = tuple(int(round(base * t)) for t in rng.uniform(0.85, 1.0, size=3))
+    g = rng.uniform(40, 130)
+    grout_rgb = tuple(int(round(g * t)) for t in rng.uniform(0.9, 1.0, size=3))
+    return FloorConfig(
+        tile_size=tile,
+        grout_width=grout,
+        tile_rgb=tile_rgb,  # type: ignore[arg-type]
+        grout_rgb=grout_rgb,  # type: ignore[arg-type]
+        tile_brightness_jitter=float(rng.uniform(0.0, 0.1)),
+        texture_strength=float(rng.uniform(0.0, 0.12)),
+        stains_per_tile=float(rng.uniform(0.0, 1.0)),
+        seed=int(rng.integers(0, 2**31)),
+    )
+
+
+def random_camera(rng: np.random.Generator) -> CameraConfig:
+    """A random camera for studies and tests: 100..700 px/m, 320x240 or 256x384, lever arm
+    0.3 m, noise 0..8 gray levels, blur 0..1.5 px, vignetting 0..0.3, and JPEG (quality
+    40..95) one time in three."""
+    w, h = ((320, 240), (256, 384))[int(rng.integers(0, 2))]
+    return CameraConfig(
+        ppm=float(rng.uniform(100.0, 700.0)),
+        width=w,
+        height=h,
+        offset=(0.3, 0.0),
+        noise_sigma=float(rng.uniform(0.0, 8.0)),
+        blur_sigma=float(rng.uniform(0.0, 1.5)),
+        vignetting=float(rng.uniform(0.0, 0.3)),
+        jpeg_quality=int(rng.integers(40, 96)) if rng.uniform() < 1 / 3 else 0,
+    )

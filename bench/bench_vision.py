@@ -1,0 +1,123 @@
+"""Vision timings: per stage at 320x240 and 640x480, the full faithful chain against the bare
+OpenCV calls with the seed constants (same run, interleaved), and the robust extractor.
+
+    python bench/bench_vision.py [--frames 200] [--threads N]
+
+Frames are rendered once (default floor, random poses, camera noise on) and reused, so only the
+vision is timed. Each figure is the median over frames of the per-frame time. The bare chain is
+exactly what the original called (report chapter 4, ``shared/seed-code-facts.md``): cvtColor,
+Laplacian(CV_8U, ksize 1), Canny(50, 255, 3), morphologyEx(CLOSE, 1x1), dilate(3x3), and
+HoughLinesP(1, pi/180, 60, 100, 50); ours adds everything around them (input checks, segment
+parameters, medians, bags, offsets, the observation) and skips the 1x1 close (an identity).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import statistics
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from tileviz.config import CameraConfig, FloorConfig, VisionConfig, preset  # noqa: E402
+from tileviz.sim.camera import FloorRenderer  # noqa: E402
+from tileviz.types import Pose  # noqa: E402
+from tileviz.vision import extract  # noqa: E402
+
+SEED_KERNEL_1 = np.ones((1, 1), np.uint8)
+
+
+def bare_chain(rgb: np.ndarray) -> object:
+    """The original's OpenCV calls with its constants, nothing else."""
+    gray = cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY)
+    lap = cv2.Laplacian(gray, cv2.CV_8U, ksize=1, scale=1, delta=0)
+    edges = cv2.Canny(lap, 50, 255, apertureSize=3)
+    closed = cv2.morphologyEx(edges, cv2.MORPH_CLOSE, SEED_KERNEL_1)
+    dil = cv2.dilate(closed, None)
+    return cv2.HoughLinesP(dil, 1, math.pi / 180, 60, minLineLength=100, maxLineGap=50)
+
+
+def frames(cam: CameraConfig, floor: FloorConfig, n: int) -> list[np.ndarray]:
+    r = FloorRenderer(floor, cam)
+    rng = np.random.default_rng(7)
+    return [
+        r.render(Pose(rng.uniform(-5, 5), rng.uniform(-5, 5), rng.uniform(-4, 4)), rng)
+        for _ in range(n)
+    ]
+
+
+def med(values: list[float]) -> float:
+    return statistics.median(values) if values else float("nan")
+
+
+def stage_table(imgs: list[np.ndarray], cam: CameraConfig, floor: FloorConfig,
+                vision: VisionConfig) -> tuple[dict[str, float], float]:
+    per: dict[str, list[float]] = {}
+    total = []
+    for img in imgs:
+        t0 = time.perf_counter()
+        res = extract(img, camera=cam, tile_size=floor.tile_size, vision=vision)
+        total.append((time.perf_counter() - t0) * 1e3)
+        for k, v in res.timings.items():
+            per.setdefault(k, []).append(v)
+    return {k: med(v) for k, v in per.items()}, med(total)
+
+
+def compare(imgs: list[np.ndarray], cam: CameraConfig, tile_size: float,
+            vision: VisionConfig) -> tuple[float, float]:
+    """Median ms per frame of (our faithful chain, the bare calls), interleaved: each frame
+    runs both, in an order that alternates, four times over."""
+    ours: list[float] = []
+    bare: list[float] = []
+    for rep in range(4):
+        for i, img in enumerate(imgs):
+            for which in ((0, 1) if (i + rep) % 2 else (1, 0)):
+                t0 = time.perf_counter()
+                if which == 0:
+                    extract(img, camera=cam, tile_size=tile_size, vision=vision)
+                else:
+                    bare_chain(img)
+                (ours if which == 0 else bare).append((time.perf_counter() - t0) * 1e3)
+    return med(ours), med(bare)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--frames", type=int, default=200)
+    ap.add_argument("--threads", type=int, default=None, help="cv2.setNumThreads (default: "
+                    "OpenCV's choice)")
+    args = ap.parse_args(argv)
+    if args.threads is not None:
+        cv2.setNumThreads(args.threads)
+    print(f"OpenCV {cv2.__version__}, {cv2.getNumThreads()} threads; numpy {np.__version__}; "
+          f"{args.frames} frames per case; medians in ms")
+    base = preset("default")
+    for w, h in ((320, 240), (640, 480)):
+        cam = replace(base.camera, width=w, height=h)
+        imgs = frames(cam, base.floor, args.frames)
+        for ext in ("faithful", "robust"):
+            stages, total = stage_table(imgs, cam, base.floor, replace(base.vision, extractor=ext))
+            row = "  ".join(f"{k} {v:.3f}" for k, v in stages.items())
+            print(f"{w}x{h} {ext:<8} total {total:.3f} | {row}")
+    # the faithful chain vs the bare OpenCV calls, seed constants, interleaved
+    for name, (w, h) in (("seed 256x384", (256, 384)), ("default 320x240", (320, 240)),
+                         ("default 640x480", (640, 480))):
+        cfg = preset("seed") if name.startswith("seed") else preset("default")
+        cam = replace(cfg.camera, width=w, height=h)
+        vision = replace(cfg.vision, extractor="faithful")  # VisionConfig defaults = seed's
+        imgs = frames(cam, cfg.floor, args.frames)
+        o, b = compare(imgs, cam, cfg.floor.tile_size, vision)
+        print(f"faithful chain vs bare OpenCV calls, {name}: ours {o:.3f} ms, bare {b:.3f} ms, "
+              f"ratio {o / b:.3f}x")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

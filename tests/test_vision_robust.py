@@ -1,0 +1,206 @@
+"""The robust extractor: accepted observations inside their declared bound, sub-pixel on clean
+views, and refusals (with a reason) for the frames that would mislead it."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import cv2
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from tileviz.config import CameraConfig, FloorConfig, VisionConfig, preset
+from tileviz.sim.camera import Fault, FloorRenderer, random_camera, random_floor
+from tileviz.types import Pose
+from tileviz.vision import extract, observation_error
+from tileviz.vision.robust import normalise
+
+ROBUST = VisionConfig(extractor="robust")
+CFG = preset("default")
+
+
+def _inside_bound(res: object, pose: Pose, floor: FloorConfig, cam: CameraConfig) -> bool:
+    obs = res.observation  # type: ignore[attr-defined]
+    e1, e2, e3 = observation_error(obs, pose, floor.tile_size, cam.offset)
+    return (
+        max(abs(e1), abs(e2)) <= obs.position_error and abs(e3) <= obs.heading_error
+    )
+
+
+@pytest.mark.slow
+def test_every_accepted_observation_is_inside_the_declared_bound() -> None:
+    """Fixed seeds, random floors and cameras (tile 0.166..1 m, 100..700 px/m, noise, blur,
+    vignetting, JPEG, textures, stains), no faults: never an accepted observation outside
+    ``VisionConfig.position_error_px / ppm`` and ``heading_error``; and most are accepted."""
+    rng = np.random.default_rng(20260)
+    accepted = total = 0
+    for _ in range(24):
+        floor, cam = random_floor(rng), random_camera(rng)
+        r = FloorRenderer(floor, cam)
+        for _ in range(4):
+            pose = Pose(rng.uniform(-20, 20), rng.uniform(-20, 20), rng.uniform(-4, 4))
+            res = extract(r.render(pose, rng), camera=cam, tile_size=floor.tile_size,
+                          vision=ROBUST)
+            total += 1
+            if res.accepted:
+                accepted += 1
+                assert _inside_bound(res, pose, floor, cam), (floor, cam, pose, res.details)
+    assert accepted >= 0.5 * total
+
+
+def test_clean_views_are_read_to_a_fraction_of_a_pixel() -> None:
+    r = FloorRenderer(CFG.floor, CFG.camera)
+    rng = np.random.default_rng(3)
+    worst_px, worst_rad, n = 0.0, 0.0, 0
+    for _ in range(30):
+        pose = Pose(rng.uniform(-9, 9), rng.uniform(-9, 9), rng.uniform(-4, 4))
+        res = extract(r.render(pose, rng), camera=CFG.camera, tile_size=CFG.floor.tile_size,
+                      vision=ROBUST)
+        if not res.accepted:
+            continue
+        n += 1
+        e1, e2, e3 = observation_error(res.observation, pose, 1.0, CFG.camera.offset)
+        worst_px = max(worst_px, abs(e1) * 200.0, abs(e2) * 200.0)
+        worst_rad = max(worst_rad, abs(e3))
+    assert n >= 27
+    assert worst_px < 0.5
+    assert worst_rad < 0.004
+
+
+VIEW = Pose(0.37, 0.61, 0.23)
+
+
+@pytest.fixture(scope="module")
+def renderer() -> FloorRenderer:
+    return FloorRenderer(CFG.floor, CFG.camera)
+
+
+def _run(renderer: FloorRenderer, faults: list | None, seed: int = 0, pose: Pose = VIEW):
+    img = renderer.render(pose, np.random.default_rng(seed), faults=faults)
+    return extract(img, camera=CFG.camera, tile_size=CFG.floor.tile_size, vision=ROBUST)
+
+
+def test_the_clean_reference_view_is_accepted(renderer: FloorRenderer) -> None:
+    res = _run(renderer, None)
+    assert res.accepted, res.reason
+
+
+@pytest.mark.parametrize(
+    ("fault", "reasons"),
+    [
+        (Fault("cable", {"angle": 1.0, "offset": 10.0, "width": 4.0}), {"foreign line"}),
+        (Fault("cable", {"angle": 2.3, "offset": -30.0, "width": 8.0, "gray": 60.0}),
+         {"foreign line"}),
+        (Fault("box", {"angle": 0.9, "offset": 40.0}), {"step edge"}),
+        (Fault("shadow", {"angle": 2.0, "offset": -20.0, "strength": 0.4}), {"step edge"}),
+        (Fault("glare", {"x": 150.0, "y": 110.0, "radius": 50.0}), {"glare"}),
+        (Fault("motion_blur", {"angle": 0.23, "length": 30.0}),
+         {"blurred", "one family", "no lines"}),
+        (Fault("dropout"), {"constant image"}),
+    ],
+)
+def test_faults_across_the_view_are_refused(
+    renderer: FloorRenderer, fault: Fault, reasons: set[str]
+) -> None:
+    res = _run(renderer, [fault])
+    assert not res.accepted and res.observation is None
+    assert res.reason in reasons, res.details
+
+
+def test_a_cable_along_a_grout_line_direction_off_the_lattice_is_refused(
+    renderer: FloorRenderer,
+) -> None:
+    """A straight cable exactly parallel to the grout lines, between two of them, is a dark
+    line in the same profile: the spacing check (or the width check) must catch it."""
+    # the grout direction in the image is y3 = theta (mod pi/2) for this view
+    res = _run(renderer, [Fault("cable", {"angle": VIEW.theta, "offset": 37.0,
+                                          "width": 3.0, "gray": 80.0})])
+    assert not res.accepted
+    assert res.reason in {"inconsistent spacing", "foreign line"}
+
+
+@pytest.mark.parametrize("kind", ["cable", "box", "shadow", "glare", "motion_blur"])
+def test_random_faults_never_give_an_observation_outside_the_bound(
+    renderer: FloorRenderer, kind: str
+) -> None:
+    refused = 0
+    for seed in range(12):
+        rng = np.random.default_rng(100 + seed)
+        pose = Pose(rng.uniform(-5, 5), rng.uniform(-5, 5), rng.uniform(-4, 4))
+        img = renderer.render(pose, rng, faults=[(kind, {})])
+        res = extract(img, camera=CFG.camera, tile_size=1.0, vision=ROBUST)
+        if res.accepted:
+            assert _inside_bound(res, pose, CFG.floor, CFG.camera)
+        else:
+            refused += 1
+    assert refused >= 6
+
+
+def test_a_wrong_tile_size_is_refused() -> None:
+    """Told L = 0.7 m on a 1 m floor, the lines are not multiples of L apart."""
+    floor = replace(CFG.floor, tile_size=0.3)
+    cam = replace(CFG.camera, ppm=300.0)
+    r = FloorRenderer(floor, cam)
+    res = extract(r.render(VIEW, np.random.default_rng(0)), camera=cam, tile_size=0.3,
+                  vision=ROBUST)
+    assert res.accepted, res.reason
+    wrong = extract(r.render(VIEW, np.random.default_rng(0)), camera=cam, tile_size=0.21,
+                    vision=ROBUST)
+    assert not wrong.accepted and wrong.reason == "inconsistent spacing"
+
+
+def test_low_contrast_and_single_family_views_are_refused() -> None:
+    cam = CFG.camera
+    faint = replace(CFG.floor, grout_rgb=(205, 198, 184))
+    res = extract(FloorRenderer(faint, cam).render(VIEW, np.random.default_rng(0)),
+                  camera=cam, tile_size=1.0, vision=ROBUST)
+    assert not res.accepted and res.reason in {"low contrast", "no lines"}
+    img = np.full((cam.height, cam.width, 3), 200, np.uint8)
+    for r in (40, 140):
+        cv2.line(img, (0, r), (cam.width - 1, r), (70, 70, 70), 3, cv2.LINE_AA)
+    noise = np.random.default_rng(0).normal(0, 2, img.shape)
+    img = np.clip(img + noise, 0, 255).astype(np.uint8)
+    res = extract(img, camera=cam, tile_size=0.5, vision=ROBUST)
+    assert not res.accepted and res.reason == "one family"
+    assert set(res.bags.tolist()) == {1}
+
+
+def test_a_tighter_declared_bound_refuses_more() -> None:
+    """The consistency checks scale with the declared bound: with a bound far below the
+    measurement's own scatter the extractor refuses (``imprecise`` or a consistency reason)
+    rather than promising it."""
+    floor, cam = CFG.floor, replace(CFG.camera, noise_sigma=8.0, jpeg_quality=40)
+    r = FloorRenderer(floor, cam)
+    tight = replace(ROBUST, position_error_px=0.02, heading_error=0.0002)
+    refused = 0
+    for seed in range(6):
+        rng = np.random.default_rng(seed)
+        pose = Pose(rng.uniform(-5, 5), rng.uniform(-5, 5), rng.uniform(-4, 4))
+        img = r.render(pose, rng)
+        res = extract(img, camera=cam, tile_size=1.0, vision=tight)
+        if res.accepted:
+            assert _inside_bound(res, pose, floor, cam)
+        else:
+            refused += 1
+            assert res.reason in {"imprecise", "inconsistent spacing", "inconsistent angle"}
+    assert refused >= 4
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    y1=st.floats(0, 0.999),
+    y2=st.floats(0, 0.999),
+    y3=st.floats(-20, 20),
+)
+def test_normalise_keeps_the_view(y1: float, y2: float, y3: float) -> None:
+    """normalise(y) describes the same view: same camera centres and headings modulo the
+    floor's symmetries, with y3 in [-pi/4, pi/4) and y1, y2 in [0, L)."""
+    z1, z2, z3 = normalise(y1, y2, y3, 1.0)
+    assert -math.pi / 4 <= z3 < math.pi / 4 and 0 <= z1 < 1 and 0 <= z2 < 1
+    # a pose whose camera centre is (y1, y2) and heading y3 sees y; it must also see z
+    pose = Pose(y1 - 0.3 * math.cos(y3), y2 - 0.3 * math.sin(y3), y3)
+    e = observation_error((z1, z2, z3), pose, 1.0, (0.3, 0.0))
+    assert max(abs(e[0]), abs(e[1])) < 1e-9 and abs(e[2]) < 1e-9

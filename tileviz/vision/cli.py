@@ -1,0 +1,134 @@
+"""``python -m tileviz extract IMAGE...``: tile parameters of camera images, one line per image.
+
+Options: ``--preset {default,seed}`` (the camera and vision constants; with a preset given the
+image size must be the preset's), ``--ppm P``, ``--tile-size L`` (metres), ``--extractor
+{faithful,robust}``, ``--json`` (one JSON object per image and line: ``image``, ``y1``, ``y2``,
+``y3`` (design.md convention; null when refused), ``accepted``, ``reason``, ``lines``, ...),
+``--stages DIR`` (every stage image as ``DIR/<image stem>_<nn>_<stage>.png``).
+
+An image that cannot be used (unreadable, wrong size) gives a one-line error on stderr and the
+others are still processed; the exit status is then 2. A frame the extractor refuses (e.g. a
+constant image) is a normal result: ``no observation (reason)``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from tileviz.cliutil import CliError, Parser, positive_float, run_cli
+from tileviz.config import EXTRACTORS, PRESETS, Config, preset
+from tileviz.vision import VisionResult, extract
+
+__all__ = ["main"]
+
+
+def _parser(prog: str) -> Parser:
+    p = Parser(prog=prog, description="Extract the tile parameters (y1, y2, y3) from images.")
+    p.add_argument("images", nargs="+", metavar="IMAGE", help="image files (PNG, JPEG, ...)")
+    p.add_argument("--preset", choices=PRESETS, default=None,
+                   help="camera/vision constants (default: 'default', image size from the image)")
+    p.add_argument("--ppm", type=positive_float("--ppm"), default=None,
+                   help="pixels per metre on the floor")
+    p.add_argument("--tile-size", type=positive_float("--tile-size"), default=None,
+                   help="tile size L, metres")
+    p.add_argument("--extractor", choices=EXTRACTORS, default=None)
+    p.add_argument("--json", action="store_true", help="one JSON object per image")
+    p.add_argument("--stages", metavar="DIR", default=None, help="write every stage image here")
+    return p
+
+
+def read_image(path: str) -> np.ndarray:
+    """An image file as HxWx3 uint8 RGB; CliError naming the file when it cannot be read."""
+    if not os.path.isfile(path):
+        raise CliError(f"{path}: no such file")
+    img = cv2.imread(path, cv2.IMREAD_COLOR)
+    if img is None or img.size == 0:
+        raise CliError(f"{path}: cannot read it as an image")
+    return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
+
+
+def _config(args: argparse.Namespace, image: np.ndarray) -> Config:
+    cfg = preset(args.preset or "default")
+    h, w = image.shape[:2]
+    cam = cfg.camera
+    if args.preset is None:
+        cam = replace(cam, width=w, height=h)
+    if args.ppm is not None:
+        cam = replace(cam, ppm=args.ppm)
+    floor = cfg.floor
+    if args.tile_size is not None:
+        if cfg.floor.grout_width >= args.tile_size / 2:
+            floor = replace(floor, grout_width=0.0)
+        floor = replace(floor, tile_size=args.tile_size)
+    vision = cfg.vision
+    if args.extractor is not None:
+        vision = replace(vision, extractor=args.extractor)
+    return replace(cfg, camera=cam, floor=floor, vision=vision)
+
+
+def _line(path: str, res: VisionResult) -> str:
+    obs = res.observation
+    if obs is None:
+        return f"{path}: no observation ({res.reason}); {res.lines} lines"
+    return (
+        f"{path}: y1={obs.y1:.6f} m y2={obs.y2:.6f} m y3={obs.y3:.6f} rad "
+        f"(+-{obs.position_error:.6f} m, +-{obs.heading_error:.6f} rad); {res.lines} lines"
+    )
+
+
+def _write_stages(folder: Path, path: str, res: VisionResult) -> None:
+    stem = Path(path).stem
+    for i, (name, img) in enumerate(res.stages.items()):
+        out = folder / f"{stem}_{i:02d}_{name}.png"
+        if not cv2.imwrite(str(out), cv2.cvtColor(img, cv2.COLOR_RGB2BGR)):
+            raise CliError(f"cannot write {out}")
+
+
+def main(command: str, argv: list[str]) -> int:
+    """Entry point of ``python -m tileviz extract``; returns the exit status."""
+    prog = f"tileviz {command}"
+    args = _parser(prog).parse_args(argv)
+
+    def body() -> int:
+        folder = None
+        if args.stages is not None:
+            folder = Path(args.stages)
+            try:
+                folder.mkdir(parents=True, exist_ok=True)
+            except OSError as e:
+                raise CliError(f"--stages: cannot create {folder}: {e.strerror}") from None
+        status = 0
+        for path in args.images:
+            try:
+                image = read_image(path)
+                cfg = _config(args, image)
+                h, w = image.shape[:2]
+                if (w, h) != (cfg.camera.width, cfg.camera.height):
+                    raise CliError(
+                        f"{path}: image is {w}x{h} but preset {args.preset!r} expects "
+                        f"{cfg.camera.width}x{cfg.camera.height}"
+                    )
+                res = extract(image, camera=cfg.camera, tile_size=cfg.floor.tile_size,
+                              vision=cfg.vision, keep_stages=folder is not None)
+            except (CliError, ValueError) as e:
+                msg = str(e) if str(e).startswith(path) else f"{path}: {e}"
+                print(f"{prog}: error: {msg}", file=sys.stderr)
+                status = 2
+                continue
+            if folder is not None:
+                _write_stages(folder, path, res)
+            if args.json:
+                print(json.dumps({"image": path, **res.as_dict()}))
+            else:
+                print(_line(path, res))
+        return status
+
+    return run_cli(prog, body)
