@@ -1,0 +1,136 @@
+"""Acceptance figures of issue 4, measured over recorded runs.
+
+For each preset (default: L = 1 m, 200 px/m, 320x240; seed: the original's constants) it records a
+simulated run of ``--minutes`` minutes as a dataset, replays it in autonomous and odometry modes and
+prints: share of frames whose truth is inside the reported set, count of each status, median and
+p95 box widths (x, y in cm, heading in degrees). Then it times, on the same images, the replay per
+frame (PNG decode + vision + localizer) against the bare OpenCV calls of the original pipeline with
+its constants (cvtColor, Laplacian, Canny, close, dilate, HoughLinesP).
+
+    python bench/acceptance.py --minutes 10            # the issue's figures
+    python bench/acceptance.py --minutes 1 --presets default
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import math
+import tempfile
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from tileviz.config import Config, preset
+from tileviz.dataset import DatasetMeta, DatasetSource, DatasetWriter
+from tileviz.runner import Runner
+from tileviz.sim.source import SimSource
+
+
+def record(cfg: Config, folder: Path, frames: int) -> None:
+    with DatasetWriter(folder, DatasetMeta.from_config(cfg)) as w:
+        for frame in itertools.islice(SimSource(cfg), frames):
+            w.write(frame)
+
+
+def replay_stats(folder: Path, mode: str) -> dict[str, float]:
+    src = DatasetSource(folder)
+    cfg = src.meta.to_config()
+    cfg = replace(cfg, localizer=replace(cfg.localizer, mode=mode))
+    runner = Runner(cfg)
+    inside = vouched = 0
+    statuses: dict[str, int] = {}
+    wx, wy, wt, boxes = [], [], [], []
+    for rec in runner.run(src):
+        statuses[rec.status] = statuses.get(rec.status, 0) + 1
+        hull = rec.updated.hull()
+        if rec.status != "lost" and hull is not None:
+            vouched += 1
+            inside += rec.updated.contains(*rec.truth.as_tuple())
+            w = hull.widths
+            wx.append(w[0])
+            wy.append(w[1])
+            wt.append(w[2])
+            boxes.append(len(rec.updated))
+
+    def pct(v: list[float], q: float) -> float:
+        return float(np.percentile(v, q)) if v else math.nan
+
+    n = sum(statuses.values())
+    return {
+        "frames": n,
+        "inside_pct": 100.0 * inside / vouched if vouched else math.nan,
+        "vouched_pct": 100.0 * vouched / n,
+        **{f"n_{k}": statuses.get(k, 0) for k in ("contracted", "predicted", "rejected", "lost")},
+        "med_wx_cm": 100 * pct(wx, 50), "med_wy_cm": 100 * pct(wy, 50),
+        "med_wpos_cm": 100 * pct([max(a, b) for a, b in zip(wx, wy, strict=True)], 50),
+        "p95_wpos_cm": 100 * pct([max(a, b) for a, b in zip(wx, wy, strict=True)], 95),
+        "med_wt_deg": math.degrees(pct(wt, 50)), "p95_wt_deg": math.degrees(pct(wt, 95)),
+        "max_boxes": max(boxes) if boxes else 0,
+    }
+
+
+def bare_opencv(gray: np.ndarray) -> object:
+    """The original pipeline's OpenCV calls with its constants (seed-code-facts.md), only."""
+    lap = cv2.Laplacian(gray, cv2.CV_8U, ksize=1, scale=1, delta=0)
+    edges = cv2.Canny(lap, 50, 255, apertureSize=3)
+    closed = cv2.morphologyEx(edges, cv2.MORPH_CLOSE, np.ones((1, 1), np.uint8))
+    dil = cv2.dilate(closed, np.ones((3, 3), np.uint8), iterations=1)
+    return cv2.HoughLinesP(dil, 1, np.pi / 180, 60, minLineLength=100, maxLineGap=50)
+
+
+def timing(folder: Path, repeats: int = 3, limit: int = 600) -> tuple[float, float]:
+    """(replay ms/frame incl. decode + vision + localizer, bare OpenCV ms/frame), best of
+    ``repeats`` passes over the first ``limit`` frames, interleaved so both see the same load."""
+    src = DatasetSource(folder)
+    cfg = src.meta.to_config()
+    names = [f.image_name for f in itertools.islice(DatasetSource(folder), limit)]
+    images = [cv2.cvtColor(cv2.imread(str(folder / n)), cv2.COLOR_BGR2GRAY) for n in names]
+    best_replay = best_bare = math.inf
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        runner = Runner(cfg)
+        for _rec in runner.run(itertools.islice(DatasetSource(folder), limit)):
+            pass
+        t1 = time.perf_counter()
+        for g in images:
+            bare_opencv(g)
+        t2 = time.perf_counter()
+        best_replay = min(best_replay, (t1 - t0) / len(images) * 1e3)
+        best_bare = min(best_bare, (t2 - t1) / len(images) * 1e3)
+    return best_replay, best_bare
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--minutes", type=float, default=10.0)
+    ap.add_argument("--presets", nargs="+", default=["default", "seed"])
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--keep", help="keep the datasets under this folder")
+    args = ap.parse_args()
+    root = Path(args.keep) if args.keep else Path(tempfile.mkdtemp(prefix="tileviz-accept-"))
+    for name in args.presets:
+        cfg = preset(name)
+        cfg = replace(cfg, sim=replace(cfg.sim, seed=args.seed))
+        frames = int(args.minutes * 60 / cfg.sim.dt)
+        folder = root / f"{name}-{args.seed}"
+        t0 = time.perf_counter()
+        if not (folder / "frames.csv").exists():
+            record(cfg, folder, frames)
+        print(f"\n== preset {name}: {frames} frames ({args.minutes} min simulated), "
+              f"recorded in {time.perf_counter() - t0:.0f} s -> {folder}")
+        for mode in ("autonomous", "odometry"):
+            s = replay_stats(folder, mode)
+            print(f"{mode:>10}: " + "  ".join(
+                f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in s.items()))
+        r, b = timing(folder)
+        print(f"replay (decode+vision+localizer) {r:.3f} ms/frame; bare OpenCV calls of the "
+              f"original pipeline {b:.3f} ms/frame; ratio {r / b:.2f}")
+    print(f"\n(datasets in {root}; median of the replay timing is best of 3 passes)")
+
+
+if __name__ == "__main__":
+    main()
