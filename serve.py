@@ -1,0 +1,12 @@
+"""The live demo: ``python serve.py [options]`` (same as ``python -m tileviz serve``).
+
+Starts the simulation, vision and the interval localizer and serves them in the browser on
+http://127.0.0.1:8080 by default; ``python serve.py --help`` lists the options. Ctrl-C stops it.
+"""
+
+import sys
+
+from tileviz.app.server import main
+
+if __name__ == "__main__":
+    raise SystemExit(main("serve", sys.argv[1:]))

@@ -1,0 +1,325 @@
+"""Commands the GUI (or a test) puts on the app's queue; the loop thread applies them between
+frames.
+
+Every command is a small frozen dataclass that checks its own arguments when it is made: a bad
+value raises ValueError naming the quantity, so a GUI callback can report it and enqueue nothing.
+Units: metres, radians, seconds (``speed`` is a multiple of real time).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+from tileviz.config import EXTRACTORS, MODES, SETPOINTS
+
+__all__ = [
+    "LAYERS", "Command", "Inject", "Kidnap", "Live", "Pause", "Play", "Relocalize", "Report",
+    "Reset", "Restart", "Seek", "SetDisplay", "SetExtractor", "SetInflation", "SetLayer",
+    "SetManualTarget", "SetMaxSpeed", "SetMode", "SetNoise", "SetSetpoint", "SetSpeed",
+    "SetWaypoints", "StartRecording", "Step", "StepBack", "StopRecording", "TogglePlay",
+    "parse_waypoints",
+]
+
+LAYERS = (
+    "floor", "grid", "robot", "footprint", "truth", "prediction", "boxes", "wedge", "setpoint",
+    "path", "trails",
+)
+"""Scene layers the GUI can show or hide."""
+
+MAX_SPEED_FACTOR = 50.0
+"""Upper bound of the playback speed, a multiple of real time."""
+
+
+def _finite(name: str, value: object) -> float:
+    try:
+        v = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a number, got {value!r}") from None
+    if not math.isfinite(v):
+        raise ValueError(f"{name} must be finite, got {value!r}")
+    return v
+
+
+def _in_range(name: str, value: object, lo: float, hi: float) -> float:
+    v = _finite(name, value)
+    if not lo <= v <= hi:
+        raise ValueError(f"{name} must be in [{lo:g}, {hi:g}], got {v:g}")
+    return v
+
+
+def _choice(name: str, value: object, options: Sequence[str]) -> None:
+    if value not in options:
+        raise ValueError(f"{name} must be one of {', '.join(options)}; got {value!r}")
+
+
+@dataclass(frozen=True)
+class Play:
+    """Run: replay the history forward from the shown frame, then compute new frames."""
+
+
+@dataclass(frozen=True)
+class Pause:
+    """Stop advancing (the shown frame stays)."""
+
+
+@dataclass(frozen=True)
+class TogglePlay:
+    """Play when paused, pause when playing."""
+
+
+@dataclass(frozen=True)
+class Step:
+    """Pause and advance exactly one frame (the next stored one, or a new one at the end)."""
+
+
+@dataclass(frozen=True)
+class StepBack:
+    """Pause and show the previous stored frame."""
+
+
+@dataclass(frozen=True)
+class Seek:
+    """Pause and show the stored frame ``index`` (clamped to the history)."""
+
+    index: int
+
+    def __post_init__(self) -> None:
+        v = _finite("frame index", self.index)
+        if v != int(v):
+            raise ValueError(f"frame index must be an integer, got {self.index!r}")
+        object.__setattr__(self, "index", int(v))
+
+
+@dataclass(frozen=True)
+class Live:
+    """Show the newest frame (and keep playing if playing)."""
+
+
+@dataclass(frozen=True)
+class SetSpeed:
+    """Playback speed, a multiple of real time (1 = one frame per ``dt``)."""
+
+    factor: float
+
+    def __post_init__(self) -> None:
+        _in_range("speed", self.factor, 0.01, MAX_SPEED_FACTOR)
+
+
+@dataclass(frozen=True)
+class SetMaxSpeed:
+    """Run as fast as the machine allows (``on``) or at the chosen speed."""
+
+    on: bool
+
+
+@dataclass(frozen=True)
+class SetSetpoint:
+    """Switch the setpoint kind: lissajous, manual or waypoints."""
+
+    kind: str
+
+    def __post_init__(self) -> None:
+        _choice("setpoint", self.kind, SETPOINTS)
+
+
+@dataclass(frozen=True)
+class SetManualTarget:
+    """Drive to (x, y), metres (switches the setpoint to manual)."""
+
+    x: float
+    y: float
+
+    def __post_init__(self) -> None:
+        _in_range("target x", self.x, -1e4, 1e4)
+        _in_range("target y", self.y, -1e4, 1e4)
+
+
+@dataclass(frozen=True)
+class SetWaypoints:
+    """Loop through ``points`` [(x, y), ...], metres (switches the setpoint to waypoints)."""
+
+    points: tuple[tuple[float, float], ...]
+
+    def __post_init__(self) -> None:
+        if not self.points:
+            raise ValueError("waypoints must hold at least one point")
+        for i, (x, y) in enumerate(self.points):
+            _in_range(f"waypoint {i} x", x, -1e4, 1e4)
+            _in_range(f"waypoint {i} y", y, -1e4, 1e4)
+
+
+def parse_waypoints(text: str) -> tuple[tuple[float, float], ...]:
+    """``"x1, y1; x2, y2; ..."`` (metres) as points; ValueError naming the bad piece."""
+    points: list[tuple[float, float]] = []
+    for i, piece in enumerate(p for p in text.replace("\n", ";").split(";") if p.strip()):
+        parts = [s for s in piece.replace(",", " ").split() if s]
+        if len(parts) != 2:
+            raise ValueError(f"waypoint {i}: expected 'x, y', got {piece.strip()!r}")
+        x = _finite(f"waypoint {i} x", parts[0])
+        y = _finite(f"waypoint {i} y", parts[1])
+        points.append((x, y))
+    if not points:
+        raise ValueError("waypoints must hold at least one point ('x, y; x, y; ...')")
+    return tuple(points)
+
+
+@dataclass(frozen=True)
+class Kidnap:
+    """Teleport the robot (the localizer is not told). ``pose`` (x, y, theta) in m, m, rad, or
+    None for a random pose inside the Lissajous area."""
+
+    pose: tuple[float, float, float] | None = None
+
+    def __post_init__(self) -> None:
+        if self.pose is not None:
+            x, y, t = self.pose
+            _in_range("kidnap x", x, -1e4, 1e4)
+            _in_range("kidnap y", y, -1e4, 1e4)
+            _in_range("kidnap theta", t, -1e3, 1e3)
+
+
+@dataclass(frozen=True)
+class Relocalize:
+    """Tell the localizer the robot's true pose (within the configured initial pose error)."""
+
+
+@dataclass(frozen=True)
+class Reset:
+    """Start the run again from frame 0 (``seed``: a new noise seed, or None to keep it)."""
+
+    seed: int | None = None
+
+    def __post_init__(self) -> None:
+        if self.seed is not None and (int(self.seed) != self.seed or not 0 <= self.seed < 2**32):
+            raise ValueError(f"seed must be an integer in [0, 2^32), got {self.seed!r}")
+
+
+@dataclass(frozen=True)
+class Restart:
+    """Start a new run with another floor or camera: tile size L (m) and ppm (pixels/m)."""
+
+    tile_size: float
+    ppm: float
+
+    def __post_init__(self) -> None:
+        _in_range("tile size", self.tile_size, 0.05, 5.0)
+        _in_range("ppm", self.ppm, 20.0, 2000.0)
+
+
+@dataclass(frozen=True)
+class SetMode:
+    """Localizer mode: autonomous, truth or odometry."""
+
+    mode: str
+
+    def __post_init__(self) -> None:
+        _choice("mode", self.mode, MODES)
+
+
+@dataclass(frozen=True)
+class SetExtractor:
+    """Vision extractor: faithful or robust."""
+
+    extractor: str
+
+    def __post_init__(self) -> None:
+        _choice("extractor", self.extractor, EXTRACTORS)
+
+
+@dataclass(frozen=True)
+class SetNoise:
+    """Sensor error bounds (m/s, rad/s, rad) and the share of each bound the simulated noise uses
+    (``fraction`` > 1 breaks the declared bounds on purpose)."""
+
+    speed_error: float
+    yaw_rate_error: float
+    compass_error: float
+    fraction: float = 1.0
+
+    def __post_init__(self) -> None:
+        _in_range("speed error bound", self.speed_error, 0.0, 1.0)
+        _in_range("yaw rate error bound", self.yaw_rate_error, 0.0, 1.0)
+        _in_range("compass error bound", self.compass_error, 0.0, math.pi)
+        _in_range("noise fraction", self.fraction, 0.0, 5.0)
+
+
+@dataclass(frozen=True)
+class SetInflation:
+    """Truth mode: half-widths added around the true pose, metres (x and y) and radians."""
+
+    xy: float
+    theta: float
+
+    def __post_init__(self) -> None:
+        _in_range("inflation x/y", self.xy, 0.0, 10.0)
+        _in_range("inflation theta", self.theta, 0.0, math.pi)
+
+
+@dataclass(frozen=True)
+class SetDisplay:
+    """Stream the pipeline stage images (and keep them in the history) or not."""
+
+    on: bool
+
+
+@dataclass(frozen=True)
+class SetLayer:
+    """Show or hide one scene layer (:data:`LAYERS`)."""
+
+    layer: str
+    visible: bool
+
+    def __post_init__(self) -> None:
+        _choice("layer", self.layer, LAYERS)
+
+
+@dataclass(frozen=True)
+class Inject:
+    """Start a simulated fault (``tileviz.sim.source.SimSource.inject``) lasting ``frames``
+    frames (None: the fault's default)."""
+
+    kind: str
+    frames: int | None = None
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.kind, str) or not self.kind:
+            raise ValueError(f"fault kind must be a name, got {self.kind!r}")
+        if self.frames is not None and (int(self.frames) != self.frames
+                                        or not 1 <= self.frames <= 100_000):
+            raise ValueError(f"fault frames must be an integer in [1, 100000], "
+                             f"got {self.frames!r}")
+
+
+@dataclass(frozen=True)
+class StartRecording:
+    """Write every new frame to a dataset folder ``name`` (sanitized) under the output folder."""
+
+    name: str
+
+
+@dataclass(frozen=True)
+class StopRecording:
+    """Close the dataset being recorded."""
+
+
+@dataclass(frozen=True)
+class Report:
+    """A one-line message for the GUI's notes (``level`` info or error; errors also go to
+    stderr), e.g. a GUI input that was refused."""
+
+    text: str
+    level: str = "error"
+
+    def __post_init__(self) -> None:
+        _choice("level", self.level, ("info", "error"))
+
+
+Command = (
+    Play | Pause | TogglePlay | Step | StepBack | Seek | Live | SetSpeed | SetMaxSpeed
+    | SetSetpoint | SetManualTarget | SetWaypoints | Kidnap | Relocalize | Reset | Restart
+    | SetMode | SetExtractor | SetNoise | SetInflation | SetDisplay | SetLayer | Inject
+    | StartRecording | StopRecording | Report
+)
+"""Any command the loop understands."""

@@ -1,0 +1,241 @@
+"""The control panel: playback, setpoint, localizer and vision options, floor and camera, layers,
+faults and recording; and the readouts the loop refreshes.
+
+Every callback only builds a command (:mod:`tileviz.app.commands`) and hands it to ``submit``;
+the loop thread applies it between frames. Callbacks are ``async`` so viser runs them on its event
+loop in the order the browser sent them (a slider drag arrives in order); ``submit`` never blocks.
+A value the command refuses becomes a one-line note instead. Changes the *server* makes to a
+control (``handle.value = ...`` in :meth:`Controls.refresh`) call the callbacks too, with
+``event.client`` None: those are ignored.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import Any
+
+from tileviz.app import commands as C
+from tileviz.config import EXTRACTORS, MODES, SETPOINTS, Config
+
+__all__ = ["Controls"]
+
+FAULTS = ("slip", "odometry_outlier", "cable", "box", "shadow", "glare", "motion_blur", "dropout")
+"""Faults the simulator can inject (``SimSource.inject``)."""
+
+LAYER_TITLES = {
+    "floor": "Floor", "grid": "Tile grid", "robot": "Robot", "footprint": "Camera footprint",
+    "truth": "True pose (pink)", "prediction": "Prediction (green)",
+    "boxes": "Contracted boxes (blue)", "wedge": "Heading interval", "setpoint": "Setpoint (red)",
+    "path": "Path", "trails": "Trails",
+}
+
+
+class Controls:
+    """Builds the control panel on ``server.gui`` and the target gizmo in ``server.scene``.
+
+    ``submit``: puts a command on the loop's queue (never blocks). ``cfg``: the starting
+    configuration (initial slider values). ``layers``: initial layer visibility. ``display``,
+    ``playing``: initial states.
+    """
+
+    def __init__(self, server: Any, submit: Callable[[object], None], cfg: Config, *,
+                 layers: dict[str, bool], display: bool, playing: bool) -> None:
+        self.server = server
+        self._submit = submit
+        gui = server.gui
+        self.status = gui.add_markdown("starting...")
+
+        with gui.add_folder("Playback"):
+            self.play = gui.add_button("Pause" if playing else "Play")
+            self.step = gui.add_button("Step")
+            self.step_back = gui.add_button("Step back")
+            self.live = gui.add_button("Go live")
+            self.timeline = gui.add_slider("Timeline", min=0, max=1, step=1, initial_value=0)
+            self.speed = gui.add_slider("Speed (x real time)", min=0.1, max=10.0, step=0.1,
+                                        initial_value=1.0)
+            self.max_speed = gui.add_checkbox("As fast as possible", False)
+        self._on_click(self.play, C.TogglePlay)
+        self._on_click(self.step, C.Step)
+        self._on_click(self.step_back, C.StepBack)
+        self._on_click(self.live, C.Live)
+        self._on_change(self.timeline, lambda: C.Seek(int(self.timeline.value)))
+        self._on_change(self.speed, lambda: C.SetSpeed(float(self.speed.value)))
+        self._on_change(self.max_speed, lambda: C.SetMaxSpeed(bool(self.max_speed.value)))
+
+        with gui.add_folder("Robot"):
+            self.setpoint = gui.add_dropdown("Setpoint", SETPOINTS, initial_value=cfg.sim.setpoint)
+            self.pick = gui.add_button("Click the floor to set the target")
+            self.target = gui.add_vector2("Manual target (m)", cfg.sim.manual_target, step=0.1)
+            self.waypoints = gui.add_text(
+                "Waypoints (x, y; ...)", "; ".join(f"{x:g}, {y:g}" for x, y in cfg.sim.waypoints))
+            self.set_waypoints = gui.add_button("Drive the waypoints")
+            self.kidnap = gui.add_button("Kidnap (teleport the robot)")
+            self.relocalize = gui.add_button("Relocalize (tell the true pose)")
+            self.seed = gui.add_number("Seed", cfg.sim.seed, min=0, max=2**31 - 1, step=1)
+            self.reset = gui.add_button("Reset the run")
+        self._on_change(self.setpoint, lambda: C.SetSetpoint(str(self.setpoint.value)))
+        self._on_change(self.target, lambda: C.SetManualTarget(*self.target.value))
+        self._on_click(self.set_waypoints,
+                       lambda: C.SetWaypoints(C.parse_waypoints(self.waypoints.value)))
+        self._on_click(self.kidnap, C.Kidnap)
+        self._on_click(self.relocalize, C.Relocalize)
+        self._on_click(self.reset, lambda: C.Reset(seed=_integer("seed", self.seed.value)))
+        self._on_pick()
+
+        with gui.add_folder("Localizer and vision"):
+            self.mode = gui.add_dropdown("Mode", MODES, initial_value=cfg.localizer.mode)
+            self.extractor = gui.add_dropdown("Extractor", EXTRACTORS,
+                                              initial_value=cfg.vision.extractor)
+            n = cfg.noise
+            self.speed_error = gui.add_slider("Speed bound (m/s)", min=0.0, max=0.2, step=0.001,
+                                              initial_value=n.speed_error)
+            self.yaw_error = gui.add_slider("Yaw rate bound (rad/s)", min=0.0, max=0.2,
+                                            step=0.001, initial_value=n.yaw_rate_error)
+            self.compass_error = gui.add_slider("Compass bound (rad)", min=0.0, max=0.5,
+                                                step=0.001, initial_value=n.compass_error)
+            self.fraction = gui.add_slider("Noise / bound", min=0.0, max=3.0, step=0.05,
+                                           initial_value=n.fraction)
+            ix, _, it = cfg.localizer.truth_inflation
+            self.inflation_xy = gui.add_slider("Truth inflation x, y (m)", min=0.0, max=2.0,
+                                               step=0.01, initial_value=ix)
+            self.inflation_t = gui.add_slider("Truth inflation heading (rad)", min=0.0,
+                                              max=1.5, step=0.01, initial_value=it)
+        self._on_change(self.mode, lambda: C.SetMode(str(self.mode.value)))
+        self._on_change(self.extractor, lambda: C.SetExtractor(str(self.extractor.value)))
+        for h in (self.speed_error, self.yaw_error, self.compass_error, self.fraction):
+            self._on_change(h, lambda: C.SetNoise(self.speed_error.value, self.yaw_error.value,
+                                                  self.compass_error.value, self.fraction.value))
+        for h in (self.inflation_xy, self.inflation_t):
+            self._on_change(h, lambda: C.SetInflation(self.inflation_xy.value,
+                                                      self.inflation_t.value))
+
+        with gui.add_folder("Floor and camera", expand_by_default=False):
+            self.tile_size = gui.add_number("Tile size L (m)", cfg.floor.tile_size, min=0.05,
+                                            max=5.0, step=0.001)
+            self.ppm = gui.add_number("Pixels per metre", cfg.camera.ppm, min=20.0, max=2000.0,
+                                      step=0.01)
+            self.restart = gui.add_button("Restart with this floor and camera")
+        self._on_click(self.restart, lambda: C.Restart(self.tile_size.value, self.ppm.value))
+
+        with gui.add_folder("Layers", expand_by_default=False):
+            self.display = gui.add_checkbox("Stream stage images", display)
+            self.layers = {name: gui.add_checkbox(LAYER_TITLES[name], layers[name])
+                           for name in C.LAYERS}
+        self._on_change(self.display, lambda: C.SetDisplay(bool(self.display.value)))
+        for name, h in self.layers.items():
+            self._on_change(h, lambda n=name, hh=h: C.SetLayer(n, bool(hh.value)))
+
+        with gui.add_folder("Faults", expand_by_default=False):
+            self.fault = gui.add_dropdown("Fault", FAULTS, initial_value="slip")
+            self.fault_frames = gui.add_number("Frames (0: default)", 0, min=0, max=100000,
+                                               step=1)
+            self.inject = gui.add_button("Inject")
+        self._on_click(self.inject, lambda: C.Inject(
+            str(self.fault.value), _integer("frames", self.fault_frames.value) or None))
+
+        with gui.add_folder("Record"):
+            self.record_name = gui.add_text("Dataset name", "live-run")
+            self.record = gui.add_button("Start recording")
+        self._recording = False
+        self._on_click(self.record, lambda: (C.StopRecording() if self._recording
+                                             else C.StartRecording(self.record_name.value)))
+
+        tx, ty = cfg.sim.manual_target
+        self.gizmo = server.scene.add_transform_controls(
+            "/target_gizmo", scale=0.6, disable_rotations=True, active_axes=(True, True, False),
+            depth_test=False, position=(tx, ty, 0.05), visible=cfg.sim.setpoint == "manual")
+
+        @self.gizmo.on_update
+        async def _(event: Any) -> None:
+            if event.client is None or event.phase != "end":
+                return
+            x, y = float(event.target.position[0]), float(event.target.position[1])
+            self._make(lambda: C.SetManualTarget(x, y))
+
+    # ------------------------------------------------------------------ wiring
+    def _make(self, factory: Callable[[], object]) -> None:
+        try:
+            cmd = factory()
+        except (ValueError, TypeError) as e:
+            cmd = C.Report(f"refused: {e}")
+        self._submit(cmd)
+
+    def _on_click(self, handle: Any, factory: Callable[[], object]) -> None:
+        @handle.on_click
+        async def _(event: Any) -> None:
+            if event.client is not None:
+                self._make(factory)
+
+    def _on_change(self, handle: Any, factory: Callable[[], object]) -> None:
+        @handle.on_update
+        async def _(event: Any) -> None:
+            if event.client is not None:
+                self._make(factory)
+
+    def _on_pick(self) -> None:
+        scene = self.server.scene
+
+        @self.pick.on_click
+        async def _(event: Any) -> None:
+            if event.client is None:
+                return
+            self.pick.disabled = True
+
+            @scene.on_click()
+            async def picked(click: Any) -> None:
+                scene.remove_click_callback(picked)
+                self.pick.disabled = False
+                point = floor_point(click.ray_origin, click.ray_direction)
+                if point is None:
+                    self._submit(C.Report("that click did not hit the floor"))
+                else:
+                    self._make(lambda: C.SetManualTarget(*point))
+
+    # ------------------------------------------------------------------ refresh (loop thread)
+    def refresh(self, *, first: int, last: int, shown: int, playing: bool, setpoint: str,
+                target: tuple[float, float], recording: bool, status: str) -> None:
+        """Bring the controls the loop changes up to date (values set here are not echoed back
+        as commands)."""
+        label = "Pause" if playing else "Play"
+        if self.play.label != label:
+            self.play.label = label
+        hi = max(last, first + 1)
+        if self.timeline.min != first:
+            self.timeline.min = first
+        if self.timeline.max != hi:
+            self.timeline.max = hi
+        if shown >= 0 and self.timeline.value != shown:
+            self.timeline.value = shown
+        if self.setpoint.value != setpoint:
+            self.setpoint.value = setpoint
+        self.gizmo.visible = setpoint == "manual"
+        if setpoint == "manual" and tuple(self.target.value) != tuple(target):
+            self.target.value = target
+            self.gizmo.position = (target[0], target[1], 0.05)
+        self._recording = recording
+        label = "Stop recording" if recording else "Start recording"
+        if self.record.label != label:
+            self.record.label = label
+        if self.status.content != status:
+            self.status.content = status
+
+
+def floor_point(origin: tuple[float, float, float],
+                direction: tuple[float, float, float]) -> tuple[float, float] | None:
+    """Where a ray (world frame, m) meets the floor plane z = 0, or None if it does not."""
+    oz, dz = float(origin[2]), float(direction[2])
+    if not (math.isfinite(oz) and math.isfinite(dz)) or dz >= 0.0 or oz <= 0.0:
+        return None
+    s = -oz / dz
+    x, y = float(origin[0]) + s * float(direction[0]), float(origin[1]) + s * float(direction[1])
+    if not (math.isfinite(x) and math.isfinite(y)):
+        return None
+    return (x, y)
+
+
+def _integer(name: str, value: object) -> int:
+    v = float(value)  # type: ignore[arg-type]
+    if not math.isfinite(v) or v != int(v):
+        raise ValueError(f"{name} must be an integer, got {value!r}")
+    return int(v)

@@ -1,0 +1,206 @@
+"""The bounded history of processed frames the live server shows, steps back through and scrubs.
+
+Each :class:`Entry` holds one immutable :class:`tileviz.runner.FrameRecord` and the images shown
+for it, JPEG-encoded once when the frame was made (the camera view, then every pipeline stage).
+Showing an old frame re-sends those same bytes and the same record: nothing is recomputed, so a
+frame looks exactly the same live and from the history.
+
+To keep 2000+ frames in memory the stored record drops its raw arrays (the camera image and the
+stage images, ~2 MB a frame at 320x240); their JPEG copies (~80 kB a frame) stay in the entry.
+Per-frame numbers for the plots and the trails live in ring arrays (:class:`Series`).
+
+Threads: the loop thread appends; readers (tests, a publisher) may read at any time. A lock guards
+the ring so a reader never sees a half-written frame.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from dataclasses import dataclass, replace
+
+import cv2
+import numpy as np
+
+from tileviz.runner import FrameRecord
+from tileviz.types import STATUSES
+
+__all__ = ["Entry", "History", "Series", "encode_jpeg", "metrics_of", "strip_record"]
+
+JPEG_QUALITY = 85
+"""Quality of the stored (and streamed) camera and stage images."""
+
+_EMPTY_IMAGE = np.zeros((0, 0, 3), np.uint8)
+_EMPTY_IMAGE.flags.writeable = False
+
+METRIC_NAMES = (
+    "t",
+    "r1", "r2", "r3", "r4", "r5", "r6",
+    "width_x", "width_y", "width_theta",
+    "error_xy", "error_theta",
+    "truth_x", "truth_y", "est_x", "est_y",
+    "inside", "status", "boxes", "frame_ms",
+)
+"""Columns of :class:`Series`. Units: t s; r1..r6 dimensionless; widths m, m, rad (hull of the
+updated set); error_xy m (distance from the truth to the hull centre), error_theta rad (wrapped
+to [-pi, pi]); truth/est x, y m; inside 1/0 (NaN when unknown or ``lost``); status the index in
+``tileviz.types.STATUSES``; boxes count; frame_ms the vision + localizer time."""
+
+
+def encode_jpeg(image: np.ndarray, quality: int = JPEG_QUALITY) -> bytes:
+    """JPEG bytes of an HxWx3 uint8 RGB image (or HxW gray, shown as RGB)."""
+    if image.ndim == 2:
+        image = cv2.cvtColor(image, cv2.COLOR_GRAY2RGB)
+    bgr = cv2.cvtColor(np.ascontiguousarray(image[..., :3]), cv2.COLOR_RGB2BGR)
+    ok, buf = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
+    if not ok:
+        raise ValueError(f"cannot JPEG-encode an image of shape {image.shape}")
+    return buf.tobytes()
+
+
+def strip_record(rec: FrameRecord) -> FrameRecord:
+    """The record without its raw image arrays (camera image and stage images)."""
+    vision = rec.vision
+    if vision.stages:
+        vision = replace(vision, stages={})
+    return replace(rec, image=_EMPTY_IMAGE, vision=vision)
+
+
+def metrics_of(rec: FrameRecord) -> np.ndarray:
+    """One row of :data:`METRIC_NAMES` for ``rec`` (NaN where unknown)."""
+    nan = math.nan
+    row = np.full(len(METRIC_NAMES), nan)
+    row[0] = rec.t
+    if rec.residuals is not None:
+        row[1:7] = rec.residuals
+    hull = rec.updated.hull()
+    if hull is not None:
+        row[7:10] = hull.widths
+        cx, cy, ct = hull.centre
+        row[14:16] = (cx, cy)
+        if rec.truth is not None:
+            row[10] = math.hypot(rec.truth.x - cx, rec.truth.y - cy)
+            row[11] = math.remainder(rec.truth.theta - ct, 2.0 * math.pi)
+    if rec.truth is not None:
+        row[12:14] = (rec.truth.x, rec.truth.y)
+    inside = rec.truth_inside()
+    row[16] = nan if inside is None else float(inside)
+    row[17] = STATUSES.index(rec.status) if rec.status in STATUSES else nan
+    row[18] = len(rec.updated)
+    row[19] = rec.timings.get("vision_ms", 0.0) + rec.timings.get("localizer_ms", 0.0)
+    return row
+
+
+@dataclass(frozen=True)
+class Entry:
+    """One frame of the history: the (stripped) record and its images as JPEG bytes.
+
+    ``images``: ordered (name, JPEG bytes) pairs; ``camera`` first, then the pipeline stages in
+    the extractor's order (empty names when the display was off for this frame)."""
+
+    record: FrameRecord
+    images: tuple[tuple[str, bytes], ...]
+
+    @property
+    def index(self) -> int:
+        return self.record.index
+
+    @classmethod
+    def make(cls, rec: FrameRecord, *, stages: bool = True) -> Entry:
+        """Encode ``rec``'s camera image (and its stage images when ``stages``) and strip it."""
+        images: list[tuple[str, bytes]] = []
+        if rec.image.size:
+            images.append(("camera", encode_jpeg(rec.image)))
+        if stages:
+            images.extend((name, encode_jpeg(img)) for name, img in rec.vision.stages.items())
+        return cls(strip_record(rec), tuple(images))
+
+
+class Series:
+    """Per-frame numbers (:data:`METRIC_NAMES`) in ring arrays of ``capacity`` rows."""
+
+    def __init__(self, capacity: int) -> None:
+        self.capacity = int(capacity)
+        self._rows = np.full((self.capacity, len(METRIC_NAMES)), math.nan)
+
+    def put(self, index: int, row: np.ndarray) -> None:
+        self._rows[index % self.capacity] = row
+
+    def window(self, first: int, last: int) -> np.ndarray:
+        """Rows for frame indices first..last (inclusive), in order; a copy."""
+        if last < first:
+            return np.empty((0, len(METRIC_NAMES)))
+        idx = np.arange(first, last + 1) % self.capacity
+        return self._rows[idx].copy()
+
+
+class History:
+    """The last ``capacity`` frames of a run, indexed by frame index.
+
+    Frame indices of a run are consecutive (0, 1, 2, ...); :meth:`clear` starts a new run.
+    """
+
+    def __init__(self, capacity: int = 2000) -> None:
+        if int(capacity) != capacity or capacity < 2:
+            raise ValueError(f"history capacity must be an integer >= 2, got {capacity!r}")
+        self.capacity = int(capacity)
+        self._lock = threading.Lock()
+        self._entries: list[Entry | None] = [None] * self.capacity
+        self.series = Series(self.capacity)
+        self._first = 0
+        self._last = -1
+
+    def clear(self) -> None:
+        """Forget every frame (a new run starts)."""
+        with self._lock:
+            self._entries = [None] * self.capacity
+            self.series = Series(self.capacity)
+            self._first = 0
+            self._last = -1
+
+    def append(self, entry: Entry) -> None:
+        """Add the next frame; its index must follow the last one (or start an empty history)."""
+        i = entry.index
+        with self._lock:
+            if self._last >= self._first and i != self._last + 1:
+                raise ValueError(f"history: frame {i} does not follow frame {self._last}")
+            if self._last < self._first:
+                self._first = i
+            self._entries[i % self.capacity] = entry
+            self.series.put(i, metrics_of(entry.record))
+            self._last = i
+            if self._last - self._first + 1 > self.capacity:
+                self._first = self._last - self.capacity + 1
+
+    def __len__(self) -> int:
+        return max(0, self._last - self._first + 1)
+
+    @property
+    def first(self) -> int:
+        """Index of the oldest frame kept (0 when empty)."""
+        return self._first
+
+    @property
+    def last(self) -> int:
+        """Index of the newest frame (-1 when empty)."""
+        return self._last
+
+    def __contains__(self, index: int) -> bool:
+        return self._first <= index <= self._last
+
+    def get(self, index: int) -> Entry:
+        """The frame of that index; KeyError when it is not (or no longer) kept."""
+        with self._lock:
+            if not self._first <= index <= self._last:
+                raise KeyError(f"frame {index} is not in the history "
+                               f"({self._first}..{self._last})")
+            entry = self._entries[index % self.capacity]
+        assert entry is not None
+        return entry
+
+    def window(self, last: int, n: int) -> np.ndarray:
+        """Metric rows of the (up to) ``n`` frames ending at ``last`` (clamped to the history)."""
+        with self._lock:
+            hi = min(last, self._last)
+            lo = max(self._first, hi - n + 1)
+            return self.series.window(lo, hi)

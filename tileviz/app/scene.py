@@ -1,0 +1,321 @@
+"""The 3-D scene of the live server: floor, robot, camera footprint, interval boxes, trails.
+
+World frame (``shared/dataset-format.md``): metres, x east, y north, z up (viser's default up
+direction). Every node is made once, with a fixed name, and then updated in place: a fixed pool
+of box nodes for the interval sets (unused ones hidden), fixed-size line-segment nodes for the
+trails and outlines, a fixed-size mesh for the heading wedge. Nothing is created per frame.
+
+Layers (drawing heights, metres): floor texture z = 0, tile grid 0.002, path 0.004, trails 0.006,
+camera footprint 0.008, robot up to ~0.2, interval boxes above the robot at 0.26-0.28 (the boxes
+of a localized robot are centimetres wide and sit under its body), heading wedge 0.29, true pose
+arrow 0.31.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from tileviz.config import CameraConfig, Config, FloorConfig
+from tileviz.types import Box, BoxSet, Pose
+
+__all__ = ["COLOURS", "SceneView", "floor_texture", "yaw_wxyz"]
+
+COLOURS: dict[str, tuple[int, int, int]] = {
+    "truth": (255, 64, 160),  # pink
+    "prediction": (40, 190, 70),  # green
+    "boxes": (30, 100, 240),  # blue
+    "setpoint": (230, 30, 30),  # red
+    "path": (200, 90, 90),
+    "waypoints": (240, 140, 20),
+    "estimate": (30, 100, 240),
+    "robot": (120, 124, 135),
+    "wheel": (40, 40, 44),
+    "camera": (250, 200, 40),
+}
+"""RGB colour of each drawn quantity."""
+
+TRAIL_SEGMENTS = 1000
+"""Segments in each trail (the last TRAIL_SEGMENTS + 1 frames up to the shown one)."""
+WEDGE_STEPS = 48
+"""Arc steps of the heading wedge."""
+Z_BOX = 0.26
+Z_WEDGE = 0.29
+Z_TRUTH = 0.31
+TEXTURE_PIXELS = 1600
+"""Largest side of the floor texture, pixels."""
+
+
+def yaw_wxyz(theta: float) -> tuple[float, float, float, float]:
+    """Quaternion (w, x, y, z) of a rotation by ``theta`` rad about +z."""
+    return (math.cos(theta / 2.0), 0.0, 0.0, math.sin(theta / 2.0))
+
+
+def floor_texture(floor: FloorConfig, half_size: float,
+                  max_pixels: int = TEXTURE_PIXELS) -> np.ndarray:
+    """The simulated floor over [-half_size, half_size]^2 metres as an NxNx3 uint8 RGB image, drawn
+    by the simulator's own :class:`tileviz.sim.camera.FloorRenderer` (same tiles, grout, tile
+    brightness, texture and stains; no camera noise).
+
+    Row 0 is the south edge (y = -half_size) and column 0 the west edge: the row order viser's
+    ``add_image`` maps onto +y."""
+    from tileviz.sim.camera import FloorRenderer
+
+    if not math.isfinite(half_size) or half_size <= 0:
+        raise ValueError(f"floor half size must be a finite number > 0, got {half_size!r}")
+    ppm = min(max_pixels / (2.0 * half_size), 256.0)
+    n = max(16, int(round(2.0 * half_size * ppm)))
+    ppm = n / (2.0 * half_size)
+    cam = CameraConfig(ppm=ppm, width=n, height=n, offset=(0.0, 0.0), noise_sigma=0.0,
+                       blur_sigma=0.0, vignetting=0.0, jpeg_quality=0)
+    # A camera at the origin heading north sees north up and east right (dataset-format.md).
+    north_up = FloorRenderer(floor, cam).floor_image(Pose(0.0, 0.0, math.pi / 2))
+    return np.clip(north_up[::-1], 0, 255).astype(np.uint8)
+
+
+def _box_outline(b: Box, z: float) -> np.ndarray:
+    """The 4 edges of a box's (x, y) rectangle at height z: (4, 2, 3)."""
+    c = np.array([[b.x_lo, b.y_lo], [b.x_hi, b.y_lo], [b.x_hi, b.y_hi], [b.x_lo, b.y_hi]])
+    seg = np.zeros((4, 2, 3), np.float32)
+    seg[:, 0, :2] = c
+    seg[:, 1, :2] = np.roll(c, -1, axis=0)
+    seg[:, :, 2] = z
+    return seg
+
+
+def _polyline_segments(points: np.ndarray, n: int, z: float) -> np.ndarray:
+    """``points`` (M, 2) as n segments (n, 2, 3) joining consecutive points; NaN points break the
+    line; unused segments collapse onto the last point (or the origin)."""
+    seg = np.zeros((n, 2, 3), np.float32)
+    seg[:, :, 2] = z
+    pts = np.asarray(points, np.float64).reshape(-1, 2)
+    good = np.isfinite(pts).all(axis=1)
+    if good.any():
+        seg[:, :, :2] = pts[good][-1]
+    if len(pts) >= 2:
+        a, b = pts[:-1], pts[1:]
+        ok = good[:-1] & good[1:]
+        a, b = a[ok][-n:], b[ok][-n:]
+        seg[: len(a), 0, :2] = a
+        seg[: len(a), 1, :2] = b
+    return seg
+
+
+class SceneView:
+    """Owns the scene nodes and updates them from frame records.
+
+    ``scene``: a viser ``SceneApi`` (``server.scene``). ``pool``: box nodes per interval set.
+    """
+
+    def __init__(self, scene: Any, *, pool: int = 16) -> None:
+        self.scene = scene
+        self.pool = int(pool)
+        self.layers: dict[str, bool] = {}
+        self._world_key: object = None
+        self._floor_key: object = None
+        self._nodes: dict[str, list[Any]] = {}
+        self._build_dynamic()
+
+    # ------------------------------------------------------------------ building
+    def _layer(self, name: str, *handles: Any) -> None:
+        self._nodes.setdefault(name, []).extend(handles)
+
+    def _build_dynamic(self) -> None:
+        s = self.scene
+        # robot: a frame at the true pose, parts in the robot frame (x forward, y left)
+        self.robot = s.add_frame("/robot", show_axes=False)
+        self.body = s.add_box("/robot/body", color=COLOURS["robot"], dimensions=(0.5, 0.32, 0.1),
+                              position=(0.0, 0.0, 0.09), opacity=0.75)
+        side = (math.cos(math.pi / 4), math.sin(math.pi / 4), 0.0, 0.0)  # axis along robot y
+        self.wheels = [
+            s.add_cylinder(f"/robot/wheel_{k}", radius=0.08, height=0.04, color=COLOURS["wheel"],
+                           wxyz=side, position=(0.0, sgn * 0.2, 0.08))
+            for k, sgn in (("left", 1.0), ("right", -1.0))
+        ]
+        nose = np.array([[[0.0, 0.0, 0.15], [0.32, 0.0, 0.15]],
+                         [[0.32, 0.0, 0.15], [0.24, 0.06, 0.15]],
+                         [[0.32, 0.0, 0.15], [0.24, -0.06, 0.15]]], np.float32)
+        self.nose = s.add_line_segments("/robot/heading", nose, (30, 30, 30), thickness=3.0,
+                                        thickness_units="screen")
+        self.camera_mount = s.add_box("/robot/camera", color=COLOURS["camera"],
+                                      dimensions=(0.05, 0.05, 0.05), position=(0.3, 0.0, 0.2))
+        self.footprint = s.add_line_segments("/robot/footprint", np.zeros((4, 2, 3), np.float32),
+                                             COLOURS["camera"], thickness=2.0,
+                                             thickness_units="screen")
+        self._layer("robot", self.body, *self.wheels, self.nose, self.camera_mount)
+        self._layer("footprint", self.footprint)
+
+        # the true pose (pink arrow), separate from the robot so it stays when the robot is hidden
+        arrow = np.array([[[-0.1, 0.0, 0.0], [0.45, 0.0, 0.0]],
+                          [[0.45, 0.0, 0.0], [0.33, 0.08, 0.0]],
+                          [[0.45, 0.0, 0.0], [0.33, -0.08, 0.0]]], np.float32)
+        self.truth = s.add_line_segments("/truth", arrow, COLOURS["truth"], thickness=4.0,
+                                         thickness_units="screen", position=(0.0, 0.0, Z_TRUTH))
+        self._layer("truth", self.truth)
+
+        # interval sets: a fixed pool of translucent boxes + one outline node per set
+        self.sets: dict[str, tuple[list[Any], Any]] = {}
+        for name, opacity in (("prediction", 0.18), ("boxes", 0.4)):
+            boxes = [
+                s.add_box(f"/intervals/{name}/{i}", color=COLOURS[name],
+                          dimensions=(0.01, 0.01, 0.01), opacity=opacity, visible=False,
+                          cast_shadow=False, receive_shadow=False)
+                for i in range(self.pool)
+            ]
+            outline = s.add_line_segments(
+                f"/intervals/{name}_outline", np.zeros((4 * self.pool, 2, 3), np.float32),
+                COLOURS[name], thickness=2.0, thickness_units="screen")
+            self.sets[name] = (boxes, outline)
+            self._layer(name, *boxes, outline)
+
+        # heading interval wedge: a fan around the estimate's centre
+        k = WEDGE_STEPS
+        faces = np.array([[0, i + 1, i + 2] for i in range(k)], np.uint32)
+        self.wedge = s.add_mesh_simple("/intervals/wedge", np.zeros((k + 2, 3), np.float32),
+                                       faces, color=COLOURS["boxes"], opacity=0.3, side="double",
+                                       cast_shadow=False, receive_shadow=False)
+        self._layer("wedge", self.wedge)
+
+        self.setpoint = s.add_icosphere("/setpoint", radius=0.07, color=COLOURS["setpoint"],
+                                        position=(0.0, 0.0, 0.07))
+        self._layer("setpoint", self.setpoint)
+
+        n = TRAIL_SEGMENTS
+        self.trail_truth = s.add_line_segments("/trails/truth", np.zeros((n, 2, 3), np.float32),
+                                               COLOURS["truth"], thickness=2.0,
+                                               thickness_units="screen")
+        self.trail_est = s.add_line_segments("/trails/estimate", np.zeros((n, 2, 3), np.float32),
+                                             COLOURS["estimate"], thickness=2.0,
+                                             thickness_units="screen")
+        self._layer("trails", self.trail_truth, self.trail_est)
+        self.floor: Any = None
+        self.grid: Any = None
+        self.path: Any = None
+        self.waypoints: Any = None
+        self._setpoint_kind = "lissajous"
+
+    def set_world(self, cfg: Config, *, path: Sequence[tuple[float, float]],
+                  waypoints: Sequence[tuple[float, float]], setpoint_kind: str) -> None:
+        """(Re)draw the static layers: the floor (only when the floor or the room changed), the
+        Lissajous path and the waypoint loop, and the camera footprint for ``cfg.camera``."""
+        half = float(cfg.sim.room_half_size)
+        floor_key = (cfg.floor, half)
+        s = self.scene
+        if floor_key != self._floor_key:
+            tex = floor_texture(cfg.floor, half)
+            self.floor = s.add_image("/floor", tex, 2 * half, 2 * half, format="jpeg",
+                                     jpeg_quality=90, position=(0.0, 0.0, 0.0),
+                                     cast_shadow=False, receive_shadow=0.3)
+            g = tuple(int(c) for c in cfg.floor.grout_rgb)
+            self.grid = s.add_grid("/grid", width=2 * half, height=2 * half,
+                                   cell_size=cfg.floor.tile_size,
+                                   section_size=cfg.floor.tile_size, cell_color=g,
+                                   section_color=g, position=(0.0, 0.0, 0.002),
+                                   shadow_opacity=0.0)
+            self._nodes["floor"] = [self.floor]
+            self._nodes["grid"] = [self.grid]
+            self._floor_key = floor_key
+        pts = np.asarray(list(path) + list(path[:1]), np.float64) if path else np.zeros((0, 2))
+        self.path = s.add_line_segments("/path", _polyline_segments(pts, max(len(pts) - 1, 1),
+                                                                    0.004),
+                                        COLOURS["path"], thickness=1.5, thickness_units="screen")
+        wp = np.asarray(list(waypoints) + list(waypoints[:1]), np.float64)
+        self.waypoints = s.add_line_segments(
+            "/waypoints", _polyline_segments(wp, max(len(wp) - 1, 1), 0.005),
+            COLOURS["waypoints"], thickness=2.0, thickness_units="screen")
+        self._setpoint_kind = setpoint_kind
+        cam = cfg.camera
+        fw, lw = cam.height / cam.ppm, cam.width / cam.ppm  # forward and left extents, m
+        f0, l0 = cam.offset
+        self.footprint.points = _box_outline(
+            Box(f0 - fw / 2, f0 + fw / 2, l0 - lw / 2, l0 + lw / 2, 0.0, 0.0), 0.008)
+        self.camera_mount.position = (f0, l0, 0.2)
+        for w, sgn in zip(self.wheels, (1.0, -1.0), strict=True):
+            w.position = (0.0, sgn * cfg.sim.wheel_base / 2, 0.08)
+        self.body.dimensions = (0.5, max(cfg.sim.wheel_base - 0.08, 0.1), 0.1)
+        self.apply_layers(self.layers, force=True)
+
+    # ------------------------------------------------------------------ layers
+    def apply_layers(self, layers: dict[str, bool], force: bool = False) -> None:
+        """Show or hide whole layers (``force``: re-send every layer's state)."""
+        for name, on in layers.items():
+            if not force and self.layers.get(name) == on:
+                continue
+            if name in self.sets:
+                boxes, outline = self.sets[name]
+                outline.visible = on
+                if not on:
+                    for b in boxes:
+                        b.visible = False  # shown again box by box by the next show()
+            elif name == "path":
+                if self.path is not None:
+                    self.path.visible = on and self._setpoint_kind == "lissajous"
+                if self.waypoints is not None:
+                    self.waypoints.visible = on and self._setpoint_kind == "waypoints"
+            else:
+                for h in self._nodes.get(name, []):
+                    h.visible = on
+        self.layers = dict(layers)
+
+    # ------------------------------------------------------------------ per frame
+    def show(self, rec: Any, trail_truth: np.ndarray, trail_est: np.ndarray) -> None:
+        """Update every dynamic node from the record ``rec`` (a FrameRecord) and the trails
+        (K, 2) arrays of past (x, y), NaN where unknown."""
+        truth: Pose | None = rec.truth
+        if truth is not None:
+            self.robot.position = (truth.x, truth.y, 0.0)
+            self.robot.wxyz = yaw_wxyz(truth.theta)
+            self.truth.position = (truth.x, truth.y, Z_TRUTH)
+            self.truth.wxyz = yaw_wxyz(truth.theta)
+        if self.layers.get("prediction", True):
+            self._show_set("prediction", rec.predicted)
+        if self.layers.get("boxes", True):
+            self._show_set("boxes", rec.updated)
+        if self.layers.get("wedge", True):
+            self._show_wedge(rec.updated.hull())
+        if rec.setpoint is not None:
+            self.setpoint.position = (rec.setpoint[0], rec.setpoint[1], 0.07)
+        if self.layers.get("trails", True):
+            self.trail_truth.points = _polyline_segments(trail_truth, TRAIL_SEGMENTS, 0.006)
+            self.trail_est.points = _polyline_segments(trail_est, TRAIL_SEGMENTS, 0.007)
+
+    def _show_set(self, name: str, boxset: BoxSet) -> None:
+        boxes, outline = self.sets[name]
+        items = list(boxset.boxes)
+        if len(items) > self.pool:
+            rest = BoxSet(tuple(items[self.pool - 1:])).hull()
+            items = items[: self.pool - 1] + ([rest] if rest is not None else [])
+        z = Z_BOX + (0.01 if name == "boxes" else 0.0)
+        seg = np.zeros((4 * self.pool, 2, 3), np.float32)
+        for i, node in enumerate(boxes):
+            if i < len(items):
+                b = items[i]
+                wx, wy = max(b.x_hi - b.x_lo, 1e-4), max(b.y_hi - b.y_lo, 1e-4)
+                node.dimensions = (wx, wy, 0.008)
+                node.position = (0.5 * (b.x_lo + b.x_hi), 0.5 * (b.y_lo + b.y_hi), z)
+                node.visible = True
+                seg[4 * i: 4 * i + 4] = _box_outline(b, z + 0.005)
+            else:
+                node.visible = False
+                if items:
+                    seg[4 * i: 4 * i + 4] = seg[0, 0]
+        outline.points = seg
+
+    def _show_wedge(self, hull: Box | None) -> None:
+        k = WEDGE_STEPS
+        v = np.zeros((k + 2, 3), np.float32)
+        if hull is not None:
+            cx, cy, _ = hull.centre
+            lo, hi = hull.t_lo, hull.t_hi
+            if hi - lo >= 2.0 * math.pi:
+                lo, hi = 0.0, 2.0 * math.pi
+            a = np.linspace(lo, hi, k + 1)
+            r = 0.6
+            v[0] = (cx, cy, Z_WEDGE)
+            v[1:, 0] = cx + r * np.cos(a)
+            v[1:, 1] = cy + r * np.sin(a)
+            v[1:, 2] = Z_WEDGE
+        self.wedge.vertices = v

@@ -1,0 +1,400 @@
+"""``python -m tileviz serve`` / ``python serve.py``: the live demo in the browser (viser).
+
+:class:`App` owns the viser server, a queue of commands and one loop thread. GUI callbacks only
+put commands on the queue. The loop thread drains the queue between frames, advances the run
+(:class:`tileviz.app.session.Session`: simulator -> runner -> history) and pushes the frame being
+shown to the scene, the image panels, the plots and the readouts, at most ``push_rate`` times a
+second (the browser cannot take more than ~60 updates a second; the loop itself runs faster).
+An exception inside a frame is logged as one line, shown in the GUI, and the loop goes on.
+
+Options (report table 6.1 and the server's own): ``--host`` (default 127.0.0.1: only this
+machine), ``--port`` (8080; the next free one if taken), ``--preset``, ``--interactive`` (start
+paused: one frame per Step), ``--intervals/--no-intervals`` (draw the boxes),
+``--display/--no-display`` (stream the stage images), ``--ppm``, ``--tile-size``,
+``--output-file NAME`` (CSV of the six equivalence residuals per frame, written under
+``--out-dir``), ``--seed``, ``--history``, ``--push-rate``, ``--speed``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import queue
+import signal
+import sys
+import threading
+import time
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+from tileviz.app import commands as C
+from tileviz.app.history import METRIC_NAMES
+from tileviz.app.scene import TRAIL_SEGMENTS
+from tileviz.app.session import Session, SessionOptions
+from tileviz.cliutil import Parser, positive_float, positive_int, run_cli
+from tileviz.config import PRESETS, Config, preset
+
+__all__ = ["App", "main", "parser"]
+
+_COL = {name: i for i, name in enumerate(METRIC_NAMES)}
+QUEUE_SIZE = 1000
+"""Commands waiting at most; a flood beyond it is dropped (and counted)."""
+
+
+class App:
+    """The live demo: a viser server + the loop thread (see the module docstring).
+
+    ``cfg``: the run's configuration. ``options``: how the session starts. ``host``/``port``: where
+    to listen (port 0: any free port). ``push_rate``: scene/panel updates per second at most;
+    ``plot_rate``: plot updates per second at most; ``plot_window``: frames in the plots.
+    """
+
+    def __init__(self, cfg: Config, options: SessionOptions | None = None, *,
+                 host: str = "127.0.0.1", port: int = 8080, push_rate: float = 40.0,
+                 plot_rate: float = 4.0, plot_window: int = 1000, verbose: bool = False) -> None:
+        self.cfg = cfg
+        self.options = options or SessionOptions()
+        self.host = host
+        self.requested_port = port
+        self.push_rate = float(push_rate)
+        self.plot_rate = float(plot_rate)
+        self.plot_window = int(plot_window)
+        self.verbose = verbose
+        self.queue: queue.Queue[object] = queue.Queue(maxsize=QUEUE_SIZE)
+        self.dropped = 0
+        """Commands refused because the queue was full."""
+        self.session: Session | None = None
+        self.server: Any = None
+        self.pushes = 0
+        """Scene/panel pushes so far."""
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._started = threading.Event()
+        self._failure: BaseException | None = None
+
+    # ------------------------------------------------------------------ lifecycle
+    def start(self, timeout: float = 120.0) -> None:
+        """Start viser and the loop thread; return once the first frame is shown (or raise what
+        stopped the start)."""
+        import viser
+
+        from tileviz.app.gui import Controls
+        from tileviz.app.panels import ImagePanels
+        from tileviz.app.plots import Plots
+        from tileviz.app.scene import SceneView
+
+        self.session = Session(self.cfg, self.options)
+        s = self.session
+        self.server = viser.ViserServer(host=self.host, port=self.requested_port,
+                                        verbose=self.verbose)
+        server = self.server
+        server.gui.configure_theme(control_width="medium", show_share_button=False,
+                                   titlebar_content=None)
+        server.scene.set_up_direction("+z")
+        a = self.cfg.sim.lissajous_amplitude  # the path spans [-a, a]^2
+        server.initial_camera.position = (0.0, -1.9 * a, 2.2 * a)
+        server.initial_camera.look_at = (0.0, 0.0, 0.0)
+        server.scene.configure_default_lights(enabled=True, cast_shadow=False)
+        self.scene = SceneView(server.scene, pool=max(1, self.cfg.localizer.max_boxes))
+        self.controls = Controls(server, self.submit, self.cfg, layers=s.layers,
+                                 display=s.display, playing=s.playing)
+        panel = server.gui.add_panel()
+        with panel.add_tab("Vision"):
+            self.panels = ImagePanels(server.gui, width=self.cfg.camera.width,
+                                      height=self.cfg.camera.height)
+        with panel.add_tab("Plots"):
+            self.plots = Plots(server.gui)
+        panel.dock_left()
+        panel.set_width(380)
+        self._world_version = -1
+        self._pushed_version = -1
+        self._thread = threading.Thread(target=self._run, name="tileviz-loop", daemon=True)
+        self._thread.start()
+        if not self._started.wait(timeout):
+            self.stop()
+            raise RuntimeError("the loop thread did not start in time")
+        if self._failure is not None:
+            failure = self._failure
+            self.stop()
+            raise failure
+
+    @property
+    def port(self) -> int:
+        """The port actually listened on."""
+        return int(self.server.get_port())
+
+    @property
+    def url(self) -> str:
+        host = self.host if self.host not in ("0.0.0.0", "::", "") else "127.0.0.1"
+        if ":" in host:
+            host = f"[{host}]"
+        return f"http://{host}:{self.port}/"
+
+    def stop(self) -> None:
+        """Stop the loop (after the frame in progress), close files and the server."""
+        self._stop.set()
+        try:
+            self.queue.put_nowait(None)  # wake the loop
+        except queue.Full:
+            pass
+        if self._thread is not None and self._thread is not threading.current_thread():
+            self._thread.join(timeout=10.0)
+        if self.session is not None:
+            self.session.close()
+        if self.server is not None:
+            self.server.stop()
+            self.server = None
+
+    @property
+    def running(self) -> bool:
+        return self._thread is not None and self._thread.is_alive() and not self._stop.is_set()
+
+    def submit(self, cmd: object) -> None:
+        """Queue a command for the loop (never blocks; dropped when the queue is full)."""
+        try:
+            self.queue.put_nowait(cmd)
+        except queue.Full:
+            self.dropped += 1
+
+    # ------------------------------------------------------------------ loop thread
+    def _run(self) -> None:
+        s = self.session
+        assert s is not None
+        try:
+            if len(s.history) == 0:
+                s.compute()
+            self._push(force=True)
+        except BaseException as e:  # noqa: BLE001 - reported by start()
+            self._failure = e
+            self._started.set()
+            return
+        self._started.set()
+        next_frame = time.perf_counter()
+        last_push = 0.0
+        last_plot = 0.0
+        while not self._stop.is_set():
+            now = time.perf_counter()
+            # wait for a command until the next frame is due (or a push is due)
+            if s.playing:
+                wait = max(0.0, next_frame - now)
+            else:
+                wait = 0.25
+            if s.version != self._pushed_version:
+                wait = min(wait, max(0.0, last_push + 1.0 / self.push_rate - now))
+            self._drain(wait)
+            if self._stop.is_set():
+                break
+            now = time.perf_counter()
+            if s.playing and now >= next_frame:
+                s.advance()
+                period = s.frame_period
+                next_frame = max(next_frame + period, now - 0.25) if period > 0 else now
+            if s.version != self._pushed_version and now - last_push >= 1.0 / self.push_rate:
+                plots = now - last_plot >= 1.0 / self.plot_rate
+                self._push(plots=plots)
+                last_push = now
+                if plots:
+                    last_plot = now
+
+    def _drain(self, wait: float) -> None:
+        """Apply every queued command; block up to ``wait`` seconds for the first one."""
+        s = self.session
+        assert s is not None
+        try:
+            cmd = self.queue.get(timeout=wait) if wait > 0 else self.queue.get_nowait()
+        except queue.Empty:
+            return
+        while True:
+            if cmd is not None:
+                try:
+                    s.apply(cmd)
+                except Exception as e:  # noqa: BLE001 - a bad command must not stop the loop
+                    s.note(f"{type(cmd).__name__}: {e}", "error")
+            try:
+                cmd = self.queue.get_nowait()
+            except queue.Empty:
+                return
+
+    def _push(self, *, force: bool = False, plots: bool = True) -> None:
+        """Show the current frame (scene, panels, readouts; plots when ``plots``)."""
+        s = self.session
+        assert s is not None
+        try:
+            self._push_inner(plots or force)
+        except Exception as e:  # noqa: BLE001 - drawing must not stop the loop
+            s.note(f"display: {e}", "error")
+        self._pushed_version = s.version
+        self.pushes += 1
+
+    def _push_inner(self, plots: bool) -> None:
+        s = self.session
+        assert s is not None
+        if s.world_version != self._world_version:
+            self._world_version = s.world_version
+            self.scene.set_world(s.cfg, path=s.source.lissajous_path(),
+                                 waypoints=s.cfg.sim.waypoints, setpoint_kind=s.setpoint_kind)
+        self.scene.apply_layers(s.layers)
+        entry = s.shown_entry()
+        if entry is not None:
+            rows = s.history.window(s.shown, self.plot_window)
+            trail = rows[-(TRAIL_SEGMENTS + 1):]
+            self.scene.show(entry.record, trail[:, [_COL["truth_x"], _COL["truth_y"]]],
+                            trail[:, [_COL["est_x"], _COL["est_y"]]])
+            self.panels.show(entry, s.display)
+            if plots:
+                self.plots.update(rows)
+        self.controls.refresh(first=s.history.first, last=s.history.last, shown=s.shown,
+                              playing=s.playing, setpoint=s.setpoint_kind,
+                              target=tuple(s.cfg.sim.manual_target),  # type: ignore[arg-type]
+                              recording=s.recording_active,
+                              status=self.status_text())
+
+    def status_text(self) -> str:
+        """The readout markdown: frame, status, widths, error, rates, notes."""
+        s = self.session
+        assert s is not None
+        entry = s.shown_entry()
+        lines: list[str] = []
+        state = "playing" if s.playing else "paused"
+        live = entry is not None and s.shown == s.history.last
+        if entry is None:
+            lines.append(f"**no frame yet** ({state})")
+        else:
+            r = entry.record
+            hull = r.updated.hull()
+            lines.append(f"**frame {r.index}**, t = {r.t:.2f} s, {state}"
+                         f"{'' if live else ' (history)'}")
+            lines.append(f"status **{r.status}**, {len(r.updated)} box(es), "
+                         f"vision: {r.vision.reason}")
+            if hull is not None:
+                wx, wy, wt = hull.widths
+                lines.append(f"widths {100 * wx:.1f} x {100 * wy:.1f} cm, "
+                             f"{math.degrees(wt):.2f} deg")
+                if r.truth is not None:
+                    cx, cy, ct = hull.centre
+                    err = math.hypot(r.truth.x - cx, r.truth.y - cy)
+                    inside = r.truth_inside()
+                    mark = {True: "inside", False: "**OUTSIDE**", None: "not vouched"}[inside]
+                    et = abs(math.degrees(math.remainder(r.truth.theta - ct, 2 * math.pi)))
+                    lines.append(f"centre error {100 * err:.1f} cm, {et:.2f} deg; truth {mark}")
+            ms = r.timings.get("vision_ms", 0.0) + r.timings.get("localizer_ms", 0.0)
+            lines.append(f"frame time {ms:.1f} ms (vision {r.timings.get('vision_ms', 0.0):.1f},"
+                         f" localizer {r.timings.get('localizer_ms', 0.0):.2f})")
+        rate = f"{s.rate:.0f} frames/s" if s.playing else "-"
+        lines.append(f"loop {rate}, history {len(s.history)}/{s.history.capacity}, "
+                     f"mode {s.cfg.localizer.mode}, extractor {s.cfg.vision.extractor}")
+        if s.recording is not None:
+            lines.append(f"recording to `{s.recording_path}` ({s.recording.count} frames)")
+        if s.degraded:
+            lines.append("**a frame failed: the set may miss the truth (Relocalize or Reset)**")
+        for n in list(s.notes)[-3:]:
+            lines.append(("**error:** " if n.level == "error" else "") + n.text)
+        return "  \n".join(lines)
+
+
+# ---------------------------------------------------------------------------------- command line
+def parser() -> Parser:
+    p = Parser(prog="tileviz serve", description="The live demo: simulation, vision and the "
+               "interval localizer in the browser (viser).")
+    p.add_argument("--host", default="127.0.0.1",
+                   help="address to listen on (default 127.0.0.1: this machine only)")
+    p.add_argument("--port", type=_port, default=8080, help="port (default 8080; the next free "
+                   "one if taken)")
+    p.add_argument("--preset", choices=PRESETS, default="default")
+    p.add_argument("--interactive", action="store_true",
+                   help="start paused; each Step advances one frame")
+    p.add_argument("--intervals", action=argparse.BooleanOptionalAction, default=True,
+                   help="draw the interval boxes (default on)")
+    p.add_argument("--display", action=argparse.BooleanOptionalAction, default=True,
+                   help="stream the pipeline stage images (default on)")
+    p.add_argument("--ppm", type=_in_range("--ppm", 20.0, 2000.0), help="pixels per metre")
+    p.add_argument("--tile-size", type=_in_range("--tile-size", 0.05, 5.0), help="L, metres")
+    p.add_argument("--output-file", help="CSV of the six equivalence residuals per frame "
+                   "(written under --out-dir, name sanitized)")
+    p.add_argument("--out-dir", default="runs", help="the only folder the server writes to "
+                   "(recordings, CSV); default ./runs")
+    p.add_argument("--seed", type=int, default=None, help="seed of the run's noise")
+    p.add_argument("--history", type=positive_int("--history"), default=2000,
+                   help="frames kept for stepping back (>= 2, default 2000)")
+    p.add_argument("--push-rate", type=_in_range("--push-rate", 1.0, 60.0), default=40.0,
+                   help="scene updates sent per second at most (default 40)")
+    p.add_argument("--speed", type=_in_range("--speed", 0.01, C.MAX_SPEED_FACTOR), default=1.0,
+                   help="playback speed, x real time (default 1)")
+    p.add_argument("--max-speed", action="store_true", help="run as fast as possible")
+    return p
+
+
+def _port(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--port must be an integer, got {text!r}") from None
+    if not 0 <= v <= 65535:
+        raise argparse.ArgumentTypeError(f"--port must be in [0, 65535], got {text!r}")
+    return v
+
+
+def _in_range(name: str, lo: float, hi: float) -> Any:
+    check = positive_float(name)
+
+    def parse(text: str) -> float:
+        v = check(text)
+        if not lo <= v <= hi:
+            raise argparse.ArgumentTypeError(f"{name} must be in [{lo:g}, {hi:g}], got {text!r}")
+        return v
+
+    return parse
+
+
+def config_from_args(args: argparse.Namespace) -> Config:
+    """The preset with the command line's floor, camera and seed."""
+    cfg = preset(args.preset)
+    if args.tile_size is not None:
+        cfg = replace(cfg, floor=replace(cfg.floor, tile_size=args.tile_size,
+                                         grout_width=min(cfg.floor.grout_width,
+                                                         args.tile_size / 8)))
+    if args.ppm is not None:
+        cfg = replace(cfg, camera=replace(cfg.camera, ppm=args.ppm))
+    if args.seed is not None:
+        if not 0 <= args.seed < 2**32:
+            raise ValueError(f"--seed must be in [0, 2^32), got {args.seed}")
+        cfg = replace(cfg, sim=replace(cfg.sim, seed=args.seed))
+    return cfg
+
+
+def main(command: str = "serve", argv: list[str] | None = None) -> int:
+    """Entry for ``python -m tileviz serve`` and ``serve.py``: runs until Ctrl-C."""
+    args = parser().parse_args(sys.argv[1:] if argv is None else argv)
+    if args.history < 2:
+        sys.stderr.write("tileviz serve: error: --history must be >= 2\n")
+        return 2
+
+    def body() -> int:
+        cfg = config_from_args(args)
+        options = SessionOptions(history=args.history, display=args.display,
+                                 intervals=args.intervals, interactive=args.interactive,
+                                 out_dir=Path(args.out_dir), output_file=args.output_file,
+                                 speed=args.speed, max_speed=args.max_speed)
+        app = App(cfg, options, host=args.host, port=args.port, push_rate=args.push_rate)
+        stopping = threading.Event()
+
+        def on_term(signum: int, frame: object) -> None:
+            stopping.set()
+
+        previous = signal.signal(signal.SIGTERM, on_term)
+        try:
+            app.start()
+            print(f"tileviz serve: open {app.url}  (Ctrl-C stops)", flush=True)
+            while app.running and not stopping.is_set():
+                time.sleep(0.2)
+        except KeyboardInterrupt:
+            pass
+        finally:
+            signal.signal(signal.SIGTERM, previous)
+            app.stop()
+        print("tileviz serve: stopped", flush=True)
+        return 0
+
+    return run_cli("tileviz serve", body)
+

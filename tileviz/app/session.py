@@ -1,0 +1,403 @@
+"""The live run behind the server: simulator -> runner -> history, driven by commands.
+
+:class:`Session` holds everything that changes while the demo runs (the simulator, the runner,
+the history, the playback state, the files being written) and nothing of viser: the app's loop
+thread is its only caller (``apply`` a command, ``advance`` one frame), so no lock is needed on
+the simulation. Tests drive it directly.
+
+Positions: the history numbers its entries 0, 1, 2, ... (a *position*); an entry's record keeps
+the source's frame index. They differ only after a frame failed (a gap in frame indices).
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+from collections import deque
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from tileviz.app import commands as C
+from tileviz.app.history import Entry, History
+from tileviz.app.outputs import output_path, sanitize_name
+from tileviz.config import Config, LocalizerConfig, NoiseConfig
+from tileviz.runner import Runner, initial_box
+from tileviz.types import FrameInput
+
+__all__ = ["Session", "SessionOptions"]
+
+
+@dataclass(frozen=True)
+class SessionOptions:
+    """How the live run starts (the ``serve`` options of report table 6.1 and a few more).
+
+    ``history``: frames kept for stepping back (>= 2). ``display``: keep and stream the pipeline
+    stage images. ``intervals``: show the interval boxes. ``interactive``: start paused.
+    ``out_dir``: the only folder files are written to. ``output_file``: name of the CSV of the six
+    equivalence residuals per frame (None: no CSV). ``speed``: multiple of real time;
+    ``max_speed``: as fast as possible.
+    """
+
+    history: int = 2000
+    display: bool = True
+    intervals: bool = True
+    interactive: bool = False
+    out_dir: Path = Path("runs")
+    output_file: str | None = None
+    speed: float = 1.0
+    max_speed: bool = False
+    renderer: Any = None
+    """A renderer for the simulator (tests); None = the real floor renderer."""
+
+
+@dataclass
+class Note:
+    """A one-line message for the GUI (``level``: info or error), with the wall time."""
+
+    text: str
+    level: str = "info"
+    when: float = field(default_factory=time.time)
+
+
+class Session:
+    """The simulation + localizer run and its playback state (see the module docstring)."""
+
+    def __init__(self, cfg: Config, options: SessionOptions | None = None) -> None:
+        self.options = options or SessionOptions()
+        o = self.options
+        self.history = History(o.history)
+        self.playing = not o.interactive
+        self.speed = float(o.speed)
+        self.max_speed = bool(o.max_speed)
+        self.display = bool(o.display)
+        self.layers: dict[str, bool] = {name: True for name in C.LAYERS}
+        for name in ("prediction", "boxes", "wedge"):
+            self.layers[name] = bool(o.intervals)
+        self.layers["grid"] = False
+        self.notes: deque[Note] = deque(maxlen=8)
+        self.errors = 0
+        """Frames that raised (logged, skipped)."""
+        self.degraded = False
+        """True after a frame failed: the localizer missed a motion, its set may miss the truth
+        until Relocalize or Reset."""
+        self.version = 0
+        """Bumped on every change worth showing."""
+        self.world_version = 0
+        """Bumped when the static scene (floor, path, waypoints) changes."""
+        self.shown = -1
+        """History position of the frame shown (-1: none yet)."""
+        self.recording: Any = None
+        self.recording_path: Path | None = None
+        self._record_pending: Path | None = None
+        self.csv: Any = None
+        self.csv_path: Path | None = None
+        self._kidnap_rng = np.random.default_rng(np.random.SeedSequence([cfg.sim.seed, 0xC1D]))
+        self.frames_computed = 0
+        self.rate = 0.0
+        """Computed frames per second (moving average)."""
+        self._rate_t = time.perf_counter()
+        self._rate_n = 0
+        self.cfg = cfg
+        self.setpoint_kind = cfg.sim.setpoint
+        self._build(cfg)
+        if o.output_file is not None:
+            self._open_csv()
+
+    # ------------------------------------------------------------------ run set-up
+    def _build(self, cfg: Config) -> None:
+        from tileviz.sim.source import SimSource  # pymunk: only when a run starts
+
+        self.cfg = cfg
+        self.source = SimSource(cfg, renderer=self.options.renderer)
+        self.runner = Runner(cfg, keep_stages=self.display)
+        self.history.clear()
+        self.shown = -1
+        self.degraded = False
+        self.world_version += 1
+        self.version += 1
+
+    def _open_csv(self) -> None:
+        from tileviz.dataset import RESIDUAL_COLUMNS, CsvOut
+
+        name = self.options.output_file or "residuals"
+        self.csv_path = output_path(self.options.out_dir, name, suffix=".csv",
+                                    default="residuals")
+        self.csv = CsvOut(self.csv_path, RESIDUAL_COLUMNS)
+        self.note(f"writing the equivalence residuals to {self.csv_path}")
+
+    def _new_run_files(self) -> None:
+        """A new run (reset/restart): close the recording; start a fresh residual CSV."""
+        if self.recording is not None:
+            self._stop_recording("the run restarted")
+        self._record_pending = None
+        if self.csv is not None:
+            self.csv.close()
+            self.csv = None
+            self._open_csv()
+
+    def close(self) -> None:
+        """Close every file being written (idempotent)."""
+        if self.recording is not None:
+            self._stop_recording("the server stopped")
+        if self.csv is not None:
+            self.csv.close()
+            self.csv = None
+
+    # ------------------------------------------------------------------ notes
+    def note(self, text: str, level: str = "info") -> None:
+        """A message for the GUI; errors also go to stderr as one line."""
+        self.notes.append(Note(text, level))
+        if level == "error":
+            sys.stderr.write(f"tileviz serve: {text}\n")
+            sys.stderr.flush()
+        self.version += 1
+
+    # ------------------------------------------------------------------ frames
+    @property
+    def frame_period(self) -> float:
+        """Seconds between frames while playing (0: as fast as possible)."""
+        if self.max_speed:
+            return 0.0
+        return self.cfg.sim.dt / self.speed
+
+    def shown_entry(self) -> Entry | None:
+        """The entry being shown, or None before the first frame."""
+        if self.shown < 0 or self.shown not in self.history:
+            return None
+        return self.history.get(self.shown)
+
+    def advance(self) -> bool:
+        """Show the next frame: the next stored one, or a new one when the newest is shown.
+        Returns False when a new frame failed (logged; the run goes on)."""
+        if self.shown < self.history.last:
+            self.shown += 1
+            self.version += 1
+            return True
+        return self.compute() is not None
+
+    def compute(self) -> Entry | None:
+        """Make one new frame (source -> runner -> history) and show it. A frame that raises is
+        logged as one line and skipped; None then."""
+        try:
+            frame = next(self.source)
+        except Exception as e:  # noqa: BLE001 - the loop must survive any frame
+            self._frame_failed(self.source.index, f"simulator: {e}")
+            return None
+        self._record(frame)
+        try:
+            rec = self.runner.process(frame)
+        except Exception as e:  # noqa: BLE001
+            self._frame_failed(frame.index, str(e))
+            return None
+        if self.csv is not None:
+            from tileviz.dataset import residual_row
+
+            self.csv.row(residual_row(rec))
+        entry = Entry.make(rec, stages=self.display)
+        self.history.append(entry)
+        self.shown = self.history.last
+        self.frames_computed += 1
+        self._count_rate()
+        self.version += 1
+        return entry
+
+    def _frame_failed(self, index: int, message: str) -> None:
+        self.errors += 1
+        self.degraded = True
+        self.note(f"frame {index}: {message} (skipped; the localizer missed this motion: "
+                  "Relocalize or Reset)", "error")
+
+    def _count_rate(self) -> None:
+        self._rate_n += 1
+        now = time.perf_counter()
+        span = now - self._rate_t
+        if span >= 0.5:
+            self.rate = self._rate_n / span
+            self._rate_t = now
+            self._rate_n = 0
+
+    # ------------------------------------------------------------------ recording
+    @property
+    def recording_active(self) -> bool:
+        """True while recording or waiting for the next new frame to start a recording."""
+        return self.recording is not None or self._record_pending is not None
+
+    def _record(self, frame: FrameInput) -> None:
+        if self._record_pending is not None:
+            self._open_recording(frame)
+        if self.recording is None:
+            return
+        try:
+            self.recording.write(frame)
+        except (OSError, ValueError) as e:
+            self._stop_recording(f"write failed: {e}", level="error")
+
+    def _open_recording(self, frame: FrameInput) -> None:
+        from tileviz.dataset import DatasetMeta, DatasetWriter
+
+        folder = self._record_pending
+        assert folder is not None
+        self._record_pending = None
+        meta = DatasetMeta.from_config(self.cfg, name=f"tileviz live run ({folder.name})")
+        if frame.truth is not None:
+            # the run may be under way: the dataset starts at this frame's true pose, known within
+            # the configured initial error (dataset-format.md: initial_pose +- initial_pose_error)
+            meta = replace(meta, initial_pose=frame.truth.as_tuple())
+        try:
+            self.recording = DatasetWriter(folder, meta)
+        except (OSError, ValueError) as e:
+            self.note(f"cannot record to {folder}: {e}", "error")
+            return
+        self.recording_path = folder
+        self.note(f"recording to {folder}")
+
+    def _stop_recording(self, why: str = "", level: str = "info") -> None:
+        w, self.recording = self.recording, None
+        if w is None:
+            return
+        w.close()
+        tail = f" ({why})" if why else ""
+        self.note(f"recorded {w.count} frames to {self.recording_path}{tail}", level)
+
+    # ------------------------------------------------------------------ commands
+    def apply(self, cmd: object) -> None:
+        """Apply one command (:mod:`tileviz.app.commands`). Bad values raise ValueError naming
+        them; nothing is changed then."""
+        handler = getattr(self, f"_on_{type(cmd).__name__}", None)
+        if handler is None:
+            raise ValueError(f"unknown command {type(cmd).__name__}")
+        handler(cmd)
+        self.version += 1
+
+    def _on_Play(self, cmd: C.Play) -> None:
+        self.playing = True
+
+    def _on_Pause(self, cmd: C.Pause) -> None:
+        self.playing = False
+
+    def _on_TogglePlay(self, cmd: C.TogglePlay) -> None:
+        self.playing = not self.playing
+
+    def _on_Step(self, cmd: C.Step) -> None:
+        self.playing = False
+        self.advance()
+
+    def _on_StepBack(self, cmd: C.StepBack) -> None:
+        self.playing = False
+        if self.shown > self.history.first:
+            self.shown -= 1
+
+    def _on_Seek(self, cmd: C.Seek) -> None:
+        self.playing = False
+        if len(self.history):
+            self.shown = min(max(cmd.index, self.history.first), self.history.last)
+
+    def _on_Live(self, cmd: C.Live) -> None:
+        self.shown = self.history.last
+
+    def _on_SetSpeed(self, cmd: C.SetSpeed) -> None:
+        self.speed = float(cmd.factor)
+
+    def _on_SetMaxSpeed(self, cmd: C.SetMaxSpeed) -> None:
+        self.max_speed = bool(cmd.on)
+
+    def _on_SetSetpoint(self, cmd: C.SetSetpoint) -> None:
+        self.source.set_setpoint(cmd.kind)
+        self._setpoint_changed(cmd.kind)
+
+    def _on_SetManualTarget(self, cmd: C.SetManualTarget) -> None:
+        self.source.set_manual_target(cmd.x, cmd.y)
+        self._setpoint_changed("manual", sim={"manual_target": (cmd.x, cmd.y)})
+
+    def _on_SetWaypoints(self, cmd: C.SetWaypoints) -> None:
+        self.source.set_waypoints(cmd.points)
+        self._setpoint_changed("waypoints", sim={"waypoints": tuple(cmd.points)})
+
+    def _setpoint_changed(self, kind: str, sim: dict[str, Any] | None = None) -> None:
+        self.setpoint_kind = kind
+        self.cfg = replace(self.cfg, sim=replace(self.cfg.sim, setpoint=kind, **(sim or {})))
+        self.world_version += 1
+
+    def _on_Kidnap(self, cmd: C.Kidnap) -> None:
+        if cmd.pose is None:
+            a = 0.8 * self.cfg.sim.lissajous_amplitude
+            x, y = self._kidnap_rng.uniform(-a, a, 2)
+            theta = self._kidnap_rng.uniform(-math.pi, math.pi)
+        else:
+            x, y, theta = cmd.pose
+        self.source.kidnap(float(x), float(y), float(theta))
+        self.note(f"kidnapped the robot to ({x:.2f}, {y:.2f}, {math.degrees(theta):.0f} deg); "
+                  "the localizer was not told")
+
+    def _on_Relocalize(self, cmd: C.Relocalize) -> None:
+        pose = self.source.pose
+        self.runner.reset(initial_box(self.cfg, pose=pose.as_tuple()))
+        self.degraded = False
+        self.note("localizer restarted at the true pose (within the initial pose error)")
+
+    def _on_Reset(self, cmd: C.Reset) -> None:
+        cfg = self.cfg
+        if cmd.seed is not None:
+            cfg = replace(cfg, sim=replace(cfg.sim, seed=int(cmd.seed)))
+        self._new_run_files()
+        self._build(cfg)
+
+    def _on_Restart(self, cmd: C.Restart) -> None:
+        floor = replace(self.cfg.floor, tile_size=float(cmd.tile_size),
+                        grout_width=min(self.cfg.floor.grout_width, cmd.tile_size / 8))
+        camera = replace(self.cfg.camera, ppm=float(cmd.ppm))
+        cfg = replace(self.cfg, floor=floor, camera=camera)  # validates (ValueError)
+        self._new_run_files()
+        self._build(cfg)
+        self.note(f"new run: tile size {cmd.tile_size:g} m, {cmd.ppm:g} px/m")
+
+    def _reconfigure(self, cfg: Config) -> None:
+        self.runner.reconfigure(cfg)
+        self.cfg = cfg
+
+    def _on_SetMode(self, cmd: C.SetMode) -> None:
+        self._reconfigure(replace(self.cfg, localizer=replace(self.cfg.localizer, mode=cmd.mode)))
+
+    def _on_SetExtractor(self, cmd: C.SetExtractor) -> None:
+        vision = replace(self.cfg.vision, extractor=cmd.extractor)
+        self._reconfigure(replace(self.cfg, vision=vision))
+
+    def _on_SetNoise(self, cmd: C.SetNoise) -> None:
+        noise = NoiseConfig(cmd.speed_error, cmd.yaw_rate_error, cmd.compass_error, cmd.fraction)
+        self.source.set_noise(noise)
+        self._reconfigure(replace(self.cfg, noise=noise))
+        if self.recording is not None:
+            self._stop_recording("the declared bounds changed; its meta.json would be wrong")
+
+    def _on_SetInflation(self, cmd: C.SetInflation) -> None:
+        loc: LocalizerConfig = replace(self.cfg.localizer,
+                                       truth_inflation=(cmd.xy, cmd.xy, cmd.theta))
+        self._reconfigure(replace(self.cfg, localizer=loc))
+
+    def _on_SetDisplay(self, cmd: C.SetDisplay) -> None:
+        self.display = bool(cmd.on)
+        self.runner.keep_stages = self.display
+
+    def _on_SetLayer(self, cmd: C.SetLayer) -> None:
+        self.layers[cmd.layer] = bool(cmd.visible)
+
+    def _on_Inject(self, cmd: C.Inject) -> None:
+        self.source.inject(cmd.kind, frames=cmd.frames)
+        self.note(f"fault {cmd.kind} injected")
+
+    def _on_StartRecording(self, cmd: C.StartRecording) -> None:
+        if self.recording is not None or self._record_pending is not None:
+            raise ValueError("already recording; stop the current recording first")
+        self._record_pending = output_path(self.options.out_dir, sanitize_name(cmd.name))
+        self.note(f"will record from the next new frame to {self._record_pending}")
+
+    def _on_StopRecording(self, cmd: C.StopRecording) -> None:
+        self._record_pending = None
+        self._stop_recording()
+
+    def _on_Report(self, cmd: C.Report) -> None:
+        self.note(cmd.text, cmd.level)
