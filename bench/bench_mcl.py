@@ -1,0 +1,81 @@
+"""CPU time per frame of the interval localizer and of Monte Carlo Localization, vision excluded.
+
+Both methods get the same inputs: a simulated run (default preset unless ``--preset``) is made once
+and vision is run once per frame; the odometry, compass and observations are kept. Then each method
+is run over the whole sequence ``--repeat`` times and its CPU time (``time.process_time``) around
+the ``step`` calls alone is divided by the frame count; the best repeat is kept (the least
+disturbed by other processes on a shared machine). MCL is timed with several particle counts.
+
+    python bench/bench_mcl.py                       # 60 s of default preset, 1000 particles
+    python bench/bench_mcl.py --seconds 30 --preset seed --particles 100 1000 10000
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import math
+import time
+
+from tileviz.baselines.mcl import MCL, MclConfig
+from tileviz.config import preset
+from tileviz.localizer import Localizer
+from tileviz.runner import initial_box
+from tileviz.sim.source import SimSource
+from tileviz.types import SensorBounds
+from tileviz.vision import extract
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seconds", type=float, default=60.0, help="simulated seconds")
+    ap.add_argument("--preset", default="default", choices=("default", "seed"))
+    ap.add_argument("--particles", type=int, nargs="+", default=[1000])
+    ap.add_argument("--repeat", type=int, default=3)
+    args = ap.parse_args()
+
+    cfg = preset(args.preset)
+    n = int(round(args.seconds / cfg.sim.dt))
+    L, off = cfg.floor.tile_size, cfg.camera.offset
+    bounds = SensorBounds(cfg.noise.speed_error, cfg.noise.yaw_rate_error,
+                          cfg.noise.compass_error)
+    inputs = []
+    pending = None
+    vis = 0.0
+    for frame in itertools.islice(SimSource(cfg), n):
+        c0 = time.process_time()
+        v = extract(frame.image, camera=cfg.camera, tile_size=L, vision=cfg.vision)
+        vis += time.process_time() - c0
+        inputs.append((pending, frame.compass, v.observation, frame.truth))
+        pending = frame.odometry
+    used = sum(o is not None for _, _, o, _ in inputs)
+    print(f"preset {args.preset}: {n} frames, {used} with an observation; "
+          f"vision {1e3 * vis / n:.2f} ms CPU/frame (not counted below)")
+
+    def time_interval() -> float:
+        loc = Localizer(tile_size=L, camera_offset=off, bounds=bounds, config=cfg.localizer,
+                        initial=initial_box(cfg))
+        c0 = time.process_time()
+        for odo, comp, obs, _ in inputs:
+            loc.step(odo, comp, obs)
+        return (time.process_time() - c0) / n
+
+    def time_mcl(particles: int) -> float:
+        mcl = MCL(tile_size=L, camera_offset=off, bounds=bounds, initial=initial_box(cfg),
+                  config=MclConfig(particles=particles, seed=1))
+        c0 = time.process_time()
+        for odo, comp, obs, _ in inputs:
+            mcl.step(odo, comp, obs)
+        return (time.process_time() - c0) / n
+
+    t_int = min(time_interval() for _ in range(args.repeat))
+    print(f"interval localizer (autonomous): {1e6 * t_int:8.1f} us CPU/frame")
+    for p in args.particles:
+        t_mcl = min(time_mcl(p) for _ in range(args.repeat))
+        ratio = t_mcl / t_int if t_int > 0 else math.inf
+        print(f"MCL, {p:6d} particles:          {1e6 * t_mcl:8.1f} us CPU/frame "
+              f"= {ratio:5.1f}x the interval localizer")
+
+
+if __name__ == "__main__":
+    main()
