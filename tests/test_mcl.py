@@ -82,8 +82,9 @@ def test_converges_and_tracks_on_exact_views():
 
 def test_ellipse_is_honest_when_the_likelihood_matches_the_noise():
     """The synthetic errors are uniform within their bounds (standard deviation bound / sqrt 3);
-    with sigma_scale = 1 / sqrt 3 the filter's model is right, and then the 95 % ellipse holds the
-    truth about 95 % of the time (mean squared Mahalanobis distance about 2, its chi-square mean)."""
+    with sigma_scale = 1 / sqrt 3 the filter's model is right, and then the 95 % ellipse holds
+    the truth about 95 % of the time (mean squared Mahalanobis distance about 2, the chi-square
+    mean)."""
     d2 = []
     for seed in range(4):
         run = synthetic_run(250, seed=seed)
