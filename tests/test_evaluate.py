@@ -1,0 +1,204 @@
+"""``python -m tileviz evaluate``: a tiny end-to-end run, the metric definitions, determinism,
+fault scenarios, one-line errors."""
+
+from __future__ import annotations
+
+import csv
+import math
+
+import matplotlib.image
+import numpy as np
+import pytest
+
+from tileviz import evaluate as ev
+from tileviz.__main__ import main as tileviz_main
+
+
+def read_csv(path):
+    with open(path, newline="") as f:
+        rows = list(csv.reader(f))
+    return rows[0], [dict(zip(rows[0], r, strict=True)) for r in rows[1:]]
+
+
+def test_tiny_run_writes_the_tables_and_plots(tmp_path, capsys):
+    out = tmp_path / "eval"
+    code = tileviz_main(["evaluate", "--runs", "1", "--duration", "1.5", "--scenarios",
+                         "clean,dropout", "--jobs", "1", "--out", str(out), "--quiet",
+                         "--particles", "300"])
+    assert code == 0
+    printed = capsys.readouterr().out
+    assert "containment" in printed and "CPU per frame" in printed
+
+    header, rows = read_csv(out / "results.csv")
+    assert tuple(header) == ev.COLUMNS
+    assert [(r["scenario"], r["method"]) for r in rows] == [
+        (s, m) for s in ("clean", "dropout") for m in ev.METHODS]
+    by = {(r["scenario"], r["method"]): r for r in rows}
+    for r in rows:
+        assert int(r["frames"]) == 30 and int(r["runs"]) == 1
+        assert float(r["cpu_us_per_frame"]) > 0
+        assert float(r["width_x_median_m"]) > 0
+    # the guarantee, on inputs that respect their bounds
+    clean = by[("clean", "interval")]
+    assert float(clean["inputs_in_bounds_pct"]) == 100.0
+    assert float(clean["containment_pct"]) == 100.0
+    assert float(clean["vouched_pct"]) == 100.0
+    # the dropout starts at 1/3 of the run: black frames give no observation
+    assert float(by[("dropout", "interval")]["vision_accepted_pct"]) < 70.0
+    # the interval localizer is tighter than the odometry alone, MCL has no rejected/lost notion
+    assert float(clean["width_x_median_m"]) < float(by[("clean", "odometry")]["width_x_median_m"])
+    assert by[("clean", "mcl")]["rejected_frames"] == "" and by[("clean", "mcl")]["lost_frames"] == ""
+
+    run_header, run_rows = read_csv(out / "runs.csv")
+    assert run_header[:4] == ["scenario", "method", "run", "seed"]
+    assert len(run_rows) == 8
+
+    md = (out / "results.md").read_text()
+    assert "| scenario | method |" in md
+    assert "interval (autonomous)" in md and "MCL" in md and "odometry only" in md
+    assert "300 particles" in md
+    for name in ("coverage.png", "error_clean.png", "error_dropout.png"):
+        img = matplotlib.image.imread(out / name)
+        assert img.ndim == 3 and img.shape[0] > 200 and img.shape[1] > 400
+
+
+def test_same_seed_same_run_and_other_seed_other_run():
+    a = ev.run_one(ev.Task("outliers", 0, 3, 0.6, particles=200))
+    b = ev.run_one(ev.Task("outliers", 0, 3, 0.6, particles=200))
+    c = ev.run_one(ev.Task("outliers", 0, 4, 0.6, particles=200))
+    assert np.array_equal(a.truth, b.truth)
+    for m in ev.METHODS:
+        for name in ("lo", "hi", "centre", "inside", "status"):
+            assert np.array_equal(getattr(a.methods[m], name), getattr(b.methods[m], name),
+                                  equal_nan=name not in ("inside", "status"))
+    assert not np.array_equal(a.truth, c.truth)
+    assert not np.array_equal(a.methods["mcl"].centre, c.methods["mcl"].centre)
+
+
+def test_parallel_workers_give_the_serial_results():
+    kw = dict(runs=2, duration=0.5, seed=7, particles=200, progress=False)
+    serial = ev.aggregate(ev.evaluate(["clean", "slip"], jobs=1, **kw))
+    parallel = ev.aggregate(ev.evaluate(["clean", "slip"], jobs=2, **kw))
+    assert len(serial) == len(parallel) == 8
+    for s, p in zip(serial, parallel, strict=True):
+        for col in ev.COLUMNS:
+            if col != "cpu_us_per_frame":
+                assert s[col] == p[col] or (isinstance(s[col], float) and math.isnan(s[col])
+                                            and math.isnan(p[col])), col
+
+
+def _hand_made(n: int = 4) -> ev.RunResult:
+    truth = np.zeros((n, 3))
+    res = ev.RunResult(scenario="clean", run=0, seed=0, t=np.arange(n) * 0.05, truth=truth,
+                       fault=np.zeros(n, bool), in_bounds=np.array([True, True, False, True]),
+                       accepted=np.array([True, False, True, True]), vision_s=0.0)
+    for m in ev.METHODS:
+        tr = ev._trace(n)
+        tr.lo[:] = [[-0.01, -0.02, -0.1]] * n
+        tr.hi[:] = [[0.03, 0.02, 0.1]] * n
+        tr.centre[:] = [[0.01, 0.0, 0.0]] * n
+        tr.inside[:] = [True, False, True, False]
+        codes = ev.STATUS_CODES
+        if m == "mcl":
+            tr.status[:] = codes["estimate"]
+        else:
+            tr.status[:] = [codes["contracted"], codes["rejected"], codes["predicted"],
+                            codes["lost"]]
+        tr.cpu_s = 4e-4
+        res.methods[m] = tr
+    return res
+
+
+def test_metric_definitions():
+    rows = {r["method"]: r for r in ev.aggregate([_hand_made()])}
+    iv = rows["interval"]
+    assert iv["frames"] == 4
+    assert iv["inputs_in_bounds_pct"] == 75.0
+    assert iv["vision_accepted_pct"] == 75.0
+    # the lost frame is not vouched for: containment over the three others, one of them missed
+    assert iv["vouched_pct"] == 75.0
+    assert iv["containment_pct"] == pytest.approx(200.0 / 3.0)
+    assert iv["rejected_frames"] == 1 and iv["lost_frames"] == 1
+    assert iv["width_x_median_m"] == pytest.approx(0.04)
+    assert iv["width_y_p95_m"] == pytest.approx(0.04)
+    assert iv["width_theta_median_deg"] == pytest.approx(math.degrees(0.2))
+    assert iv["rmse_xy_m"] == pytest.approx(0.01)
+    assert iv["cpu_us_per_frame"] == pytest.approx(100.0)
+    mcl = rows["mcl"]
+    # MCL never says lost: every frame counts
+    assert mcl["vouched_pct"] == 100.0 and mcl["containment_pct"] == 50.0
+    assert mcl["rejected_frames"] is None and mcl["lost_frames"] is None
+    lines = ev.figures(ev.aggregate([_hand_made()]))
+    assert "No scenario" in lines[0]  # one frame broke its bounds
+    assert "1.0x" in lines[1] and "NOT reached" in lines[1]
+
+
+@pytest.mark.parametrize(
+    "scenario, kind",
+    [("slip", "slip"), ("kidnap", "kidnap"), ("outliers", None), ("dropout", "dropout")],
+)
+def test_fault_scenarios_inject_their_faults(scenario, kind):
+    res = ev.run_one(ev.Task(scenario, 0, 1, 3.0, particles=100))
+    n = res.t.size
+    assert n == 60
+    assert res.fault.any()
+    faulty = np.flatnonzero(res.fault)
+    if scenario == "slip":
+        # 2 s (40 frames) from 1/3 of the run; the odometry of those steps breaks its bound
+        assert faulty[0] == 20 and faulty.size == 40
+        assert not res.in_bounds[21:60].all()
+        assert res.in_bounds[:21].all()
+    elif scenario == "kidnap":
+        assert faulty.tolist() == [30]
+        assert not res.in_bounds[30] and res.in_bounds[:30].all()
+        # the set before the teleport no longer holds the truth; the method notices
+        st = res.methods["interval"].status
+        assert (st[30:] == ev.STATUS_CODES["rejected"]).any()
+    elif scenario == "outliers":
+        # two frames every second from 0.15 s
+        assert faulty.tolist() == [3, 4, 23, 24, 43, 44]
+    else:
+        assert faulty[0] == 20
+        assert not res.accepted[20:40].any()
+        assert res.in_bounds.all()
+        assert res.methods["interval"].inside.all()
+
+
+@pytest.mark.parametrize(
+    "argv, needle",
+    [
+        (["--runs", "0"], "--runs"),
+        (["--runs", "two"], "--runs"),
+        (["--jobs", "0"], "--jobs"),
+        (["--duration", "-1"], "--duration"),
+        (["--duration", "nan"], "--duration"),
+        (["--duration", "1e9"], "--duration"),
+        (["--scenarios", "clean,bogus"], "bogus"),
+        (["--scenarios", ","], "--scenarios"),
+        (["--scenarios", "clean,clean"], "twice"),
+        (["--particles", "0"], "--particles"),
+        (["--mcl-inject", "2"], "--mcl-inject"),
+        (["--mcl-sigma-scale", "0"], "--mcl-sigma-scale"),
+        (["--seed", "-3"], "--seed"),
+        (["--frobnicate"], "unrecognized"),
+    ],
+)
+def test_bad_options_give_one_line_errors(argv, needle, tmp_path, capsys):
+    try:
+        code = ev.main("evaluate", [*argv, "--out", str(tmp_path / "o"), "--quiet"])
+    except SystemExit as e:
+        code = e.code
+    assert code == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and needle in err and "Traceback" not in err
+    assert not (tmp_path / "o").exists()
+
+
+def test_out_that_is_a_file_is_refused(tmp_path, capsys):
+    f = tmp_path / "file.txt"
+    f.write_text("keep me")
+    code = ev.main("evaluate", ["--out", str(f), "--quiet", "--duration", "0.1"])
+    assert code == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "not a folder" in err
+    assert f.read_text() == "keep me"

@@ -1,0 +1,763 @@
+"""``python -m tileviz evaluate``: the localizer and its baselines over many simulated runs.
+
+For every scenario (:data:`SCENARIOS`) and every run r (simulator seed ``--seed`` + r), one
+simulated run of ``--duration`` seconds is made: the simulator
+(:class:`tileviz.sim.source.SimSource`, faults injected through its ``inject``/``kidnap`` commands),
+then vision *once* per frame, then the same inputs go to four methods (:data:`METHODS`):
+
+- ``interval``: the interval localizer, mode ``autonomous`` (only the initial box is known);
+- ``interval-truth``: mode ``truth`` (report 7.1: reset every frame to the inflated truth);
+- ``odometry``: mode ``odometry`` (prediction and compass only, report Fig 7.1);
+- ``mcl``: Monte Carlo Localization (:mod:`tileviz.baselines.mcl`), ``--particles`` particles.
+
+Frame alignment as in :class:`tileviz.runner.Runner`: frame k predicts with the odometry of frame
+k-1 (the motion into frame k), then uses the compass and the image of frame k.
+
+Metrics (per scenario and method, frames pooled over the runs; widths and errors in metres and
+degrees):
+
+- ``inputs_in_bounds_pct``: share of frames whose inputs respect their declared bounds: the
+  odometry used at the frame is within ``speed_error``/``yaw_rate_error`` of the true step and the
+  step obeys the motion model (``StepTruth.model_ok``), the frame is not a kidnap, and the
+  observation (if vision gave one) is within its declared errors of the truth
+  (:func:`tileviz.vision.observation_error`). The compass is within its bound by construction.
+- ``vouched_pct``: interval methods: share of frames whose status is not ``lost``; MCL: 100 (it
+  never says it is lost).
+- ``containment_pct``: interval methods: share of the vouched frames whose true pose is inside the
+  reported set (any box, heading modulo 2 pi); MCL: share of all frames whose true (x, y) is inside
+  the 95 % confidence ellipse of the particle mean and covariance
+  (:meth:`tileviz.baselines.mcl.MclEstimate.ellipse_contains`).
+- ``width_*``: median and 95th percentile over the vouched frames of the width of the reported set's
+  hull along x, y (m) and heading (deg); for MCL the sides of the box around the 95 % ellipse and
+  the 95 % marginal heading interval (:meth:`~tileviz.baselines.mcl.MclEstimate.half_widths`).
+- ``rmse_xy_m`` / ``rmse_theta_deg``: root mean square error of the hull centre (MCL: the particle
+  mean) against the truth over the vouched frames.
+- ``rejected_frames`` / ``lost_frames``: frames with that status (interval methods only).
+- ``cpu_us_per_frame``: CPU time (``time.process_time``) of the method's step alone, per frame,
+  excluding vision and simulation.
+
+Outputs in ``--out``: ``results.csv`` and ``results.md`` (the table), ``runs.csv`` (one row per run
+and method), ``coverage.png`` (containment per scenario and method) and ``error_<scenario>.png``
+(the first run: error of each method over time with the set's bounds). Everything but the CPU
+times is deterministic for a given ``--seed``, whatever ``--jobs``.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+import sys
+import time
+import zlib
+from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from tileviz.baselines.mcl import MCL, MclConfig
+from tileviz.cliutil import CliError, Parser, nonneg_float, positive_float, positive_int, run_cli
+from tileviz.config import Config, preset, with_overrides
+from tileviz.localizer import Localizer
+from tileviz.runner import initial_box
+from tileviz.types import Box, BoxSet, FrameInput, Odometry, SensorBounds
+
+__all__ = [
+    "COLUMNS",
+    "METHODS",
+    "SCENARIOS",
+    "FaultEvent",
+    "RunResult",
+    "Scenario",
+    "Task",
+    "aggregate",
+    "evaluate",
+    "main",
+    "run_one",
+]
+
+METHODS = ("interval", "interval-truth", "odometry", "mcl")
+"""Method names, in table order."""
+METHOD_LABELS = {
+    "interval": "interval (autonomous)",
+    "interval-truth": "interval (truth mode)",
+    "odometry": "odometry only",
+    "mcl": "MCL",
+}
+STATUS_CODES = {"contracted": 0, "predicted": 1, "rejected": 2, "lost": 3, "estimate": 4}
+"""Per-frame status as a small integer in :class:`MethodTrace` (``estimate``: MCL)."""
+
+
+# --------------------------------------------------------------------------------- scenarios
+
+
+@dataclass(frozen=True)
+class FaultEvent:
+    """A fault injected into the simulator: ``kind`` (a ``SimSource.inject`` kind, or ``kidnap``
+    with ``params`` dx, dy, dtheta relative to the pose at that time, m, m, rad), starting at
+    ``start`` (a fraction of the run's duration, in [0, 1)), lasting ``frames`` frames (None: the
+    simulator's default). ``every``: repeat with this period, seconds (0 = once); a repeated camera
+    fault draws its kind from ``kinds`` when given."""
+
+    kind: str
+    start: float
+    frames: int | None = None
+    every: float = 0.0
+    kinds: tuple[str, ...] = ()
+    params: tuple[tuple[str, float], ...] = ()
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A named evaluation condition: a preset, config overrides, faults. ``bounded``: its inputs
+    are meant to respect their declared bounds (the method then claims 100 % containment); the
+    table reports the share of frames that actually did."""
+
+    name: str
+    description: str
+    preset: str = "default"
+    overrides: tuple[tuple[str, tuple[tuple[str, Any], ...]], ...] = ()
+    faults: tuple[FaultEvent, ...] = ()
+    bounded: bool = True
+
+    def config(self, seed: int) -> Config:
+        """The scenario's configuration for the run with simulator seed ``seed`` (the floor's
+        appearance seed is ``seed + 1``, as ``tileviz record --seed`` does)."""
+        cfg = preset(self.preset)
+        if self.overrides:
+            cfg = with_overrides(cfg, **{sec: dict(vals) for sec, vals in self.overrides})
+        return replace(cfg, sim=replace(cfg.sim, seed=seed),
+                       floor=replace(cfg.floor, seed=seed + 1))
+
+
+SCENARIOS: dict[str, Scenario] = {
+    s.name: s
+    for s in (
+        Scenario("clean", "L = 1 m, 200 px/m, 320x240, default noise, no fault"),
+        Scenario("seed", "the original's constants (seed preset: L = 0.166 m, 620 px/m)",
+                 preset="seed"),
+        Scenario("heavy", "pixel noise 8, blur 1.2 px, JPEG quality 40",
+                 overrides=(("camera", (("noise_sigma", 8.0), ("blur_sigma", 1.2),
+                                        ("jpeg_quality", 40))),)),
+        Scenario("outliers", "every 1 s, 2 frames with a cable, box edge, shadow edge or glare",
+                 faults=(FaultEvent("camera", 0.05, frames=2, every=1.0,
+                                    kinds=("cable", "box", "shadow", "glare")),),
+                 bounded=False),
+        Scenario("slip", "wheel slip beyond the odometry bound for 2 s at 1/3 of the run "
+                 "(+0.1 m/s, +0.05 rad/s)",
+                 faults=(FaultEvent("slip", 1 / 3, frames=40),), bounded=False),
+        Scenario("dropout", "camera dropout (black frames) for 2 s at 1/3 and 2/3 of the run",
+                 faults=(FaultEvent("dropout", 1 / 3, frames=40),
+                         FaultEvent("dropout", 2 / 3, frames=40))),
+        Scenario("kidnap", "teleport by (+0.3 m, -0.2 m, +0.4 rad) at half the run",
+                 faults=(FaultEvent("kidnap", 0.5, params=(("dx", 0.3), ("dy", -0.2),
+                                                            ("dtheta", 0.4))),),
+                 bounded=False),
+    )
+}
+"""The scenarios ``--scenarios`` chooses from."""
+DEFAULT_SCENARIOS = ("clean", "seed", "heavy", "outliers", "slip", "dropout")
+
+
+def _schedule(scn: Scenario, frames: int, dt: float,
+              rng: np.random.Generator) -> dict[int, list[tuple[str, int | None, dict]]]:
+    """Frame index k -> faults to start before frame k is simulated."""
+    out: dict[int, list[tuple[str, int | None, dict]]] = {}
+    duration = frames * dt
+    for ev in scn.faults:
+        t = ev.start * duration
+        while True:
+            k = int(round(t / dt))
+            if k >= frames:
+                break
+            kind = ev.kind
+            if ev.kinds:
+                kind = str(ev.kinds[int(rng.integers(len(ev.kinds)))])
+            out.setdefault(k, []).append((kind, ev.frames, dict(ev.params)))
+            if ev.every <= 0:
+                break
+            t += ev.every
+    return out
+
+
+# --------------------------------------------------------------------------------- one run
+
+
+@dataclass(frozen=True)
+class Task:
+    """One run to make: scenario name, run index, simulator seed, duration (s), MCL options."""
+
+    scenario: str
+    run: int
+    seed: int
+    duration: float
+    particles: int = 1000
+    mcl_inject: float = 0.0
+    mcl_sigma_scale: float = 0.5
+
+
+@dataclass
+class MethodTrace:
+    """Per-frame outputs of one method over one run (n frames).
+
+    ``lo``/``hi`` (n, 3): bounds of the reported region (hull of the set; MCL: mean -+ the 95 %
+    half-widths) in x, y (m) and theta (rad, continuous). ``centre`` (n, 3): hull centre / particle
+    mean. ``inside`` (n,): truth inside the set (MCL: inside the 95 % ellipse). ``status`` (n,)
+    :data:`STATUS_CODES`. ``boxes`` (n,): number of boxes (MCL: 0). ``cpu_s``: total CPU time of
+    the steps, seconds."""
+
+    lo: np.ndarray
+    hi: np.ndarray
+    centre: np.ndarray
+    inside: np.ndarray
+    status: np.ndarray
+    boxes: np.ndarray
+    cpu_s: float = 0.0
+
+
+@dataclass
+class RunResult:
+    """One run: the truth, what the inputs were like, and a :class:`MethodTrace` per method."""
+
+    scenario: str
+    run: int
+    seed: int
+    t: np.ndarray
+    truth: np.ndarray
+    fault: np.ndarray
+    """(n,) bool: a fault was active at the frame (simulator labels)."""
+    in_bounds: np.ndarray
+    """(n,) bool: every input used at the frame respected its declared bound."""
+    accepted: np.ndarray
+    """(n,) bool: vision returned an observation."""
+    vision_s: float
+    methods: dict[str, MethodTrace] = field(default_factory=dict)
+
+
+def _trace(n: int) -> MethodTrace:
+    return MethodTrace(lo=np.full((n, 3), np.nan), hi=np.full((n, 3), np.nan),
+                       centre=np.full((n, 3), np.nan), inside=np.zeros(n, bool),
+                       status=np.zeros(n, np.int8), boxes=np.zeros(n, np.int32))
+
+
+def _record_set(tr: MethodTrace, k: int, s: BoxSet, status: str,
+                truth: tuple[float, float, float]) -> None:
+    hull: Box | None = s.hull()
+    tr.status[k] = STATUS_CODES[status]
+    tr.boxes[k] = len(s)
+    if hull is None:
+        return
+    # the hull's heading interval, shifted by 2 pi k next to the true heading
+    shift = 2.0 * math.pi * round((truth[2] - 0.5 * (hull.t_lo + hull.t_hi)) / (2.0 * math.pi))
+    tr.lo[k] = (hull.x_lo, hull.y_lo, hull.t_lo + shift)
+    tr.hi[k] = (hull.x_hi, hull.y_hi, hull.t_hi + shift)
+    tr.centre[k] = 0.5 * (tr.lo[k] + tr.hi[k])
+    tr.inside[k] = s.contains(*truth)
+
+
+def _odometry_ok(odo: Odometry | None, step: Any, bounds: SensorBounds) -> bool:
+    if odo is None or step is None:
+        return True
+    return bool(step.model_ok
+                and abs(odo.speed - step.speed) <= bounds.speed_error
+                and abs(odo.yaw_rate - step.yaw_rate) <= bounds.yaw_rate_error)
+
+
+def run_one(task: Task) -> RunResult:
+    """Simulate one run of ``task`` and step every method on it (vision once per frame)."""
+    from tileviz.sim.source import SimSource  # pymunk: only here, not at import
+    from tileviz.vision import extract, observation_error
+
+    scn = SCENARIOS[task.scenario]
+    cfg = scn.config(task.seed)
+    dt = cfg.sim.dt
+    n = max(1, int(round(task.duration / dt)))
+    L = cfg.floor.tile_size
+    offset = cfg.camera.offset
+    bounds = SensorBounds(cfg.noise.speed_error, cfg.noise.yaw_rate_error,
+                          cfg.noise.compass_error)
+    box0 = initial_box(cfg)
+    key = zlib.crc32(task.scenario.encode())
+    fault_rng = np.random.default_rng(np.random.SeedSequence([task.seed, key, 1]))
+    plan = _schedule(scn, n, dt, fault_rng)
+
+    def localizer(mode: str) -> Localizer:
+        return Localizer(tile_size=L, camera_offset=offset, bounds=bounds,
+                         config=replace(cfg.localizer, mode=mode), initial=box0)
+
+    intervals = {"interval": localizer("autonomous"), "interval-truth": localizer("truth"),
+                 "odometry": localizer("odometry")}
+    room = cfg.sim.room_half_size
+    mcl = MCL(tile_size=L, camera_offset=offset, bounds=bounds, initial=box0,
+              config=MclConfig(particles=task.particles, inject_rate=task.mcl_inject,
+                               sigma_scale=task.mcl_sigma_scale,
+                               seed=int(np.random.SeedSequence([task.seed, key, 2])
+                                        .generate_state(1)[0])),
+              region=Box(-room, room, -room, room, -math.pi, math.pi))
+
+    res = RunResult(scenario=task.scenario, run=task.run, seed=task.seed,
+                    t=np.zeros(n), truth=np.zeros((n, 3)), fault=np.zeros(n, bool),
+                    in_bounds=np.ones(n, bool), accepted=np.zeros(n, bool), vision_s=0.0,
+                    methods={m: _trace(n) for m in METHODS})
+    src = SimSource(cfg)
+    pending: Odometry | None = None
+    pending_step: Any = None
+    clock = time.process_time
+    for k in range(n):
+        for kind, frames, params in plan.get(k, []):
+            if kind == "kidnap":
+                p = src.pose
+                src.kidnap(p.x + params["dx"], p.y + params["dy"], p.theta + params["dtheta"])
+            else:
+                src.inject(kind, frames=frames, **params)
+        frame: FrameInput = next(src)
+        step_k = src.last_step
+        truth = frame.truth
+        assert truth is not None  # the simulator always knows it
+        tt = truth.as_tuple()
+        res.t[k] = frame.t
+        res.truth[k] = tt
+        res.fault[k] = bool(frame.faults)
+        c0 = clock()
+        vision = extract(frame.image, camera=cfg.camera, tile_size=L, vision=cfg.vision)
+        res.vision_s += clock() - c0
+        obs = vision.observation
+        ok = _odometry_ok(pending, pending_step, bounds) and "kidnap" not in frame.faults
+        if obs is not None:
+            res.accepted[k] = True
+            e1, e2, e3 = observation_error(obs, truth, L, offset)
+            ok = ok and max(abs(e1), abs(e2)) <= obs.position_error \
+                and abs(e3) <= obs.heading_error
+        res.in_bounds[k] = ok
+        for name, loc in intervals.items():
+            c0 = clock()
+            st = loc.step(pending, frame.compass, obs, truth)
+            tr = res.methods[name]
+            tr.cpu_s += clock() - c0
+            _record_set(tr, k, st.updated, st.status, tt)
+        c0 = clock()
+        est = mcl.step(pending, frame.compass, obs)
+        tr = res.methods["mcl"]
+        tr.cpu_s += clock() - c0
+        hw = np.array(est.half_widths())
+        mean = est.mean.copy()
+        mean[2] += 2.0 * math.pi * round((tt[2] - mean[2]) / (2.0 * math.pi))
+        tr.lo[k] = mean - hw
+        tr.hi[k] = mean + hw
+        tr.centre[k] = mean
+        tr.inside[k] = est.ellipse_contains(tt[0], tt[1])
+        tr.status[k] = STATUS_CODES["estimate"]
+        pending, pending_step = frame.odometry, step_k
+    return res
+
+
+# --------------------------------------------------------------------------------- metrics
+
+COLUMNS = (
+    "scenario", "method", "runs", "frames", "inputs_in_bounds_pct", "vision_accepted_pct",
+    "vouched_pct", "containment_pct", "width_x_median_m", "width_x_p95_m", "width_y_median_m",
+    "width_y_p95_m", "width_theta_median_deg", "width_theta_p95_deg", "rmse_xy_m",
+    "rmse_theta_deg", "rejected_frames", "lost_frames", "cpu_us_per_frame",
+)
+"""Columns of ``results.csv`` (``runs.csv`` adds ``run`` and ``seed`` after ``method``)."""
+
+
+def _pct(a: np.ndarray, q: float) -> float:
+    return float(np.percentile(a, q)) if a.size else math.nan
+
+
+def _metrics(results: Sequence[RunResult], method: str) -> dict[str, Any]:
+    truth = np.concatenate([r.truth for r in results])
+    lo = np.concatenate([r.methods[method].lo for r in results])
+    hi = np.concatenate([r.methods[method].hi for r in results])
+    centre = np.concatenate([r.methods[method].centre for r in results])
+    inside = np.concatenate([r.methods[method].inside for r in results])
+    status = np.concatenate([r.methods[method].status for r in results])
+    in_bounds = np.concatenate([r.in_bounds for r in results])
+    accepted = np.concatenate([r.accepted for r in results])
+    n = truth.shape[0]
+    vouched = status != STATUS_CODES["lost"]
+    nv = int(vouched.sum())
+    w = (hi - lo)[vouched]
+    err = (centre - truth)[vouched]
+    err[:, 2] = np.remainder(err[:, 2] + math.pi, 2.0 * math.pi) - math.pi
+    is_interval = method != "mcl"
+    cpu = sum(r.methods[method].cpu_s for r in results)
+    return {
+        "runs": len(results),
+        "frames": n,
+        "inputs_in_bounds_pct": 100.0 * float(in_bounds.mean()) if n else math.nan,
+        "vision_accepted_pct": 100.0 * float(accepted.mean()) if n else math.nan,
+        "vouched_pct": 100.0 * nv / n if n else math.nan,
+        "containment_pct": 100.0 * float(inside[vouched].mean()) if nv else math.nan,
+        "width_x_median_m": _pct(w[:, 0], 50),
+        "width_x_p95_m": _pct(w[:, 0], 95),
+        "width_y_median_m": _pct(w[:, 1], 50),
+        "width_y_p95_m": _pct(w[:, 1], 95),
+        "width_theta_median_deg": math.degrees(_pct(w[:, 2], 50)),
+        "width_theta_p95_deg": math.degrees(_pct(w[:, 2], 95)),
+        "rmse_xy_m": float(np.sqrt(np.mean(err[:, 0] ** 2 + err[:, 1] ** 2))) if nv else math.nan,
+        "rmse_theta_deg": math.degrees(float(np.sqrt(np.mean(err[:, 2] ** 2)))) if nv
+        else math.nan,
+        "rejected_frames": int((status == STATUS_CODES["rejected"]).sum()) if is_interval
+        else None,
+        "lost_frames": int((status == STATUS_CODES["lost"]).sum()) if is_interval else None,
+        "cpu_us_per_frame": 1e6 * cpu / n if n else math.nan,
+    }
+
+
+def aggregate(results: Sequence[RunResult]) -> list[dict[str, Any]]:
+    """One row of :data:`COLUMNS` per (scenario, method), frames pooled over the runs; scenarios
+    in the order they first appear in ``results``, methods in :data:`METHODS` order."""
+    rows = []
+    order = list(dict.fromkeys(r.scenario for r in results))
+    for scn in order:
+        group = sorted((r for r in results if r.scenario == scn), key=lambda r: r.run)
+        for m in METHODS:
+            rows.append({"scenario": scn, "method": m, **_metrics(group, m)})
+    return rows
+
+
+def _csv_value(v: Any) -> str:
+    if v is None:
+        return ""
+    if isinstance(v, float):
+        return "" if math.isnan(v) else repr(v)
+    return str(v)
+
+
+def write_csv(path: Path, rows: Sequence[dict[str, Any]], columns: Sequence[str]) -> None:
+    """Write ``rows`` (dicts) with ``columns``; floats with ``repr``, None/NaN as empty cells."""
+    with open(path, "w", newline="") as f:
+        wr = csv.writer(f)
+        wr.writerow(columns)
+        for r in rows:
+            wr.writerow([_csv_value(r[c]) for c in columns])
+
+
+def _fmt(v: Any, scale: float = 1.0, digits: int = 2) -> str:
+    if v is None or (isinstance(v, float) and math.isnan(v)):
+        return "—"
+    if isinstance(v, int):
+        return str(v)
+    return f"{v * scale:.{digits}f}"
+
+
+def markdown_table(rows: Sequence[dict[str, Any]]) -> str:
+    """The headline table: widths in cm and degrees, CPU in microseconds."""
+    head = ("| scenario | method | inputs in bounds % | vouched % | containment % | "
+            "width x median / p95 (cm) | width y median / p95 (cm) | heading width median / p95 "
+            "(deg) | RMSE xy (cm) | RMSE heading (deg) | rejected | lost | CPU µs/frame |")
+    lines = [head, "|" + "---|" * head.count(" | ") + "---|"]
+    for r in rows:
+        lines.append(
+            f"| {r['scenario']} | {METHOD_LABELS[r['method']]} | "
+            f"{_fmt(r['inputs_in_bounds_pct'], digits=1)} | {_fmt(r['vouched_pct'], digits=1)} | "
+            f"{_fmt(r['containment_pct'], digits=2)} | "
+            f"{_fmt(r['width_x_median_m'], 100)} / {_fmt(r['width_x_p95_m'], 100)} | "
+            f"{_fmt(r['width_y_median_m'], 100)} / {_fmt(r['width_y_p95_m'], 100)} | "
+            f"{_fmt(r['width_theta_median_deg'])} / {_fmt(r['width_theta_p95_deg'])} | "
+            f"{_fmt(r['rmse_xy_m'], 100)} | {_fmt(r['rmse_theta_deg'])} | "
+            f"{_fmt(r['rejected_frames'])} | {_fmt(r['lost_frames'])} | "
+            f"{_fmt(r['cpu_us_per_frame'], digits=0)} |")
+    return "\n".join(lines)
+
+
+def figures(rows: Sequence[dict[str, Any]]) -> list[str]:
+    """The issue's figures, as sentences: containment of the autonomous interval localizer on the
+    scenarios whose inputs respected their bounds, and the CPU ratio MCL / interval."""
+    out = []
+    by = {(r["scenario"], r["method"]): r for r in rows}
+    scns = list(dict.fromkeys(r["scenario"] for r in rows))
+    bounded = [s for s in scns if by[(s, "interval")]["inputs_in_bounds_pct"] == 100.0]
+    if bounded:
+        worst = min(by[(s, "interval")]["containment_pct"] for s in bounded)
+        verdict = "reached" if worst == 100.0 else "NOT reached"
+        out.append(f"Interval localizer (autonomous) containment on the scenarios whose inputs "
+                   f"all respected their bounds ({', '.join(bounded)}): lowest {worst:.2f} % "
+                   f"(target 100 %: {verdict}).")
+    else:
+        out.append("No scenario had all its inputs within their bounds.")
+    cpu_i = sum(by[(s, "interval")]["cpu_us_per_frame"] * by[(s, "interval")]["frames"]
+                for s in scns)
+    cpu_m = sum(by[(s, "mcl")]["cpu_us_per_frame"] * by[(s, "mcl")]["frames"] for s in scns)
+    if cpu_i > 0:
+        ratio = cpu_m / cpu_i
+        verdict = "reached" if ratio >= 20 else "NOT reached"
+        out.append(f"CPU per frame, MCL / interval (autonomous), all frames: {ratio:.1f}x "
+                   f"(target >= 20x: {verdict}).")
+    return out
+
+
+# --------------------------------------------------------------------------------- plots
+
+
+def plot_coverage(rows: Sequence[dict[str, Any]], path: Path) -> None:
+    """Grouped bars: containment % per scenario and method, with the share of frames whose inputs
+    respected their bounds as markers."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    scns = list(dict.fromkeys(r["scenario"] for r in rows))
+    by = {(r["scenario"], r["method"]): r for r in rows}
+    x = np.arange(len(scns))
+    width = 0.8 / len(METHODS)
+    fig, ax = plt.subplots(figsize=(max(6.0, 1.3 * len(scns) + 2.0), 4.0), dpi=110)
+    for i, m in enumerate(METHODS):
+        vals = [by[(s, m)]["containment_pct"] for s in scns]
+        ax.bar(x + (i - (len(METHODS) - 1) / 2) * width, vals, width, label=METHOD_LABELS[m])
+    ax.plot(x, [by[(s, "interval")]["inputs_in_bounds_pct"] for s in scns], "kD", ms=5,
+            label="frames with inputs in bounds")
+    ax.axhline(95.0, color="gray", lw=0.8, ls=":")
+    ax.set_xticks(x, scns)
+    ax.set_ylabel("truth inside the reported set, %")
+    ax.set_ylim(0, 105)
+    ax.set_title("Containment (interval: over vouched frames; MCL: 95 % ellipse)")
+    ax.legend(fontsize=7, loc="lower left", ncols=2)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+
+
+def plot_errors(res: RunResult, path: Path) -> None:
+    """One run: for x, y and heading, the autonomous interval set's bounds and the MCL 95 %
+    region, relative to the truth; bottom: the x width of every method, log scale. Fault frames
+    shaded gray, lost frames red."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    t = res.t
+    fig, axes = plt.subplots(4, 1, figsize=(9.0, 9.0), dpi=110, sharex=True)
+    iv = res.methods["interval"]
+    mc = res.methods["mcl"]
+    labels = ("x error (cm)", "y error (cm)", "heading error (deg)")
+    scale = (100.0, 100.0, math.degrees(1.0))
+    lost = iv.status == STATUS_CODES["lost"]
+    for j, ax in enumerate(axes[:3]):
+        s = scale[j]
+        ax.fill_between(t, (iv.lo[:, j] - res.truth[:, j]) * s, (iv.hi[:, j] - res.truth[:, j]) * s,
+                        step="mid", color="tab:blue", alpha=0.35, lw=0,
+                        label="interval set (autonomous)")
+        ax.plot(t, (mc.lo[:, j] - res.truth[:, j]) * s, color="tab:red", lw=0.7, ls="--",
+                label="MCL 95 % bounds")
+        ax.plot(t, (mc.hi[:, j] - res.truth[:, j]) * s, color="tab:red", lw=0.7, ls="--")
+        ax.plot(t, (mc.centre[:, j] - res.truth[:, j]) * s, color="tab:red", lw=0.8,
+                label="MCL mean")
+        ax.axhline(0.0, color="k", lw=0.8, label="truth")
+        _shade(ax, t, res.fault, "0.8", "fault")
+        _shade(ax, t, lost, "tab:red", "lost")
+        ax.set_ylabel(labels[j])
+        lim = np.nanpercentile(np.abs(np.concatenate([(iv.lo[:, j] - res.truth[:, j]),
+                                                      (iv.hi[:, j] - res.truth[:, j]),
+                                                      (mc.lo[:, j] - res.truth[:, j]),
+                                                      (mc.hi[:, j] - res.truth[:, j])])) * s, 98)
+        if np.isfinite(lim) and lim > 0:
+            ax.set_ylim(-1.2 * lim, 1.2 * lim)
+    axes[0].legend(fontsize=7, loc="upper right", ncols=3)
+    ax = axes[3]
+    for m in METHODS:
+        tr = res.methods[m]
+        ax.semilogy(t, np.maximum((tr.hi[:, 0] - tr.lo[:, 0]) * 100.0, 1e-4), lw=0.9,
+                    label=METHOD_LABELS[m])
+    ax.set_ylabel("x width (cm)")
+    ax.set_xlabel("t (s)")
+    ax.legend(fontsize=7, loc="upper left", ncols=2)
+    fig.suptitle(f"scenario {res.scenario}, run {res.run} (seed {res.seed}): "
+                 f"{SCENARIOS[res.scenario].description}", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+
+
+def _shade(ax: Any, t: np.ndarray, mask: np.ndarray, color: str, label: str) -> None:
+    if not mask.any():
+        return
+    dt = float(t[1] - t[0]) if t.size > 1 else 1.0
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(np.int8), [0]])))
+    for a, b in zip(edges[0::2], edges[1::2], strict=True):
+        ax.axvspan(t[a] - dt / 2, t[b - 1] + dt / 2, color=color, alpha=0.3, lw=0,
+                   label=label if a == edges[0] else None)
+
+
+# --------------------------------------------------------------------------------- driver
+
+
+def _worker_init() -> None:
+    """One thread per worker: the workers share the cores."""
+    try:
+        import cv2
+
+        cv2.setNumThreads(1)
+    except ImportError:  # pragma: no cover - cv2 is a dependency
+        pass
+
+
+def evaluate(
+    scenarios: Sequence[str],
+    *,
+    runs: int,
+    duration: float,
+    jobs: int = 1,
+    seed: int = 0,
+    particles: int = 1000,
+    mcl_inject: float = 0.0,
+    mcl_sigma_scale: float = 0.5,
+    progress: bool = True,
+    on_result: Callable[[RunResult], None] | None = None,
+) -> list[RunResult]:
+    """Make every (scenario, run) in ``jobs`` processes (1 = in this process); results sorted by
+    scenario (in the given order) then run. Run r uses simulator seed ``seed + r``."""
+    for s in scenarios:
+        if s not in SCENARIOS:
+            raise ValueError(f"unknown scenario {s!r} (choose from {', '.join(SCENARIOS)})")
+    if int(runs) != runs or runs < 1:
+        raise ValueError(f"runs must be an integer >= 1, got {runs!r}")
+    if int(jobs) != jobs or jobs < 1:
+        raise ValueError(f"jobs must be an integer >= 1, got {jobs!r}")
+    if not math.isfinite(duration) or duration <= 0:
+        raise ValueError(f"duration must be a finite number > 0, got {duration!r}")
+    tasks = [Task(s, r, seed + r, duration, particles, mcl_inject, mcl_sigma_scale)
+             for s in scenarios for r in range(runs)]
+    from tqdm import tqdm
+
+    bar = tqdm(total=len(tasks), desc="evaluate", unit="run", disable=not progress,
+               file=sys.stderr, dynamic_ncols=True)
+    results: list[RunResult] = []
+    try:
+        if jobs <= 1:
+            for task in tasks:
+                results.append(run_one(task))
+                if on_result:
+                    on_result(results[-1])
+                bar.update(1)
+        else:
+            import multiprocessing
+
+            ctx = multiprocessing.get_context("spawn")
+            with ProcessPoolExecutor(max_workers=jobs, mp_context=ctx,
+                                     initializer=_worker_init) as pool:
+                futures = [pool.submit(run_one, t) for t in tasks]
+                for fut in as_completed(futures):
+                    results.append(fut.result())
+                    if on_result:
+                        on_result(results[-1])
+                    bar.update(1)
+    finally:
+        bar.close()
+    rank = {s: i for i, s in enumerate(scenarios)}
+    results.sort(key=lambda r: (rank[r.scenario], r.run))
+    return results
+
+
+def write_outputs(results: Sequence[RunResult], out: Path, command: str = "",
+                  notes: Sequence[str] = ()) -> list[dict]:
+    """Write results.csv, results.md, runs.csv, coverage.png and error_<scenario>.png; ``notes``
+    are extra lines for results.md (e.g. the MCL settings)."""
+    out.mkdir(parents=True, exist_ok=True)
+    rows = aggregate(results)
+    write_csv(out / "results.csv", rows, COLUMNS)
+    per_run = []
+    for r in results:
+        for m in METHODS:
+            per_run.append({"scenario": r.scenario, "method": m, "run": r.run, "seed": r.seed,
+                            **_metrics([r], m)})
+    run_cols = COLUMNS[:2] + ("run", "seed") + COLUMNS[2:]
+    write_csv(out / "runs.csv", per_run, run_cols)
+    vision_ms = 1e3 * sum(r.vision_s for r in results) / max(1, sum(r.t.size for r in results))
+    scns = list(dict.fromkeys(r.scenario for r in results))
+    text = ["# Evaluation results", ""]
+    if command:
+        text += [f"Command: `{command}`", ""]
+    text += ["Scenarios:", ""]
+    text += [f"- **{s}**: {SCENARIOS[s].description}" for s in scns]
+    text += ["", markdown_table(rows), ""]
+    text += [f"- {line}" for line in figures(rows)]
+    text += [f"- Vision (not counted above): {vision_ms:.2f} ms CPU per frame on average."]
+    text += [f"- {line}" for line in notes]
+    text += [""]
+    text += ["Columns: see `tileviz/evaluate.py` (module docstring). Widths and RMSE over the "
+             "vouched frames; MCL widths are the box around its 95 % ellipse.", ""]
+    (out / "results.md").write_text("\n".join(text), encoding="utf-8")
+    plot_coverage(rows, out / "coverage.png")
+    for s in scns:
+        first = next(r for r in results if r.scenario == s)
+        plot_errors(first, out / f"error_{s}.png")
+    return rows
+
+
+def _parser() -> Parser:
+    p = Parser(prog="tileviz evaluate", description="Evaluate the interval localizer, its "
+               "truth and odometry modes and an MCL baseline over simulated runs.")
+    p.add_argument("--runs", type=positive_int("--runs"), default=2,
+                   help="runs (seeds) per scenario (default 2)")
+    p.add_argument("--scenarios", default=",".join(DEFAULT_SCENARIOS),
+                   help=f"comma-separated, from {', '.join(SCENARIOS)} or 'all' "
+                   f"(default {','.join(DEFAULT_SCENARIOS)})")
+    p.add_argument("--jobs", type=positive_int("--jobs"), default=min(2, os.cpu_count() or 1),
+                   help="worker processes (default min(2, cores))")
+    p.add_argument("--duration", type=positive_float("--duration"), default=60.0,
+                   help="simulated seconds per run (default 60)")
+    p.add_argument("--seed", type=int, default=0, help="simulator seed of run 0 (default 0)")
+    p.add_argument("--particles", type=positive_int("--particles"), default=1000,
+                   help="MCL particles (default 1000)")
+    p.add_argument("--mcl-inject", type=nonneg_float("--mcl-inject"), default=0.0,
+                   help="MCL particle injection rate per frame, 0..1, in the room (default 0)")
+    p.add_argument("--mcl-sigma-scale", type=positive_float("--mcl-sigma-scale"), default=0.5,
+                   help="MCL likelihood sigmas as a multiple of the declared bounds (default 0.5)")
+    p.add_argument("--out", default="out/eval", help="output folder (default out/eval)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    return p
+
+
+def _scenario_list(text: str) -> list[str]:
+    if text.strip() == "all":
+        return list(SCENARIOS)
+    names = [s.strip() for s in text.split(",") if s.strip()]
+    if not names:
+        raise CliError("--scenarios is empty")
+    for s in names:
+        if s not in SCENARIOS:
+            raise CliError(f"--scenarios: unknown scenario {s!r} "
+                           f"(choose from {', '.join(SCENARIOS)} or all)")
+    if len(set(names)) != len(names):
+        raise CliError("--scenarios: a scenario is listed twice")
+    return names
+
+
+def main(command: str, argv: list[str]) -> int:
+    """``python -m tileviz evaluate [options]``; returns the exit status."""
+    args = _parser().parse_args(argv)
+
+    def body() -> int:
+        scenarios = _scenario_list(args.scenarios)
+        if args.seed < 0:
+            raise CliError(f"--seed must be >= 0, got {args.seed}")
+        if args.mcl_inject > 1:
+            raise CliError(f"--mcl-inject must be in [0, 1], got {args.mcl_inject}")
+        if args.duration > 24 * 3600:
+            raise CliError(f"--duration must be at most 86400 s, got {args.duration}")
+        out = Path(args.out)
+        if out.exists() and not out.is_dir():
+            raise CliError(f"--out {out} exists and is not a folder")
+        results = evaluate(scenarios, runs=args.runs, duration=args.duration, jobs=args.jobs,
+                           seed=args.seed, particles=args.particles, mcl_inject=args.mcl_inject,
+                           mcl_sigma_scale=args.mcl_sigma_scale, progress=not args.quiet)
+        cmd = "python -m tileviz evaluate " + " ".join(argv)
+        notes = [f"MCL: {args.particles} particles, likelihood sigma = {args.mcl_sigma_scale} x "
+                 f"the declared bounds, injection rate {args.mcl_inject}; "
+                 f"{args.runs} run(s) of {args.duration:g} s per scenario, seeds {args.seed}.."
+                 f"{args.seed + args.runs - 1}."]
+        rows = write_outputs(results, out, cmd.strip(), notes)
+        for line in figures(rows):
+            print(line)
+        print(f"wrote {out / 'results.md'}, {out / 'results.csv'}, {out / 'runs.csv'} and plots")
+        return 0
+
+    return run_cli(f"tileviz {command}", body)
