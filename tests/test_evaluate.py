@@ -47,7 +47,8 @@ def test_tiny_run_writes_the_tables_and_plots(tmp_path, capsys):
     assert float(by[("dropout", "interval")]["vision_accepted_pct"]) < 70.0
     # the interval localizer is tighter than the odometry alone, MCL has no rejected/lost notion
     assert float(clean["width_x_median_m"]) < float(by[("clean", "odometry")]["width_x_median_m"])
-    assert by[("clean", "mcl")]["rejected_frames"] == "" and by[("clean", "mcl")]["lost_frames"] == ""
+    mcl = by[("clean", "mcl")]
+    assert mcl["rejected_frames"] == "" and mcl["lost_frames"] == ""
 
     run_header, run_rows = read_csv(out / "runs.csv")
     assert run_header[:4] == ["scenario", "method", "run", "seed"]
