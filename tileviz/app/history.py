@@ -123,11 +123,11 @@ class Series:
         self.capacity = int(capacity)
         self._rows = np.full((self.capacity, len(METRIC_NAMES)), math.nan)
 
-    def put(self, index: int, row: np.ndarray) -> None:
-        self._rows[index % self.capacity] = row
+    def put(self, position: int, row: np.ndarray) -> None:
+        self._rows[position % self.capacity] = row
 
     def window(self, first: int, last: int) -> np.ndarray:
-        """Rows for frame indices first..last (inclusive), in order; a copy."""
+        """Rows for positions first..last (inclusive), in order; a copy."""
         if last < first:
             return np.empty((0, len(METRIC_NAMES)))
         idx = np.arange(first, last + 1) % self.capacity
@@ -135,9 +135,9 @@ class Series:
 
 
 class History:
-    """The last ``capacity`` frames of a run, indexed by frame index.
-
-    Frame indices of a run are consecutive (0, 1, 2, ...); :meth:`clear` starts a new run.
+    """The last ``capacity`` frames of a run, by *position*: 0 for the first frame appended, then
+    1, 2, ... (the source's frame index stays in each record; the two differ when a frame failed
+    and left a gap). :meth:`clear` starts a new run at position 0.
     """
 
     def __init__(self, capacity: int = 2000) -> None:
@@ -158,48 +158,53 @@ class History:
             self._first = 0
             self._last = -1
 
-    def append(self, entry: Entry) -> None:
-        """Add the next frame; its index must follow the last one (or start an empty history)."""
-        i = entry.index
+    def append(self, entry: Entry) -> int:
+        """Add the next frame; returns its position. Its frame index must be larger than the
+        previous frame's."""
         with self._lock:
-            if self._last >= self._first and i != self._last + 1:
-                raise ValueError(f"history: frame {i} does not follow frame {self._last}")
-            if self._last < self._first:
-                self._first = i
-            self._entries[i % self.capacity] = entry
-            self.series.put(i, metrics_of(entry.record))
-            self._last = i
+            if self._last >= 0:
+                prev = self._entries[self._last % self.capacity]
+                assert prev is not None
+                if entry.index <= prev.index:
+                    raise ValueError(f"history: frame {entry.index} does not follow frame "
+                                     f"{prev.index}")
+            pos = self._last + 1
+            self._entries[pos % self.capacity] = entry
+            self.series.put(pos, metrics_of(entry.record))
+            self._last = pos
             if self._last - self._first + 1 > self.capacity:
                 self._first = self._last - self.capacity + 1
+            return pos
 
     def __len__(self) -> int:
-        return max(0, self._last - self._first + 1)
+        return self._last - self._first + 1
 
     @property
     def first(self) -> int:
-        """Index of the oldest frame kept (0 when empty)."""
+        """Position of the oldest frame kept (0 when empty)."""
         return self._first
 
     @property
     def last(self) -> int:
-        """Index of the newest frame (-1 when empty)."""
+        """Position of the newest frame (-1 when empty)."""
         return self._last
 
-    def __contains__(self, index: int) -> bool:
-        return self._first <= index <= self._last
+    def __contains__(self, position: int) -> bool:
+        return self._first <= position <= self._last
 
-    def get(self, index: int) -> Entry:
-        """The frame of that index; KeyError when it is not (or no longer) kept."""
+    def get(self, position: int) -> Entry:
+        """The frame at that position; KeyError when it is not (or no longer) kept."""
         with self._lock:
-            if not self._first <= index <= self._last:
-                raise KeyError(f"frame {index} is not in the history "
+            if not self._first <= position <= self._last:
+                raise KeyError(f"position {position} is not in the history "
                                f"({self._first}..{self._last})")
-            entry = self._entries[index % self.capacity]
+            entry = self._entries[position % self.capacity]
         assert entry is not None
         return entry
 
     def window(self, last: int, n: int) -> np.ndarray:
-        """Metric rows of the (up to) ``n`` frames ending at ``last`` (clamped to the history)."""
+        """Metric rows of the (up to) ``n`` frames ending at position ``last`` (clamped to the
+        history), oldest first."""
         with self._lock:
             hi = min(last, self._last)
             lo = max(self._first, hi - n + 1)

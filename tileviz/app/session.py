@@ -182,34 +182,39 @@ class Session:
     def compute(self) -> Entry | None:
         """Make one new frame (source -> runner -> history) and show it. A frame that raises is
         logged as one line and skipped; None then."""
+        before = self.source.index
         try:
             frame = next(self.source)
         except Exception as e:  # noqa: BLE001 - the loop must survive any frame
-            self._frame_failed(self.source.index, f"simulator: {e}")
+            self._frame_failed(before, f"simulator: {e}", missed=self.source.index != before)
             return None
         self._record(frame)
         try:
             rec = self.runner.process(frame)
         except Exception as e:  # noqa: BLE001
-            self._frame_failed(frame.index, str(e))
+            self._frame_failed(frame.index, str(e), missed=True)
             return None
         if self.csv is not None:
             from tileviz.dataset import residual_row
 
             self.csv.row(residual_row(rec))
         entry = Entry.make(rec, stages=self.display)
-        self.history.append(entry)
-        self.shown = self.history.last
+        self.shown = self.history.append(entry)
         self.frames_computed += 1
         self._count_rate()
         self.version += 1
         return entry
 
-    def _frame_failed(self, index: int, message: str) -> None:
+    def _frame_failed(self, index: int, message: str, *, missed: bool) -> None:
+        """Log a frame that raised. ``missed``: the simulator moved on without the localizer
+        seeing that motion, so its set no longer vouches for the truth (``degraded``)."""
         self.errors += 1
-        self.degraded = True
-        self.note(f"frame {index}: {message} (skipped; the localizer missed this motion: "
-                  "Relocalize or Reset)", "error")
+        if missed:
+            self.degraded = True
+            tail = " (skipped; the localizer missed this motion: Relocalize or Reset)"
+        else:
+            tail = " (nothing moved; the frame is tried again)"
+        self.note(f"frame {index}: {message}{tail}", "error")
 
     def _count_rate(self) -> None:
         self._rate_n += 1

@@ -1,0 +1,178 @@
+"""Headless smoke test of the live server: a websocket client speaking viser's protocol sees the
+scene and the controls, and a Step advances exactly one frame. Plus the command line."""
+
+from __future__ import annotations
+
+import asyncio
+import os
+import re
+import signal
+import subprocess
+import sys
+import urllib.request
+from pathlib import Path
+
+import pytest
+
+from tileviz.app.server import App
+from tileviz.app.session import SessionOptions
+from tileviz.app.wsclient import ViserClient
+from tileviz.config import preset
+
+REPO = Path(__file__).resolve().parents[1]
+UPDATE_TYPES = {
+    "SetPositionMessage", "SetOrientationMessage", "SceneNodeUpdateMessage",
+    "SetSceneNodeVisibilityMessage", "GuiUpdateMessage",
+}
+
+
+@pytest.fixture()
+def app(tmp_path):
+    a = App(preset("default"), SessionOptions(out_dir=tmp_path, interactive=True), port=0)
+    a.start()
+    yield a
+    a.stop()
+
+
+def uuid_of(c: ViserClient, label: str, kind: str) -> str:
+    return c.gui_uuid(label, kind)
+
+
+def test_scene_and_controls_arrive_and_step_advances_one_frame(app):
+    async def scenario() -> None:
+        async with ViserClient(app.url) as c:
+            await c.wait_for(lambda m: m.get("type") == "ReplayDoneMessage")
+            names = {m.get("name") for m in c.messages if "props" in m and "name" in m}
+            for node in ("/floor", "/grid", "/robot", "/robot/body", "/robot/footprint", "/truth",
+                         "/intervals/boxes/0", "/intervals/prediction/0", "/intervals/wedge",
+                         "/setpoint", "/path", "/trails/truth", "/trails/estimate",
+                         "/target_gizmo"):
+                assert node in names, node
+            labels = {m["props"].get("label") for m in c.messages
+                      if isinstance(m.get("props"), dict)}
+            for label in ("Play", "Step", "Step back", "Timeline", "Speed (x real time)",
+                          "Setpoint", "Mode", "Extractor", "Speed bound (m/s)",
+                          "Kidnap (teleport the robot)", "Reset the run", "Start recording",
+                          "camera view"):
+                assert label in labels, label
+            assert len(list(c.of_type("GuiUplotMessage"))) == 3
+
+            timeline = uuid_of(c, "Timeline", "GuiSliderMessage")
+            camera = uuid_of(c, "camera view", "GuiImageMessage")
+            display = uuid_of(c, "Stream stage images", "GuiCheckboxMessage")
+
+            def camera_jpeg(start: int = 0) -> list[bytes]:
+                return [m["updates"]["_data"] for m in c.messages[start:]
+                        if m.get("type") == "GuiUpdateMessage" and m.get("uuid") == camera
+                        and "_data" in m["updates"]]
+
+            frame0 = camera_jpeg()[-1]
+            assert frame0[:2] == b"\xff\xd8"  # a JPEG of the camera view
+            assert app.session.history.last == 0
+
+            mark = len(c.messages)
+            await c.click("Step")
+            await c.wait_for(lambda m: m.get("type") == "GuiUpdateMessage"
+                             and m.get("uuid") == timeline and m["updates"].get("value") == 1,
+                             start=mark)
+            # a later command is applied after the Step: once its effect is back, the Step is
+            # over, and it made exactly one frame
+            await c.send({"type": "GuiUpdateMessage", "uuid": display,
+                          "updates": {"value": False}})
+            await c.wait_for(lambda m: m.get("type") == "GuiUpdateMessage"
+                             and m["updates"].get("visible") is False, start=mark)
+            assert (app.session.history.last, app.session.shown) == (1, 1)
+            truth = app.session.shown_entry().record.truth
+            robot = [m for m in c.messages[mark:]
+                     if m.get("type") == "SetPositionMessage" and m.get("name") == "/robot"]
+            assert robot and tuple(robot[-1]["position"][:2]) == pytest.approx((truth.x, truth.y))
+            frame1 = camera_jpeg(mark)[-1]
+            assert frame1 != frame0
+            # no node is created per frame: only updates after the first sync
+            assert {m["type"] for m in c.messages[mark:]} <= UPDATE_TYPES
+
+            mark = len(c.messages)
+            await c.click("Step back")
+            await c.wait_for(lambda m: m.get("type") == "GuiUpdateMessage"
+                             and m.get("uuid") == timeline and m["updates"].get("value") == 0,
+                             start=mark)
+            await c.wait_for(lambda m: m.get("type") == "GuiUpdateMessage"
+                             and m.get("uuid") == camera and "_data" in m["updates"], start=mark)
+            assert camera_jpeg(mark)[-1] == frame0  # the stored frame, byte for byte
+            assert app.session.history.last == 1
+
+    asyncio.run(scenario())
+
+
+def test_a_refused_gui_value_becomes_a_note_and_the_loop_goes_on(app):
+    async def scenario() -> None:
+        async with ViserClient(app.url) as c:
+            await c.wait_for(lambda m: m.get("type") == "ReplayDoneMessage")
+            text = uuid_of(c, "Waypoints (x, y; ...)", "GuiTextMessage")
+            await c.send({"type": "GuiUpdateMessage", "uuid": text,
+                          "updates": {"value": "1, 2; banana"}})
+            await c.click("Drive the waypoints")
+            await c.wait_for(lambda m: m.get("type") == "GuiUpdateMessage"
+                             and "waypoint 1" in str(m["updates"].get("_markdown", "")))
+            await c.click("Step")
+            await c.wait_for(lambda m: m.get("type") == "GuiUpdateMessage"
+                             and "frame 1" in str(m["updates"].get("_markdown", "")))
+            assert app.running
+
+    asyncio.run(scenario())
+
+
+def run_cli(*args: str) -> subprocess.CompletedProcess[str]:
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    return subprocess.run([sys.executable, "-m", "tileviz", "serve", *args], cwd=REPO, env=env,
+                          capture_output=True, text=True, timeout=120)
+
+
+@pytest.mark.parametrize("args, word", [
+    (["--port", "http"], "--port"),
+    (["--port", "70000"], "--port"),
+    (["--tile-size", "-1"], "--tile-size"),
+    (["--ppm", "nan"], "--ppm"),
+    (["--preset", "mars"], "--preset"),
+    (["--history", "0"], "--history"),
+])
+def test_bad_options_give_one_line_and_exit_2(args, word):
+    r = run_cli(*args)
+    assert r.returncode == 2
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and word in lines[0] and "Traceback" not in r.stderr
+
+
+def test_serve_prints_the_url_serves_the_page_and_stops_on_ctrl_c(tmp_path):
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    proc = subprocess.Popen([sys.executable, str(REPO / "serve.py"), "--port", "0",
+                             "--out-dir", str(tmp_path), "--output-file", "res.csv"],
+                            cwd=tmp_path, env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        url = None
+        for line in proc.stdout:  # type: ignore[union-attr]
+            m = re.search(r"open (http://127\.0\.0\.1:\d+/)", line)
+            if m:
+                url = m.group(1)
+                break
+        assert url is not None
+        page = urllib.request.urlopen(url, timeout=30).read().decode()
+        assert "<html" in page.lower()
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0, err
+    assert "stopped" in out and "Traceback" not in err
+    rows = (tmp_path / "res.csv").read_text().splitlines()
+    assert rows[0].startswith("index,t,r1") and len(rows) >= 2
+
+
+def test_the_page_fetches_nothing_from_the_internet():
+    import viser
+
+    page = (Path(viser.__file__).parent / "client" / "build" / "index.html").read_text()
+    urls = set(re.findall(r"https?://[^\s\"'`)]+", page))
+    assert urls <= {"http://www.w3.org/2000/svg"}, urls
