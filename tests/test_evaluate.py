@@ -136,7 +136,8 @@ def test_metric_definitions():
 
 @pytest.mark.parametrize(
     "scenario, kind",
-    [("slip", "slip"), ("kidnap", "kidnap"), ("outliers", None), ("dropout", "dropout")],
+    [("slip", "slip"), ("kidnap", "kidnap"), ("outliers", None), ("dropout", "dropout"),
+     ("far-views", "far_view")],
 )
 def test_fault_scenarios_inject_their_faults(scenario, kind):
     res = ev.run_one(ev.Task(scenario, 0, 1, 3.0, particles=100))
@@ -158,6 +159,13 @@ def test_fault_scenarios_inject_their_faults(scenario, kind):
     elif scenario == "outliers":
         # two frames every second from 0.15 s
         assert faulty.tolist() == [3, 4, 23, 24, 43, 44]
+    elif scenario == "far-views":
+        # one lying view every second from 0.15 s: a floor view of elsewhere, which vision accepts
+        # and the localizer refuses (its set does not fit it)
+        assert faulty.tolist() == [3, 23, 43]
+        assert res.accepted[faulty].all() and not res.in_bounds[faulty].any()
+        assert res.in_bounds[res.fault == 0].all()
+        assert (res.methods["interval"].status[faulty] == ev.STATUS_CODES["rejected"]).all()
     else:
         assert faulty[0] == 20
         assert not res.accepted[20:40].any()
