@@ -163,14 +163,35 @@ class LocalizerConfig:
     """Truth mode: half-widths (m, m, rad) added around the true pose every frame."""
     max_rejections: int = 20
     """Consecutive rejected observations after which the status becomes ``lost``."""
+    max_slip: tuple[float, float] = (0.0, 0.0)
+    """Recovery (``tileviz.localizer``, "Recovery"): the largest pose error (metres, in x and in
+    y; radians, in heading) that an odometry fault (wheel slip beyond the declared bounds, an
+    outlier reading, a small push) may have added to the prediction by the frame where the
+    localizer notices it. On a rejected view (or a compass that misses the set) the set then also
+    keeps the poses within this of the prediction that the view and the compass allow.
+    ``(0, 0)``: no recovery (a rejected view is ignored and the prediction kept)."""
+    slip_window: int = 40
+    """Recovery only: for this many frames after the localizer noticed an inconsistency, every
+    view contracts the prediction inflated by ``max_slip`` (a slip still going on is followed
+    rather than lost again); 0 = only the frame that noticed it."""
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
             raise ValueError(f"mode must be one of {MODES}, got {self.mode!r}")
+        if not isinstance(self.max_slip, tuple | list) or len(self.max_slip) != 2:
+            raise ValueError(f"max_slip must be (metres, radians), got {self.max_slip!r}")
+        _check_nonneg("max_slip[0]", self.max_slip[0])
+        _check_nonneg("max_slip[1]", self.max_slip[1])
         if int(self.max_boxes) != self.max_boxes or self.max_boxes < 1:
             raise ValueError(f"max_boxes must be an integer >= 1, got {self.max_boxes!r}")
         if int(self.passes) != self.passes or self.passes < 1:
             raise ValueError(f"passes must be an integer >= 1, got {self.passes!r}")
+        if isinstance(self.slip_window, bool) or not isinstance(self.slip_window, int) or (
+                self.slip_window < 0):
+            raise ValueError(f"slip_window must be an integer >= 0, got {self.slip_window!r}")
+        if (isinstance(self.max_rejections, bool) or not isinstance(self.max_rejections, int)
+                or self.max_rejections < 1):
+            raise ValueError(f"max_rejections must be an integer >= 1, got {self.max_rejections!r}")
         for i, v in enumerate(self.truth_inflation):
             _check_nonneg(f"truth_inflation[{i}]", v)
 

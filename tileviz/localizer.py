@@ -24,15 +24,69 @@ Statuses (dataset-format.md):
 - ``contracted``: an observation was used and the contracted set is non-empty.
 - ``predicted``: no observation (or mode ``odometry``): the prediction is kept.
 - ``rejected``: the contraction with the observation is empty, so the observation cannot satisfy
-  H4 if H1-H3 hold: it is judged an outlier, not used, and the prediction is kept. A rejected view
-  never weakens the guarantee. (An outlier that happens to be consistent with the set *is* used and
-  can break H4 without being noticed: that is the method's residual risk.)
+  H4 if H1-H3 hold: it is judged an outlier, not used, and the prediction is kept (with recovery
+  on, the slip candidates are kept too: see "Recovery"). A rejected view never weakens the
+  guarantee. (An outlier that happens to be consistent with the set *is* used and can break H4
+  without being noticed: that is the method's residual risk.)
 - ``lost``: ``max_rejections`` consecutive rejections (frames without an observation neither
   count nor reset the streak; a successful contraction resets it). So many inconsistent views mean
   H1-H3 probably failed (a kidnap, a wheel slip beyond the bounds): the method no longer vouches for
-  its set. It keeps predicting and outputs the hull of the prediction as one box, ignores views
+  its set. It keeps predicting and outputs the hull of the set as one box, ignores views
   (with a periodic floor any view fits a wide enough set, so a contraction would only look
   confident), and stays ``lost`` until :meth:`Localizer.reset`.
+
+Recovery (``LocalizerConfig.max_slip = (d, a)``, metres and radians; off when both are 0)
+-------------------------------------------------------------------------------------------
+Mode ``autonomous`` only (mode ``truth`` starts afresh every frame).
+An empty contraction has two explanations: the view is an outlier (H4 broken), or the prediction
+is (H2 broken: a wheel slip beyond the bounds, an odometry outlier, a push). With recovery on, a
+rejected frame keeps *both*: the prediction P, and the slip candidates -- the poses within
+(d, d, a) of P (P inflated by d in x and y and a in heading, before the compass) that the compass
+(unless it misses them all) and the view allow, one box per lattice cell. A compass reading that
+misses P is treated the same way (P is kept, plus the candidates the compass allows). The next
+views then remove whichever explanation was wrong: a contraction of the union is the union of the
+contractions, so the status returns to ``contracted`` as soon as a view fits either.
+
+Hypothesis (H5): at a frame that re-inflates (a rejected view, or a compass that misses P), the
+true pose is within (d, d, a) of P. P is the localizer's own prediction, so H5 reads: the odometry
+error beyond its declared bounds, accumulated since the set last held the truth, moved the pose by
+at most d in x and in y and a in heading. (For scale: an excess speed s held for T seconds moves
+it by s T; an excess heading e held over a path of length D moves it by about e D.)
+
+Guarantee, by induction over the frames: if H1 and H3 hold, the truth is in the set at every frame
+that is not ``lost`` as long as every frame is of one of two kinds:
+
+(a) H2 held for its step, and its view, if it contracted the set, satisfies H4 (a rejected view
+    may be anything) -- the guarantee without recovery;
+(b) it re-inflated, H5 holds, and its view, if any, satisfies H4. Such a frame repairs the set:
+    the truth is back in it whatever happened before.
+
+Not covered, because no method can notice it from these inputs: an odometry error beyond its bound
+that leaves the prediction overlapping the view. The contraction is then non-empty but may exclude
+the truth, and it stays so (status ``contracted``) until the drift makes a view miss the set: a
+frame of kind (b) with recovery on, a step towards ``lost`` without. ``bench/faults.py`` counts
+those frames.
+
+Limits of recovery, by the geometry of a periodic floor:
+
+- Two poses one tile apart (same heading) give the same views and the same odometry forever: a
+  push by a whole tile is never noticed, and slip candidates one tile apart are never told apart
+  by views. The candidates of one re-inflation lie in a single lattice cell when the camera-centre
+  range of the inflated prediction (P's width + 2 d + the lever arm times P's heading width + 2 a)
+  is less than L minus the view's cell width (2 ``position_error``) on each axis; so choose
+  d below about L / 2 minus the tracking set's width. A larger d can leave several boxes a tile
+  apart, all vouched for (the truth is in one of them), for good.
+- A kidnap beyond (d, a) breaks H5. Usually no candidate fits (and the compass removes those
+  whose heading it rules out): the frames are ``rejected`` -- vouching for a set that misses the
+  truth, since H5 is broken -- until ``max_rejections`` makes the status ``lost``, which stays
+  until :meth:`Localizer.reset`. Views cannot recover from ``lost``: every candidate within d of the
+  prediction has just been ruled out, and farther away a periodic floor offers a candidate in
+  every tile. A kidnap that lands within (d, d, a) of a *lattice translate* of P is accepted as a
+  slip of the translate: a wrong set, vouched for, exactly as if the robot had been pushed by
+  whole tiles.
+
+Cost: nothing on frames that contract (the hot path is unchanged); a rejected frame contracts the
+inflated boxes once more.
 
 How tight the contraction is
 ----------------------------
@@ -49,7 +103,8 @@ when the lever arm cannot narrow the heading, the usual case; ``bench/bench_loca
 the distribution), so ``LocalizerConfig.passes = 3`` is enough.
 
 A compass reading that misses the predicted set entirely (H1-H3 cannot all hold) is ignored for
-that frame and flagged in ``LocalizerStep.compass_rejected``.
+that frame and flagged in ``LocalizerStep.compass_rejected`` (with recovery on, the slip
+candidates it allows are added: see "Recovery").
 
 Modes (``LocalizerConfig.mode``): ``autonomous``; ``truth`` (report 7.1: every frame the set is
 reset to the true pose inflated by ``truth_inflation``, then the compass and the view contract it;
@@ -91,6 +146,7 @@ __all__ = [
     "compass_pieces",
     "contract_box",
     "contract_branch",
+    "inflate_box",
     "lever_enclosure",
     "observation_windows",
     "predict_box",
@@ -127,7 +183,8 @@ class LocalizerStep:
     number of contraction passes run on one cell (0 when nothing was contracted). ``hulled``: the
     box cap (or a lattice split too fine to keep) replaced some set by its hull this frame.
     ``compass_rejected``: the compass reading missed the predicted set and was ignored.
-    ``rejections``: the current streak of consecutive rejected views.
+    ``rejections``: the current streak of consecutive rejected views. ``reinflated``: recovery
+    added the slip candidates to the set this frame (module docstring, "Recovery").
     """
 
     predicted: BoxSet
@@ -137,6 +194,7 @@ class LocalizerStep:
     hulled: bool = False
     compass_rejected: bool = False
     rejections: int = 0
+    reinflated: bool = False
 
 
 # --- validation ---------------------------------------------------------------------------------
@@ -585,6 +643,14 @@ def _to_boxset(boxes: list[Tuple6]) -> BoxSet:
     return BoxSet(tuple(Box(*b) for b in boxes))
 
 
+def inflate_box(b: Tuple6, d: float, dt: float) -> Tuple6:
+    """Box ``b`` widened by ``d`` metres on each side in x and y and ``dt`` rad in heading
+    (outward rounded): every pose within (d, d, dt) of a pose of ``b``."""
+    n = _nextafter
+    return (n(b[0] - d, -_INF), n(b[1] + d, _INF), n(b[2] - d, -_INF), n(b[3] + d, _INF),
+            n(b[4] - dt, -_INF), n(b[5] + dt, _INF))
+
+
 # --- the localizer ------------------------------------------------------------------------------
 
 
@@ -626,9 +692,15 @@ class Localizer:
         )
         if len(self._inflation) != 3:
             raise ValueError(f"truth_inflation needs 3 values, got {config.truth_inflation!r}")
+        if len(config.max_slip) != 2:
+            raise ValueError(f"max_slip must be (metres, radians), got {config.max_slip!r}")
+        self._slip = (_nonneg("max_slip[0]", config.max_slip[0]),
+                      _nonneg("max_slip[1]", config.max_slip[1]))
+        self._recover = config.mode == "autonomous" and (self._slip[0] > 0 or self._slip[1] > 0)
         self._boxes: list[Tuple6] = []
         self._rejections = 0
         self._lost = False
+        self._window = 0
         self.reset(initial)
 
     def reset(self, box: Box) -> None:
@@ -637,6 +709,7 @@ class Localizer:
         self._boxes = [_check_box("initial box", box)]
         self._rejections = 0
         self._lost = False
+        self._window = 0
 
     @property
     def current(self) -> BoxSet:
@@ -707,15 +780,28 @@ class Localizer:
             boxes = list(self._boxes)
 
         compass_rejected = False
+        reinflated = False
+        raw = boxes  # the prediction before the compass: what recovery inflates
+        recover = self._recover and not self._lost
+        following = recover and self._window > 0  # a fault noticed lately: follow it
+        if following:
+            self._window -= 1
         if compass is not None:
-            c_lo = _nextafter(compass - self._ec, -_INF)
-            c_hi = _nextafter(compass + self._ec, _INF)
-            cut = [p for b in boxes for p in compass_pieces(b, c_lo, c_hi)]
+            cut = self._compass_cut(boxes, compass)
             if cut:
                 boxes, h = _tidy(cut, cap)
                 hulled = hulled or h
             else:
                 compass_rejected = True
+                if recover:
+                    # the prediction misses the compass: keep it (the compass may be the outlier)
+                    # and add the slip candidates the compass allows (the odometry may be)
+                    self._window = cfg.slip_window
+                    extra, _, h = self._slip_candidates(raw, compass, None)
+                    if extra:
+                        boxes, h2 = _tidy(boxes + extra, cap)
+                        hulled = hulled or h or h2
+                        reinflated = True
         predicted = _to_boxset(boxes)
 
         passes = 0
@@ -728,11 +814,18 @@ class Localizer:
         else:
             windows = observation_windows(observation)
             out: list[Tuple6] = []
-            for b in boxes:
-                got, p, h = contract_box(b, windows, self._L, self._lever, cfg.passes, cap)
-                out.extend(got)
-                passes = max(passes, p)
+            if following:
+                # within slip_window frames of a noticed fault: the view contracts the prediction
+                # inflated by max_slip (it holds the plain prediction)
+                out, passes, h = self._slip_candidates(raw, compass, windows)
                 hulled = hulled or h
+                reinflated = bool(out)
+            else:
+                for b in boxes:
+                    got, p, h = contract_box(b, windows, self._L, self._lever, cfg.passes, cap)
+                    out.extend(got)
+                    passes = max(passes, p)
+                    hulled = hulled or h
             if out:
                 status = "contracted"
                 self._rejections = 0
@@ -742,10 +835,23 @@ class Localizer:
                 self._rejections += 1
                 status = "rejected"
                 updated_boxes = boxes
+                if recover:
+                    # the view misses the prediction: either the view is the outlier (keep the
+                    # prediction) or the odometry is (keep what the view allows within max_slip)
+                    self._window = cfg.slip_window
+                    if not following:  # (when following, that set was just found empty)
+                        extra, p, h = self._slip_candidates(raw, compass, windows)
+                        passes = max(passes, p)
+                        hulled = hulled or h
+                        if extra:
+                            updated_boxes, h = _tidy(boxes + extra, cap)
+                            hulled = hulled or h
+                            reinflated = True
                 if mode == "autonomous" and self._rejections >= cfg.max_rejections:
                     status = "lost"
                     self._lost = True
-                    updated_boxes = [_hull_all(boxes)]
+                    self._window = 0
+                    updated_boxes = [_hull_all(updated_boxes)]
         self._boxes = updated_boxes
         return LocalizerStep(
             predicted=predicted,
@@ -755,4 +861,44 @@ class Localizer:
             hulled=hulled,
             compass_rejected=compass_rejected,
             rejections=self._rejections,
+            reinflated=reinflated,
         )
+
+    def _compass_cut(self, boxes: list[Tuple6], compass: float) -> list[Tuple6]:
+        """The boxes' poses whose heading is within ``compass_error`` of ``compass`` (mod 2 pi)."""
+        c_lo = _nextafter(compass - self._ec, -_INF)
+        c_hi = _nextafter(compass + self._ec, _INF)
+        return [p for b in boxes for p in compass_pieces(b, c_lo, c_hi)]
+
+    def _slip_candidates(
+        self,
+        raw: list[Tuple6],
+        compass: float | None,
+        windows: tuple[Window, Window, Window, Window] | None,
+    ) -> tuple[list[Tuple6], int, bool]:
+        """Recovery: the poses within ``max_slip`` of the prediction ``raw`` (before the compass)
+        that the compass and the view ``windows`` allow, as disjoint boxes (one per lattice cell).
+        Without a view, only the part the compass meets (none when it misses them all); with a
+        view, a compass that misses every candidate is ignored, as in :meth:`step`.
+        Returns (boxes, largest number of contraction passes, hulled)."""
+        cfg = self._cfg
+        cap = cfg.max_boxes
+        d, dt = self._slip
+        grown, hulled = _tidy([inflate_box(b, d, dt) for b in raw], cap)
+        if compass is not None:
+            cut = self._compass_cut(grown, compass)
+            if cut:
+                grown, h = _tidy(cut, cap)
+                hulled = hulled or h
+            elif windows is None:
+                return [], 0, hulled  # the compass misses the slip candidates too
+        if windows is None:
+            return grown, 0, hulled
+        out: list[Tuple6] = []
+        passes = 0
+        for b in grown:
+            got, p, h = contract_box(b, windows, self._L, self._lever, cfg.passes, cap)
+            out.extend(got)
+            passes = max(passes, p)
+            hulled = hulled or h
+        return out, passes, hulled

@@ -53,6 +53,9 @@ class FrameRecord:
     status: str
     residuals: tuple[float, ...] | None
     timings: dict[str, float] = field(default_factory=dict)
+    step: LocalizerStep | None = None
+    """The localizer's own account of the frame (rejection streak, compass rejected, recovery
+    re-inflation, passes), or None."""
 
     @property
     def observation(self) -> object:
@@ -180,6 +183,7 @@ class Runner:
             status=step.status,
             residuals=residuals,
             timings={"vision_ms": (t1 - t0) * 1e3, "localizer_ms": (t2 - t1) * 1e3},
+            step=step,
         )
 
     def run(self, source: Source) -> Iterator[FrameRecord]:
