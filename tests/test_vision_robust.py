@@ -94,8 +94,10 @@ def test_the_clean_reference_view_is_accepted(renderer: FloorRenderer) -> None:
         (Fault("cable", {"angle": 1.0, "offset": 10.0, "width": 4.0}), {"foreign line"}),
         (Fault("cable", {"angle": 2.3, "offset": -30.0, "width": 8.0, "gray": 60.0}),
          {"foreign line"}),
-        (Fault("box", {"angle": 0.9, "offset": 40.0}), {"step edge"}),
-        (Fault("shadow", {"angle": 2.0, "offset": -20.0, "strength": 0.4}), {"step edge"}),
+        # a box or a shadow: its edge, or the lines it dims, give it away
+        (Fault("box", {"angle": 0.9, "offset": 40.0}), {"step edge", "foreign line"}),
+        (Fault("shadow", {"angle": 2.0, "offset": -20.0, "strength": 0.4}),
+         {"step edge", "foreign line"}),
         (Fault("glare", {"x": 150.0, "y": 110.0, "radius": 50.0}), {"glare"}),
         (Fault("motion_blur", {"angle": 0.23, "length": 30.0}),
          {"blurred", "one family", "no lines"}),

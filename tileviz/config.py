@@ -136,10 +136,12 @@ class VisionConfig:
     (resp. horizontal) bag."""
     min_segments: int = 2
     """Continue only with at least this many good segments."""
-    position_error_px: float = 2.0
-    """Declared bound on the error of y1, y2, in pixels (converted with ppm)."""
-    heading_error: float = 0.02
-    """Declared bound on the error of y3, rad."""
+    position_error_px: float = 3.0
+    """Declared bound on the error of y1, y2, in pixels (converted with ppm). Chosen from
+    ``bench/accuracy_study.py``: the robust extractor's largest error over 10000 random views
+    was 1.84 px; its checks work at 2 px; 3 px keeps a margin."""
+    heading_error: float = 0.025
+    """Declared bound on the error of y3, rad (largest error seen: 0.0156 rad; checks at 0.02)."""
 
     def __post_init__(self) -> None:
         if self.extractor not in EXTRACTORS:

@@ -30,8 +30,10 @@ see ``bench/bench_vision.py``):
    Canny edges that the predicted grout lines do not explain.
 
 The observation carries the declared bounds (``VisionConfig.position_error_px / ppm`` and
-``VisionConfig.heading_error``); the consistency checks use fractions of the position bound, so
-a frame whose lines disagree with each other by more than the bound allows is refused.
+``VisionConfig.heading_error``). The consistency checks work at the smaller of those bounds and
+the check scales of :class:`RobustSettings` (2 px, 0.02 rad): the defaults of the declared
+bounds (3 px, 0.025 rad) keep a margin over the largest errors the accuracy study saw among
+accepted frames (``bench/accuracy_study.py``), and a tighter declared bound tightens the checks.
 """
 
 from __future__ import annotations
@@ -80,12 +82,22 @@ class RobustSettings:
     least this fraction of the longest chord in the view."""
     min_evidence: float = 0.5
     """Total line length per family, as a fraction of the smaller image side."""
-    width_ratio: float = 1.8
-    """Lines may differ in half-depth width at most by this factor (+1 px)."""
+    width_ratio: float = 1.5
+    """Lines may differ in half-depth width at most by this factor (+ ``width_slack`` px)."""
+    width_slack: float = 1.0
+    contrast_ratio: float = 1.7
+    """Lines may differ in contrast (depth / level) at most by this factor."""
     foreign_length: float = 0.2
     """Straight edges off the lattice longer than this fraction of the smaller side refuse."""
     refine_tilt: float = 0.012
     """Heading correction (rad) above which the warp is redone."""
+    check_position_px: float = 2.0
+    """Scale of the position consistency checks, px: they use the smaller of this and the
+    declared ``VisionConfig.position_error_px``."""
+    check_heading: float = 0.02
+    """Scale of the heading check, rad (the smaller of this and ``heading_error``)."""
+    min_part: float = 20.0
+    """Shortest stretch of a line measured on its own (a part), px."""
     sigmas: float = 4.0
     """The fit's own standard errors times this must stay within the declared bounds."""
     prior_sigma: float = 1.5
@@ -151,6 +163,7 @@ class _Line:
     width: float  # half-depth width, median over the parts, px
     rise: float  # 20-80 % edge rise, median over the parts, px
     step: float  # |level left - level right| / brighter level
+    contrast: float  # depth / brighter plateau level (vignetting and shading cancel)
     chord: float  # line length in the view, px
     parts: np.ndarray  # (PARTS,) centroid in each part (NaN when not measured)
     tpart: np.ndarray  # (PARTS,) mean tangent coordinate of each part
@@ -219,7 +232,10 @@ class _Run:
         self.ppm = float(camera.ppm)
         self.tile_size = float(tile_size)
         self.lp = self.tile_size * self.ppm  # tile period, px
-        self.bound_px = float(vision.position_error_px)
+        # the consistency checks work at the smaller of the declared bounds and the check
+        # scales (the declared bounds keep a margin over the errors the checks let through)
+        self.bound_px = min(float(vision.position_error_px), settings.check_position_px)
+        self.bound_rad = min(float(vision.heading_error), settings.check_heading)
         self.mean = 0.0
         self.edges: np.ndarray | None = None
         self.free_edges: np.ndarray | None = None
@@ -342,30 +358,21 @@ class _Run:
         )
         self.warped = warped
         self.centre = (x0, y0)
-        cuts_x = [round(wo * i / PARTS) for i in range(PARTS + 1)]
-        cuts_y = [round(ho * i / PARTS) for i in range(PARTS + 1)]
-        sums = (
-            np.stack(
-                [cv2.reduce(warped[:, a:b], 1, cv2.REDUCE_SUM).ravel()
-                 for a, b in zip(cuts_x[:-1], cuts_x[1:], strict=True)]
-            ),
-            np.stack(
-                [cv2.reduce(warped[a:b, :], 0, cv2.REDUCE_SUM).ravel()
-                 for a, b in zip(cuts_y[:-1], cuts_y[1:], strict=True)]
-            ),
+        # integral image: the sum over any stretch of any row or column in four look-ups
+        integ = cv2.integral(warped, sdepth=cv2.CV_64F)
+        sums = (integ[1:, -1] - integ[:-1, -1], integ[-1, 1:] - integ[-1, :-1])
+        spans = (
+            self._spans(np.arange(ho) - y0, c, s, along_rows=True),
+            self._spans(np.arange(wo) - x0, c, s, along_rows=False),
         )
-        chords = (
-            self._chords(np.arange(ho) - y0, c, s, True, np.array(cuts_x) - 0.5 - x0),
-            self._chords(np.arange(wo) - x0, c, s, False, np.array(cuts_y) - 0.5 - y0),
-        )
-        return self._dips(sums, chords)
+        return self._dips(integ, sums, spans)
 
-    def _chords(
-        self, q: np.ndarray, c: float, s: float, along_rows: bool, cuts: np.ndarray
+    def _spans(
+        self, q: np.ndarray, c: float, s: float, *, along_rows: bool
     ) -> tuple[np.ndarray, np.ndarray]:
-        """In-view length and mean tangent coordinate of each warped row (``along_rows``) or
-        column, offset ``q`` from the warp centre, within each part [cuts[i], cuts[i+1]) of the
-        tangent coordinate u: two (PARTS, len(q)) arrays."""
+        """The in-view stretch [lo, hi] of each warped row (``along_rows``) or column at offset
+        ``q`` from the warp centre, in the tangent coordinate u (relative to the centre); empty
+        where hi <= lo."""
         cx, cy = (self.w - 1) / 2.0, (self.h - 1) / 2.0
         lo = np.full(q.shape, -np.inf)
         hi = np.full(q.shape, np.inf)
@@ -379,42 +386,35 @@ class _Run:
             u2 = (size - 0.5 - base) / coef
             lo = np.maximum(lo, np.minimum(u1, u2))
             hi = np.minimum(hi, np.maximum(u1, u2))
-        a_lo = np.maximum(lo[None, :], cuts[:-1, None])
-        a_hi = np.minimum(hi[None, :], cuts[1:, None])
-        length = np.maximum(a_hi - a_lo, 0.0)
-        mid = np.where(length > 0, 0.5 * (a_lo + a_hi), 0.0)
-        return length, mid
+        return lo, hi
 
     def _dips(
         self,
+        integ: np.ndarray,
         sums: tuple[np.ndarray, np.ndarray],
-        chords: tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]],
+        spans: tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]],
     ) -> list[list[_Line]]:
-        """The dips of both families, from each family's part sums (PARTS, n_k) and the parts'
-        in-view lengths and mean tangent coordinates. A dip is found in the whole profile, then
-        measured in the whole profile and in each part; every dip of both families is measured
-        at once (vectorised)."""
+        """The lines of both families. Dips are found in each family's whole profile (row or
+        column means of the warped image); each dip is then measured in PARTS equal stretches
+        of the part of its line that every sample of its window sees (so all samples of a part
+        average the same stretch of floor), from the integral image ``integ``. Every dip of both
+        families is measured at once (vectorised)."""
         r = self.window
         mean = self.mean
-        rows_per = PARTS + 1
-        size = max(sums[0].shape[1], sums[1].shape[1]) + 2 * r
-        # rows k * (PARTS + 1) + q: family k, q = 0 the whole profile, q >= 1 the parts;
-        # columns shifted by r, missing data NaN
-        prof = np.full((2 * rows_per, size), np.nan)
-        totals = []
+        size = max(sums[0].size, sums[1].size) + 2 * r
+        # family k in row k; columns shifted by r; missing data NaN
+        prof = np.full((2, size), np.nan)
+        lo = np.full((2, size), np.inf)
+        hi = np.full((2, size), -np.inf)
+        total = np.zeros((2, size))
         for k in range(2):
-            length = chords[k][0]
-            total = length.sum(axis=0)
-            totals.append(total)
-            n = total.size
-            valid = total >= max(8.0, 0.15 * float(total.max()))
+            n = sums[k].size
+            lo[k, r : r + n], hi[k, r : r + n] = spans[k]
+            length = np.maximum(hi[k, r : r + n] - lo[k, r : r + n], 0.0)
+            total[k, r : r + n] = length
+            valid = length >= max(8.0, 0.15 * float(length.max()))
             with np.errstate(invalid="ignore", divide="ignore"):
-                prof[k * rows_per, r : r + n] = np.where(
-                    valid, sums[k].sum(axis=0) / total + mean, np.nan
-                )
-                prof[k * rows_per + 1 : (k + 1) * rows_per, r : r + n] = np.where(
-                    valid & (length >= 6.0), sums[k] / length + mean, np.nan
-                )
+                prof[k, r : r + n] = np.where(valid, sums[k] / length + mean, np.nan)
         # baseline: a grey closing (max then min filter, along each row) removes dips narrower
         # than its window
         missing = np.isnan(prof)
@@ -428,16 +428,15 @@ class _Run:
         dark = base - prof  # NaN where no data
         peaks: list[tuple[int, int]] = []
         for k in range(2):
-            whole = prof[k * rows_per]
-            ok = ~missing[k * rows_per]
+            ok = ~missing[k]
             if int(ok.sum()) < 8:
                 continue
-            diffs = np.abs(np.diff(whole[ok]))
+            diffs = np.abs(np.diff(prof[k][ok]))
             kth = diffs.size // 2
             sig = 1.4826 * float(np.partition(diffs, kth)[kth]) / math.sqrt(2.0)
             self.details["profile_noise"] = max(self.details.get("profile_noise", 0.0), sig)
             thr = max(0.5 * self.st.min_depth, 5.0 * sig)
-            dk = np.where(ok, dark[k * rows_per], -np.inf)
+            dk = np.where(ok, dark[k], -np.inf)
             above = dk > thr
             if not above.any():
                 continue
@@ -454,62 +453,91 @@ class _Run:
         jj = np.arange(-r, r + 1)
         jf = jj.astype(np.float64)
         cols = pk[:, None] + jj[None, :]
-        row0 = fam * rows_per
-        # (PARTS + 1) * m rows: profile q of dip i at row q * m + i
-        rows = (row0[None, :] + np.arange(rows_per)[:, None]).reshape(-1)
-        cols_all = np.tile(cols, (rows_per, 1))
-        p = prof[rows[:, None], cols_all]
-        d = dark[rows[:, None], cols_all]
-        near = np.nan_to_num(d[:, r - 2 : r + 3], nan=-np.inf)
-        jp = np.argmax(near, axis=1) - 2  # each row's own peak, near the whole profile's
+        # the whole profile: depth, half-depth crossings, width, window and plateau levels
+        p0 = prof[fam[:, None], cols]
+        d0 = dark[fam[:, None], cols]
+        near = np.nan_to_num(d0[:, r - 2 : r + 3], nan=-np.inf)
         depth = near.max(axis=1)
-        # crossings at 50 %, 20 % and 80 % of the depth, all rows at once
-        lv = np.concatenate([0.5 * depth, 0.2 * depth, 0.8 * depth])
-        xl, xr = _crossings(np.tile(d, (3, 1)), jf, np.tile(jp, 3), lv)
-        nr = rows.size
-        hl, l20, l80 = xl[:nr], xl[nr : 2 * nr], xl[2 * nr :]
-        hr, r20, r80 = xr[:nr], xr[nr : 2 * nr], xr[2 * nr :]
-        width = hr - hl
-        rise = 0.5 * ((l80 - l20) + (r20 - r80))
+        hl, hr = _crossings(d0, jf, np.argmax(near, axis=1) - 2, 0.5 * depth)
         c0 = 0.5 * (hl + hr)
-        c0 = np.where(np.isfinite(c0), c0, np.tile(c0[:m], rows_per))
-        half = np.tile(1.5 * width[:m] + 1.5, rows_per)
-        inside = (c0 - half - 4.0 >= -r) & (c0 + half + 4.0 <= r)
-        lev_l, lev_r = _plateaus(p, jf, c0, half)
-        cen = _centroid(p, jf, c0, half, lev_l, lev_r)
-        cen = np.where(inside & (np.abs(cen - c0) <= half), cen, np.nan).reshape(rows_per, m)
-        width = width.reshape(rows_per, m)
-        rise = rise.reshape(rows_per, m)
+        half = 1.5 * (hr - hl) + 1.5
+        lev_l, lev_r = _plateaus(p0, jf, c0, half)
+        # the parts: PARTS equal stretches of the window's common in-view stretch
+        # (over the samples a part's centroid and plateaus use: c0 +- (half + 4))
+        used = np.abs(jf[None, :] - np.nan_to_num(c0)[:, None]) <= (
+            np.nan_to_num(half)[:, None] + 5.0
+        )
+        u_lo = np.where(used, lo[fam[:, None], cols], -np.inf).max(axis=1) + 1.0
+        u_hi = np.where(used, hi[fam[:, None], cols], np.inf).min(axis=1) - 1.0
+        step = (u_hi - u_lo) / PARTS
+        usable = np.isfinite(c0) & (step >= self.st.min_part / 2.0)
+        x0, y0 = self.centre
+        along = np.where(fam == 0, x0, y0)  # warp coordinate of u = 0
         with np.errstate(invalid="ignore"):
-            wmed = np.where(np.isfinite(width[1:]).any(axis=0),
-                            _nanmedian(width[1:]), width[0])
-            rmed = np.where(np.isfinite(rise[1:]).any(axis=0), _nanmedian(rise[1:]), rise[0])
-        lo_lev = np.minimum(lev_l[:m], lev_r[:m])
-        hi_lev = np.maximum(lev_l[:m], lev_r[:m])
-        step = (hi_lev - lo_lev) / np.maximum(hi_lev, 1e-9)
+            edges_u = u_lo[:, None] + step[:, None] * np.arange(PARTS + 1)[None, :]
+            idx = np.ceil(along[:, None] + edges_u)
+        idx = np.where(usable[:, None], idx, 0.0).astype(np.intp)
+        count = np.diff(idx, axis=1)  # samples in each part, (m, PARTS)
+        tpart = 0.5 * (idx[:, :-1] + idx[:, 1:] - 1) - along[:, None]
+        line = np.clip(cols - r, 0, integ.shape[0] + integ.shape[1])  # warp row / column
+        a = idx[:, None, :-1]  # (m, 1, PARTS)
+        b = idx[:, None, 1:]
+        q = line[:, :, None]  # (m, W, 1)
+        fam1 = (fam == 0)[:, None, None]
+        hmax, wmax = integ.shape[0] - 1, integ.shape[1] - 1
+        qr = np.minimum(q, hmax - 1)
+        qc = np.minimum(q, wmax - 1)
+        ar, br = np.minimum(a, wmax), np.minimum(b, wmax)
+        ac, bc = np.minimum(a, hmax), np.minimum(b, hmax)
+        part_sum = np.where(
+            fam1,
+            integ[qr + 1, br] - integ[qr, br] - integ[qr + 1, ar] + integ[qr, ar],
+            integ[bc, qc + 1] - integ[bc, qc] - integ[ac, qc + 1] + integ[ac, qc],
+        )  # (m, W, PARTS)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            pp = part_sum / count[:, None, :] + mean
+        pp = np.where(usable[:, None, None] & ~np.isnan(p0)[:, :, None], pp, np.nan)
+        pp = pp.transpose(0, 2, 1).reshape(m * PARTS, -1)  # row i * PARTS + j
+        cj = np.repeat(c0, PARTS)
+        hj = np.repeat(half, PARTS)
+        ll, lr = _plateaus(pp, jf, cj, hj)
+        lev = ll[:, None] + (lr - ll)[:, None] * np.clip(jf[None, :] - cj[:, None] + 0.5, 0, 1)
+        dp = lev - pp
+        nearp = np.nan_to_num(dp[:, r - 3 : r + 4], nan=-np.inf)
+        dpk = nearp.max(axis=1)
+        jp = np.argmax(nearp, axis=1) - 3
+        lv = np.concatenate([0.5 * dpk, 0.2 * dpk, 0.8 * dpk])
+        xl, xr = _crossings(np.tile(dp, (3, 1)), jf, np.tile(jp, 3), lv)
+        nr = dp.shape[0]
+        width = (xr[:nr] - xl[:nr]).reshape(m, PARTS)
+        rise = (0.5 * ((xl[2 * nr :] - xl[nr : 2 * nr]) + (xr[nr : 2 * nr] - xr[2 * nr :])))
+        rise = rise.reshape(m, PARTS)
+        inside = (cj - hj - 4.0 >= -r) & (cj + hj + 4.0 <= r)
+        cen = _centroid(pp, jf, cj, hj, ll, lr)
+        cen = np.where(inside & (np.abs(cen - cj) <= hj), cen, np.nan).reshape(m, PARTS)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            wmed = _nanmedian(width.T)
+            rmed = _nanmedian(rise.T)
+            cmed = _nanmedian((dpk / np.maximum(ll, lr)).reshape(m, PARTS).T)
+        lo_lev = np.minimum(lev_l, lev_r)
+        hi_lev = np.maximum(lev_l, lev_r)
+        stepr = (hi_lev - lo_lev) / np.maximum(hi_lev, 1e-9)
         out: list[list[_Line]] = [[], []]
         for i in range(m):
-            k = int(fam[i])
-            if not (math.isfinite(cen[0, i]) and math.isfinite(width[0, i])):
+            ok = np.isfinite(cen[i])
+            if not usable[i] or not ok.any():
                 continue
-            j = int(round(pk[i] + cen[0, i])) - r  # index into the family's chord arrays
-            length, mid = chords[k]
-            if not 0 <= j < length.shape[1]:
-                continue
-            pc = cen[1:, i]
-            wts = np.where(np.isfinite(pc), length[:, j], 0.0)
-            if not wts.sum() > 0:
-                continue
-            out[k].append(
+            out[int(fam[i])].append(
                 _Line(
                     depth=float(depth[i]),
                     width=float(wmed[i]),
                     rise=float(rmed[i]),
-                    step=float(step[i]),
-                    chord=float(totals[k][j]),
-                    parts=pk[i] - r + pc,
-                    tpart=mid[:, j].copy(),
-                    wpart=wts,
+                    step=float(stepr[i]),
+                    contrast=float(cmed[i]),
+                    chord=float(total[fam[i], pk[i]]),
+                    parts=pk[i] - r + cen[i],
+                    tpart=tpart[i],
+                    wpart=np.where(ok, count[i], 0).astype(np.float64),
                 )
             )
         return out
@@ -536,11 +564,12 @@ class _Run:
     def _fit(self, lines: list[list[_Line]]) -> float:
         """Fit one residual tilt eps for all lines (family-1 rows drift by +eps per unit of t,
         family-2 columns by -eps) and one intercept per line, weighted by part lengths; set each
-        line's ``pos`` (at t = 0) and return eps (rad)."""
-        num = 0.0
-        den = 0.0
+        line's ``pos`` (at t = 0) and ``var``; return eps (rad). Also records the tilt of each
+        family on its own (``tilt_gap``: their difference in standard errors)."""
+        num = [0.0, 0.0]
+        den = [0.0, 0.0]
         stats = []
-        for fam, sign in ((lines[0], 1.0), (lines[1], -1.0)):
+        for k, (fam, sign) in enumerate(((lines[0], 1.0), (lines[1], -1.0))):
             for ln in fam:
                 ok = ln.wpart > 0
                 w = ln.wpart[ok]
@@ -548,10 +577,11 @@ class _Run:
                 p = ln.parts[ok]
                 tb = float(np.dot(w, t) / w.sum())
                 pb = float(np.dot(w, p) / w.sum())
-                num += sign * float(np.dot(w, (t - tb) * (p - pb)))
-                den += float(np.dot(w, (t - tb) ** 2))
+                num[k] += sign * float(np.dot(w, (t - tb) * (p - pb)))
+                den[k] += float(np.dot(w, (t - tb) ** 2))
                 stats.append((ln, sign, tb, pb))
-        eps = num / den if den > 1e-9 else 0.0
+        dall = den[0] + den[1]
+        eps = (num[0] + num[1]) / dall if dall > 1e-9 else 0.0
         worst = 0.0
         ss = 0.0
         nobs = 0
@@ -570,10 +600,16 @@ class _Run:
         st = self.st
         dof = max(nobs - (len(stats) + 1), 0)
         sigma2 = (ss + st.prior_dof * st.prior_sigma**2) / (dof + st.prior_dof)
-        var_eps = sigma2 / den if den > 1e-9 else math.inf
+        var_eps = sigma2 / dall if dall > 1e-9 else math.inf
         for ln, _, tb, _ in stats:
             ln.var = sigma2 / float(ln.wpart.sum()) + tb * tb * var_eps
         self.details["heading_se"] = math.sqrt(var_eps)
+        # the two families must be perpendicular: their own tilts agree within their errors
+        if den[0] > 1e-9 and den[1] > 1e-9:
+            gap = abs(num[0] / den[0] - num[1] / den[1])
+            self.details["tilt_gap"] = gap / math.sqrt(sigma2 / den[0] + sigma2 / den[1])
+        else:
+            self.details["tilt_gap"] = 0.0
         return eps
 
     def _check_lines(self, lines: list[list[_Line]]) -> None:
@@ -594,11 +630,23 @@ class _Run:
         self.details["step"] = step
         if step > st.max_step:
             raise _Fail("step edge")
-        if self.details["straightness_px"] > st.straight_fraction * self.bound_px:
+        if (
+            self.details["straightness_px"] > st.straight_fraction * self.bound_px
+            or self.details["tilt_gap"] > st.sigmas
+        ):
             raise _Fail("inconsistent angle")
-        widths = [ln.width for ln in every]
-        if max(widths) > st.width_ratio * min(widths) + 1.0:
-            raise _Fail("inconsistent spacing")
+        # Grout lines of both families share one width and one colour: a line unlike the
+        # others (a cable along the grout direction, a seam) is foreign.
+        widths = [ln.width for ln in every if math.isfinite(ln.width)]
+        contrasts = [ln.contrast for ln in every]
+        self.details["width_spread"] = max(widths) / min(widths) if widths else math.inf
+        self.details["contrast_spread"] = max(contrasts) / max(min(contrasts), 1e-9)
+        if (
+            not widths
+            or max(widths) > st.width_ratio * min(widths) + st.width_slack
+            or self.details["contrast_spread"] > st.contrast_ratio
+        ):
+            raise _Fail("foreign line")
 
     def _lattice(self, lines: list[list[_Line]], y3: float) -> None:
         """Offsets modulo L per family, the spacing checks, and the observation."""
@@ -632,7 +680,7 @@ class _Run:
         self.details["position_se_px"] = se
         if (
             st.sigmas * se > self.bound_px
-            or st.sigmas * self.details["heading_se"] > self.vision.heading_error
+            or st.sigmas * self.details["heading_se"] > self.bound_rad
         ):
             raise _Fail("imprecise")
         self.y = normalise(ys[0], ys[1], y3, self.tile_size)

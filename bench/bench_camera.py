@@ -1,0 +1,62 @@
+"""Renderer timings: ms per frame at 320x240 and 640x480, with the default camera effects
+(noise, blur, vignetting), with JPEG, and with a fault.
+
+    python bench/bench_camera.py [--frames 200]
+
+Each figure is the median over frames of ``FloorRenderer.render`` (random poses, one rng);
+the floor's appearance is computed once per renderer (its time is printed too).
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from tileviz.config import preset  # noqa: E402
+from tileviz.sim.camera import Fault, FloorRenderer  # noqa: E402
+from tileviz.types import Pose  # noqa: E402
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--frames", type=int, default=200)
+    args = ap.parse_args(argv)
+    cfg = preset("default")
+    print(f"OpenCV {cv2.__version__}, {cv2.getNumThreads()} threads; {args.frames} frames per "
+          "case; medians in ms")
+    for w, h in ((320, 240), (640, 480)):
+        base = replace(cfg.camera, width=w, height=h)
+        cases = {
+            "default effects": (base, None),
+            "no effects": (replace(base, noise_sigma=0.0, blur_sigma=0.0, vignetting=0.0), None),
+            "JPEG q80": (replace(base, jpeg_quality=80), None),
+            "cable fault": (base, [Fault("cable")]),
+            "motion blur fault": (base, [Fault("motion_blur")]),
+        }
+        for name, (cam, faults) in cases.items():
+            t0 = time.perf_counter()
+            r = FloorRenderer(cfg.floor, cam)
+            init = (time.perf_counter() - t0) * 1e3
+            rng = np.random.default_rng(1)
+            times = []
+            for _ in range(args.frames):
+                pose = Pose(rng.uniform(-5, 5), rng.uniform(-5, 5), rng.uniform(-4, 4))
+                t0 = time.perf_counter()
+                r.render(pose, rng, faults=faults)
+                times.append((time.perf_counter() - t0) * 1e3)
+            print(f"{w}x{h} {name:<18} {statistics.median(times):6.3f} ms/frame "
+                  f"(renderer init {init:.0f} ms)")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
