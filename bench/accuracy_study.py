@@ -65,6 +65,10 @@ def main(argv: list[str] | None = None) -> int:
     }
     reasons: dict[str, collections.Counter] = {e: collections.Counter() for e in extractors}
     fault_out: dict[str, collections.Counter] = {e: collections.Counter() for e in extractors}
+    # acceptance by tile periods across the view's smaller side (few periods: often no line
+    # or only one family in view, which no extractor can read)
+    bins = ((0.0, 1.0), (1.0, 2.0), (2.0, 4.0), (4.0, math.inf))
+    by_bin: dict[str, collections.Counter] = {e: collections.Counter() for e in extractors}
     t0 = time.perf_counter()
     done = 0
     while done < args.poses:
@@ -84,6 +88,10 @@ def main(argv: list[str] | None = None) -> int:
                 res = extract(img, camera=cam, tile_size=floor.tile_size,
                               vision=replace(vision, extractor=ext))
                 reasons[ext][res.reason] += 1
+                periods = min(cam.width, cam.height) / (floor.tile_size * cam.ppm)
+                b = next(i for i, (lo, hi) in enumerate(bins) if lo <= periods < hi)
+                by_bin[ext][(b, "n")] += 1
+                by_bin[ext][(b, "ok")] += int(res.accepted)
                 s = stats[ext]
                 s["accepted"].append(res.accepted)
                 if res.accepted:
@@ -123,6 +131,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"  {'position, mm':<22} {percentiles([1e3 * v for v in s['pos_m']])}")
         print(f"  {'heading, mrad':<22} {percentiles([1e3 * v for v in s['head']])}")
         print("  reasons: " + ", ".join(f"{r} {c}" for r, c in reasons[ext].most_common()))
+        print("  acceptance by tile periods across the smaller image side: " + ", ".join(
+            f"{lo:g}-{hi:g}: {by_bin[ext][(i, 'ok')]}/{by_bin[ext][(i, 'n')]}"
+            for i, (lo, hi) in enumerate(bins)))
         if args.faults:
             print(f"  {'fault':<12} {'frames':>7} {'accepted':>9} {'outside bound':>14}")
             for kind in FAULTS:

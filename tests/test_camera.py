@@ -242,3 +242,30 @@ def _repo() -> str:
     import pathlib
 
     return str(pathlib.Path(__file__).resolve().parents[1])
+
+
+@pytest.mark.parametrize("m", [1, 2, 3])
+def test_quarter_turned_pose_sees_the_same_floor(m: int) -> None:
+    """design.md's corrected equivalence, checked on rendered images (plain floor, no noise):
+    the pose whose camera centre is R(m pi/2) c (plus a lattice shift) with heading
+    theta + m pi/2 sees exactly the same image. The original report's Theorem 1 pairs a quarter
+    turn with a plain swap (c_y, c_x) and treats a half turn as the identity: those poses see
+    a different image."""
+    r = FloorRenderer(PLAIN_FLOOR, CLEAN_CAMERA)
+    pose = Pose(0.23, 0.71, 0.4)
+    f, left = CLEAN_CAMERA.offset
+
+    def pose_for(cx: float, cy: float, theta: float) -> Pose:
+        ct, st_ = math.cos(theta), math.sin(theta)
+        return Pose(cx - (f * ct - left * st_), cy - (f * st_ + left * ct), theta)
+
+    c = (pose.x + f * math.cos(pose.theta), pose.y + f * math.sin(pose.theta))
+    turned = {1: (-c[1], c[0]), 2: (-c[0], -c[1]), 3: (c[1], -c[0])}[m]
+    theta = pose.theta + m * math.pi / 2
+    same = pose_for(turned[0] + 3.0, turned[1] - 2.0, theta)
+    base = _gray(r.render(pose))
+    assert np.abs(_gray(r.render(same)) - base).max() <= 1.0
+    # the report's version: a swap without the sign (m odd), the identity for a half turn
+    wrong_c = (c[1], c[0]) if m % 2 else c
+    wrong = pose_for(wrong_c[0] + 3.0, wrong_c[1] - 2.0, theta)
+    assert np.abs(_gray(r.render(wrong)) - base).max() > 50.0

@@ -8,6 +8,8 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from tileviz import tiles
 from tileviz.config import CameraConfig, VisionConfig, preset
@@ -137,10 +139,10 @@ def test_stage_images_only_when_asked(ext: str, views: list) -> None:
                    "disambiguation"],
     }[ext]
     assert list(res.stages) == expected
-    for name, st in res.stages.items():
-        assert st.dtype == np.uint8 and st.ndim == 3 and st.shape[2] == 3, name
+    for name, stage in res.stages.items():
+        assert stage.dtype == np.uint8 and stage.ndim == 3 and stage.shape[2] == 3, name
         if name != "disambiguation":
-            assert st.shape[:2] == img.shape[:2], name
+            assert stage.shape[:2] == img.shape[:2], name
     assert res.observation == plain.observation
     assert "stages" in res.timings and all(v >= 0 for v in res.timings.values())
 
@@ -222,3 +224,38 @@ def test_observation_error_is_modulo_the_symmetries() -> None:
     # a wrong offset shows up in metres
     e = observation_error((y[0] + 0.01, y[1], y[2]), pose, 1.0, cam.offset)
     assert max(abs(e[0]), abs(e[1])) == pytest.approx(0.01)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    data=st.data(),
+    w=st.integers(16, 96),
+    h=st.integers(16, 96),
+    ppm=st.floats(5.0, 2000.0),
+    tile=st.floats(0.01, 5.0),
+    kind=st.sampled_from(["noise", "blocks", "stripes", "flat"]),
+)
+def test_any_image_gives_a_result_never_an_exception(
+    data: st.DataObject, w: int, h: int, ppm: float, tile: float, kind: str
+) -> None:
+    """Arbitrary content, sizes and scales: both extractors answer (a refusal with a reason,
+    or an observation in range), they never raise."""
+    seed = data.draw(st.integers(0, 2**32 - 1))
+    rng = np.random.default_rng(seed)
+    if kind == "noise":
+        img = rng.integers(0, 256, (h, w, 3), dtype=np.uint8)
+    elif kind == "blocks":
+        img = np.kron(rng.integers(0, 256, (h // 8 + 1, w // 8 + 1, 3)),
+                      np.ones((8, 8, 1)))[:h, :w].astype(np.uint8)
+    elif kind == "stripes":
+        img = np.zeros((h, w, 3), np.uint8)
+        img[:, ::5] = 255
+    else:
+        img = np.full((h, w, 3), data.draw(st.integers(0, 255)), np.uint8)
+    cam = CameraConfig(ppm=ppm, width=w, height=h)
+    for ext in EXTRACTORS:
+        res = extract(img, camera=cam, tile_size=tile, vision=_vision(ext), keep_stages=True)
+        assert res.reason in REASONS
+        if res.accepted:
+            assert 0 <= res.observation.y1 < tile and 0 <= res.observation.y2 < tile
+            assert -math.pi / 4 <= res.observation.y3 < math.pi / 4

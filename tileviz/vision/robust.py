@@ -196,10 +196,13 @@ def extract_robust(
     tm = {} if timings is None else timings
     run = _Run(gray, camera, tile_size, vision, settings, tm)
     reason = "ok"
-    try:
-        run.execute()
-    except _Fail as f:
-        reason = f.reason
+    # missing data is NaN throughout (profiles beyond the view, unmeasured parts): arithmetic
+    # on it is expected and its warnings are noise
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        try:
+            run.execute()
+        except _Fail as f:
+            reason = f.reason
     t0 = time.perf_counter()
     res = run.result(reason)
     tm["result"] = (time.perf_counter() - t0) * 1e3
