@@ -36,11 +36,12 @@ class Controls:
 
     ``submit``: puts a command on the loop's queue (never blocks). ``cfg``: the starting
     configuration (initial slider values). ``layers``: initial layer visibility. ``display``,
-    ``playing``: initial states.
+    ``playing``, ``speed`` (x real time), ``max_speed``: initial states.
     """
 
     def __init__(self, server: Any, submit: Callable[[object], None], cfg: Config, *,
-                 layers: dict[str, bool], display: bool, playing: bool) -> None:
+                 layers: dict[str, bool], display: bool, playing: bool, speed: float = 1.0,
+                 max_speed: bool = False) -> None:
         self.server = server
         self._submit = submit
         gui = server.gui
@@ -53,8 +54,8 @@ class Controls:
             self.live = gui.add_button("Go live")
             self.timeline = gui.add_slider("Timeline", min=0, max=1, step=1, initial_value=0)
             self.speed = gui.add_slider("Speed (x real time)", min=0.1, max=10.0, step=0.1,
-                                        initial_value=1.0)
-            self.max_speed = gui.add_checkbox("As fast as possible", False)
+                                        initial_value=min(max(speed, 0.1), 10.0))
+            self.max_speed = gui.add_checkbox("As fast as possible", max_speed)
         self._on_click(self.play, C.TogglePlay)
         self._on_click(self.step, C.Step)
         self._on_click(self.step_back, C.StepBack)

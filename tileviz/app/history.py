@@ -17,6 +17,8 @@ from __future__ import annotations
 
 import math
 import threading
+from collections import deque
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, replace
 
 import cv2
@@ -25,7 +27,10 @@ import numpy as np
 from tileviz.runner import FrameRecord
 from tileviz.types import STATUSES
 
-__all__ = ["Entry", "History", "Series", "encode_jpeg", "metrics_of", "strip_record"]
+__all__ = [
+    "Encoder", "Entry", "History", "Series", "encode_images", "encode_jpeg", "metrics_of",
+    "strip_record",
+]
 
 JPEG_QUALITY = 85
 """Quality of the stored (and streamed) camera and stage images."""
@@ -91,29 +96,81 @@ def metrics_of(rec: FrameRecord) -> np.ndarray:
     return row
 
 
+Images = tuple[tuple[str, bytes], ...]
+"""Ordered (name, JPEG bytes) pairs."""
+
+
+def encode_images(image: np.ndarray, stages: dict[str, np.ndarray]) -> Images:
+    """(name, JPEG bytes) pairs: ``camera`` (when ``image`` is not empty), then ``stages``."""
+    images: list[tuple[str, bytes]] = []
+    camera = encode_jpeg(image) if image.size else b""
+    if camera:
+        images.append(("camera", camera))
+    for name, img in stages.items():
+        # the extractors' "input" stage is the camera image again: encode it once
+        same = camera and img.shape == image.shape and np.array_equal(img, image)
+        images.append((name, camera if same else encode_jpeg(img)))
+    return tuple(images)
+
+
 @dataclass(frozen=True)
 class Entry:
     """One frame of the history: the (stripped) record and its images as JPEG bytes.
 
     ``images``: ordered (name, JPEG bytes) pairs; ``camera`` first, then the pipeline stages in
-    the extractor's order (empty names when the display was off for this frame)."""
+    the extractor's order (none when the display was off for this frame). They may still be
+    being encoded on the :class:`Encoder`'s thread: reading ``images`` then waits for them."""
 
     record: FrameRecord
-    images: tuple[tuple[str, bytes], ...]
+    encoded: Images | Future[Images]
 
     @property
     def index(self) -> int:
         return self.record.index
 
+    @property
+    def images(self) -> Images:
+        e = self.encoded
+        return e.result() if isinstance(e, Future) else e
+
+    @property
+    def ready(self) -> bool:
+        """True when the images are encoded (reading them will not wait)."""
+        e = self.encoded
+        return not isinstance(e, Future) or e.done()
+
     @classmethod
-    def make(cls, rec: FrameRecord, *, stages: bool = True) -> Entry:
-        """Encode ``rec``'s camera image (and its stage images when ``stages``) and strip it."""
-        images: list[tuple[str, bytes]] = []
-        if rec.image.size:
-            images.append(("camera", encode_jpeg(rec.image)))
-        if stages:
-            images.extend((name, encode_jpeg(img)) for name, img in rec.vision.stages.items())
-        return cls(strip_record(rec), tuple(images))
+    def make(cls, rec: FrameRecord, *, stages: bool = True,
+             encoder: Encoder | None = None) -> Entry:
+        """The entry of ``rec``: its images encoded (now, or on ``encoder``'s thread) and the
+        record stripped of its raw arrays."""
+        st = dict(rec.vision.stages) if stages else {}
+        if encoder is None:
+            return cls(strip_record(rec), encode_images(rec.image, st))
+        return cls(strip_record(rec), encoder.submit(rec.image, st))
+
+
+class Encoder:
+    """JPEG-encodes frames' images on one worker thread (OpenCV releases the GIL, so this runs
+    beside the frame loop on another core). At most ``max_pending`` frames wait; past that,
+    :meth:`submit` waits for the oldest (the raw arrays of waiting frames stay in memory)."""
+
+    def __init__(self, max_pending: int = 8) -> None:
+        self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="tileviz-jpeg")
+        self._pending: deque[Future[Images]] = deque()
+        self.max_pending = int(max_pending)
+
+    def submit(self, image: np.ndarray, stages: dict[str, np.ndarray]) -> Future[Images]:
+        while self._pending and (self._pending[0].done()
+                                 or len(self._pending) >= self.max_pending):
+            self._pending.popleft().result()
+        fut = self._pool.submit(encode_images, image, stages)
+        self._pending.append(fut)
+        return fut
+
+    def close(self) -> None:
+        """Finish the queued work and stop the thread."""
+        self._pool.shutdown(wait=True)
 
 
 class Series:

@@ -40,6 +40,9 @@ COLOURS: dict[str, tuple[int, int, int]] = {
 
 TRAIL_SEGMENTS = 1000
 """Segments in each trail (the last TRAIL_SEGMENTS + 1 frames up to the shown one)."""
+TRAIL_HEAD = 64
+"""Segments of the trails' heads: the newest frames, re-sent with every frame shown, while the
+long trails are re-sent only now and then (``show(..., full=True)``)."""
 WEDGE_STEPS = 48
 """Arc steps of the heading wedge."""
 Z_BOX = 0.26
@@ -183,14 +186,15 @@ class SceneView:
                                         position=(0.0, 0.0, 0.07))
         self._layer("setpoint", self.setpoint)
 
-        n = TRAIL_SEGMENTS
-        self.trail_truth = s.add_line_segments("/trails/truth", np.zeros((n, 2, 3), np.float32),
-                                               COLOURS["truth"], thickness=2.0,
-                                               thickness_units="screen")
-        self.trail_est = s.add_line_segments("/trails/estimate", np.zeros((n, 2, 3), np.float32),
-                                             COLOURS["estimate"], thickness=2.0,
-                                             thickness_units="screen")
-        self._layer("trails", self.trail_truth, self.trail_est)
+        def trail(name: str, n: int, colour: str) -> Any:
+            return s.add_line_segments(name, np.zeros((n, 2, 3), np.float32), COLOURS[colour],
+                                       thickness=2.0, thickness_units="screen")
+
+        self.trail_truth = trail("/trails/truth", TRAIL_SEGMENTS, "truth")
+        self.trail_est = trail("/trails/estimate", TRAIL_SEGMENTS, "estimate")
+        self.head_truth = trail("/trails/truth_head", TRAIL_HEAD, "truth")
+        self.head_est = trail("/trails/estimate_head", TRAIL_HEAD, "estimate")
+        self._layer("trails", self.trail_truth, self.trail_est, self.head_truth, self.head_est)
         self.floor: Any = None
         self.grid: Any = None
         self.path: Any = None
@@ -261,9 +265,11 @@ class SceneView:
         self.layers = dict(layers)
 
     # ------------------------------------------------------------------ per frame
-    def show(self, rec: Any, trail_truth: np.ndarray, trail_est: np.ndarray) -> None:
-        """Update every dynamic node from the record ``rec`` (a FrameRecord) and the trails
-        (K, 2) arrays of past (x, y), NaN where unknown."""
+    def show(self, rec: Any, trail_truth: np.ndarray, trail_est: np.ndarray, *,
+             full: bool = True) -> None:
+        """Update every dynamic node from the record ``rec`` (a FrameRecord) and the trails:
+        (K, 2) arrays of past (x, y) up to this frame, NaN where unknown. The long trails are
+        re-sent only when ``full`` (their newest part is always drawn by the trail heads)."""
         truth: Pose | None = rec.truth
         if truth is not None:
             self.robot.position = (truth.x, truth.y, 0.0)
@@ -279,8 +285,13 @@ class SceneView:
         if rec.setpoint is not None:
             self.setpoint.position = (rec.setpoint[0], rec.setpoint[1], 0.07)
         if self.layers.get("trails", True):
-            self.trail_truth.points = _polyline_segments(trail_truth, TRAIL_SEGMENTS, 0.006)
-            self.trail_est.points = _polyline_segments(trail_est, TRAIL_SEGMENTS, 0.007)
+            if full:
+                self.trail_truth.points = _polyline_segments(trail_truth, TRAIL_SEGMENTS, 0.006)
+                self.trail_est.points = _polyline_segments(trail_est, TRAIL_SEGMENTS, 0.007)
+            self.head_truth.points = _polyline_segments(trail_truth[-TRAIL_HEAD - 1:],
+                                                        TRAIL_HEAD, 0.006)
+            self.head_est.points = _polyline_segments(trail_est[-TRAIL_HEAD - 1:], TRAIL_HEAD,
+                                                      0.007)
 
     def _show_set(self, name: str, boxset: BoxSet) -> None:
         boxes, outline = self.sets[name]

@@ -29,7 +29,7 @@ from pathlib import Path
 from typing import Any
 
 from tileviz.app import commands as C
-from tileviz.app.history import METRIC_NAMES
+from tileviz.app.history import METRIC_NAMES, Entry
 from tileviz.app.scene import TRAIL_SEGMENTS
 from tileviz.app.session import Session, SessionOptions
 from tileviz.cliutil import Parser, positive_float, positive_int, run_cli
@@ -98,7 +98,8 @@ class App:
         server.scene.configure_default_lights(enabled=True, cast_shadow=False)
         self.scene = SceneView(server.scene, pool=max(1, self.cfg.localizer.max_boxes))
         self.controls = Controls(server, self.submit, self.cfg, layers=s.layers,
-                                 display=s.display, playing=s.playing)
+                                 display=s.display, playing=s.playing, speed=s.speed,
+                                 max_speed=s.max_speed)
         panel = server.gui.add_panel()
         with panel.add_tab("Vision"):
             self.panels = ImagePanels(server.gui, width=self.cfg.camera.width,
@@ -170,18 +171,15 @@ class App:
             self._started.set()
             return
         self._started.set()
-        next_frame = time.perf_counter()
-        last_push = 0.0
+        next_frame = next_push = time.perf_counter()
+        push_period = 1.0 / self.push_rate
         last_plot = 0.0
         while not self._stop.is_set():
             now = time.perf_counter()
             # wait for a command until the next frame is due (or a push is due)
-            if s.playing:
-                wait = max(0.0, next_frame - now)
-            else:
-                wait = 0.25
+            wait = max(0.0, next_frame - now) if s.playing else 0.25
             if s.version != self._pushed_version:
-                wait = min(wait, max(0.0, last_push + 1.0 / self.push_rate - now))
+                wait = min(wait, max(0.0, next_push - now))
             self._drain(wait)
             if self._stop.is_set():
                 break
@@ -190,10 +188,11 @@ class App:
                 s.advance()
                 period = s.frame_period
                 next_frame = max(next_frame + period, now - 0.25) if period > 0 else now
-            if s.version != self._pushed_version and now - last_push >= 1.0 / self.push_rate:
+            if s.version != self._pushed_version and now >= next_push:
                 plots = now - last_plot >= 1.0 / self.plot_rate
                 self._push(plots=plots)
-                last_push = now
+                # on a schedule, so a loop a little faster than the cap still pushes at the cap
+                next_push = max(next_push + push_period, now - push_period)
                 if plots:
                     last_plot = now
 
@@ -221,7 +220,11 @@ class App:
         s = self.session
         assert s is not None
         try:
-            self._push_inner(plots or force)
+            # one batch: the browser applies the frame's updates together, and viser wakes its
+            # sender once per push instead of once per message (nothing is held back: the block
+            # ends with the push)
+            with self.server.atomic():
+                self._push_inner(plots or force)
         except Exception as e:  # noqa: BLE001 - drawing must not stop the loop
             s.note(f"display: {e}", "error")
         self._pushed_version = s.version
@@ -235,29 +238,30 @@ class App:
             self.scene.set_world(s.cfg, path=s.source.lissajous_path(),
                                  waypoints=s.cfg.sim.waypoints, setpoint_kind=s.setpoint_kind)
         self.scene.apply_layers(s.layers)
-        entry = s.shown_entry()
+        pos = s.display_position()
+        entry = s.history.get(pos) if pos in s.history else None
         if entry is not None:
-            rows = s.history.window(s.shown, self.plot_window)
+            rows = s.history.window(pos, self.plot_window)
             trail = rows[-(TRAIL_SEGMENTS + 1):]
+            # the long trails at the plot rate; their newest part (the heads) with every push
             self.scene.show(entry.record, trail[:, [_COL["truth_x"], _COL["truth_y"]]],
-                            trail[:, [_COL["est_x"], _COL["est_y"]]])
+                            trail[:, [_COL["est_x"], _COL["est_y"]]],
+                            full=plots or not s.playing)
             self.panels.show(entry, s.display)
             if plots:
                 self.plots.update(rows)
-        self.controls.refresh(first=s.history.first, last=s.history.last, shown=s.shown,
+        self.controls.refresh(first=s.history.first, last=s.history.last, shown=pos,
                               playing=s.playing, setpoint=s.setpoint_kind,
                               target=tuple(s.cfg.sim.manual_target),  # type: ignore[arg-type]
                               recording=s.recording_active,
-                              status=self.status_text())
+                              status=self.status_text(entry, live=s.shown == s.history.last))
 
-    def status_text(self) -> str:
-        """The readout markdown: frame, status, widths, error, rates, notes."""
+    def status_text(self, entry: Entry | None, *, live: bool) -> str:
+        """The readout markdown of ``entry``: frame, status, widths, error, rates, notes."""
         s = self.session
         assert s is not None
-        entry = s.shown_entry()
         lines: list[str] = []
         state = "playing" if s.playing else "paused"
-        live = entry is not None and s.shown == s.history.last
         if entry is None:
             lines.append(f"**no frame yet** ({state})")
         else:

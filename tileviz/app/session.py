@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from tileviz.app import commands as C
-from tileviz.app.history import Entry, History
+from tileviz.app.history import Encoder, Entry, History
 from tileviz.app.outputs import output_path, sanitize_name
 from tileviz.config import Config, LocalizerConfig, NoiseConfig
 from tileviz.runner import Runner, initial_box
@@ -70,6 +70,7 @@ class Session:
         self.options = options or SessionOptions()
         o = self.options
         self.history = History(o.history)
+        self.encoder = Encoder()
         self.playing = not o.interactive
         self.speed = float(o.speed)
         self.max_speed = bool(o.max_speed)
@@ -140,7 +141,8 @@ class Session:
             self._open_csv()
 
     def close(self) -> None:
-        """Close every file being written (idempotent)."""
+        """Close every file being written and stop the encoder thread (idempotent)."""
+        self.encoder.close()
         if self.recording is not None:
             self._stop_recording("the server stopped")
         if self.csv is not None:
@@ -170,6 +172,17 @@ class Session:
             return None
         return self.history.get(self.shown)
 
+    def display_position(self) -> int:
+        """The position to draw now: the shown one, except while playing live when its images
+        are still being encoded: then the newest frame before it that is ready (one frame of
+        lag instead of a wait)."""
+        pos = self.shown
+        if self.playing and pos >= 0:
+            for p in range(pos, max(self.history.first, pos - 16) - 1, -1):
+                if self.history.get(p).ready:
+                    return p
+        return pos
+
     def advance(self) -> bool:
         """Show the next frame: the next stored one, or a new one when the newest is shown.
         Returns False when a new frame failed (logged; the run goes on)."""
@@ -198,7 +211,7 @@ class Session:
             from tileviz.dataset import residual_row
 
             self.csv.row(residual_row(rec))
-        entry = Entry.make(rec, stages=self.display)
+        entry = Entry.make(rec, stages=self.display, encoder=self.encoder)
         self.shown = self.history.append(entry)
         self.frames_computed += 1
         self._count_rate()

@@ -1,0 +1,173 @@
+"""Throughput of the live server (issue 5): loop frames/s with every stage image streamed, and the
+scene updates a client receives per second.
+
+    python bench/bench_server.py                          # websocket client, 20 s
+    python bench/bench_server.py --seconds 30 --browser   # also a real chromium page
+
+``serve.py`` runs in its own process (default preset, 320x240, ``--max-speed``: as fast as it can,
+display on: every frame's camera view and stage images JPEG-encoded and kept in the history, the
+shown frame's streamed), pushing at most ``--push-rate`` updates a second. A client speaking
+viser's websocket protocol measures, from what it receives: the loop rate (the timeline's end
+advances one position per frame made), the robot pose updates (one per push), the camera image
+updates and the stage image updates. With ``--browser`` a headless Debian chromium loads the page
+and the websocket messages it receives are decoded and counted the same way. One line a figure.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import os
+import re
+import subprocess
+import sys
+import tempfile
+import time
+from collections import Counter
+from pathlib import Path
+from typing import Any
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+from tileviz.app.wsclient import ViserClient, decode_window  # noqa: E402
+
+ARGS = ["--headless", "--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
+        "--disable-background-networking", "--disable-component-update", "--no-first-run"]
+
+
+def image_uuids(messages: list[dict[str, Any]]) -> dict[str, str]:
+    """uuid -> "camera" or "stage" for the GUI images among ``messages``."""
+    return {m["uuid"]: "camera" if m["props"].get("label") == "camera view" else "stage"
+            for m in messages if m.get("type") == "GuiImageMessage"}
+
+
+def timeline_uuid(messages: list[dict[str, Any]]) -> str:
+    return next(m["uuid"] for m in messages
+                if m.get("type") == "GuiSliderMessage" and m["props"].get("label") == "Timeline")
+
+
+def count(messages: list[dict[str, Any]], kinds: dict[str, str], timeline: str) -> Counter:
+    """Robot pose updates, camera and stage image updates, and the timeline's largest end."""
+    c: Counter = Counter()
+    for m in messages:
+        t = m.get("type")
+        if t == "SetPositionMessage" and m.get("name") == "/robot":
+            c["robot"] += 1
+        elif t == "GuiUpdateMessage":
+            u = m.get("updates", {})
+            if "_data" in u:
+                c[kinds.get(m.get("uuid"), "other")] += 1
+            if m.get("uuid") == timeline and "max" in u:
+                c["timeline_max"] = max(c["timeline_max"], int(u["max"]))
+    return c
+
+
+def last_timeline_max(messages: list[dict[str, Any]], timeline: str) -> int:
+    best = 0
+    for m in messages:
+        if m.get("type") == "GuiUpdateMessage" and m.get("uuid") == timeline:
+            best = max(best, int(m.get("updates", {}).get("max", 0)))
+        if m.get("type") == "GuiSliderMessage" and m.get("uuid") == timeline:
+            best = max(best, int(m["props"]["max"]))
+    return best
+
+
+async def ws_run(url: str, seconds: float) -> tuple[Counter, int, float, int]:
+    async with ViserClient(url) as c:
+        await c.wait_for(lambda m: m.get("type") == "ReplayDoneMessage")
+        await asyncio.sleep(3.0)  # warm up
+        timeline = timeline_uuid(c.messages)
+        kinds = image_uuids(c.messages)
+        n0, t0 = len(c.messages), time.perf_counter()
+        start = last_timeline_max(c.messages, timeline)
+        await asyncio.sleep(seconds)
+        n1, t1 = len(c.messages), time.perf_counter()
+        got = count(c.messages[n0:n1], kinds, timeline)
+        stages = sum(1 for v in kinds.values() if v == "stage")
+        return got, got["timeline_max"] - start, t1 - t0, stages
+
+
+def browser_run(url: str, seconds: float,
+                viewport: tuple[int, int] = (1400, 900)) -> tuple[Counter, float, int]:
+    """What the page's own websocket receives while ``seconds`` pass, decoded and counted."""
+    from playwright.sync_api import sync_playwright
+
+    frames: list[tuple[bool, bytes]] = []
+    recording = {"on": False}
+
+    def on_ws(ws: Any) -> None:
+        def on_frame(payload: object) -> None:
+            if isinstance(payload, bytes):
+                frames.append((recording["on"], payload))
+        ws.on("framereceived", on_frame)
+
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path="/usr/bin/chromium", args=ARGS)
+        page = browser.new_page(viewport={"width": viewport[0], "height": viewport[1]})
+        page.on("websocket", on_ws)
+        page.goto(url)
+        page.wait_for_selector("canvas", timeout=60_000)
+        page.wait_for_timeout(3000)
+        recording["on"] = True
+        t0 = time.perf_counter()
+        page.wait_for_timeout(seconds * 1000)
+        recording["on"] = False
+        span = time.perf_counter() - t0
+        browser.close()
+    before = [m for on, f in frames if not on for m in decode_window(f)]
+    during = [m for on, f in frames if on for m in decode_window(f)]
+    got = count(during, image_uuids(before), timeline_uuid(before))
+    return got, span, sum(1 for on, _ in frames if on)
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seconds", type=float, default=20.0)
+    ap.add_argument("--push-rate", type=float, default=40.0)
+    ap.add_argument("--browser", action="store_true", help="also measure a real chromium page")
+    ap.add_argument("--viewport", default="1400x900", help="browser page size, WxH pixels")
+    ap.add_argument("--display", action=argparse.BooleanOptionalAction, default=True,
+                    help="stream the stage images (default on)")
+    args = ap.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        cmd = [sys.executable, str(REPO / "serve.py"), "--port", "0", "--max-speed",
+               "--out-dir", tmp, "--push-rate", str(args.push_rate),
+               "--display" if args.display else "--no-display"]
+        env = dict(os.environ, PYTHONPATH=str(REPO))
+        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
+                                text=True, env=env)
+        try:
+            url = None
+            for line in proc.stdout:  # type: ignore[union-attr]
+                m = re.search(r"open (http://\S+)", line)
+                if m:
+                    url = m.group(1)
+                    break
+            if url is None:
+                raise SystemExit("serve.py did not start")
+            got, frames, span, stages = asyncio.run(ws_run(url, args.seconds))
+            print(f"320x240, display {'on' if args.display else 'off'} ({stages} stage image "
+                  f"panels), push rate cap {args.push_rate:g}/s, {span:.1f} s measured, "
+                  f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
+            print(f"loop: {frames / span:.1f} frames/s (simulate, render, vision keeping its "
+                  f"stages, localizer, JPEG-encode camera + stages, history)")
+            print(f"websocket client: {got['robot'] / span:.1f} robot pose updates/s, "
+                  f"{got['camera'] / span:.1f} camera images/s, "
+                  f"{got['stage'] / span:.1f} stage images/s")
+            if args.browser:
+                vw, vh = (int(v) for v in args.viewport.lower().split("x"))
+                bgot, bspan, nframes = browser_run(url, args.seconds, (vw, vh))
+                print(f"chromium page ({vw}x{vh}, software WebGL): "
+                      f"{bgot['robot'] / bspan:.1f} robot pose updates/s, "
+                      f"{bgot['camera'] / bspan:.1f} camera images/s, "
+                      f"{bgot['stage'] / bspan:.1f} stage images/s "
+                      f"({nframes / bspan:.1f} websocket messages/s)")
+        finally:
+            proc.terminate()
+            proc.wait(timeout=30)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

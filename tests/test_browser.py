@@ -1,0 +1,69 @@
+"""The live page in a real browser: Debian's chromium driven by Playwright (never
+``playwright install``: ``.ci/run`` installs ``chromium`` with apt)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from urllib.parse import urlparse
+
+import cv2
+import numpy as np
+import pytest
+
+from tileviz.app.server import App
+from tileviz.app.session import SessionOptions
+from tileviz.config import preset
+
+pytestmark = [pytest.mark.browser, pytest.mark.slow]
+
+CHROMIUM = "/usr/bin/chromium"
+ARGS = ["--headless", "--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
+        "--disable-background-networking", "--disable-component-update", "--no-first-run"]
+CONTROLS = ("Play", "Step", "Step back", "Go live", "Click the floor to set the target",
+            "Drive the waypoints", "Kidnap (teleport the robot)",
+            "Relocalize (tell the true pose)", "Reset the run", "Start recording")
+
+
+def test_page_shows_the_scene_steps_and_has_the_controls(tmp_path):
+    if not Path(CHROMIUM).exists():
+        pytest.fail(f"Debian chromium is needed at {CHROMIUM} (apt-get install chromium; "
+                    ".ci/run does it)")
+    from playwright.sync_api import expect, sync_playwright
+
+    app = App(preset("default"), SessionOptions(out_dir=tmp_path, interactive=True), port=0)
+    app.start()
+    try:
+        with sync_playwright() as p:
+            browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS)
+            page = browser.new_page(viewport={"width": 1400, "height": 900})
+            requests: list[str] = []
+            page.on("request", lambda r: requests.append(r.url))
+            page.goto(app.url)
+            page.wait_for_selector("canvas", timeout=60_000)
+            expect(page.get_by_text("frame 0,")).to_be_visible(timeout=60_000)
+            for name in CONTROLS:
+                expect(page.get_by_role("button", name=name, exact=True)).to_be_visible()
+            for label in ("Timeline", "Setpoint", "Mode", "Extractor", "Speed bound (m/s)"):
+                expect(page.get_by_text(label, exact=True).first).to_be_visible()
+            expect(page.get_by_text("camera view", exact=True)).to_be_visible()
+
+            page.get_by_role("button", name="Step", exact=True).click()
+            expect(page.get_by_text("frame 1,")).to_be_visible(timeout=60_000)
+            assert (app.session.history.last, app.session.shown) == (1, 1)
+
+            page.wait_for_timeout(1500)  # let the renderer draw the frame
+            png = page.screenshot()
+            browser.close()
+    finally:
+        app.stop()
+    shot = cv2.imdecode(np.frombuffer(png, np.uint8), cv2.IMREAD_COLOR)
+    (tmp_path / "page.png").write_bytes(png)
+    h, w = shot.shape[:2]
+    assert (h, w) == (900, 1400)
+    # not blank: the textured floor fills the middle of the page with many shades
+    middle = shot[h // 4: 3 * h // 4, 400: w - 400]
+    assert middle.std() > 8
+    assert len(np.unique(middle.reshape(-1, 3), axis=0)) > 500
+    # nothing was fetched from anywhere but the server itself
+    hosts = {urlparse(u).hostname for u in requests if not u.startswith(("blob:", "data:"))}
+    assert hosts == {"127.0.0.1"}, hosts
