@@ -140,3 +140,13 @@ def test_trails_follow_the_past_positions(server):
     seg = np.asarray(view.trail_truth.points, float)
     drawn = [(tuple(a[:2]), tuple(b[:2])) for a, b in seg if not np.allclose(a, b)]
     assert drawn == [((0.0, 0.0), (1.0, 0.0)), ((1.0, 1.0), (2.0, 1.0))]  # NaN breaks the line
+
+
+def test_a_click_ray_meets_the_floor_where_the_target_goes():
+    from tileviz.app.gui import floor_point as hit
+
+    assert hit((0.0, 0.0, 2.0), (1.0, 0.0, -1.0)) == pytest.approx((2.0, 0.0))
+    assert hit((1.0, -1.0, 5.0), (0.0, 0.6, -0.8)) == pytest.approx((1.0, 2.75))
+    assert hit((0.0, 0.0, 2.0), (1.0, 0.0, 0.2)) is None  # looking up: no floor
+    assert hit((0.0, 0.0, -1.0), (0.0, 0.0, -1.0)) is None  # below the floor
+    assert hit((0.0, 0.0, 2.0), (float("nan"), 0.0, -1.0)) is None

@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 
 from tileviz.app.server import App
-from tileviz.app.session import SessionOptions
+from tileviz.app.session import Session, SessionOptions
 from tileviz.app.wsclient import ViserClient
 from tileviz.config import preset
 
@@ -122,6 +122,42 @@ def test_a_refused_gui_value_becomes_a_note_and_the_loop_goes_on(app):
     asyncio.run(scenario())
 
 
+def test_the_target_follows_a_click_on_the_floor_and_the_gizmo(app):
+    async def scenario() -> None:
+        async with ViserClient(app.url) as c:
+            await c.wait_for(lambda m: m.get("type") == "ReplayDoneMessage")
+            mark = len(c.messages)
+            await c.click("Click the floor to set the target")
+            # the server now listens for clicks in the scene
+            await c.wait_for(lambda m: m.get("type") == "ScenePointerEnableMessage"
+                             and m.get("event_type") == "click" and m.get("modifiers"),
+                             start=mark)
+            # a click whose ray goes from (1.5, -2, 4) straight down hits the floor at (1.5, -2)
+            await c.send({"type": "ScenePointerMessage", "event_type": "click",
+                          "ray_origin": (1.5, -2.0, 4.0), "ray_direction": (0.0, 0.0, -1.0),
+                          "screen_pos": ((0.5, 0.5),), "modifier": None})
+            await c.wait_for(lambda m: m.get("type") == "GuiUpdateMessage"
+                             and m["updates"].get("value") == "manual", start=mark)
+            assert app.session.setpoint_kind == "manual"
+            assert app.session.cfg.sim.manual_target == pytest.approx((1.5, -2.0))
+
+            mark = len(c.messages)
+            for msg in ({"type": "TransformControlsDragStartMessage", "name": "/target_gizmo"},
+                        {"type": "TransformControlsUpdateMessage", "name": "/target_gizmo",
+                         "wxyz": (1.0, 0.0, 0.0, 0.0), "position": (-0.5, 2.5, 0.05)},
+                        {"type": "TransformControlsDragEndMessage", "name": "/target_gizmo"}):
+                await c.send(msg)
+            await c.wait_for(lambda m: m.get("type") == "GuiUpdateMessage"
+                             and m["updates"].get("value") == [-0.5, 2.5], start=mark)
+            assert app.session.cfg.sim.manual_target == pytest.approx((-0.5, 2.5))
+            await c.click("Step")
+            await c.wait_for(lambda m: m.get("type") == "GuiUpdateMessage"
+                             and "frame 1" in str(m["updates"].get("_markdown", "")))
+            assert app.session.shown_entry().record.setpoint == pytest.approx((-0.5, 2.5))
+
+    asyncio.run(scenario())
+
+
 def run_cli(*args: str) -> subprocess.CompletedProcess[str]:
     env = dict(os.environ, PYTHONPATH=str(REPO))
     return subprocess.run([sys.executable, "-m", "tileviz", "serve", *args], cwd=REPO, env=env,
@@ -141,6 +177,26 @@ def test_bad_options_give_one_line_and_exit_2(args, word):
     assert r.returncode == 2
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and word in lines[0] and "Traceback" not in r.stderr
+
+
+def test_table_6_1_options_reach_the_run(tmp_path):
+    from tileviz.app.server import config_from_args, options_from_args, parser
+
+    args = parser().parse_args(["--interactive", "--no-intervals", "--no-display", "--ppm", "150",
+                                "--tile-size", "0.5", "--output-file", "eq.csv", "--preset",
+                                "seed", "--out-dir", str(tmp_path)])
+    cfg, options = config_from_args(args), options_from_args(args)
+    assert (cfg.camera.ppm, cfg.floor.tile_size, cfg.camera.width) == (150.0, 0.5, 256)
+    assert options.interactive and not options.display and not options.intervals
+    assert options.output_file == "eq.csv" and options.out_dir == tmp_path
+    defaults = options_from_args(parser().parse_args([]))
+    assert defaults.display and defaults.intervals and not defaults.interactive
+    assert defaults.history >= 2000 and parser().parse_args([]).host == "127.0.0.1"
+    s = Session(cfg, options)
+    assert not s.playing and not s.runner.keep_stages
+    assert not any(s.layers[k] for k in ("prediction", "boxes", "wedge"))
+    s.close()
+    assert (tmp_path / "eq.csv").exists()
 
 
 def test_serve_prints_the_url_serves_the_page_and_stops_on_ctrl_c(tmp_path):

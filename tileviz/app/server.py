@@ -30,12 +30,13 @@ from typing import Any
 
 from tileviz.app import commands as C
 from tileviz.app.history import METRIC_NAMES, Entry
+from tileviz.app.plots import summary
 from tileviz.app.scene import TRAIL_SEGMENTS
 from tileviz.app.session import Session, SessionOptions
 from tileviz.cliutil import Parser, positive_float, positive_int, run_cli
 from tileviz.config import PRESETS, Config, preset
 
-__all__ = ["App", "main", "parser"]
+__all__ = ["App", "config_from_args", "main", "options_from_args", "parser"]
 
 _COL = {name: i for i, name in enumerate(METRIC_NAMES)}
 QUEUE_SIZE = 1000
@@ -109,6 +110,7 @@ class App:
         panel.dock_left()
         panel.set_width(380)
         self._world_version = -1
+        self._contained: dict[str, float] | None = None
         self._pushed_version = -1
         self._thread = threading.Thread(target=self._run, name="tileviz-loop", daemon=True)
         self._thread.start()
@@ -242,6 +244,7 @@ class App:
         entry = s.history.get(pos) if pos in s.history else None
         if entry is not None:
             rows = s.history.window(pos, self.plot_window)
+            self._contained = summary(rows)
             trail = rows[-(TRAIL_SEGMENTS + 1):]
             # the long trails at the plot rate; their newest part (the heads) with every push
             self.scene.show(entry.record, trail[:, [_COL["truth_x"], _COL["truth_y"]]],
@@ -285,6 +288,10 @@ class App:
             ms = r.timings.get("vision_ms", 0.0) + r.timings.get("localizer_ms", 0.0)
             lines.append(f"frame time {ms:.1f} ms (vision {r.timings.get('vision_ms', 0.0):.1f},"
                          f" localizer {r.timings.get('localizer_ms', 0.0):.2f})")
+        c = self._contained
+        if c is not None and c["frames"] > 0:
+            lines.append(f"truth inside the set in {100 * c['contained']:.1f} % of the last "
+                         f"{c['frames']:.0f} frames it vouched for")
         rate = f"{s.rate:.0f} frames/s" if s.playing else "-"
         lines.append(f"loop {rate}, history {len(s.history)}/{s.history.capacity}, "
                      f"mode {s.cfg.localizer.mode}, extractor {s.cfg.vision.extractor}")
@@ -367,6 +374,14 @@ def config_from_args(args: argparse.Namespace) -> Config:
     return cfg
 
 
+def options_from_args(args: argparse.Namespace) -> SessionOptions:
+    """How the session starts, from the command line."""
+    return SessionOptions(history=args.history, display=args.display, intervals=args.intervals,
+                          interactive=args.interactive, out_dir=Path(args.out_dir),
+                          output_file=args.output_file, speed=args.speed,
+                          max_speed=args.max_speed)
+
+
 def main(command: str = "serve", argv: list[str] | None = None) -> int:
     """Entry for ``python -m tileviz serve`` and ``serve.py``: runs until Ctrl-C."""
     args = parser().parse_args(sys.argv[1:] if argv is None else argv)
@@ -375,12 +390,8 @@ def main(command: str = "serve", argv: list[str] | None = None) -> int:
         return 2
 
     def body() -> int:
-        cfg = config_from_args(args)
-        options = SessionOptions(history=args.history, display=args.display,
-                                 intervals=args.intervals, interactive=args.interactive,
-                                 out_dir=Path(args.out_dir), output_file=args.output_file,
-                                 speed=args.speed, max_speed=args.max_speed)
-        app = App(cfg, options, host=args.host, port=args.port, push_rate=args.push_rate)
+        app = App(config_from_args(args), options_from_args(args), host=args.host,
+                  port=args.port, push_rate=args.push_rate)
         stopping = threading.Event()
 
         def on_term(signum: int, frame: object) -> None:
