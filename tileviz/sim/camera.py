@@ -183,11 +183,15 @@ class FloorRenderer:
         r2 = self._u * self._u + self._v * self._v
         r2max = float((w - 1) ** 2 + (h - 1) ** 2) / 4.0
         self._vignette = (1.0 - camera.vignetting * r2 / max(r2max, 1.0)).astype(np.float32)
-        self._vignette = np.clip(self._vignette, 0.0, 1.0)[..., None]
+        vig = np.clip(self._vignette, 0.0, 1.0)
+        self._vignette = np.ascontiguousarray(np.repeat(vig[..., None], 3, axis=2))
+        # Noise: a fixed field of twice the image size (the same in the three channels, i.e.
+        # luminance noise); each frame adds a window of it at an offset drawn from its rng.
         noise_rng = np.random.default_rng(np.random.SeedSequence([int(floor.seed), 0x401E]))
-        self._noise = (noise_rng.standard_normal((2 * h, 2 * w)) * camera.noise_sigma).astype(
+        field = (noise_rng.standard_normal((2 * h, 2 * w)) * camera.noise_sigma).astype(
             np.float32
         )
+        self._noise = np.ascontiguousarray(np.repeat(field[..., None], 3, axis=2))
 
     # ------------------------------------------------------------------ floor
     def floor_image(self, pose: Pose) -> np.ndarray:
@@ -218,15 +222,38 @@ class FloorRenderer:
         cov = self._coverage(gx)
         np.maximum(cov, self._coverage(gy), out=cov)
         # Appearance texture (periodic over 16 tiles), sampled bilinearly.
-        per = _PERIOD_TILES
-        tpt = np.float32(_TEXELS_PER_TILE)
-        mx = (gx + np.float32(ix0 % per)) * tpt - np.float32(0.5)
-        my = (gy + np.float32(iy0 % per)) * tpt - np.float32(0.5)
+        mx = self._texture_map(gx, ix0, float(ax), float(bx))
+        my = self._texture_map(gy, iy0, float(ay), float(by))
         shade = cv2.remap(self._appearance, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_WRAP)
-        img = cov[..., None] * self._grout_minus_tile
-        img += self._tile_rgb
-        img *= shade[..., None]
-        return img
+        # colour = shade * (tile + cov * (grout - tile)), channel by channel (OpenCV is much
+        # faster than numpy broadcasting over a last axis of 3)
+        cov *= shade
+        return cv2.merge(
+            [
+                cv2.addWeighted(shade, float(t), cov, float(d), 0.0)
+                for t, d in zip(self._tile_rgb, self._grout_minus_tile, strict=True)
+            ]
+        )
+
+    def _texture_map(self, g: np.ndarray, i0: int, a: float, b: float) -> np.ndarray:
+        """Texel coordinates of the appearance texture for tile coordinates ``i0 + g`` (g affine
+        in the pixel offsets: ``g = g0 + a u + b v``), shifted by whole periods into the
+        texture; wrapped pixel by pixel only when the view spans more than one period (OpenCV's
+        remap is slow for coordinates far outside its source)."""
+        tpt = float(_TEXELS_PER_TILE)
+        n = float(_PERIOD_TILES * _TEXELS_PER_TILE)
+        g0 = float(g[0, 0]) - a * float(self._u[0, 0]) - b * float(self._v[0, 0])
+        u0, u1 = float(self._u[0, 0]), float(self._u[0, -1])
+        v0, v1 = float(self._v[0, 0]), float(self._v[-1, 0])
+        lo = g0 + min(a * u0, a * u1) + min(b * v0, b * v1)
+        hi = g0 + max(a * u0, a * u1) + max(b * v0, b * v1)
+        base = (i0 % _PERIOD_TILES) * tpt - 0.5
+        shift = math.floor((base + lo * tpt) / n) * n
+        m = g * np.float32(tpt)
+        m += np.float32(base - shift)
+        if base + hi * tpt - shift >= n - 1.0:
+            m -= np.float32(n) * np.floor(m * np.float32(1.0 / n))
+        return m
 
     def _coverage(self, g: np.ndarray) -> np.ndarray:
         """Fraction of each pixel covered by the nearest grout line of one family (``g`` in tiles
@@ -269,15 +296,14 @@ class FloorRenderer:
         if cam.blur_sigma > 0:
             img = cv2.GaussianBlur(img, (0, 0), cam.blur_sigma)
         if cam.vignetting > 0:
-            img *= self._vignette
+            img = cv2.multiply(img, self._vignette)
         if rng is not None and cam.noise_sigma > 0:
             h, w = cam.height, cam.width
             oy = int(rng.integers(0, h + 1))
             ox = int(rng.integers(0, w + 1))
-            img += self._noise[oy : oy + h, ox : ox + w, None]
-        img += np.float32(0.5)
-        np.clip(img, 0.0, 255.0, out=img)
-        out = img.astype(np.uint8)
+            img = cv2.add(img, self._noise[oy : oy + h, ox : ox + w])
+        # saturate to 0..255 and round (convertScaleAbs rounds and saturates |x|; x >= 0 here)
+        out = cv2.convertScaleAbs(cv2.max(img, 0.0))
         if cam.jpeg_quality > 0:
             ok, buf = cv2.imencode(".jpg", out, [cv2.IMWRITE_JPEG_QUALITY, int(cam.jpeg_quality)])
             if ok:
