@@ -150,3 +150,24 @@ def test_a_click_ray_meets_the_floor_where_the_target_goes():
     assert hit((0.0, 0.0, 2.0), (1.0, 0.0, 0.2)) is None  # looking up: no floor
     assert hit((0.0, 0.0, -1.0), (0.0, 0.0, -1.0)) is None  # below the floor
     assert hit((0.0, 0.0, 2.0), (float("nan"), 0.0, -1.0)) is None
+
+
+def test_mcl_particles_are_drawn_when_given_and_the_layer_is_on(server):
+    from tileviz.app.history import ParticleView
+
+    view = SceneView(server.scene, pool=1, particles=50)
+    view.apply_layers({"particles": True}, force=True)
+    pts = np.column_stack([np.linspace(0, 1, 40), np.linspace(2, 3, 40), np.zeros(40)])
+    mcl = ParticleView(pts.astype(np.float32), np.array([0.5, 2.5, 0.0]),
+                       np.zeros((65, 2), np.float32), True)
+    trail = np.zeros((2, 2))
+    view.show(record(BoxSet((Box(0, 1, 0, 1, 0, 0.1),))), trail, trail, mcl=mcl)
+    drawn = np.asarray(view.particles.points, float)
+    assert view.particles.visible and drawn.shape == (50, 3)
+    assert np.allclose(drawn[:40, :2], pts[:, :2], atol=1e-6)
+    assert np.allclose(drawn[40:, :2], (0.5, 2.5))  # the unused points sit on the mean
+    view.show(record(BoxSet((Box(0, 1, 0, 1, 0, 0.1),))), trail, trail, mcl=None)
+    assert not view.particles.visible and not view.ellipse.visible
+    view.apply_layers({"particles": False})
+    view.show(record(BoxSet((Box(0, 1, 0, 1, 0, 0.1),))), trail, trail, mcl=mcl)
+    assert not view.particles.visible

@@ -251,3 +251,29 @@ def test_names_are_sanitized_and_never_overwrite(tmp_path):
     p1.write_text("1")
     p2 = output_path(tmp_path, "x", suffix=".csv")
     assert p1.name == "x.csv" and p2.name == "x-1.csv" and p2.parent == tmp_path
+
+
+def test_the_mcl_baseline_runs_beside_and_its_particles_are_kept_per_frame(cfg, tmp_path):
+    s = make(cfg, tmp_path, mcl=True, mcl_particles=300)
+    for _ in range(5):
+        s.apply(C.Step())
+    e = s.shown_entry()
+    assert e.mcl is not None and e.mcl.particles.shape == (300, 3)
+    truth = e.record.truth
+    assert math.hypot(truth.x - e.mcl.mean[0], truth.y - e.mcl.mean[1]) < 0.1
+    row = s.history.window(s.shown, 1)[0]
+    from tileviz.app.history import METRIC_NAMES
+
+    col = dict(zip(METRIC_NAMES, row, strict=True))
+    assert col["mcl_error_xy"] == pytest.approx(math.hypot(truth.x - e.mcl.mean[0],
+                                                           truth.y - e.mcl.mean[1]))
+    s.apply(C.StepBack())
+    assert s.shown_entry().mcl is s.history.get(3).mcl  # the stored cloud, not a new one
+    s.apply(C.SetMcl(False))
+    s.apply(C.Seek(10))
+    s.apply(C.Step())
+    assert s.shown_entry().mcl is None
+    s.apply(C.SetMcl(True))  # switched on mid-run: starts from the interval set
+    s.apply(C.Step())
+    assert s.shown_entry().mcl is not None
+    s.close()

@@ -55,7 +55,7 @@ def test_scene_and_controls_arrive_and_step_advances_one_frame(app):
                           "Kidnap (teleport the robot)", "Reset the run", "Start recording",
                           "camera view"):
                 assert label in labels, label
-            assert len(list(c.of_type("GuiUplotMessage"))) == 3
+            assert len(list(c.of_type("GuiUplotMessage"))) == 4  # residuals, widths, error, MCL
 
             timeline = uuid_of(c, "Timeline", "GuiSliderMessage")
             camera = uuid_of(c, "camera view", "GuiImageMessage")

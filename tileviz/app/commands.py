@@ -17,14 +17,14 @@ from tileviz.config import EXTRACTORS, MODES, SETPOINTS
 __all__ = [
     "LAYERS", "Command", "Inject", "Kidnap", "Live", "Pause", "Play", "Relocalize", "Report",
     "Reset", "Restart", "Seek", "SetDisplay", "SetExtractor", "SetInflation", "SetLayer",
-    "SetManualTarget", "SetMaxSpeed", "SetMode", "SetNoise", "SetSetpoint", "SetSpeed",
+    "SetManualTarget", "SetMaxSpeed", "SetMcl", "SetMode", "SetNoise", "SetSetpoint", "SetSpeed",
     "SetWaypoints", "StartRecording", "Step", "StepBack", "StopRecording", "TogglePlay",
     "parse_waypoints",
 ]
 
 LAYERS = (
     "floor", "grid", "robot", "footprint", "truth", "prediction", "boxes", "wedge", "setpoint",
-    "path", "trails",
+    "path", "trails", "particles",
 )
 """Scene layers the GUI can show or hide."""
 
@@ -265,6 +265,14 @@ class SetDisplay:
 
 
 @dataclass(frozen=True)
+class SetMcl:
+    """Run the Monte Carlo Localization baseline beside the interval localizer (``on``); it starts
+    from the initial box of the run (or, switched on mid-run, from the interval set's hull)."""
+
+    on: bool
+
+
+@dataclass(frozen=True)
 class SetLayer:
     """Show or hide one scene layer (:data:`LAYERS`)."""
 
@@ -319,7 +327,7 @@ class Report:
 Command = (
     Play | Pause | TogglePlay | Step | StepBack | Seek | Live | SetSpeed | SetMaxSpeed
     | SetSetpoint | SetManualTarget | SetWaypoints | Kidnap | Relocalize | Reset | Restart
-    | SetMode | SetExtractor | SetNoise | SetInflation | SetDisplay | SetLayer | Inject
+    | SetMode | SetExtractor | SetNoise | SetInflation | SetDisplay | SetMcl | SetLayer | Inject
     | StartRecording | StopRecording | Report
 )
 """Any command the loop understands."""

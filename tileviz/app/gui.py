@@ -27,7 +27,7 @@ LAYER_TITLES = {
     "floor": "Floor", "grid": "Tile grid", "robot": "Robot", "footprint": "Camera footprint",
     "truth": "True pose (pink)", "prediction": "Prediction (green)",
     "boxes": "Contracted boxes (blue)", "wedge": "Heading interval", "setpoint": "Setpoint (red)",
-    "path": "Path", "trails": "Trails",
+    "path": "Path", "trails": "Trails", "particles": "MCL particles (orange)",
 }
 
 
@@ -36,12 +36,13 @@ class Controls:
 
     ``submit``: puts a command on the loop's queue (never blocks). ``cfg``: the starting
     configuration (initial slider values). ``layers``: initial layer visibility. ``display``,
-    ``playing``, ``speed`` (x real time), ``max_speed``: initial states.
+    ``playing``, ``speed`` (x real time), ``max_speed``, ``mcl`` (the MCL baseline runs):
+    initial states.
     """
 
     def __init__(self, server: Any, submit: Callable[[object], None], cfg: Config, *,
                  layers: dict[str, bool], display: bool, playing: bool, speed: float = 1.0,
-                 max_speed: bool = False) -> None:
+                 max_speed: bool = False, mcl: bool = False) -> None:
         self.server = server
         self._submit = submit
         gui = server.gui
@@ -102,8 +103,10 @@ class Controls:
                                                step=0.01, initial_value=ix)
             self.inflation_t = gui.add_slider("Truth inflation heading (rad)", min=0.0,
                                               max=1.5, step=0.01, initial_value=it)
+            self.mcl = gui.add_checkbox("Monte Carlo Localization (orange)", mcl)
         self._on_change(self.mode, lambda: C.SetMode(str(self.mode.value)))
         self._on_change(self.extractor, lambda: C.SetExtractor(str(self.extractor.value)))
+        self._on_change(self.mcl, lambda: C.SetMcl(bool(self.mcl.value)))
         for h in (self.speed_error, self.yaw_error, self.compass_error, self.fraction):
             self._on_change(h, lambda: C.SetNoise(self.speed_error.value, self.yaw_error.value,
                                                   self.compass_error.value, self.fraction.value))

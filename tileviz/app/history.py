@@ -20,6 +20,7 @@ import threading
 from collections import deque
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, replace
+from typing import Any
 
 import cv2
 import numpy as np
@@ -28,8 +29,8 @@ from tileviz.runner import FrameRecord
 from tileviz.types import STATUSES
 
 __all__ = [
-    "Encoder", "Entry", "History", "Series", "encode_images", "encode_jpeg", "metrics_of",
-    "strip_record",
+    "Encoder", "Entry", "History", "ParticleView", "Series", "encode_images", "encode_jpeg",
+    "metrics_of", "strip_record",
 ]
 
 JPEG_QUALITY = 85
@@ -45,11 +46,35 @@ METRIC_NAMES = (
     "error_xy", "error_theta",
     "truth_x", "truth_y", "est_x", "est_y",
     "inside", "status", "boxes", "frame_ms",
+    "mcl_error_xy", "mcl_covered",
 )
 """Columns of :class:`Series`. Units: t s; r1..r6 dimensionless; widths m, m, rad (hull of the
 updated set); error_xy m (distance from the truth to the hull centre), error_theta rad (wrapped
 to [-pi, pi]); truth/est x, y m; inside 1/0 (NaN when unknown or ``lost``); status the index in
-``tileviz.types.STATUSES``; boxes count; frame_ms the vision + localizer time."""
+``tileviz.types.STATUSES``; boxes count; frame_ms the vision + localizer time; mcl_error_xy m
+(truth to the particle mean), mcl_covered 1/0 (truth inside the 95 % ellipse; NaN without MCL)."""
+
+
+@dataclass(frozen=True)
+class ParticleView:
+    """What the live server keeps of the Monte Carlo Localization baseline for one frame
+    (:mod:`tileviz.baselines.mcl`): ``particles`` (N, 3) float32 x, y m and theta rad; ``mean``
+    (3,) the weighted mean; ``ellipse`` (K, 2) float32 points of its 95 % confidence ellipse in
+    (x, y); ``covered``: the true (x, y) is inside that ellipse (None when the truth is unknown).
+    """
+
+    particles: np.ndarray
+    mean: np.ndarray
+    ellipse: np.ndarray
+    covered: bool | None
+
+    @classmethod
+    def of(cls, estimate: Any, truth: Any) -> ParticleView:
+        """From an ``MclEstimate`` and the true Pose (or None)."""
+        covered = None if truth is None else bool(estimate.ellipse_contains(truth.x, truth.y))
+        return cls(np.asarray(estimate.particles, np.float32).copy(),
+                   np.asarray(estimate.mean, np.float64).copy(),
+                   np.asarray(estimate.ellipse(points=64), np.float32), covered)
 
 
 def encode_jpeg(image: np.ndarray, quality: int = JPEG_QUALITY) -> bytes:
@@ -71,8 +96,8 @@ def strip_record(rec: FrameRecord) -> FrameRecord:
     return replace(rec, image=_EMPTY_IMAGE, vision=vision)
 
 
-def metrics_of(rec: FrameRecord) -> np.ndarray:
-    """One row of :data:`METRIC_NAMES` for ``rec`` (NaN where unknown)."""
+def metrics_of(rec: FrameRecord, mcl: ParticleView | None = None) -> np.ndarray:
+    """One row of :data:`METRIC_NAMES` for ``rec`` and its MCL view (NaN where unknown)."""
     nan = math.nan
     row = np.full(len(METRIC_NAMES), nan)
     row[0] = rec.t
@@ -93,6 +118,9 @@ def metrics_of(rec: FrameRecord) -> np.ndarray:
     row[17] = STATUSES.index(rec.status) if rec.status in STATUSES else nan
     row[18] = len(rec.updated)
     row[19] = rec.timings.get("vision_ms", 0.0) + rec.timings.get("localizer_ms", 0.0)
+    if mcl is not None and rec.truth is not None:
+        row[20] = math.hypot(rec.truth.x - mcl.mean[0], rec.truth.y - mcl.mean[1])
+        row[21] = float(bool(mcl.covered))
     return row
 
 
@@ -123,6 +151,8 @@ class Entry:
 
     record: FrameRecord
     encoded: Images | Future[Images]
+    mcl: ParticleView | None = None
+    """The MCL baseline's particles at this frame (None when it was off)."""
 
     @property
     def index(self) -> int:
@@ -140,14 +170,14 @@ class Entry:
         return not isinstance(e, Future) or e.done()
 
     @classmethod
-    def make(cls, rec: FrameRecord, *, stages: bool = True,
-             encoder: Encoder | None = None) -> Entry:
+    def make(cls, rec: FrameRecord, *, stages: bool = True, encoder: Encoder | None = None,
+             mcl: ParticleView | None = None) -> Entry:
         """The entry of ``rec``: its images encoded (now, or on ``encoder``'s thread) and the
         record stripped of its raw arrays."""
         st = dict(rec.vision.stages) if stages else {}
         if encoder is None:
-            return cls(strip_record(rec), encode_images(rec.image, st))
-        return cls(strip_record(rec), encoder.submit(rec.image, st))
+            return cls(strip_record(rec), encode_images(rec.image, st), mcl)
+        return cls(strip_record(rec), encoder.submit(rec.image, st), mcl)
 
 
 class Encoder:
@@ -227,7 +257,7 @@ class History:
                                      f"{prev.index}")
             pos = self._last + 1
             self._entries[pos % self.capacity] = entry
-            self.series.put(pos, metrics_of(entry.record))
+            self.series.put(pos, metrics_of(entry.record, entry.mcl))
             self._last = pos
             if self._last - self._first + 1 > self.capacity:
                 self._first = self._last - self.capacity + 1

@@ -34,7 +34,9 @@ def _axes(ylabel: str) -> tuple[dict[str, Any], dict[str, Any]]:
 
 
 class Plots:
-    """Three uPlot charts made in the caller's current GUI container (``gui``: a ``GuiApi``)."""
+    """uPlot charts made in the caller's current GUI container (``gui``: a ``GuiApi``): the
+    residuals, the box widths, the centre error, and the MCL baseline's error (shown while it
+    runs)."""
 
     def __init__(self, gui: Any, *, height: int = 190) -> None:
         x = np.zeros(2)
@@ -57,6 +59,13 @@ class Plots:
             title="Error of the box centre", scales=_xscale(), axes=_axes("cm / deg"),
             height=height)
 
+        self.mcl = gui.add_uplot(
+            (x, zeros, zeros),
+            (_series("t", "black"), _series("MCL mean error (cm)", "#f58231"),
+             _series("interval centre error (cm)", "#e6194b")),
+            title="Monte Carlo Localization baseline", scales=_xscale(),
+            axes=_axes("cm"), height=height, visible=False)
+
     def update(self, rows: np.ndarray) -> None:
         """Redraw from metric rows (:data:`tileviz.app.history.METRIC_NAMES`), oldest first."""
         if rows.size == 0:
@@ -75,6 +84,11 @@ class Plots:
         ok = np.isfinite(e).all(axis=1)
         if ok.sum() >= 2:
             self.error.data = (t[ok], 100.0 * e[ok, 0], np.degrees(np.abs(e[ok, 1])))
+        m = rows[:, [_COL["mcl_error_xy"], _COL["error_xy"]]]
+        ok = np.isfinite(m).all(axis=1)
+        self.mcl.visible = bool(ok.sum() >= 2)
+        if ok.sum() >= 2:
+            self.mcl.data = (t[ok], 100.0 * m[ok, 0], 100.0 * m[ok, 1])
 
 
 def summary(rows: np.ndarray) -> dict[str, float]:

@@ -6,9 +6,9 @@ of box nodes for the interval sets (unused ones hidden), fixed-size line-segment
 trails and outlines, a fixed-size mesh for the heading wedge. Nothing is created per frame.
 
 Layers (drawing heights, metres): floor texture z = 0, tile grid 0.002, path 0.004, trails 0.006,
-camera footprint 0.008, robot up to ~0.2, interval boxes above the robot at 0.26-0.28 (the boxes
-of a localized robot are centimetres wide and sit under its body), heading wedge 0.29, true pose
-arrow 0.31.
+camera footprint 0.008, robot up to ~0.2, MCL particles 0.25, interval boxes above the robot at
+0.26-0.28 (the boxes of a localized robot are centimetres wide and would hide under its body),
+heading wedge 0.29, true pose arrow 0.31.
 """
 
 from __future__ import annotations
@@ -35,6 +35,7 @@ COLOURS: dict[str, tuple[int, int, int]] = {
     "robot": (120, 124, 135),
     "wheel": (40, 40, 44),
     "camera": (250, 200, 40),
+    "particles": (255, 140, 0),  # orange: the MCL baseline
 }
 """RGB colour of each drawn quantity."""
 
@@ -46,6 +47,7 @@ long trails are re-sent only now and then (``show(..., full=True)``)."""
 WEDGE_STEPS = 48
 """Arc steps of the heading wedge."""
 Z_BOX = 0.26
+Z_MCL = 0.25
 Z_WEDGE = 0.29
 Z_TRUTH = 0.31
 TEXTURE_PIXELS = 1600
@@ -111,11 +113,13 @@ class SceneView:
     """Owns the scene nodes and updates them from frame records.
 
     ``scene``: a viser ``SceneApi`` (``server.scene``). ``pool``: box nodes per interval set.
+    ``particles``: points of the MCL baseline's cloud.
     """
 
-    def __init__(self, scene: Any, *, pool: int = 16) -> None:
+    def __init__(self, scene: Any, *, pool: int = 16, particles: int = 1000) -> None:
         self.scene = scene
         self.pool = int(pool)
+        self.n_particles = int(particles)
         self.layers: dict[str, bool] = {}
         self._world_key: object = None
         self._floor_key: object = None
@@ -195,6 +199,15 @@ class SceneView:
         self.head_truth = trail("/trails/truth_head", TRAIL_HEAD, "truth")
         self.head_est = trail("/trails/estimate_head", TRAIL_HEAD, "estimate")
         self._layer("trails", self.trail_truth, self.trail_est, self.head_truth, self.head_est)
+        # the MCL baseline: its particles (orange points) and its 95 % confidence ellipse
+        self.particles = s.add_point_cloud(
+            "/mcl/particles", np.zeros((self.n_particles, 3), np.float32), COLOURS["particles"],
+            point_size=0.025, point_shape="circle", precision="float32", point_shading="flat",
+            visible=False)
+        self.ellipse = s.add_line_segments("/mcl/ellipse", np.zeros((64, 2, 3), np.float32),
+                                           COLOURS["particles"], thickness=2.0,
+                                           thickness_units="screen", visible=False)
+        self._mcl_nodes = (self.particles, self.ellipse)
         self.floor: Any = None
         self.grid: Any = None
         self.path: Any = None
@@ -266,10 +279,12 @@ class SceneView:
 
     # ------------------------------------------------------------------ per frame
     def show(self, rec: Any, trail_truth: np.ndarray, trail_est: np.ndarray, *,
-             full: bool = True) -> None:
+             full: bool = True, mcl: Any = None) -> None:
         """Update every dynamic node from the record ``rec`` (a FrameRecord) and the trails:
         (K, 2) arrays of past (x, y) up to this frame, NaN where unknown. The long trails are
-        re-sent only when ``full`` (their newest part is always drawn by the trail heads)."""
+        re-sent only when ``full`` (their newest part is always drawn by the trail heads).
+        ``mcl``: the frame's :class:`tileviz.app.history.ParticleView` (None: no cloud)."""
+        self._show_mcl(mcl)
         truth: Pose | None = rec.truth
         if truth is not None:
             self.robot.position = (truth.x, truth.y, 0.0)
@@ -292,6 +307,19 @@ class SceneView:
                                                         TRAIL_HEAD, 0.006)
             self.head_est.points = _polyline_segments(trail_est[-TRAIL_HEAD - 1:], TRAIL_HEAD,
                                                       0.007)
+
+    def _show_mcl(self, mcl: Any) -> None:
+        on = mcl is not None and self.layers.get("particles", True)
+        if on:
+            pts = np.zeros((self.n_particles, 3), np.float32)
+            n = min(len(mcl.particles), self.n_particles)
+            pts[:n, :2] = mcl.particles[:n, :2]
+            pts[n:, :2] = mcl.mean[:2]
+            pts[:, 2] = Z_MCL
+            self.particles.points = pts
+            self.ellipse.points = _polyline_segments(mcl.ellipse, 64, Z_MCL + 0.001)
+        for node in self._mcl_nodes:
+            node.visible = on
 
     def _show_set(self, name: str, boxset: BoxSet) -> None:
         boxes, outline = self.sets[name]

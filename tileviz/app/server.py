@@ -12,7 +12,8 @@ machine), ``--port`` (8080; the next free one if taken), ``--preset``, ``--inter
 paused: one frame per Step), ``--intervals/--no-intervals`` (draw the boxes),
 ``--display/--no-display`` (stream the stage images), ``--ppm``, ``--tile-size``,
 ``--output-file NAME`` (CSV of the six equivalence residuals per frame, written under
-``--out-dir``), ``--seed``, ``--history``, ``--push-rate``, ``--speed``.
+``--out-dir``), ``--seed``, ``--history``, ``--push-rate``, ``--speed``, ``--max-speed``,
+``--mcl``/``--particles`` (the Monte Carlo Localization baseline beside the boxes).
 """
 
 from __future__ import annotations
@@ -97,10 +98,11 @@ class App:
         server.initial_camera.position = (0.0, -1.9 * a, 2.2 * a)
         server.initial_camera.look_at = (0.0, 0.0, 0.0)
         server.scene.configure_default_lights(enabled=True, cast_shadow=False)
-        self.scene = SceneView(server.scene, pool=max(1, self.cfg.localizer.max_boxes))
+        self.scene = SceneView(server.scene, pool=max(1, self.cfg.localizer.max_boxes),
+                               particles=self.options.mcl_particles)
         self.controls = Controls(server, self.submit, self.cfg, layers=s.layers,
                                  display=s.display, playing=s.playing, speed=s.speed,
-                                 max_speed=s.max_speed)
+                                 max_speed=s.max_speed, mcl=s.mcl is not None)
         panel = server.gui.add_panel()
         with panel.add_tab("Vision"):
             self.panels = ImagePanels(server.gui, width=self.cfg.camera.width,
@@ -187,7 +189,10 @@ class App:
                 break
             now = time.perf_counter()
             if s.playing and now >= next_frame:
-                s.advance()
+                try:
+                    s.advance()  # catches what a frame raises; this guards the rest
+                except Exception as e:  # noqa: BLE001 - the loop must go on
+                    s.note(f"loop: {type(e).__name__}: {e}", "error")
                 period = s.frame_period
                 next_frame = max(next_frame + period, now - 0.25) if period > 0 else now
             if s.version != self._pushed_version and now >= next_push:
@@ -249,7 +254,7 @@ class App:
             # the long trails at the plot rate; their newest part (the heads) with every push
             self.scene.show(entry.record, trail[:, [_COL["truth_x"], _COL["truth_y"]]],
                             trail[:, [_COL["est_x"], _COL["est_y"]]],
-                            full=plots or not s.playing)
+                            full=plots or not s.playing, mcl=entry.mcl)
             self.panels.show(entry, s.display)
             if plots:
                 self.plots.update(rows)
@@ -285,6 +290,12 @@ class App:
                     mark = {True: "inside", False: "**OUTSIDE**", None: "not vouched"}[inside]
                     et = abs(math.degrees(math.remainder(r.truth.theta - ct, 2 * math.pi)))
                     lines.append(f"centre error {100 * err:.1f} cm, {et:.2f} deg; truth {mark}")
+            if entry.mcl is not None and r.truth is not None:
+                m = entry.mcl
+                err = math.hypot(r.truth.x - m.mean[0], r.truth.y - m.mean[1])
+                where = "inside" if m.covered else "**outside**"
+                lines.append(f"MCL ({len(m.particles)} particles): mean error {100 * err:.1f} cm,"
+                             f" truth {where} its 95 % ellipse")
             ms = r.timings.get("vision_ms", 0.0) + r.timings.get("localizer_ms", 0.0)
             lines.append(f"frame time {ms:.1f} ms (vision {r.timings.get('vision_ms', 0.0):.1f},"
                          f" localizer {r.timings.get('localizer_ms', 0.0):.2f})")
@@ -333,6 +344,10 @@ def parser() -> Parser:
     p.add_argument("--speed", type=_in_range("--speed", 0.01, C.MAX_SPEED_FACTOR), default=1.0,
                    help="playback speed, x real time (default 1)")
     p.add_argument("--max-speed", action="store_true", help="run as fast as possible")
+    p.add_argument("--mcl", action="store_true",
+                   help="also run the Monte Carlo Localization baseline (orange particles)")
+    p.add_argument("--particles", type=_int_range("--particles", 10, 100_000), default=1000,
+                   help="MCL particle count (default 1000)")
     return p
 
 
@@ -344,6 +359,18 @@ def _port(text: str) -> int:
     if not 0 <= v <= 65535:
         raise argparse.ArgumentTypeError(f"--port must be in [0, 65535], got {text!r}")
     return v
+
+
+def _int_range(name: str, lo: int, hi: int) -> Any:
+    check = positive_int(name)
+
+    def parse(text: str) -> int:
+        v = check(text)
+        if not lo <= v <= hi:
+            raise argparse.ArgumentTypeError(f"{name} must be in [{lo}, {hi}], got {text!r}")
+        return v
+
+    return parse
 
 
 def _in_range(name: str, lo: float, hi: float) -> Any:
@@ -379,7 +406,7 @@ def options_from_args(args: argparse.Namespace) -> SessionOptions:
     return SessionOptions(history=args.history, display=args.display, intervals=args.intervals,
                           interactive=args.interactive, out_dir=Path(args.out_dir),
                           output_file=args.output_file, speed=args.speed,
-                          max_speed=args.max_speed)
+                          max_speed=args.max_speed, mcl=args.mcl, mcl_particles=args.particles)
 
 
 def main(command: str = "serve", argv: list[str] | None = None) -> int:

@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from tileviz.app import commands as C
-from tileviz.app.history import Encoder, Entry, History
+from tileviz.app.history import Encoder, Entry, History, ParticleView
 from tileviz.app.outputs import output_path, sanitize_name
 from tileviz.config import Config, LocalizerConfig, NoiseConfig
 from tileviz.runner import Runner, initial_box
@@ -50,6 +50,10 @@ class SessionOptions:
     output_file: str | None = None
     speed: float = 1.0
     max_speed: bool = False
+    mcl: bool = False
+    """Run the Monte Carlo Localization baseline beside the interval localizer."""
+    mcl_particles: int = 1000
+    """Its particle count."""
     renderer: Any = None
     """A renderer for the simulator (tests); None = the real floor renderer."""
 
@@ -104,6 +108,10 @@ class Session:
         self._rate_n = 0
         self.cfg = cfg
         self.setpoint_kind = cfg.sim.setpoint
+        self.mcl: Any = None
+        """The MCL baseline (:class:`tileviz.baselines.mcl.MCL`) when on, else None."""
+        self._mcl_odometry: Any = None
+        self._mcl_wanted = bool(o.mcl)
         self._build(cfg)
         if o.output_file is not None:
             self._open_csv()
@@ -115,6 +123,8 @@ class Session:
         self.cfg = cfg
         self.source = SimSource(cfg, renderer=self.options.renderer)
         self.runner = Runner(cfg, keep_stages=self.display)
+        if self._mcl_wanted:
+            self._start_mcl(initial_box(cfg))
         self.history.clear()
         self.shown = -1
         self.degraded = False
@@ -211,12 +221,46 @@ class Session:
             from tileviz.dataset import residual_row
 
             self.csv.row(residual_row(rec))
-        entry = Entry.make(rec, stages=self.display, encoder=self.encoder)
+        particles = self._step_mcl(frame, rec) if self.mcl is not None else None
+        entry = Entry.make(rec, stages=self.display, encoder=self.encoder, mcl=particles)
         self.shown = self.history.append(entry)
         self.frames_computed += 1
         self._count_rate()
         self.version += 1
         return entry
+
+    # ------------------------------------------------------------------ MCL baseline
+    def _start_mcl(self, box: Any) -> None:
+        from tileviz.baselines.mcl import MCL, MclConfig
+        from tileviz.types import Box
+
+        room = self.cfg.sim.room_half_size
+        self.mcl = MCL(tile_size=self.cfg.floor.tile_size, camera_offset=self.cfg.camera.offset,
+                       bounds=self.runner.bounds, initial=box,
+                       config=MclConfig(particles=self.options.mcl_particles,
+                                        seed=self.cfg.sim.seed),
+                       region=Box(-room, room, -room, room, -math.pi, math.pi))
+        self._mcl_odometry = None
+
+    def _step_mcl(self, frame: FrameInput, rec: Any) -> ParticleView | None:
+        """One MCL step on the frame's inputs (the previous frame's odometry, as the runner)."""
+        try:
+            est = self.mcl.step(self._mcl_odometry, frame.compass, rec.vision.observation)
+        except Exception as e:  # noqa: BLE001 - the baseline must not stop the demo
+            self.mcl = None
+            self._mcl_wanted = False
+            self.note(f"MCL stopped at frame {frame.index}: {e}", "error")
+            return None
+        self._mcl_odometry = frame.odometry
+        return ParticleView.of(est, frame.truth)
+
+    def _on_SetMcl(self, cmd: C.SetMcl) -> None:
+        self._mcl_wanted = bool(cmd.on)
+        if not cmd.on:
+            self.mcl = None
+        elif self.mcl is None:
+            hull = self.runner.localizer.current.hull()
+            self._start_mcl(hull if hull is not None else initial_box(self.cfg))
 
     def _frame_failed(self, index: int, message: str, *, missed: bool) -> None:
         """Log a frame that raised. ``missed``: the simulator moved on without the localizer
@@ -353,7 +397,10 @@ class Session:
 
     def _on_Relocalize(self, cmd: C.Relocalize) -> None:
         pose = self.source.pose
-        self.runner.reset(initial_box(self.cfg, pose=pose.as_tuple()))
+        box = initial_box(self.cfg, pose=pose.as_tuple())
+        self.runner.reset(box)
+        if self.mcl is not None:
+            self._start_mcl(box)
         self.degraded = False
         self.note("localizer restarted at the true pose (within the initial pose error)")
 
@@ -388,6 +435,8 @@ class Session:
         noise = NoiseConfig(cmd.speed_error, cmd.yaw_rate_error, cmd.compass_error, cmd.fraction)
         self.source.set_noise(noise)
         self._reconfigure(replace(self.cfg, noise=noise))
+        if self.mcl is not None:
+            self.mcl.bounds = self.runner.bounds  # its motion noise and compass likelihood
         if self.recording is not None:
             self._stop_recording("the declared bounds changed; its meta.json would be wrong")
 
