@@ -277,3 +277,11 @@ def test_the_mcl_baseline_runs_beside_and_its_particles_are_kept_per_frame(cfg, 
     s.apply(C.Step())
     assert s.shown_entry().mcl is not None
     s.close()
+
+
+def test_the_tile_grid_is_on_when_the_floor_texture_cannot_show_the_grout(tmp_path):
+    small = make(preset("seed"), tmp_path)  # 0.166 m tiles over a 24 m room
+    large = make(preset("default"), tmp_path)  # 1 m tiles over 12 m
+    assert small.layers["grid"] and not large.layers["grid"]
+    small.close()
+    large.close()

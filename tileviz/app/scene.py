@@ -22,7 +22,7 @@ import numpy as np
 from tileviz.config import CameraConfig, Config, FloorConfig
 from tileviz.types import Box, BoxSet, Pose
 
-__all__ = ["COLOURS", "SceneView", "floor_texture", "yaw_wxyz"]
+__all__ = ["COLOURS", "SceneView", "floor_texture", "texture_pixels_per_tile", "yaw_wxyz"]
 
 COLOURS: dict[str, tuple[int, int, int]] = {
     "truth": (255, 64, 160),  # pink
@@ -57,6 +57,11 @@ TEXTURE_PIXELS = 1600
 def yaw_wxyz(theta: float) -> tuple[float, float, float, float]:
     """Quaternion (w, x, y, z) of a rotation by ``theta`` rad about +z."""
     return (math.cos(theta / 2.0), 0.0, 0.0, math.sin(theta / 2.0))
+
+
+def texture_pixels_per_tile(cfg: Config, max_pixels: int = TEXTURE_PIXELS) -> float:
+    """How many texture pixels one tile gets in :func:`floor_texture` over the room."""
+    return min(max_pixels / (2.0 * cfg.sim.room_half_size), 256.0) * cfg.floor.tile_size
 
 
 def floor_texture(floor: FloorConfig, half_size: float,

@@ -24,6 +24,7 @@ import numpy as np
 from tileviz.app import commands as C
 from tileviz.app.history import Encoder, Entry, History, ParticleView
 from tileviz.app.outputs import output_path, sanitize_name
+from tileviz.app.scene import texture_pixels_per_tile
 from tileviz.config import Config, LocalizerConfig, NoiseConfig
 from tileviz.runner import Runner, initial_box
 from tileviz.types import FrameInput
@@ -82,7 +83,8 @@ class Session:
         self.layers: dict[str, bool] = {name: True for name in C.LAYERS}
         for name in ("prediction", "boxes", "wedge"):
             self.layers[name] = bool(o.intervals)
-        self.layers["grid"] = False
+        # the tile grid, when the floor texture is too coarse to show the grout lines
+        self.layers["grid"] = texture_pixels_per_tile(cfg) < 24.0
         self.notes: deque[Note] = deque(maxlen=8)
         self.errors = 0
         """Frames that raised (logged, skipped)."""
