@@ -89,7 +89,7 @@ def test_stages_are_written(capsys, images, tmp_path: Path) -> None:
     assert rc == 0
     names = sorted(p.name for p in out_dir.iterdir())
     assert "default_00_input.png" in names and "default_02_laplacian.png" in names
-    assert len(names) == 9
+    assert len(names) == 10
     img = cv2.imread(str(out_dir / "default_03_canny.png"))
     assert img.shape == (240, 320, 3)
 

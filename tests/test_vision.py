@@ -134,9 +134,9 @@ def test_stage_images_only_when_asked(ext: str, views: list) -> None:
     res = extract(img, camera=CFG.camera, tile_size=1.0, vision=_vision(ext), keep_stages=True)
     expected = {
         "faithful": ["input", "gray", "laplacian", "canny", "morphology", "hough", "bags",
-                     "lattice", "disambiguation"],
-        "robust": ["input", "gray", "edges", "warped", "lines", "lattice", "foreign",
-                   "disambiguation"],
+                     "distances", "lattice", "disambiguation"],
+        "robust": ["input", "gray", "edges", "warped", "lines", "distances", "lattice",
+                   "foreign", "disambiguation"],
     }[ext]
     assert list(res.stages) == expected
     for name, stage in res.stages.items():

@@ -9,7 +9,14 @@ import numpy as np
 
 from tileviz.vision.geometry import family_normals
 
-__all__ = ["BAG_COLOURS", "disambiguation_plot", "draw_lattice", "draw_segments", "to_rgb"]
+__all__ = [
+    "BAG_COLOURS",
+    "disambiguation_plot",
+    "draw_lattice",
+    "draw_offsets",
+    "draw_segments",
+    "to_rgb",
+]
 
 BAG_COLOURS: dict[int, tuple[int, int, int]] = {
     0: (230, 40, 40),  # rejected: red
@@ -41,6 +48,34 @@ def draw_segments(
             thickness,
             cv2.LINE_AA,
         )
+    return base
+
+
+def draw_offsets(
+    base: np.ndarray,
+    bags: np.ndarray,
+    offsets: np.ndarray,
+    y3: float | None,
+    *,
+    ppm: float,
+) -> np.ndarray:
+    """Report Fig 4.1, corrected: from the image centre, each bagged line's signed offset along
+    its family's normal (the arrow ends on the line), in the bag's colour; in place, returned.
+    Offsets in metres (``VisionResult.offsets``)."""
+    h, w = base.shape[:2]
+    c = ((w - 1) / 2.0, (h - 1) / 2.0)
+    if y3 is not None:
+        normals = family_normals(y3)
+        for bag, off in zip(np.asarray(bags), np.asarray(offsets, dtype=np.float64), strict=True):
+            if int(bag) not in (1, 2) or not math.isfinite(off):
+                continue
+            n = normals[int(bag) - 1]
+            end = (c[0] + off * ppm * n[0], c[1] + off * ppm * n[1])
+            cv2.arrowedLine(base, (int(round(c[0])), int(round(c[1]))),
+                            (int(round(end[0])), int(round(end[1]))), BAG_COLOURS[int(bag)], 1,
+                            cv2.LINE_AA, tipLength=0.08)
+    cv2.drawMarker(base, (int(round(c[0])), int(round(c[1]))), (255, 255, 255),
+                   cv2.MARKER_CROSS, 12, 1)
     return base
 
 

@@ -103,6 +103,13 @@ def extract_faithful(
         stages["morphology"] = draw.to_rgb(morph)
         stages["hough"] = draw.draw_segments(rgb.copy(), seg)
         stages["bags"] = draw.draw_segments(rgb.copy(), seg, out["bags"])
+        y3 = None if out["observation"] is None else out["observation"].y3
+        if y3 is None and out["median"] is not None:
+            y3 = math.atan2(out["median"][1], out["median"][0]) / 4.0
+        stages["distances"] = draw.draw_offsets(
+            draw.draw_segments(rgb.copy(), seg, out["bags"], thickness=1), out["bags"],
+            out["offsets"], y3, ppm=camera.ppm,
+        )
         if out["observation"] is not None:
             o = out["observation"]
             stages["lattice"] = draw.draw_lattice(

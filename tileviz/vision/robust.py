@@ -807,9 +807,10 @@ class _Run:
 
     def stages(self, image: np.ndarray | None, res: VisionResult) -> dict[str, np.ndarray]:
         """Stage images (HxWx3 uint8 RGB): input, gray, edges, warped (the view turned by the
-        heading: grout lines along rows and columns), lines (by bag), lattice (the lines the
-        observation predicts), foreign (unexplained edges and the straight ones among them),
-        disambiguation ((cos 4a, sin 4a) of the lines and the heading)."""
+        heading: grout lines along rows and columns), lines (by bag), distances (each line's
+        signed offset from the centre), lattice (the lines the observation predicts), foreign
+        (unexplained edges and the straight ones among them), disambiguation ((cos 4a, sin 4a)
+        of the lines and the heading)."""
         rgb = draw.to_rgb(self.gray if image is None else image)
         out: dict[str, np.ndarray] = {"input": rgb, "gray": draw.to_rgb(self.gray)}
         if self.edges is not None:
@@ -818,6 +819,10 @@ class _Run:
             wv = cv2.normalize(self.warped, None, 0, 255, cv2.NORM_MINMAX).astype(np.uint8)
             out["warped"] = draw.to_rgb(cv2.resize(wv, (self.w, self.h)))
         out["lines"] = draw.draw_segments(rgb.copy(), res.segments, res.bags)
+        out["distances"] = draw.draw_offsets(
+            draw.draw_segments(rgb.copy(), res.segments, res.bags, thickness=1), res.bags,
+            res.offsets, self.y3, ppm=self.ppm,
+        )
         if self.y is not None:
             out["lattice"] = draw.draw_lattice(
                 rgb.copy(), self.y, ppm=self.ppm, tile_size=self.tile_size
