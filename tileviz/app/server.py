@@ -361,28 +361,24 @@ def _port(text: str) -> int:
     return v
 
 
-def _int_range(name: str, lo: int, hi: int) -> Any:
-    check = positive_int(name)
+def _ranged(name: str, lo: float, hi: float, check: Any) -> Any:
+    """argparse type: ``check(text)`` (a number parser naming ``name``) within [lo, hi]."""
 
-    def parse(text: str) -> int:
-        v = check(text)
-        if not lo <= v <= hi:
-            raise argparse.ArgumentTypeError(f"{name} must be in [{lo}, {hi}], got {text!r}")
-        return v
-
-    return parse
-
-
-def _in_range(name: str, lo: float, hi: float) -> Any:
-    check = positive_float(name)
-
-    def parse(text: str) -> float:
+    def parse(text: str) -> Any:
         v = check(text)
         if not lo <= v <= hi:
             raise argparse.ArgumentTypeError(f"{name} must be in [{lo:g}, {hi:g}], got {text!r}")
         return v
 
     return parse
+
+
+def _in_range(name: str, lo: float, hi: float) -> Any:
+    return _ranged(name, lo, hi, positive_float(name))
+
+
+def _int_range(name: str, lo: int, hi: int) -> Any:
+    return _ranged(name, lo, hi, positive_int(name))
 
 
 def config_from_args(args: argparse.Namespace) -> Config:
