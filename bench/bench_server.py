@@ -125,6 +125,7 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seconds", type=float, default=20.0)
     ap.add_argument("--push-rate", type=float, default=40.0)
+    ap.add_argument("--image-rate", type=float, default=20.0)
     ap.add_argument("--browser", action="store_true", help="also measure a real chromium page")
     ap.add_argument("--viewport", default="1400x900", help="browser page size, WxH pixels")
     ap.add_argument("--display", action=argparse.BooleanOptionalAction, default=True,
@@ -133,6 +134,7 @@ def main() -> int:
     with tempfile.TemporaryDirectory() as tmp:
         cmd = [sys.executable, str(REPO / "serve.py"), "--port", "0", "--max-speed",
                "--out-dir", tmp, "--push-rate", str(args.push_rate),
+               "--image-rate", str(args.image_rate),
                "--display" if args.display else "--no-display"]
         env = dict(os.environ, PYTHONPATH=str(REPO))
         proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
@@ -148,7 +150,8 @@ def main() -> int:
                 raise SystemExit("serve.py did not start")
             got, frames, span, stages = asyncio.run(ws_run(url, args.seconds))
             print(f"320x240, display {'on' if args.display else 'off'} ({stages} stage image "
-                  f"panels), push rate cap {args.push_rate:g}/s, {span:.1f} s measured, "
+                  f"panels), push rate cap {args.push_rate:g}/s, image rate cap "
+                  f"{args.image_rate:g}/s, {span:.1f} s measured, "
                   f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
             print(f"loop: {frames / span:.1f} frames/s (simulate, render, vision keeping its "
                   f"stages, localizer, JPEG-encode camera + stages, history)")

@@ -12,8 +12,9 @@ machine), ``--port`` (8080; the next free one if taken), ``--preset``, ``--inter
 paused: one frame per Step), ``--intervals/--no-intervals`` (draw the boxes),
 ``--display/--no-display`` (stream the stage images), ``--ppm``, ``--tile-size``,
 ``--output-file NAME`` (CSV of the six equivalence residuals per frame, written under
-``--out-dir``), ``--seed``, ``--history``, ``--push-rate``, ``--speed``, ``--max-speed``,
-``--mcl``/``--particles`` (the Monte Carlo Localization baseline beside the boxes).
+``--out-dir``), ``--seed``, ``--history``, ``--push-rate``, ``--image-rate``, ``--speed``,
+``--max-speed``, ``--mcl``/``--particles`` (the Monte Carlo Localization baseline beside the
+boxes).
 """
 
 from __future__ import annotations
@@ -48,14 +49,19 @@ class App:
     """The live demo: a viser server + the loop thread (see the module docstring).
 
     ``cfg``: the run's configuration. ``options``: how the session starts. ``host``/``port``: where
-    to listen (port 0: any free port). ``push_rate``: scene/panel updates per second at most;
-    ``plot_rate``: plot updates per second at most; ``plot_window``: frames in the plots.
+    to listen (port 0: any free port). ``push_rate``: scene updates per second at most;
+    ``image_rate``: image panel updates per second at most while playing (a paused or stepped
+    frame always shows its images); ``plot_rate``: plot updates per second at most;
+    ``plot_window``: frames in the plots.
     """
 
     def __init__(self, cfg: Config, options: SessionOptions | None = None, *,
                  host: str = "127.0.0.1", port: int = 8080, push_rate: float = 40.0,
-                 plot_rate: float = 4.0, plot_window: int = 1000, verbose: bool = False) -> None:
+                 image_rate: float = 20.0, plot_rate: float = 4.0, plot_window: int = 1000,
+                 verbose: bool = False) -> None:
         self.cfg = cfg
+        self.image_rate = float(image_rate)
+        self._next_images = 0.0
         self.options = options or SessionOptions()
         self.host = host
         self.requested_port = port
@@ -255,7 +261,11 @@ class App:
             self.scene.show(entry.record, trail[:, [_COL["truth_x"], _COL["truth_y"]]],
                             trail[:, [_COL["est_x"], _COL["est_y"]]],
                             full=plots or not s.playing, mcl=entry.mcl)
-            self.panels.show(entry, s.display)
+            now = time.perf_counter()
+            if not s.playing or now >= self._next_images:
+                # the browser decodes every image it gets: while playing, images at image_rate
+                self.panels.show(entry, s.display)
+                self._next_images = max(self._next_images + 1.0 / self.image_rate, now)
             if plots:
                 self.plots.update(rows)
         self.controls.refresh(first=s.history.first, last=s.history.last, shown=pos,
@@ -341,6 +351,9 @@ def parser() -> Parser:
                    help="frames kept for stepping back (>= 2, default 2000)")
     p.add_argument("--push-rate", type=_in_range("--push-rate", 1.0, 60.0), default=40.0,
                    help="scene updates sent per second at most (default 40)")
+    p.add_argument("--image-rate", type=_in_range("--image-rate", 1.0, 60.0), default=20.0,
+                   help="camera and stage image updates per second at most while playing "
+                   "(default 20; a paused or stepped frame always shows its images)")
     p.add_argument("--speed", type=_in_range("--speed", 0.01, C.MAX_SPEED_FACTOR), default=1.0,
                    help="playback speed, x real time (default 1)")
     p.add_argument("--max-speed", action="store_true", help="run as fast as possible")
@@ -414,7 +427,7 @@ def main(command: str = "serve", argv: list[str] | None = None) -> int:
 
     def body() -> int:
         app = App(config_from_args(args), options_from_args(args), host=args.host,
-                  port=args.port, push_rate=args.push_rate)
+                  port=args.port, push_rate=args.push_rate, image_rate=args.image_rate)
         stopping = threading.Event()
 
         def on_term(signum: int, frame: object) -> None:
