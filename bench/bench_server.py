@@ -36,6 +36,12 @@ ARGS = ["--headless", "--no-sandbox", "--use-angle=swiftshader", "--enable-unsaf
         "--disable-background-networking", "--disable-component-update", "--no-first-run"]
 
 
+def cpu_seconds(pid: int) -> float:
+    """User + system CPU time of a process so far (all its threads), seconds (Linux /proc)."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
 def image_uuids(messages: list[dict[str, Any]]) -> dict[str, str]:
     """uuid -> "camera" or "stage" for the GUI images among ``messages``."""
     return {m["uuid"]: "camera" if m["props"].get("label") == "camera view" else "stage"
@@ -148,13 +154,18 @@ def main() -> int:
                     break
             if url is None:
                 raise SystemExit("serve.py did not start")
+            cpu0 = cpu_seconds(proc.pid)
             got, frames, span, stages = asyncio.run(ws_run(url, args.seconds))
+            cpu = cpu_seconds(proc.pid) - cpu0  # includes the 3 s warm-up
             print(f"320x240, display {'on' if args.display else 'off'} ({stages} stage image "
                   f"panels), push rate cap {args.push_rate:g}/s, image rate cap "
                   f"{args.image_rate:g}/s, {span:.1f} s measured, "
                   f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
             print(f"loop: {frames / span:.1f} frames/s (simulate, render, vision keeping its "
                   f"stages, localizer, JPEG-encode camera + stages, history)")
+            per = cpu / (frames * (span + 3.0) / span)
+            print(f"server CPU: {1e3 * per:.1f} ms a frame, all threads (loop, JPEG encoder, "
+                  f"viser sender), pushes included: {1.0 / per:.0f} frames/s on one free core")
             print(f"websocket client: {got['robot'] / span:.1f} robot pose updates/s, "
                   f"{got['camera'] / span:.1f} camera images/s, "
                   f"{got['stage'] / span:.1f} stage images/s")
