@@ -129,6 +129,9 @@ def test_metric_definitions():
     # MCL never says lost: every frame counts
     assert mcl["vouched_pct"] == 100.0 and mcl["containment_pct"] == 50.0
     assert mcl["rejected_frames"] is None and mcl["lost_frames"] is None
+    table = ev.markdown_table(ev.aggregate([_hand_made()]))
+    # percentages are rounded down: 2/3 reads 66.66, never more than what was measured
+    assert "| clean | interval (autonomous) | 75.00 | 75.00 | 66.66 | 4.00 / 4.00 |" in table
     lines = ev.figures(ev.aggregate([_hand_made()]))
     assert "No scenario" in lines[0]  # one frame broke its bounds
     assert "1.0x" in lines[1] and "NOT reached" in lines[1]

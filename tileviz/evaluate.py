@@ -461,8 +461,16 @@ def _fmt(v: Any, scale: float = 1.0, digits: int = 2) -> str:
     return f"{v * scale:.{digits}f}"
 
 
+def _fmt_pct(v: Any) -> str:
+    """A percentage rounded *down* to 2 decimals, so 99.999 never reads as 100.00."""
+    if v is None or (isinstance(v, float) and math.isnan(v)):
+        return "—"
+    return f"{math.floor(round(v * 100.0, 6)) / 100.0:.2f}"
+
+
 def markdown_table(rows: Sequence[dict[str, Any]]) -> str:
-    """The headline table: widths in cm and degrees, CPU in microseconds."""
+    """The headline table: widths in cm and degrees, CPU in microseconds; percentages rounded
+    down."""
     head = ("| scenario | method | inputs in bounds % | vouched % | containment % | "
             "width x median / p95 (cm) | width y median / p95 (cm) | heading width median / p95 "
             "(deg) | RMSE xy (cm) | RMSE heading (deg) | rejected | lost | CPU µs/frame |")
@@ -470,8 +478,8 @@ def markdown_table(rows: Sequence[dict[str, Any]]) -> str:
     for r in rows:
         lines.append(
             f"| {r['scenario']} | {METHOD_LABELS[r['method']]} | "
-            f"{_fmt(r['inputs_in_bounds_pct'], digits=1)} | {_fmt(r['vouched_pct'], digits=1)} | "
-            f"{_fmt(r['containment_pct'], digits=2)} | "
+            f"{_fmt_pct(r['inputs_in_bounds_pct'])} | {_fmt_pct(r['vouched_pct'])} | "
+            f"{_fmt_pct(r['containment_pct'])} | "
             f"{_fmt(r['width_x_median_m'], 100)} / {_fmt(r['width_x_p95_m'], 100)} | "
             f"{_fmt(r['width_y_median_m'], 100)} / {_fmt(r['width_y_p95_m'], 100)} | "
             f"{_fmt(r['width_theta_median_deg'])} / {_fmt(r['width_theta_p95_deg'])} | "
