@@ -285,3 +285,23 @@ def test_the_tile_grid_is_on_when_the_floor_texture_cannot_show_the_grout(tmp_pa
     assert small.layers["grid"] and not large.layers["grid"]
     small.close()
     large.close()
+
+
+def test_a_lost_localizer_stays_lost_when_the_settings_change(cfg, tmp_path):
+    s = make(cfg, tmp_path)
+    s.apply(C.Step())
+    s.apply(C.Kidnap((2.3, -1.7, 0.4)))
+    for _ in range(cfg.localizer.max_rejections + 2):
+        s.apply(C.Step())
+    assert s.shown_entry().record.status == "lost"
+    s.apply(C.SetNoise(0.03, 0.02, 0.03))  # new bounds must not make its set vouch again
+    s.apply(C.SetInflation(0.2, 0.1))
+    s.apply(C.Step())
+    assert s.shown_entry().record.status == "lost" and s.runner.bounds.speed_error == 0.03
+    s.apply(C.SetMode("truth"))  # needs no prior: takes effect at once
+    s.apply(C.Step())
+    assert s.shown_entry().record.status == "contracted" and s.shown_entry().record.truth_inside()
+    s.apply(C.SetMode("autonomous"))
+    s.apply(C.Step())
+    assert s.shown_entry().record.status == "contracted" and s.shown_entry().record.truth_inside()
+    s.close()
