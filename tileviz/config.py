@@ -300,10 +300,19 @@ def _to_tuple(value: Any) -> Any:
     return value
 
 
+PRESET_VISION = VisionConfig(position_error_px=1.0, heading_error=0.006)
+"""Declared observation bounds of both presets' cameras (noise 3 gray levels, blur 0.7 px, no
+JPEG). The general VisionConfig defaults hold for any camera of the accuracy study (100..700 px/m,
+heavy noise, blur, JPEG); a preset's own camera is measured on its own, by
+``bench/preset_bounds.py``: over 2000 random poses and floor seeds the worst accepted error was
+0.37 px / 0.0026 rad (default) and 0.25 px / 0.0017 rad (seed), so 1 px / 0.006 rad keeps a
+margin of 2.4x or more. ``tests/test_preset_bounds.py`` checks it on fixed seeds."""
+
+
 def preset(name: str) -> Config:
     """Return a named preset: ``default`` or ``seed``."""
     if name == "default":
-        return Config()
+        return Config(vision=PRESET_VISION)
     if name == "seed":
         # Constants of the original implementation (shared/seed-code-facts.md).
         return Config(
@@ -312,7 +321,7 @@ def preset(name: str) -> Config:
             noise=NoiseConfig(speed_error=0.02, yaw_rate_error=0.01, compass_error=0.02),
             # the original image constants; the robust extractor keeps the guarantee (the
             # faithful one, selectable, returns views outside their bound now and then)
-            vision=VisionConfig(extractor="robust"),
+            vision=PRESET_VISION,
             sim=SimConfig(
                 dt=0.05,
                 lissajous_amplitude=10.0,
