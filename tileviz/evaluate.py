@@ -552,17 +552,40 @@ def plot_coverage(rows: Sequence[dict[str, Any]], path: Path) -> None:
     plt.close(fig)
 
 
+PLOT_BINS = 400
+"""Error plots show at most this many time bins (a long run is drawn as its envelope)."""
+
+
+def _bins(n: int) -> np.ndarray:
+    """Start indices of at most :data:`PLOT_BINS` consecutive bins of frames covering 0..n-1."""
+    k = max(1, math.ceil(n / PLOT_BINS))
+    return np.arange(0, n, k)
+
+
 def plot_errors(res: RunResult, path: Path) -> None:
     """One run: for x, y and heading, the autonomous interval set's bounds and the MCL 95 %
     region, relative to the truth; bottom: the x width of every method, log scale. Fault frames
-    shaded gray, lost frames red."""
+    shaded gray, lost frames red. Runs longer than :data:`PLOT_BINS` frames are drawn per bin of
+    consecutive frames: the lowest lower bound and the highest upper bound (the envelope), the
+    mean of the MCL mean, the largest width."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    t = res.t
-    fig, axes = plt.subplots(4, 1, figsize=(9.0, 9.0), dpi=110, sharex=True)
+    starts = _bins(res.t.size)
+
+    def lo_env(a: np.ndarray) -> np.ndarray:
+        return np.fmin.reduceat(a, starts)
+
+    def hi_env(a: np.ndarray) -> np.ndarray:
+        return np.fmax.reduceat(a, starts)
+
+    def mean(a: np.ndarray) -> np.ndarray:
+        return np.add.reduceat(a, starts) / np.diff(np.append(starts, a.size))
+
+    t = res.t[starts]
+    fig, axes = plt.subplots(4, 1, figsize=(9.0, 9.0), dpi=100, sharex=True)
     iv = res.methods["interval"]
     mc = res.methods["mcl"]
     labels = ("x error (cm)", "y error (cm)", "heading error (deg)")
@@ -570,30 +593,36 @@ def plot_errors(res: RunResult, path: Path) -> None:
     lost = iv.status == STATUS_CODES["lost"]
     for j, ax in enumerate(axes[:3]):
         s = scale[j]
-        ax.fill_between(t, (iv.lo[:, j] - res.truth[:, j]) * s, (iv.hi[:, j] - res.truth[:, j]) * s,
-                        step="mid", color="tab:blue", alpha=0.35, lw=0,
-                        label="interval set (autonomous)")
-        ax.plot(t, (mc.lo[:, j] - res.truth[:, j]) * s, color="tab:red", lw=0.7, ls="--",
+        truth = res.truth[:, j]
+        bands = {"iv_lo": lo_env((iv.lo[:, j] - truth) * s),
+                 "iv_hi": hi_env((iv.hi[:, j] - truth) * s),
+                 "mc_lo": lo_env((mc.lo[:, j] - truth) * s),
+                 "mc_hi": hi_env((mc.hi[:, j] - truth) * s)}
+        ax.fill_between(t, bands["iv_lo"], bands["iv_hi"], step="post", color="tab:blue",
+                        alpha=0.35, lw=0, label="interval set (autonomous)")
+        ax.plot(t, bands["mc_lo"], color="tab:red", lw=0.7, ls="--", drawstyle="steps-post",
                 label="MCL 95 % bounds")
-        ax.plot(t, (mc.hi[:, j] - res.truth[:, j]) * s, color="tab:red", lw=0.7, ls="--")
-        ax.plot(t, (mc.centre[:, j] - res.truth[:, j]) * s, color="tab:red", lw=0.8,
+        ax.plot(t, bands["mc_hi"], color="tab:red", lw=0.7, ls="--", drawstyle="steps-post")
+        ax.plot(t, mean((mc.centre[:, j] - truth) * s), color="tab:red", lw=0.8,
                 label="MCL mean")
         ax.axhline(0.0, color="k", lw=0.8, label="truth")
-        _shade(ax, t, res.fault, "0.8", "fault")
-        _shade(ax, t, lost, "tab:red", "lost")
+        _shade(ax, res.t, res.fault, "0.8", "fault")
+        _shade(ax, res.t, lost, "tab:red", "lost")
         ax.set_ylabel(labels[j])
-        lim = np.nanpercentile(np.abs(np.concatenate([(iv.lo[:, j] - res.truth[:, j]),
-                                                      (iv.hi[:, j] - res.truth[:, j]),
-                                                      (mc.lo[:, j] - res.truth[:, j]),
-                                                      (mc.hi[:, j] - res.truth[:, j])])) * s, 98)
+        # the interval band while it is vouched for and the MCL region, unless a few frames would
+        # squash the rest
+        vouched = ~np.logical_or.reduceat(lost, starts)
+        mags = np.abs(np.concatenate([bands["iv_lo"][vouched], bands["iv_hi"][vouched],
+                                      bands["mc_lo"], bands["mc_hi"]]))
+        lim = min(np.nanmax(mags, initial=0.0), 100.0 * np.nanmedian(mags)) if mags.size else 0.0
         if np.isfinite(lim) and lim > 0:
             ax.set_ylim(-1.2 * lim, 1.2 * lim)
     axes[0].legend(fontsize=7, loc="upper right", ncols=3)
     ax = axes[3]
     for m in METHODS:
         tr = res.methods[m]
-        ax.semilogy(t, np.maximum((tr.hi[:, 0] - tr.lo[:, 0]) * 100.0, 1e-4), lw=0.9,
-                    label=METHOD_LABELS[m])
+        ax.semilogy(t, np.maximum(hi_env((tr.hi[:, 0] - tr.lo[:, 0]) * 100.0), 1e-4), lw=0.9,
+                    drawstyle="steps-post", label=METHOD_LABELS[m])
     ax.set_ylabel("x width (cm)")
     ax.set_xlabel("t (s)")
     ax.legend(fontsize=7, loc="upper left", ncols=2)
