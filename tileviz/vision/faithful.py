@@ -98,6 +98,7 @@ def extract_faithful(
         rgb = draw.to_rgb(gray if image is None else image)
         stages["input"] = rgb
         stages["gray"] = draw.to_rgb(gray)
+        # (the 8-bit Laplacian is mostly small values: stretched to 0..255 for display)
         stages["laplacian"] = draw.to_rgb(cv2.normalize(lap, None, 0, 255, cv2.NORM_MINMAX))
         stages["canny"] = draw.to_rgb(edges)
         stages["morphology"] = draw.to_rgb(morph)
