@@ -2,15 +2,18 @@
 scene updates a client receives per second.
 
     python bench/bench_server.py                          # websocket client, 20 s
-    python bench/bench_server.py --seconds 30 --browser   # also a real chromium page
+    python bench/bench_server.py --seconds 20 --browser   # also a real chromium page
 
-``serve.py`` runs in its own process (default preset, 320x240, ``--max-speed``: as fast as it can,
-display on: every frame's camera view and stage images JPEG-encoded and kept in the history, the
-shown frame's streamed), pushing at most ``--push-rate`` updates a second. A client speaking
-viser's websocket protocol measures, from what it receives: the loop rate (the timeline's end
-advances one position per frame made), the robot pose updates (one per push), the camera image
-updates and the stage image updates. With ``--browser`` a headless Debian chromium loads the page
-and the websocket messages it receives are decoded and counted the same way. One line a figure.
+``serve.py`` runs in its own process (default preset, 320x240, display on: every frame's camera
+view and stage images JPEG-encoded and kept in the history, the shown frame's streamed), pushing
+at most ``--push-rate`` scene updates and ``--image-rate`` image updates a second. First at
+``--max-speed`` (as fast as it can): a client speaking viser's websocket protocol measures, from
+what it receives, the loop rate (the timeline's end advances one position per frame made), the
+robot pose updates (one per push), the camera and the stage image updates; the server's CPU time
+per frame is read from /proc. Then, with ``--browser``, a second server runs at
+``--browser-speed`` (default 2x real time, 40 new frames a second: the loop at full speed would
+take the CPU the software-rendered page needs on a small machine) and a headless Debian chromium
+loads the page; the websocket messages it receives are decoded and counted the same way.
 """
 
 from __future__ import annotations
@@ -127,59 +130,74 @@ def browser_run(url: str, seconds: float,
     return got, span, sum(1 for on, _ in frames if on)
 
 
+def start_server(tmp: str, args: argparse.Namespace, speed: str) -> tuple[Any, str]:
+    """``serve.py`` in its own process at ``speed`` (``max`` or a multiple of real time)."""
+    cmd = [sys.executable, str(REPO / "serve.py"), "--port", "0", "--out-dir", tmp,
+           "--push-rate", str(args.push_rate), "--image-rate", str(args.image_rate),
+           "--display" if args.display else "--no-display"]
+    cmd += ["--max-speed"] if speed == "max" else ["--speed", speed]
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
+                            env=env)
+    for line in proc.stdout:  # type: ignore[union-attr]
+        m = re.search(r"open (http://\S+)", line)
+        if m:
+            return proc, m.group(1)
+    proc.kill()
+    raise SystemExit("serve.py did not start")
+
+
+def stop_server(proc: Any) -> None:
+    proc.terminate()
+    proc.wait(timeout=30)
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seconds", type=float, default=20.0)
     ap.add_argument("--push-rate", type=float, default=40.0)
     ap.add_argument("--image-rate", type=float, default=20.0)
     ap.add_argument("--browser", action="store_true", help="also measure a real chromium page")
+    ap.add_argument("--browser-speed", default="2",
+                    help="the server's speed while the browser is measured: x real time "
+                    "(default 2: 40 new frames/s at dt = 0.05 s) or 'max'")
     ap.add_argument("--viewport", default="1400x900", help="browser page size, WxH pixels")
     ap.add_argument("--display", action=argparse.BooleanOptionalAction, default=True,
                     help="stream the stage images (default on)")
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
-        cmd = [sys.executable, str(REPO / "serve.py"), "--port", "0", "--max-speed",
-               "--out-dir", tmp, "--push-rate", str(args.push_rate),
-               "--image-rate", str(args.image_rate),
-               "--display" if args.display else "--no-display"]
-        env = dict(os.environ, PYTHONPATH=str(REPO))
-        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
-                                text=True, env=env)
+        proc, url = start_server(tmp, args, "max")
         try:
-            url = None
-            for line in proc.stdout:  # type: ignore[union-attr]
-                m = re.search(r"open (http://\S+)", line)
-                if m:
-                    url = m.group(1)
-                    break
-            if url is None:
-                raise SystemExit("serve.py did not start")
             cpu0 = cpu_seconds(proc.pid)
             got, frames, span, stages = asyncio.run(ws_run(url, args.seconds))
             cpu = cpu_seconds(proc.pid) - cpu0  # includes the 3 s warm-up
-            print(f"320x240, display {'on' if args.display else 'off'} ({stages} stage image "
-                  f"panels), push rate cap {args.push_rate:g}/s, image rate cap "
-                  f"{args.image_rate:g}/s, {span:.1f} s measured, "
-                  f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
-            print(f"loop: {frames / span:.1f} frames/s (simulate, render, vision keeping its "
-                  f"stages, localizer, JPEG-encode camera + stages, history)")
-            per = cpu / (frames * (span + 3.0) / span)
-            print(f"server CPU: {1e3 * per:.1f} ms a frame, all threads (loop, JPEG encoder, "
-                  f"viser sender), pushes included: {1.0 / per:.0f} frames/s on one free core")
-            print(f"websocket client: {got['robot'] / span:.1f} robot pose updates/s, "
-                  f"{got['camera'] / span:.1f} camera images/s, "
-                  f"{got['stage'] / span:.1f} stage images/s")
-            if args.browser:
+        finally:
+            stop_server(proc)
+        print(f"320x240, display {'on' if args.display else 'off'} ({stages} stage image "
+              f"panels), push rate cap {args.push_rate:g}/s, image rate cap "
+              f"{args.image_rate:g}/s, {span:.1f} s measured, "
+              f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
+        print(f"loop at max speed: {frames / span:.1f} frames/s (simulate, render, vision "
+              f"keeping its stages, localizer, JPEG-encode camera + stages, history)")
+        per = cpu / (frames * (span + 3.0) / span)
+        print(f"server CPU: {1e3 * per:.1f} ms a frame, all threads (loop, JPEG encoder, "
+              f"viser sender), pushes included: {1.0 / per:.0f} frames/s on one free core")
+        print(f"websocket client (server at max speed): {got['robot'] / span:.1f} robot pose "
+              f"updates/s, {got['camera'] / span:.1f} camera images/s, "
+              f"{got['stage'] / span:.1f} stage images/s")
+        if args.browser:
+            proc, url = start_server(tmp, args, args.browser_speed)
+            try:
                 vw, vh = (int(v) for v in args.viewport.lower().split("x"))
                 bgot, bspan, nframes = browser_run(url, args.seconds, (vw, vh))
-                print(f"chromium page ({vw}x{vh}, software WebGL): "
-                      f"{bgot['robot'] / bspan:.1f} robot pose updates/s, "
-                      f"{bgot['camera'] / bspan:.1f} camera images/s, "
-                      f"{bgot['stage'] / bspan:.1f} stage images/s "
-                      f"({nframes / bspan:.1f} websocket messages/s)")
-        finally:
-            proc.terminate()
-            proc.wait(timeout=30)
+            finally:
+                stop_server(proc)
+            print(f"chromium page ({vw}x{vh}, software WebGL; server at speed "
+                  f"{args.browser_speed}): {bgot['robot'] / bspan:.1f} robot pose updates/s, "
+                  f"{bgot['camera'] / bspan:.1f} camera images/s, "
+                  f"{bgot['stage'] / bspan:.1f} stage images/s "
+                  f"({nframes / bspan:.1f} websocket messages/s; load average "
+                  f"{os.getloadavg()[0]:.1f})")
     return 0
 
 
