@@ -10,12 +10,23 @@ from pathlib import Path
 from tileviz.cliutil import (
     CliError,
     Parser,
-    nonneg_float,
-    positive_float,
+    float_in,
+    nonneg_int,
     positive_int,
     run_cli,
 )
 from tileviz.config import EXTRACTORS, MODES, PRESETS, SETPOINTS, Config, preset
+
+MAX_DURATION = 86400.0
+"""Longest recording, simulated seconds (a day)."""
+MAX_TILE = 1000.0
+"""Largest tile size, metres."""
+MAX_PPM = 1e5
+"""Largest ppm (``tileviz.dataset.MAX_PPM``)."""
+MAX_DT = 1.0
+"""Longest frame period, seconds."""
+MIN_TILE_PX = 4.0
+"""A tile must span at least this many pixels (``tileviz.dataset.MIN_TILE_PX``)."""
 
 
 def _progress(total: int | None, desc: str, enabled: bool) -> object:
@@ -29,19 +40,23 @@ def record_parser() -> Parser:
     p = Parser(prog="tileviz record", description="Simulate a run and write a "
                "tileviz-dataset/1 folder (meta.json, frames.csv, images/).")
     p.add_argument("out", help="output folder (must not exist or be empty)")
-    p.add_argument("--duration", type=positive_float("--duration"), required=True,
+    p.add_argument("--duration", type=float_in("--duration", 0.0, MAX_DURATION), required=True,
                    help="simulated seconds")
     p.add_argument("--preset", choices=PRESETS, default="default")
-    p.add_argument("--seed", type=int, default=0, help="seed of the run (noise, floor)")
-    p.add_argument("--tile-size", type=positive_float("--tile-size"), help="L, metres")
-    p.add_argument("--ppm", type=positive_float("--ppm"), help="pixels per metre")
+    p.add_argument("--seed", type=nonneg_int("--seed"), default=0,
+                   help="seed of the run (noise, floor)")
+    p.add_argument("--tile-size", type=float_in("--tile-size", 0.0, MAX_TILE), help="L, metres")
+    p.add_argument("--ppm", type=float_in("--ppm", 0.0, MAX_PPM), help="pixels per metre")
     p.add_argument("--width", type=positive_int("--width"), help="image width, px")
     p.add_argument("--height", type=positive_int("--height"), help="image height, px")
-    p.add_argument("--dt", type=positive_float("--dt"), help="frame period, s")
+    p.add_argument("--dt", type=float_in("--dt", 0.0, MAX_DT), help="frame period, s")
     p.add_argument("--setpoint", choices=SETPOINTS, help="setpoint kind")
-    p.add_argument("--speed-error", type=nonneg_float("--speed-error"), help="m/s bound")
-    p.add_argument("--yaw-rate-error", type=nonneg_float("--yaw-rate-error"), help="rad/s bound")
-    p.add_argument("--compass-error", type=nonneg_float("--compass-error"), help="rad bound")
+    p.add_argument("--speed-error", type=float_in("--speed-error", 0.0, 10.0, lo_open=False),
+                   help="m/s bound")
+    p.add_argument("--yaw-rate-error", type=float_in("--yaw-rate-error", 0.0, 10.0,
+                                                     lo_open=False), help="rad/s bound")
+    p.add_argument("--compass-error", type=float_in("--compass-error", 0.0, math.pi,
+                                                    lo_open=False), help="rad bound")
     p.add_argument("--no-compass", action="store_true", help="leave the compass column empty")
     p.add_argument("--jpg", action="store_true", help="write JPEG images instead of PNG")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -85,6 +100,10 @@ def record(argv: list[str]) -> int:
         from tileviz.sim.source import SimSource
 
         cfg = config_from_args(preset(args.preset), args)
+        tile_px = cfg.floor.tile_size * cfg.camera.ppm
+        if tile_px < MIN_TILE_PX:
+            raise CliError(f"--tile-size x --ppm: a tile must span at least {MIN_TILE_PX:g} "
+                           f"pixels, got {tile_px:g}")
         frames = int(math.floor(args.duration / cfg.sim.dt + 1e-9)) + 1
         out = Path(args.out)
         meta = DatasetMeta.from_config(cfg, name=f"tileviz {args.preset} seed {args.seed}")

@@ -51,19 +51,47 @@ def nonneg_float(name: str) -> Callable[[str], float]:
     return parse
 
 
-def positive_int(name: str) -> Callable[[str], int]:
-    """argparse type: an integer >= 1, the error naming the option."""
+def float_in(name: str, lo: float, hi: float, *, lo_open: bool = True) -> Callable[[str], float]:
+    """argparse type: a finite float in (lo, hi] ([lo, hi] when not ``lo_open``), the error
+    naming the option and the range."""
+    rng = f"{'>' if lo_open else '>='} {lo:g} and <= {hi:g}"
+
+    def parse(text: str) -> float:
+        try:
+            v = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name} must be a number, got {text!r}") from None
+        if not (lo < v <= hi if lo_open else lo <= v <= hi):
+            raise argparse.ArgumentTypeError(
+                f"{name} must be a finite number {rng}, got {text!r}")
+        return v
+
+    return parse
+
+
+def int_at_least(name: str, lo: int) -> Callable[[str], int]:
+    """argparse type: an integer >= ``lo``, the error naming the option."""
 
     def parse(text: str) -> int:
         try:
             v = int(text)
         except ValueError:
             raise argparse.ArgumentTypeError(f"{name} must be an integer, got {text!r}") from None
-        if v < 1:
-            raise argparse.ArgumentTypeError(f"{name} must be >= 1, got {text!r}")
+        if v < lo:
+            raise argparse.ArgumentTypeError(f"{name} must be >= {lo}, got {text!r}")
         return v
 
     return parse
+
+
+def nonneg_int(name: str) -> Callable[[str], int]:
+    """argparse type: an integer >= 0, the error naming the option."""
+    return int_at_least(name, 0)
+
+
+def positive_int(name: str) -> Callable[[str], int]:
+    """argparse type: an integer >= 1, the error naming the option."""
+    return int_at_least(name, 1)
 
 
 def run_cli(prog: str, body: Callable[[], int]) -> int:

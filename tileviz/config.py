@@ -24,6 +24,12 @@ def _check_positive(name: str, value: float) -> None:
         raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
 
 
+def _whole(value: object) -> bool:
+    """Whether ``value`` is a finite number without a fractional part (NaN and inf are not)."""
+    return (isinstance(value, int | float) and not isinstance(value, bool)
+            and math.isfinite(value) and value == int(value))
+
+
 def _check_nonneg(name: str, value: float) -> None:
     if not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
         raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
@@ -80,9 +86,9 @@ class CameraConfig:
 
     def __post_init__(self) -> None:
         _check_positive("ppm", self.ppm)
-        if int(self.width) != self.width or self.width < 16 or self.width > 8192:
+        if not _whole(self.width) or self.width < 16 or self.width > 8192:
             raise ValueError(f"image width must be an integer in [16, 8192], got {self.width!r}")
-        if int(self.height) != self.height or self.height < 16 or self.height > 8192:
+        if not _whole(self.height) or self.height < 16 or self.height > 8192:
             raise ValueError(f"image height must be an integer in [16, 8192], got {self.height!r}")
         for name in ("noise_sigma", "blur_sigma", "vignetting"):
             _check_nonneg(name, getattr(self, name))
@@ -184,9 +190,9 @@ class LocalizerConfig:
             raise ValueError(f"max_slip must be (metres, radians), got {self.max_slip!r}")
         _check_nonneg("max_slip[0]", self.max_slip[0])
         _check_nonneg("max_slip[1]", self.max_slip[1])
-        if int(self.max_boxes) != self.max_boxes or self.max_boxes < 1:
+        if not _whole(self.max_boxes) or self.max_boxes < 1:
             raise ValueError(f"max_boxes must be an integer >= 1, got {self.max_boxes!r}")
-        if int(self.passes) != self.passes or self.passes < 1:
+        if not _whole(self.passes) or self.passes < 1:
             raise ValueError(f"passes must be an integer >= 1, got {self.passes!r}")
         if isinstance(self.slip_window, bool) or not isinstance(self.slip_window, int) or (
                 self.slip_window < 0):

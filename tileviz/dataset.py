@@ -37,6 +37,13 @@ REPLAY_COLUMNS = (
     "index", "t", "status", "x_lo", "x_hi", "y_lo", "y_hi", "theta_lo", "theta_hi", "boxes",
 )
 RESIDUAL_COLUMNS = ("index", "t", "r1", "r2", "r3", "r4", "r5", "r6")
+MAX_MAGNITUDE = 1e9
+"""Largest magnitude of a number in meta.json (the localizer's ``LIMIT``)."""
+MIN_TILE_PX = 4.0
+"""A tile must span at least this many pixels (tile_size * ppm): finer is no floor to see."""
+MAX_PPM = 1e5
+"""Largest ppm (10 micrometres a pixel): beyond it the image stages' kernels (sized in pixels
+from metres) would not fit in memory."""
 FAULTS_FILE = "faults.csv"
 """Optional tileviz extension: ``index,faults`` with ``;``-separated labels of injected faults."""
 
@@ -128,6 +135,8 @@ class DatasetMeta:
             v = d[key]
             if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
                 raise DatasetError(f"{where}: {key} must be a finite number, got {v!r}")
+            if abs(v) > MAX_MAGNITUDE:
+                raise DatasetError(f"{where}: {key} must be within +-{MAX_MAGNITUDE:g}, got {v!r}")
             if positive and v <= 0 or not positive and v < 0:
                 raise DatasetError(f"{where}: {key} must be {'> 0' if positive else '>= 0'}, "
                                    f"got {v!r}")
@@ -143,14 +152,20 @@ class DatasetMeta:
             v = d[key]
             ok = isinstance(v, list) and len(v) == n and all(
                 not isinstance(e, bool) and isinstance(e, int | float) and math.isfinite(e)
-                and (e >= 0 or not nonneg) for e in v
+                and abs(e) <= MAX_MAGNITUDE and (e >= 0 or not nonneg) for e in v
             )
             if not ok:
                 what = "non-negative " if nonneg else ""
-                raise DatasetError(f"{where}: {key} must be a list of {n} finite {what}numbers, "
-                                   f"got {v!r}")
+                raise DatasetError(f"{where}: {key} must be a list of {n} finite {what}numbers "
+                                   f"within +-{MAX_MAGNITUDE:g}, got {v!r}")
             return tuple(float(e) for e in v)
 
+        if number("ppm", positive=True) > MAX_PPM:
+            raise DatasetError(f"{where}: ppm must be <= {MAX_PPM:g}, got {d['ppm']!r}")
+        tile_px = number("tile_size", positive=True) * number("ppm", positive=True)
+        if tile_px < MIN_TILE_PX:
+            raise DatasetError(f"{where}: a tile must span at least {MIN_TILE_PX:g} pixels "
+                               f"(tile_size * ppm), got {tile_px!r}")
         name = d.get("name", "")
         return cls(
             name=str(name),
@@ -208,6 +223,8 @@ def read_meta(folder: str | os.PathLike[str]) -> DatasetMeta:
         text = path.read_text(encoding="utf-8")
     except OSError as e:
         raise DatasetError(f"{path}: cannot read ({e.strerror or e})") from None
+    except UnicodeDecodeError:
+        raise DatasetError(f"{path}: not UTF-8 text") from None
     try:
         d = json.loads(text)
     except json.JSONDecodeError as e:
@@ -319,6 +336,17 @@ class _Row:
     truth: Pose | None
 
 
+def _truncated(data: np.ndarray) -> bool:
+    """Whether a PNG or JPEG file (by its signature) lacks its end marker (IEND chunk, EOI): a
+    cut-off file, which the decoders would half-decode or complain about on stderr."""
+    head = data[:8].tobytes()
+    if head.startswith(b"\x89PNG\r\n\x1a\n"):
+        return data.tobytes().rfind(b"IEND") < 0
+    if head.startswith(b"\xff\xd8"):
+        return data.tobytes().rfind(b"\xff\xd9") < 2
+    return False
+
+
 def _parse_float(text: str, column: str, where: str) -> float:
     try:
         v = float(text)
@@ -326,6 +354,9 @@ def _parse_float(text: str, column: str, where: str) -> float:
         raise DatasetError(f"{where}: {column} is not a number ({text!r})") from None
     if not math.isfinite(v):
         raise DatasetError(f"{where}: {column} is not finite ({text!r})")
+    if abs(v) > MAX_MAGNITUDE:
+        raise DatasetError(f"{where}: {column} is out of range ({text!r}; |value| <= "
+                           f"{MAX_MAGNITUDE:g})")
     return v
 
 
@@ -341,8 +372,11 @@ class DatasetSource:
         self.frames_path = self.folder / "frames.csv"
         if not self.frames_path.is_file():
             raise DatasetError(f"{self.frames_path}: missing")
-        with open(self.frames_path, newline="", encoding="utf-8") as f:
-            header = next(csv.reader(f), None)
+        try:
+            with open(self.frames_path, newline="", encoding="utf-8") as f:
+                header = next(csv.reader(f), None)
+        except UnicodeDecodeError:
+            raise DatasetError(f"{self.frames_path}: not UTF-8 text") from None
         if header is None:
             raise DatasetError(f"{self.frames_path}: empty (no header row)")
         header = [h.strip() for h in header]
@@ -357,17 +391,27 @@ class DatasetSource:
         if not path.is_file():
             return {}
         out: dict[int, tuple[str, ...]] = {}
-        with open(path, newline="", encoding="utf-8") as f:
-            for lineno, cells in enumerate(csv.reader(f), start=1):
-                if lineno == 1 or not cells:
-                    continue
-                try:
-                    out[int(cells[0])] = tuple(x for x in cells[1].split(";") if x)
-                except (ValueError, IndexError):
-                    raise DatasetError(f"{path} row {lineno}: expected 'index,labels'") from None
+        try:
+            with open(path, newline="", encoding="utf-8") as f:
+                for lineno, cells in enumerate(csv.reader(f), start=1):
+                    if lineno == 1 or not cells:
+                        continue
+                    try:
+                        out[int(cells[0])] = tuple(x for x in cells[1].split(";") if x)
+                    except (ValueError, IndexError):
+                        raise DatasetError(
+                            f"{path} row {lineno}: expected 'index,labels'") from None
+        except UnicodeDecodeError:
+            raise DatasetError(f"{path}: not UTF-8 text") from None
         return out
 
     def _rows(self) -> Iterator[_Row]:
+        try:
+            yield from self._parse_rows()
+        except UnicodeDecodeError:
+            raise DatasetError(f"{self.frames_path}: not UTF-8 text") from None
+
+    def _parse_rows(self) -> Iterator[_Row]:
         with open(self.frames_path, newline="", encoding="utf-8") as f:
             reader = csv.reader(f)
             next(reader)
@@ -416,6 +460,8 @@ class DatasetSource:
         if not path.is_file():
             raise DatasetError(f"{where}: image {name!r} is missing")
         data = np.fromfile(path, dtype=np.uint8)
+        if _truncated(data):
+            raise DatasetError(f"{where}: image {name!r} is truncated (no end marker)")
         image = cv2.imdecode(data, cv2.IMREAD_COLOR) if data.size else None
         if image is None:
             raise DatasetError(f"{where}: image {name!r} is not a readable PNG/JPEG")
@@ -426,24 +472,36 @@ class DatasetSource:
         return image[:, :, ::-1]
 
     def __iter__(self) -> Iterator[FrameInput]:
+        """The frames in order. A bad row raises DatasetError naming it, after every frame
+        before it was delivered (the one just before it without odometry, as a last frame)."""
         rows = self._rows()
         current = next(rows, None)
         while current is not None:
-            nxt = next(rows, None)
-            dt = (nxt.t - current.t) if nxt is not None else self.meta.dt
+            try:
+                nxt = next(rows, None)
+            except DatasetError:
+                where = f"{self.frames_path} row {current.line}"
+                yield self._frame(current, None, self.load_image(current.image, where))
+                raise
             where = f"{self.frames_path} row {current.line}"
             image = self.load_image(current.image, where)
-            yield FrameInput(
-                index=current.index,
-                t=current.t,
-                image=np.ascontiguousarray(image),
-                odometry=Odometry(current.speed, current.yaw_rate, dt) if nxt is not None else None,
-                compass=current.compass,
-                truth=current.truth,
-                image_name=current.image,
-                faults=self.faults.get(current.index, ()),
-            )
+            odometry = None
+            if nxt is not None:
+                odometry = Odometry(current.speed, current.yaw_rate, nxt.t - current.t)
+            yield self._frame(current, odometry, image)
             current = nxt
+
+    def _frame(self, row: _Row, odometry: Odometry | None, image: np.ndarray) -> FrameInput:
+        return FrameInput(
+            index=row.index,
+            t=row.t,
+            image=np.ascontiguousarray(image),
+            odometry=odometry,
+            compass=row.compass,
+            truth=row.truth,
+            image_name=row.image,
+            faults=self.faults.get(row.index, ()),
+        )
 
 
 class CsvOut:

@@ -200,9 +200,22 @@ class LocalizerStep:
 # --- validation ---------------------------------------------------------------------------------
 
 
+LIMIT = 1e9
+"""Largest magnitude of any input number and of any bound of the set (metres, radians, m/s,
+rad/s, seconds). Beyond it the lattice arithmetic would need more than float64's 52 bits to tell
+one tile (or one turn) from the next; no real robot comes near it. Inputs past it raise
+ValueError, and so does a prediction that would leave it."""
+MIN_TILE = 1e-4
+"""Smallest tile size L, metres (with LIMIT: at most 1e13 tiles across the representable floor)."""
+_TURN = _nextafter(TWO_PI + 2.0 * TWO_PI_ERROR, _INF)
+"""A heading interval wider than this holds every heading: it is cut to one turn."""
+
+
 def _finite(name: str, v: object) -> float:
     if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
         raise ValueError(f"{name} must be a finite number, got {v!r}")
+    if not -LIMIT <= v <= LIMIT:
+        raise ValueError(f"{name} must be within +-{LIMIT:g}, got {v!r}")
     return float(v)
 
 
@@ -213,14 +226,11 @@ def _nonneg(name: str, v: object) -> float:
     return f
 
 
-_isfinite = math.isfinite
-
-
 def _all_finite(*values: object) -> bool:
-    """True when every value is a finite number (False for NaN, inf and non-numbers)."""
+    """True when every value is a number within +-LIMIT (False for NaN, inf, non-numbers)."""
     try:
         for v in values:
-            if not _isfinite(v):  # type: ignore[arg-type]
+            if not -LIMIT <= v <= LIMIT:  # type: ignore[operator]
                 return False
     except TypeError:
         return False
@@ -235,7 +245,31 @@ def _check_box(name: str, box: Box) -> Tuple6:
     for axis, (lo, hi) in zip("xyt", (t[0:2], t[2:4], t[4:6]), strict=True):
         if lo > hi:
             raise ValueError(f"{name} is empty: {axis}_lo = {lo} > {axis}_hi = {hi}")
-    return t  # type: ignore[return-value]
+    return _one_turn(t)  # type: ignore[arg-type]
+
+
+def _one_turn(b: Tuple6) -> Tuple6:
+    """``b`` with a heading interval wider than a turn cut to one turn from its low end (the
+    same poses, heading modulo 2 pi)."""
+    if b[5] - b[4] <= _TURN:
+        return b
+    return (b[0], b[1], b[2], b[3], b[4],
+            _nextafter(_nextafter(b[4] + TWO_PI, _INF) + TWO_PI_ERROR, _INF))
+
+
+def _in_range(boxes: list[Tuple6]) -> list[Tuple6]:
+    """The boxes, headings cut to one turn; ValueError when a bound leaves +-LIMIT."""
+    out = boxes
+    for i, b in enumerate(boxes):
+        if not (-LIMIT <= b[0] and b[1] <= LIMIT and -LIMIT <= b[2] and b[3] <= LIMIT
+                and -LIMIT <= b[4] and b[5] <= LIMIT):
+            raise ValueError(f"the set left +-{LIMIT:g} (m, rad): {b}; the odometry or the "
+                             f"bounds are too large")
+        if b[5] - b[4] > _TURN:
+            if out is boxes:
+                out = list(boxes)
+            out[i] = _one_turn(b)
+    return out
 
 
 # --- building blocks on 6-tuples ----------------------------------------------------------------
@@ -672,8 +706,8 @@ class Localizer:
         initial: Box,
     ) -> None:
         self._L = _finite("tile_size", tile_size)
-        if self._L <= 0:
-            raise ValueError(f"tile_size must be > 0, got {tile_size!r}")
+        if self._L < MIN_TILE:
+            raise ValueError(f"tile_size must be >= {MIN_TILE:g} m, got {tile_size!r}")
         if len(camera_offset) != 2:
             raise ValueError(f"camera_offset must be (forward, left), got {camera_offset!r}")
         off = (
@@ -767,13 +801,13 @@ class Localizer:
         if mode == "truth":
             ix, iy, it = self._inflation
             n = _nextafter
-            boxes = [(n(tx - ix, -_INF), n(tx + ix, _INF), n(ty - iy, -_INF), n(ty + iy, _INF),
-                      n(tt - it, -_INF), n(tt + it, _INF))]
+            boxes = _in_range([(n(tx - ix, -_INF), n(tx + ix, _INF), n(ty - iy, -_INF),
+                                n(ty + iy, _INF), n(tt - it, -_INF), n(tt + it, _INF))])
         elif odometry is not None:
             n = _nextafter
             v_lo, v_hi = n(v - self._ev, -_INF), n(v + self._ev, _INF)
             w_lo, w_hi = n(w - self._ew, -_INF), n(w + self._ew, _INF)
-            boxes = [predict_box(b, v_lo, v_hi, w_lo, w_hi, dt) for b in self._boxes]
+            boxes = _in_range([predict_box(b, v_lo, v_hi, w_lo, w_hi, dt) for b in self._boxes])
             boxes, h = _tidy(boxes, cap)
             hulled = hulled or h
         else:
@@ -884,7 +918,7 @@ class Localizer:
         cfg = self._cfg
         cap = cfg.max_boxes
         d, dt = self._slip
-        grown, hulled = _tidy([inflate_box(b, d, dt) for b in raw], cap)
+        grown, hulled = _tidy([_one_turn(inflate_box(b, d, dt)) for b in raw], cap)
         if compass is not None:
             cut = self._compass_cut(grown, compass)
             if cut:

@@ -8,6 +8,7 @@ from frame k-1 to frame k) to predict, then the compass and image of frame k to 
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -70,6 +71,14 @@ class FrameRecord:
         if self.truth is None or self.status == "lost":
             return None
         return self.updated.contains(*self.truth.as_tuple())
+
+
+def _finite(v: object) -> bool:
+    """Whether ``v`` is a finite real number."""
+    try:
+        return math.isfinite(v)  # type: ignore[arg-type]
+    except TypeError:
+        return False
 
 
 def initial_box(cfg: Config, pose: tuple[float, float, float] | None = None,
@@ -143,7 +152,14 @@ class Runner:
             self.localizer = self._make_localizer(hull if hull is not None else initial_box(cfg))
 
     def process(self, frame: FrameInput) -> FrameRecord:
-        """Run one frame: predict with the previous frame's odometry, contract with this image."""
+        """Run one frame: predict with the previous frame's odometry, contract with this image.
+        Bad numbers raise ValueError naming the frame (this frame's odometry is checked now,
+        though the localizer only uses it on the next frame)."""
+        odo = frame.odometry
+        if odo is not None and not (_finite(odo.speed) and _finite(odo.yaw_rate)
+                                    and _finite(odo.dt) and odo.dt >= 0):
+            raise ValueError(f"frame {frame.index}: odometry must hold finite numbers "
+                             f"(dt >= 0), got {odo}")
         t0 = time.perf_counter()
         vision = extract(
             frame.image,
