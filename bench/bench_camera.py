@@ -9,10 +9,8 @@ the floor's appearance is computed once per renderer (its time is printed too).
 
 from __future__ import annotations
 
-import argparse
 import statistics
 import sys
-import time
 from dataclasses import replace
 from pathlib import Path
 
@@ -25,22 +23,12 @@ from tileviz.config import preset  # noqa: E402
 from tileviz.sim.camera import Fault, FloorRenderer  # noqa: E402
 from tileviz.types import Pose  # noqa: E402
 
-clock = time.perf_counter
-"""The clock every figure is read from (``--clock``)."""
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import bench_vision  # noqa: E402  (its option parsing and clock)
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--frames", type=int, default=200)
-    ap.add_argument("--clock", choices=("wall", "cpu"), default="wall",
-                    help="wall: time.perf_counter; cpu: this thread's CPU time "
-                    "(time.thread_time) with OpenCV on one thread, which a busy shared machine "
-                    "does not inflate")
-    args = ap.parse_args(argv)
-    global clock
-    if args.clock == "cpu":
-        clock = time.thread_time
-        cv2.setNumThreads(1)
+    args = bench_vision.parse(__doc__, argv)
     cfg = preset("default")
     print(f"OpenCV {cv2.__version__}, {cv2.getNumThreads()} threads, {args.clock} clock; "
           f"{args.frames} frames per case; medians in ms")
@@ -54,16 +42,16 @@ def main(argv: list[str] | None = None) -> int:
             "motion blur fault": (base, [Fault("motion_blur")]),
         }
         for name, (cam, faults) in cases.items():
-            t0 = clock()
+            t0 = bench_vision.clock()
             r = FloorRenderer(cfg.floor, cam)
-            init = (clock() - t0) * 1e3
+            init = (bench_vision.clock() - t0) * 1e3
             rng = np.random.default_rng(1)
             times = []
             for _ in range(args.frames):
                 pose = Pose(rng.uniform(-5, 5), rng.uniform(-5, 5), rng.uniform(-4, 4))
-                t0 = clock()
+                t0 = bench_vision.clock()
                 r.render(pose, rng, faults=faults)
-                times.append((clock() - t0) * 1e3)
+                times.append((bench_vision.clock() - t0) * 1e3)
             print(f"{w}x{h} {name:<18} {statistics.median(times):6.3f} ms/frame "
                   f"(renderer init {init:.0f} ms)")
     return 0

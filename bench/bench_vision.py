@@ -91,20 +91,29 @@ def compare(imgs: list[np.ndarray], cam: CameraConfig, tile_size: float,
     return med(ours), med(bare)
 
 
-def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def parse(doc: str, argv: list[str] | None, threads: bool = False) -> argparse.Namespace:
+    """The options shared by the benchmarks (``--frames``, ``--clock``), applied: with
+    ``--clock cpu`` this module's ``clock`` becomes the thread's CPU time and OpenCV runs on
+    this thread alone."""
+    ap = argparse.ArgumentParser(description=doc.splitlines()[0])
     ap.add_argument("--frames", type=int, default=200)
     ap.add_argument("--clock", choices=("wall", "cpu"), default="wall",
                     help="wall: time.perf_counter; cpu: this thread's CPU time "
                     "(time.thread_time) with OpenCV on one thread, which a busy shared machine "
                     "does not inflate")
-    ap.add_argument("--threads", type=int, default=None, help="cv2.setNumThreads (default: "
-                    "OpenCV's choice)")
+    if threads:
+        ap.add_argument("--threads", type=int, default=None,
+                        help="cv2.setNumThreads (default: OpenCV's choice)")
     args = ap.parse_args(argv)
     global clock
     if args.clock == "cpu":
         clock = time.thread_time
         cv2.setNumThreads(1)
+    return args
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse(__doc__, argv, threads=True)
     if args.threads is not None:
         cv2.setNumThreads(args.threads)
     print(f"OpenCV {cv2.__version__}, {cv2.getNumThreads()} threads, {args.clock} clock; "
