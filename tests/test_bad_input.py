@@ -410,6 +410,22 @@ def test_localizer_config_that_is_not_finite(config: dict, needle: str) -> None:
         LocalizerConfig(**config)
 
 
+def test_the_magnitude_limit_is_where_it_says() -> None:
+    loc = _localizer()
+    assert loc.step(None, LIMIT, None).status == "predicted"
+    with pytest.raises(ValueError, match="compass"):
+        loc.step(None, math.nextafter(LIMIT, math.inf), None)
+
+
+def test_a_heading_wider_than_a_turn_is_one_turn() -> None:
+    # every heading: 1e6 rad of it would be 160 000 compass pieces; one turn says the same
+    loc = _localizer(initial=Box(-0.1, 0.1, -0.1, 0.1, -1e6, 1e6))
+    assert loc.current.boxes[0].widths[2] == pytest.approx(2 * math.pi)
+    step = loc.step(Odometry(0.1, 0.0, 0.05), 0.3, None)
+    assert step.updated.contains(0.0, 0.0, 0.3 + 2 * math.pi * 7)
+    assert step.updated.hull().widths[2] < 0.05
+
+
 def test_a_prediction_that_leaves_the_representable_range_is_refused() -> None:
     loc = _localizer()
     before = loc.current

@@ -230,7 +230,7 @@ def _all_finite(*values: object) -> bool:
     """True when every value is a number within +-LIMIT (False for NaN, inf, non-numbers)."""
     try:
         for v in values:
-            if not -LIMIT <= v <= LIMIT:  # type: ignore[operator]
+            if not -1e9 <= v <= 1e9:  # LIMIT, as literals: this runs on every step
                 return False
     except TypeError:
         return False
@@ -807,7 +807,12 @@ class Localizer:
             n = _nextafter
             v_lo, v_hi = n(v - self._ev, -_INF), n(v + self._ev, _INF)
             w_lo, w_hi = n(w - self._ew, -_INF), n(w + self._ew, _INF)
-            boxes = _in_range([predict_box(b, v_lo, v_hi, w_lo, w_hi, dt) for b in self._boxes])
+            boxes = [predict_box(b, v_lo, v_hi, w_lo, w_hi, dt) for b in self._boxes]
+            for b in boxes:
+                if not (-1e9 <= b[0] and b[1] <= 1e9 and -1e9 <= b[2] and b[3] <= 1e9
+                        and -1e9 <= b[4] and b[5] <= 1e9 and b[5] - b[4] <= _TURN):
+                    boxes = _in_range(boxes)  # raises, or cuts a heading to one turn
+                    break
             boxes, h = _tidy(boxes, cap)
             hulled = hulled or h
         else:
@@ -821,7 +826,9 @@ class Localizer:
         if following:
             self._window -= 1
         if compass is not None:
-            cut = self._compass_cut(boxes, compass)
+            c_lo = _nextafter(compass - self._ec, -_INF)
+            c_hi = _nextafter(compass + self._ec, _INF)
+            cut = [p for b in boxes for p in compass_pieces(b, c_lo, c_hi)]
             if cut:
                 boxes, h = _tidy(cut, cap)
                 hulled = hulled or h
