@@ -139,6 +139,9 @@ def images(tmp_path_factory: pytest.TempPathFactory) -> Path:
         (["tiny.png"], "image width must be an integer in [16, 8192], got 1"),
         (["huge.png"], "image width must be an integer in [16, 8192], got 9000"),
         (["constant.png", "--stages", "afile"], "--stages: cannot create afile"),
+        # absurd scales used to hang the robust extractor (or eat gigabytes): now refused at once
+        (["constant.png", "--ppm", "1e-290"], "a tile must span 4 to 100000 pixels"),
+        (["constant.png", "--ppm", "1e9"], "a tile must span 4 to 100000 pixels"),
     ],
 )
 def test_extract_bad_options_and_images(args: list[str], needle: str, images: Path) -> None:

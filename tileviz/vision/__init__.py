@@ -27,6 +27,11 @@ from tileviz.vision.geometry import observation_error
 from tileviz.vision.result import REASONS, VisionResult
 from tileviz.vision.robust import extract_robust
 
+MIN_TILE_PX = 4.0
+"""Smallest tile period in pixels (tile_size * ppm) there is a floor to see in."""
+MAX_TILE_PX = 1e5
+"""Largest tile period in pixels: beyond it the image is far smaller than a tile."""
+
 __all__ = ["REASONS", "VisionResult", "extract", "observation_error", "to_gray"]
 
 
@@ -75,6 +80,12 @@ def extract(
         or tile_size <= 0
     ):
         raise ValueError(f"tile_size must be a finite number > 0, got {tile_size!r}")
+    tile_px = tile_size * camera.ppm
+    if not MIN_TILE_PX <= tile_px <= MAX_TILE_PX:
+        raise ValueError(
+            f"a tile must span {MIN_TILE_PX:g} to {MAX_TILE_PX:g} pixels (tile_size * ppm), "
+            f"got {tile_px:g}"
+        )
     t0 = time.perf_counter()
     gray = to_gray(image)
     if gray.shape != (camera.height, camera.width):
