@@ -542,8 +542,9 @@ def plot_coverage(rows: Sequence[dict[str, Any]], path: Path) -> None:
     ax.axhline(95.0, color="gray", lw=0.8, ls=":")
     ax.set_ylabel("truth inside the reported set, %")
     ax.set_ylim(0, 105)
-    ax.set_title("Containment (interval: over vouched frames; MCL: 95 % ellipse)")
-    ax.legend(fontsize=7, loc="lower left", ncols=2)
+    ax.set_title("Containment (interval: over vouched frames; MCL: 95 % ellipse)", pad=28)
+    ax.legend(fontsize=7, loc="lower center", bbox_to_anchor=(0.5, 1.0), ncols=5,
+              frameon=False)
     ax2.set_ylabel("vouched (not lost), %", fontsize=8)
     ax2.set_ylim(0, 105)
     ax2.set_xticks(x, scns)
