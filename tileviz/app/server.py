@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import queue
 import signal
 import sys
@@ -418,6 +419,12 @@ def options_from_args(args: argparse.Namespace) -> SessionOptions:
                           max_speed=args.max_speed, mcl=args.mcl, mcl_particles=args.particles)
 
 
+def _force_exit() -> None:
+    """Leave the process when a clean stop hangs (the session's files are closed first)."""
+    print("tileviz serve: stopped (the web server did not shut down within 20 s)", flush=True)
+    os._exit(0)
+
+
 def main(command: str = "serve", argv: list[str] | None = None) -> int:
     """Entry for ``python -m tileviz serve`` and ``serve.py``: runs until Ctrl-C."""
     args = parser().parse_args(sys.argv[1:] if argv is None else argv)
@@ -443,7 +450,13 @@ def main(command: str = "serve", argv: list[str] | None = None) -> int:
             pass
         finally:
             signal.signal(signal.SIGTERM, previous)
+            # a watchdog: once the files are closed, a server that does not shut down in time
+            # (seen once in CI-like runs, not reproduced) must not keep the terminal
+            watchdog = threading.Timer(20.0, _force_exit)
+            watchdog.daemon = True
+            watchdog.start()
             app.stop()
+            watchdog.cancel()
         print("tileviz serve: stopped", flush=True)
         return 0
 
