@@ -253,6 +253,11 @@ def test_any_image_gives_a_result_never_an_exception(
     else:
         img = np.full((h, w, 3), data.draw(st.integers(0, 255)), np.uint8)
     cam = CameraConfig(ppm=ppm, width=w, height=h)
+    if not 4.0 <= ppm * tile <= 1e5:
+        # a tile period outside 4..1e5 px is a bad argument, named at once
+        with pytest.raises(ValueError, match="a tile must span"):
+            extract(img, camera=cam, tile_size=tile, vision=_vision("robust"))
+        return
     for ext in EXTRACTORS:
         res = extract(img, camera=cam, tile_size=tile, vision=_vision(ext), keep_stages=True)
         assert res.reason in REASONS

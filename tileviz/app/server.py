@@ -441,6 +441,9 @@ def main(command: str = "serve", argv: list[str] | None = None) -> int:
             stopping.set()
 
         previous = signal.signal(signal.SIGTERM, on_term)
+        # Ctrl-C by the same path: a process started with SIGINT ignored (a background job)
+        # would otherwise never see KeyboardInterrupt
+        previous_int = signal.signal(signal.SIGINT, on_term)
         try:
             app.start()
             print(f"tileviz serve: open {app.url}  (Ctrl-C stops)", flush=True)
@@ -450,6 +453,7 @@ def main(command: str = "serve", argv: list[str] | None = None) -> int:
             pass
         finally:
             signal.signal(signal.SIGTERM, previous)
+            signal.signal(signal.SIGINT, previous_int)
             # a watchdog: once the files are closed, a server that does not shut down in time
             # (seen once in CI-like runs, not reproduced) must not keep the terminal
             watchdog = threading.Timer(20.0, _force_exit)
