@@ -19,6 +19,17 @@ MODES = ("autonomous", "truth", "odometry")
 SETPOINTS = ("lissajous", "manual", "waypoints")
 
 
+def finite_number(name: str, value: object) -> float:
+    """``value`` as a float; ValueError naming ``name`` when it is not a finite number."""
+    try:
+        v = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a number, got {value!r}") from None
+    if not math.isfinite(v):
+        raise ValueError(f"{name} must be finite, got {value!r}")
+    return v
+
+
 def _check_positive(name: str, value: float) -> None:
     if not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
         raise ValueError(f"{name} must be a finite number > 0, got {value!r}")

@@ -12,7 +12,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from tileviz.config import EXTRACTORS, MODES, SETPOINTS
+from tileviz.config import EXTRACTORS, MODES, SETPOINTS, finite_number
 
 __all__ = [
     "LAYERS", "Command", "Inject", "Kidnap", "Live", "Pause", "Play", "Relocalize", "Report",
@@ -32,18 +32,8 @@ MAX_SPEED_FACTOR = 50.0
 """Upper bound of the playback speed, a multiple of real time."""
 
 
-def _finite(name: str, value: object) -> float:
-    try:
-        v = float(value)  # type: ignore[arg-type]
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a number, got {value!r}") from None
-    if not math.isfinite(v):
-        raise ValueError(f"{name} must be finite, got {value!r}")
-    return v
-
-
 def _in_range(name: str, value: object, lo: float, hi: float) -> float:
-    v = _finite(name, value)
+    v = finite_number(name, value)
     if not lo <= v <= hi:
         raise ValueError(f"{name} must be in [{lo:g}, {hi:g}], got {v:g}")
     return v
@@ -86,7 +76,7 @@ class Seek:
     index: int
 
     def __post_init__(self) -> None:
-        v = _finite("frame index", self.index)
+        v = finite_number("frame index", self.index)
         if v != int(v):
             raise ValueError(f"frame index must be an integer, got {self.index!r}")
         object.__setattr__(self, "index", int(v))
@@ -157,8 +147,8 @@ def parse_waypoints(text: str) -> tuple[tuple[float, float], ...]:
         parts = [s for s in piece.replace(",", " ").split() if s]
         if len(parts) != 2:
             raise ValueError(f"waypoint {i}: expected 'x, y', got {piece.strip()!r}")
-        x = _finite(f"waypoint {i} x", parts[0])
-        y = _finite(f"waypoint {i} y", parts[1])
+        x = finite_number(f"waypoint {i} x", parts[0])
+        y = finite_number(f"waypoint {i} y", parts[1])
         points.append((x, y))
     if not points:
         raise ValueError("waypoints must hold at least one point ('x, y; x, y; ...')")

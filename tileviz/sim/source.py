@@ -18,14 +18,13 @@ image noise and the faults. The same seed and the same commands give the same fr
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any, Protocol
 
 import numpy as np
 
-from tileviz.config import Config, NoiseConfig
+from tileviz.config import Config, NoiseConfig, finite_number
 from tileviz.sim.controller import Controller, Gains
 from tileviz.sim.sensors import OdometryFault, Sensors
 from tileviz.sim.setpoints import Lissajous, ManualTarget, Setpoint, Waypoints
@@ -63,16 +62,6 @@ class ActiveFault:
     kind: str
     remaining: int
     params: dict[str, Any] = field(default_factory=dict)
-
-
-def _check_finite(name: str, value: object) -> float:
-    try:
-        v = float(value)  # type: ignore[arg-type]
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a number, got {value!r}") from None
-    if not math.isfinite(v):
-        raise ValueError(f"{name} must be finite, got {value!r}")
-    return v
 
 
 class SimSource:
@@ -208,12 +197,12 @@ class SimSource:
             spec: tuple[str, Any] = ("lissajous", None)
         elif kind == "manual":
             tx, ty = target if target is not None else self.cfg.sim.manual_target
-            spec = ("manual", (_check_finite("manual target x", tx),
-                               _check_finite("manual target y", ty)))
+            spec = ("manual", (finite_number("manual target x", tx),
+                               finite_number("manual target y", ty)))
         elif kind == "waypoints":
             pts = waypoints if waypoints is not None else self.cfg.sim.waypoints
             spec = ("waypoints", tuple(
-                (_check_finite(f"waypoint {i} x", p[0]), _check_finite(f"waypoint {i} y", p[1]))
+                (finite_number(f"waypoint {i} x", p[0]), finite_number(f"waypoint {i} y", p[1]))
                 for i, p in enumerate(pts)))
             if not spec[1]:
                 raise ValueError("waypoints must hold at least one point")
@@ -233,8 +222,8 @@ class SimSource:
 
     def kidnap(self, x: float, y: float, theta: float) -> None:
         """Teleport the robot to (x, y, theta) (m, m, rad) at rest; the sensors are not told."""
-        pose = Pose(_check_finite("kidnap x", x), _check_finite("kidnap y", y),
-                    _check_finite("kidnap theta", theta))
+        pose = Pose(finite_number("kidnap x", x), finite_number("kidnap y", y),
+                    finite_number("kidnap theta", theta))
         self.world.teleport(pose)
         self.controller.reset()
         self._labels.append("kidnap")
@@ -292,7 +281,7 @@ class SimSource:
         for name, v in params.items():
             if name not in values:
                 raise ValueError(f"unknown parameter {name!r} for fault {kind!r}")
-            values[name] = _check_finite(f"{kind} {name}", v)
+            values[name] = finite_number(f"{kind} {name}", v)
             if values[name] < 0:
                 raise ValueError(f"{kind} {name} must be >= 0, got {v!r}")
         self.faults.append(ActiveFault(kind, int(n), values))
