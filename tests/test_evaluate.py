@@ -1,5 +1,5 @@
 """``python -m tileviz evaluate``: a tiny end-to-end run, the metric definitions, determinism,
-fault scenarios, one-line errors."""
+fault scenarios, detection delay and recovery time, one-line errors."""
 
 from __future__ import annotations
 
@@ -52,7 +52,7 @@ def test_tiny_run_writes_the_tables_and_plots(tmp_path, capsys):
 
     run_header, run_rows = read_csv(out / "runs.csv")
     assert run_header[:4] == ["scenario", "method", "run", "seed"]
-    assert len(run_rows) == 8
+    assert len(run_rows) == 2 * len(ev.METHODS)
 
     md = (out / "results.md").read_text()
     assert "| scenario | method |" in md
@@ -80,7 +80,7 @@ def test_parallel_workers_give_the_serial_results():
     kw = dict(runs=2, duration=0.5, seed=7, particles=200, progress=False)
     serial = ev.aggregate(ev.evaluate(["clean", "slip"], jobs=1, **kw))
     parallel = ev.aggregate(ev.evaluate(["clean", "slip"], jobs=2, **kw))
-    assert len(serial) == len(parallel) == 8
+    assert len(serial) == len(parallel) == 2 * len(ev.METHODS)
     for s, p in zip(serial, parallel, strict=True):
         for col in ev.COLUMNS:
             if col != "cpu_us_per_frame":
@@ -131,10 +131,13 @@ def test_metric_definitions():
     assert mcl["rejected_frames"] is None and mcl["lost_frames"] is None
     table = ev.markdown_table(ev.aggregate([_hand_made()]))
     # percentages are rounded down: 2/3 reads 66.66, never more than what was measured
-    assert "| clean | interval (autonomous) | 75.00 | 75.00 | 66.66 | 4.00 / 4.00 |" in table
+    # one false vouch: the rejected frame 1 vouched for a set without the truth
+    assert iv["false_vouches"] == 1 and mcl["false_vouches"] is None
+    assert "| clean | interval (autonomous) | 75.00 | 75.00 | 66.66 | 1 | 4.00 / 4.00 |" in table
     lines = ev.figures(ev.aggregate([_hand_made()]))
     assert "No scenario" in lines[0]  # one frame broke its bounds
-    assert "1.0x" in lines[1] and "NOT reached" in lines[1]
+    assert "false vouches" in lines[1] and "1 with recovery off, 1 with recovery on" in lines[1]
+    assert "1.0x" in lines[2] and "NOT reached" in lines[2]
 
 
 @pytest.mark.parametrize(
@@ -214,3 +217,121 @@ def test_out_that_is_a_file_is_refused(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "not a folder" in err
     assert f.read_text() == "keep me"
+
+
+# --------------------------------------------------------------------------------- fault events
+
+
+def test_fault_events_are_runs_of_faulty_frames():
+    faulty = np.zeros(12, bool)
+    faulty[[2, 3, 4, 7, 11]] = True
+    assert ev.fault_events(faulty) == [(2, 4), (7, 7), (11, 11)]
+    assert ev.fault_events(np.zeros(5, bool)) == []
+
+
+def test_event_outcomes_definitions():
+    n = 20
+    faulty = np.zeros(n, bool)
+    faulty[[3, 4, 12]] = True  # events (3, 4) and (12, 12)
+    alarm = np.zeros(n, bool)
+    alarm[5] = True  # 2 frames after the first event's start
+    alarm[15] = True  # the second event's only alarm
+    vouched = np.ones(n, bool)
+    vouched[16:] = False  # lost from frame 16 on
+    inside = np.ones(n, bool)
+    inside[4:7] = False  # back at frame 7: 3 frames after the first event's end
+    inside[12:] = False
+    in_bounds = np.ones(n, bool)
+    in_bounds[13] = False  # the frame after the second event (its odometry is used there)
+    first, second = ev.event_outcomes(faulty, alarm, vouched, inside, in_bounds)
+    assert (first.start, first.end, first.detection, first.recovery) == (3, 4, 2, 3)
+    assert first.harmless
+    # the second event: noticed 3 frames on, never back (lost, the truth outside)
+    assert (second.start, second.end, second.detection, second.recovery) == (12, 12, 3, None)
+    assert not second.harmless
+    # an alarm only after the next event started belongs to that event
+    alarm[5] = False
+    first, _ = ev.event_outcomes(faulty, alarm, vouched, inside, in_bounds)
+    assert first.detection is None
+
+
+def test_noticed_per_mode():
+    assert ev.noticed("contracted", False, True) is False
+    assert ev.noticed("predicted", False, False)  # vision refused the frame
+    assert ev.noticed("rejected", False, True) and ev.noticed("lost", False, True)
+    assert ev.noticed("contracted", True, True)  # the compass missed the set
+    # odometry mode ignores views: a refused frame is nothing it noticed
+    assert not ev.noticed("predicted", False, False, mode="odometry")
+    assert ev.noticed("predicted", True, True, mode="odometry")
+
+
+def _row(rows, method):
+    return next(r for r in rows if r["method"] == method)
+
+
+def test_dropout_is_detected_at_once_and_recovered_the_frame_after():
+    # 9 s = 180 frames: black frames 60..99 and 120..159
+    res = ev.run_one(ev.Task("dropout", 0, 2, 9.0, particles=100))
+    assert ev.fault_events(res.fault) == [(60, 99), (120, 159)]
+    rows = ev.aggregate([res])
+    for m in ("interval", "interval-recovery", "interval-truth"):
+        r = _row(rows, m)
+        assert r["fault_events"] == 2
+        assert (r["detection_median_frames"], r["detection_max_frames"]) == (0.0, 0)
+        assert (r["recovery_median_frames"], r["recovery_max_frames"]) == (1.0, 1)
+        assert r["undetected_events"] == 0 and r["unrecovered_events"] == 0
+        assert r["false_vouches"] == 0
+    # odometry alone never looks at the camera: nothing to notice, nothing that needed noticing
+    odo = _row(rows, "odometry")
+    assert odo["undetected_events"] == odo["undetected_harmless_events"] == 2
+    assert _row(rows, "mcl")["fault_events"] is None
+    table = ev.markdown_table(rows)
+    line = next(t for t in table.splitlines() if "| interval (autonomous) |" in t)
+    assert " | 0 / 0 | 0 of 2 | 1 / 1 | 0 of 2 | " in line
+
+
+def test_kidnap_is_detected_at_once_and_never_recovered():
+    # 4 s = 80 frames, the teleport (beyond max_slip) at frame 40
+    res = ev.run_one(ev.Task("kidnap", 0, 1, 4.0, particles=100))
+    rows = ev.aggregate([res])
+    for m in ("interval", "interval-recovery"):
+        r = _row(rows, m)
+        assert r["fault_events"] == 1
+        assert r["detection_max_frames"] == 0
+        assert r["unrecovered_events"] == 1 and math.isnan(r["recovery_median_frames"])
+        # rejected frames vouch for the stale set until max_rejections (20) make it lost
+        tr = res.methods[m]
+        assert (tr.status[60:] == ev.STATUS_CODES["lost"]).all()
+        assert r["false_vouches"] == int(((tr.status != ev.STATUS_CODES["lost"])
+                                          & ~tr.inside).sum()) > 0
+    table = ev.markdown_table(rows)
+    line = next(t for t in table.splitlines() if "| interval (autonomous) |" in t)
+    assert " | 0 / 0 | 0 of 1 | — | 1 of 1 | " in line
+
+
+def test_slip_is_recovered_with_recovery_on_only():
+    # 6 s = 120 frames, slip on frames 40..79 (beyond the odometry bound)
+    res = ev.run_one(ev.Task("slip", 0, 1, 6.0, particles=100))
+    assert ev.fault_events(res.fault) == [(40, 79)]
+    rows = ev.aggregate([res])
+    off, on = _row(rows, "interval"), _row(rows, "interval-recovery")
+    # the slip goes unnoticed for a few frames, with either setting
+    assert 1 <= off["detection_max_frames"] == on["detection_max_frames"] <= 10
+    assert off["unrecovered_events"] == 1 and off["lost_frames"] > 0
+    assert on["unrecovered_events"] == 0 and on["lost_frames"] == 0
+    assert on["recovery_max_frames"] >= 1
+    # recovery on vouches wrongly only while the slip is unnoticed; off until it is lost
+    assert 0 < on["false_vouches"] < off["false_vouches"]
+
+
+def test_clean_scenario_has_no_fault_figures():
+    res = ev.run_one(ev.Task("clean", 0, 1, 1.0, particles=100))
+    rows = ev.aggregate([res])
+    for r in rows:
+        for col in ev.FAULT_COLUMNS:
+            assert r[col] is None
+        if r["method"] != "mcl":
+            assert r["false_vouches"] == 0
+    table = ev.markdown_table(rows)
+    line = next(t for t in table.splitlines() if "| interval (autonomous) |" in t)
+    assert " | — | — | — | — | " in line

@@ -3,9 +3,12 @@
 For every scenario (:data:`SCENARIOS`) and every run r (simulator seed ``--seed`` + r), one
 simulated run of ``--duration`` seconds is made: the simulator
 (:class:`tileviz.sim.source.SimSource`, faults injected through its ``inject``/``kidnap`` commands),
-then vision *once* per frame, then the same inputs go to four methods (:data:`METHODS`):
+then vision *once* per frame, then the same inputs go to five methods (:data:`METHODS`):
 
-- ``interval``: the interval localizer, mode ``autonomous`` (only the initial box is known);
+- ``interval``: the interval localizer, mode ``autonomous`` (only the initial box is known),
+  recovery off (``LocalizerConfig.max_slip = (0, 0)``, the default);
+- ``interval-recovery``: the same with recovery on: ``max_slip`` from :data:`RECOVERY_MAX_SLIP`
+  for the scenario's preset (as ``bench/faults.py``), ``slip_window`` at its default;
 - ``interval-truth``: mode ``truth`` (report 7.1: reset every frame to the inflated truth);
 - ``odometry``: mode ``odometry`` (prediction and compass only, report Fig 7.1);
 - ``mcl``: Monte Carlo Localization (:mod:`tileviz.baselines.mcl`), ``--particles`` particles.
@@ -32,7 +35,21 @@ degrees):
   the 95 % marginal heading interval (:meth:`~tileviz.baselines.mcl.MclEstimate.half_widths`).
 - ``rmse_xy_m`` / ``rmse_theta_deg``: root mean square error of the hull centre (MCL: the particle
   mean) against the truth over the vouched frames.
+- ``false_vouches``: interval methods: frames vouched for (not ``lost``) whose set did not hold
+  the truth, the frames the guarantee is about (0 whenever its hypotheses hold).
 - ``rejected_frames`` / ``lost_frames``: frames with that status (interval methods only).
+- Fault events (scenarios with faults, interval methods; otherwise empty): an event is a run of
+  consecutive frames the simulator labelled faulty, first frame F, last frame E
+  (:func:`fault_events`; a kidnap: one frame). ``fault_events``: their number over the runs.
+  ``detection_median_frames`` / ``detection_max_frames``: frames from F to the first frame where
+  the method :func:`noticed` something (vision refused the frame, a view ``rejected``, a compass
+  that missed the set, ``lost``), searched until the next event's F or the run's end;
+  ``undetected_events``: events with no such frame, of which ``undetected_harmless_events`` had
+  every input within its bounds (nothing to detect). ``recovery_median_frames`` /
+  ``recovery_max_frames``: frames from E to the first later frame that is vouched for and holds
+  the truth (1 = the frame after the fault), same search limit; ``unrecovered_events``: events
+  with none (e.g. ``lost``, which lasts until a reset). Definitions in :func:`event_outcomes`,
+  shared with ``bench/faults.py``.
 - ``cpu_us_per_frame``: CPU time (``time.process_time``) of the method's step alone, per frame,
   excluding vision and simulation.
 
@@ -68,27 +85,40 @@ from tileviz.types import Box, BoxSet, FrameInput, Odometry, Pose, SensorBounds
 __all__ = [
     "COLUMNS",
     "METHODS",
+    "RECOVERY_MAX_SLIP",
     "SCENARIOS",
+    "EventOutcome",
     "FaultEvent",
     "RunResult",
     "Scenario",
     "Task",
     "aggregate",
     "evaluate",
+    "event_outcomes",
+    "fault_events",
     "main",
+    "noticed",
     "run_one",
 ]
 
-METHODS = ("interval", "interval-truth", "odometry", "mcl")
+METHODS = ("interval", "interval-recovery", "interval-truth", "odometry", "mcl")
 """Method names, in table order."""
+INTERVAL_METHODS = METHODS[:4]
+"""The methods that report a status (the interval localizer in its modes)."""
 METHOD_LABELS = {
     "interval": "interval (autonomous)",
+    "interval-recovery": "interval (autonomous, recovery on)",
     "interval-truth": "interval (truth mode)",
     "odometry": "odometry only",
     "mcl": "MCL",
 }
 STATUS_CODES = {"contracted": 0, "predicted": 1, "rejected": 2, "lost": 3, "estimate": 4}
 """Per-frame status as a small integer in :class:`MethodTrace` (``estimate``: MCL)."""
+RECOVERY_MAX_SLIP: dict[str, tuple[float, float]] = {"default": (0.1, 0.1), "seed": (0.04, 0.1)}
+"""``LocalizerConfig.max_slip`` (metres, radians) of the ``interval-recovery`` method per preset
+(and of ``bench/faults.py``'s recovery runs): below half a tile minus the tracking set's width, so
+a re-inflation leaves one lattice cell (``tileviz.localizer``, "Recovery"). ``slip_window`` keeps
+its default."""
 
 
 # --------------------------------------------------------------------------------- scenarios
@@ -190,6 +220,73 @@ def _schedule(scn: Scenario, frames: int, dt: float,
     return out
 
 
+# --------------------------------------------------------------------------------- fault events
+# One implementation for this evaluation and bench/faults.py.
+
+
+def noticed(status: str, compass_rejected: bool, has_view: bool, mode: str = "autonomous") -> bool:
+    """Whether the interval localizer showed, at one frame, that something was wrong: a view
+    ``rejected``, ``lost``, a compass reading that missed the set (``compass_rejected``), or no
+    view to use (``has_view`` False: vision refused the frame, so the status is ``predicted``).
+    Mode ``odometry`` never uses views: only its compass can notice anything."""
+    if status in ("rejected", "lost") or compass_rejected:
+        return True
+    return mode != "odometry" and not has_view
+
+
+def fault_events(faulty: np.ndarray) -> list[tuple[int, int]]:
+    """The fault events of a run: each maximal run of consecutive faulty frames (``faulty``: (n,)
+    bool, the simulator's fault labels) as (F, E), its first and last frame index (a kidnap:
+    F = E, the first frame at the new pose)."""
+    mask = np.asarray(faulty, dtype=bool)
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(np.int8), [0]])))
+    return [(int(a), int(b) - 1) for a, b in zip(edges[0::2], edges[1::2], strict=True)]
+
+
+@dataclass(frozen=True)
+class EventOutcome:
+    """How one method went through one fault event (frames are indices into the run).
+
+    ``start``/``end``: the event's first and last faulty frame F and E. ``detection``: frames from
+    F to the first frame that :func:`noticed` something, searched up to the next event's F (or the
+    run's end); None: not detected. ``harmless``: every input used from F to E + 1 respected its
+    declared bound (an odometry fault on frame E is used at E + 1), so there was nothing to
+    detect. ``recovery``: frames from E to the first later frame that is vouched for (status not
+    ``lost``) and whose set holds the truth, searched up to the next event's F (or the run's end);
+    None: not recovered (e.g. ``lost``, which lasts until a reset)."""
+
+    start: int
+    end: int
+    detection: int | None
+    harmless: bool
+    recovery: int | None
+
+
+def event_outcomes(faulty: np.ndarray, alarm: np.ndarray, vouched: np.ndarray,
+                   inside: np.ndarray, in_bounds: np.ndarray) -> list[EventOutcome]:
+    """Detection delay and recovery time of every event of :func:`fault_events` (``faulty``) for
+    one method over one run; every argument is an (n,) bool array over the run's frames:
+    ``alarm`` (:func:`noticed`), ``vouched`` (status not ``lost``), ``inside`` (the reported set
+    holds the truth), ``in_bounds`` (every input used at the frame respected its bound)."""
+    alarm = np.asarray(alarm, dtype=bool)
+    ok = np.asarray(vouched, dtype=bool) & np.asarray(inside, dtype=bool)
+    in_bounds = np.asarray(in_bounds, dtype=bool)
+    n = alarm.size
+    events = fault_events(faulty)
+    out = []
+    for i, (f, e) in enumerate(events):
+        horizon = events[i + 1][0] if i + 1 < len(events) else n
+        hits = np.flatnonzero(alarm[f:horizon])
+        back = np.flatnonzero(ok[e + 1:horizon])
+        out.append(EventOutcome(
+            start=f, end=e,
+            detection=int(hits[0]) if hits.size else None,
+            harmless=bool(in_bounds[f:min(e + 2, n)].all()),
+            recovery=int(back[0]) + 1 if back.size else None,
+        ))
+    return out
+
+
 # --------------------------------------------------------------------------------- one run
 
 
@@ -213,8 +310,9 @@ class MethodTrace:
     ``lo``/``hi`` (n, 3): bounds of the reported region (hull of the set; MCL: mean -+ the 95 %
     half-widths) in x, y (m) and theta (rad, continuous). ``centre`` (n, 3): hull centre / particle
     mean. ``inside`` (n,): truth inside the set (MCL: inside the 95 % ellipse). ``status`` (n,)
-    :data:`STATUS_CODES`. ``boxes`` (n,): number of boxes (MCL: 0). ``cpu_s``: total CPU time of
-    the steps, seconds."""
+    :data:`STATUS_CODES`. ``boxes`` (n,): number of boxes (MCL: 0). ``alarm`` (n,): the method
+    :func:`noticed` something at the frame (MCL: never). ``cpu_s``: total CPU time of the steps,
+    seconds."""
 
     lo: np.ndarray
     hi: np.ndarray
@@ -222,6 +320,7 @@ class MethodTrace:
     inside: np.ndarray
     status: np.ndarray
     boxes: np.ndarray
+    alarm: np.ndarray
     cpu_s: float = 0.0
 
 
@@ -247,7 +346,8 @@ class RunResult:
 def _trace(n: int) -> MethodTrace:
     return MethodTrace(lo=np.full((n, 3), np.nan), hi=np.full((n, 3), np.nan),
                        centre=np.full((n, 3), np.nan), inside=np.zeros(n, bool),
-                       status=np.zeros(n, np.int8), boxes=np.zeros(n, np.int32))
+                       status=np.zeros(n, np.int8), boxes=np.zeros(n, np.int32),
+                       alarm=np.zeros(n, bool))
 
 
 def _record_set(tr: MethodTrace, k: int, s: BoxSet, status: str,
@@ -291,12 +391,16 @@ def run_one(task: Task) -> RunResult:
     fault_rng = np.random.default_rng(np.random.SeedSequence([task.seed, key, 1]))
     plan = _schedule(scn, n, dt, fault_rng)
 
-    def localizer(mode: str) -> Localizer:
+    def localizer(mode: str, max_slip: tuple[float, float] = (0.0, 0.0)) -> Localizer:
         return Localizer(tile_size=L, camera_offset=offset, bounds=bounds,
-                         config=replace(cfg.localizer, mode=mode), initial=box0)
+                         config=replace(cfg.localizer, mode=mode, max_slip=max_slip),
+                         initial=box0)
 
-    intervals = {"interval": localizer("autonomous"), "interval-truth": localizer("truth"),
-                 "odometry": localizer("odometry")}
+    intervals = {"interval": localizer("autonomous"),
+                 "interval-recovery": localizer("autonomous", RECOVERY_MAX_SLIP[scn.preset]),
+                 "interval-truth": localizer("truth"), "odometry": localizer("odometry")}
+    modes = {"interval": "autonomous", "interval-recovery": "autonomous",
+             "interval-truth": "truth", "odometry": "odometry"}
     room = cfg.sim.room_half_size
     mcl = MCL(tile_size=L, camera_offset=offset, bounds=bounds, initial=box0,
               config=MclConfig(particles=task.particles, inject_rate=task.mcl_inject,
@@ -353,6 +457,7 @@ def run_one(task: Task) -> RunResult:
             tr = res.methods[name]
             tr.cpu_s += clock() - c0
             _record_set(tr, k, st.updated, st.status, tt)
+            tr.alarm[k] = noticed(st.status, st.compass_rejected, obs is not None, modes[name])
         c0 = clock()
         est = mcl.step(pending, frame.compass, obs)
         tr = res.methods["mcl"]
@@ -373,15 +478,46 @@ def run_one(task: Task) -> RunResult:
 
 COLUMNS = (
     "scenario", "method", "runs", "frames", "inputs_in_bounds_pct", "vision_accepted_pct",
-    "vouched_pct", "containment_pct", "width_x_median_m", "width_x_p95_m", "width_y_median_m",
-    "width_y_p95_m", "width_theta_median_deg", "width_theta_p95_deg", "rmse_xy_m",
-    "rmse_theta_deg", "rejected_frames", "lost_frames", "cpu_us_per_frame",
+    "vouched_pct", "containment_pct", "false_vouches", "width_x_median_m", "width_x_p95_m",
+    "width_y_median_m", "width_y_p95_m", "width_theta_median_deg", "width_theta_p95_deg",
+    "rmse_xy_m", "rmse_theta_deg", "rejected_frames", "lost_frames", "fault_events",
+    "detection_median_frames", "detection_max_frames", "undetected_events",
+    "undetected_harmless_events", "recovery_median_frames", "recovery_max_frames",
+    "unrecovered_events", "cpu_us_per_frame",
 )
 """Columns of ``results.csv`` (``runs.csv`` adds ``run`` and ``seed`` after ``method``)."""
 
 
 def _pct(a: np.ndarray, q: float) -> float:
     return float(np.percentile(a, q)) if a.size else math.nan
+
+
+FAULT_COLUMNS = COLUMNS[COLUMNS.index("fault_events"):COLUMNS.index("cpu_us_per_frame")]
+"""The fault columns: None for MCL and for scenarios without faults."""
+
+
+def _fault_metrics(results: Sequence[RunResult], method: str) -> dict[str, Any]:
+    """The :data:`FAULT_COLUMNS` over every fault event of ``results`` (:func:`event_outcomes`);
+    medians and maxima in frames, NaN when no event was detected (recovered)."""
+    if method not in INTERVAL_METHODS or not any(SCENARIOS[r.scenario].faults for r in results):
+        return dict.fromkeys(FAULT_COLUMNS)
+    events: list[EventOutcome] = []
+    for r in results:
+        tr = r.methods[method]
+        events += event_outcomes(r.fault, tr.alarm, tr.status != STATUS_CODES["lost"], tr.inside,
+                                 r.in_bounds)
+    det = [e.detection for e in events if e.detection is not None]
+    rec = [e.recovery for e in events if e.recovery is not None]
+    return {
+        "fault_events": len(events),
+        "detection_median_frames": float(np.median(det)) if det else math.nan,
+        "detection_max_frames": max(det) if det else None,
+        "undetected_events": len(events) - len(det),
+        "undetected_harmless_events": sum(e.detection is None and e.harmless for e in events),
+        "recovery_median_frames": float(np.median(rec)) if rec else math.nan,
+        "recovery_max_frames": max(rec) if rec else None,
+        "unrecovered_events": len(events) - len(rec),
+    }
 
 
 def _metrics(results: Sequence[RunResult], method: str) -> dict[str, Any]:
@@ -399,7 +535,7 @@ def _metrics(results: Sequence[RunResult], method: str) -> dict[str, Any]:
     w = (hi - lo)[vouched]
     err = (centre - truth)[vouched]
     err[:, 2] = np.remainder(err[:, 2] + math.pi, 2.0 * math.pi) - math.pi
-    is_interval = method != "mcl"
+    is_interval = method in INTERVAL_METHODS
     cpu = sum(r.methods[method].cpu_s for r in results)
     return {
         "runs": len(results),
@@ -408,6 +544,7 @@ def _metrics(results: Sequence[RunResult], method: str) -> dict[str, Any]:
         "vision_accepted_pct": 100.0 * float(accepted.mean()) if n else math.nan,
         "vouched_pct": 100.0 * nv / n if n else math.nan,
         "containment_pct": 100.0 * float(inside[vouched].mean()) if nv else math.nan,
+        "false_vouches": int((vouched & ~inside).sum()) if is_interval else None,
         "width_x_median_m": _pct(w[:, 0], 50),
         "width_x_p95_m": _pct(w[:, 0], 95),
         "width_y_median_m": _pct(w[:, 1], 50),
@@ -420,6 +557,7 @@ def _metrics(results: Sequence[RunResult], method: str) -> dict[str, Any]:
         "rejected_frames": int((status == STATUS_CODES["rejected"]).sum()) if is_interval
         else None,
         "lost_frames": int((status == STATUS_CODES["lost"]).sum()) if is_interval else None,
+        **_fault_metrics(results, method),
         "cpu_us_per_frame": 1e6 * cpu / n if n else math.nan,
     }
 
@@ -468,23 +606,46 @@ def _fmt_pct(v: Any) -> str:
     return f"{math.floor(round(v * 100.0, 6)) / 100.0:.2f}"
 
 
+def _fmt_frames(median: Any, worst: Any) -> str:
+    """``median / max`` in frames (a median may end in .5)."""
+    if median is None or (isinstance(median, float) and math.isnan(median)):
+        return "—"
+    return f"{median:g} / {worst}"
+
+
+def _fmt_missed(missed: Any, events: Any, harmless: Any = 0) -> str:
+    """``missed of events``, with the harmless ones among the missed when there are any."""
+    if events is None:
+        return "—"
+    text = f"{missed} of {events}"
+    return text + f" ({harmless} harmless)" if harmless else text
+
+
 def markdown_table(rows: Sequence[dict[str, Any]]) -> str:
     """The headline table: widths in cm and degrees, CPU in microseconds; percentages rounded
-    down."""
+    down; detection delay and recovery time in frames (median / max over the fault events)."""
     head = ("| scenario | method | inputs in bounds % | vouched % | containment % | "
-            "width x median / p95 (cm) | width y median / p95 (cm) | heading width median / p95 "
-            "(deg) | RMSE xy (cm) | RMSE heading (deg) | rejected | lost | CPU µs/frame |")
+            "false vouches | width x median / p95 (cm) | width y median / p95 (cm) | heading "
+            "width median / p95 (deg) | RMSE xy (cm) | RMSE heading (deg) | rejected | lost | "
+            "detection delay median / max (frames) | not detected | recovery median / max "
+            "(frames) | not recovered | CPU µs/frame |")
     lines = [head, "|" + "---|" * head.count(" | ") + "---|"]
     for r in rows:
+        missed = _fmt_missed(r["undetected_events"], r["fault_events"],
+                             r["undetected_harmless_events"])
         lines.append(
             f"| {r['scenario']} | {METHOD_LABELS[r['method']]} | "
             f"{_fmt_pct(r['inputs_in_bounds_pct'])} | {_fmt_pct(r['vouched_pct'])} | "
-            f"{_fmt_pct(r['containment_pct'])} | "
+            f"{_fmt_pct(r['containment_pct'])} | {_fmt(r['false_vouches'])} | "
             f"{_fmt(r['width_x_median_m'], 100)} / {_fmt(r['width_x_p95_m'], 100)} | "
             f"{_fmt(r['width_y_median_m'], 100)} / {_fmt(r['width_y_p95_m'], 100)} | "
             f"{_fmt(r['width_theta_median_deg'])} / {_fmt(r['width_theta_p95_deg'])} | "
             f"{_fmt(r['rmse_xy_m'], 100)} | {_fmt(r['rmse_theta_deg'])} | "
             f"{_fmt(r['rejected_frames'])} | {_fmt(r['lost_frames'])} | "
+            f"{_fmt_frames(r['detection_median_frames'], r['detection_max_frames'])} | "
+            f"{missed} | "
+            f"{_fmt_frames(r['recovery_median_frames'], r['recovery_max_frames'])} | "
+            f"{_fmt_missed(r['unrecovered_events'], r['fault_events'])} | "
             f"{_fmt(r['cpu_us_per_frame'], digits=0)} |")
     return "\n".join(lines)
 
@@ -504,6 +665,11 @@ def figures(rows: Sequence[dict[str, Any]]) -> list[str]:
                    f"(target 100 %: {verdict}).")
     else:
         out.append("No scenario had all its inputs within their bounds.")
+    fv = {m: sum(by[(s, m)]["false_vouches"] for s in scns) for m in ("interval",
+                                                                      "interval-recovery")}
+    out.append(f"Frames vouched for while the truth was outside the set (false vouches), all "
+               f"scenarios: {fv['interval']} with recovery off, {fv['interval-recovery']} with "
+               f"recovery on.")
     cpu_i = sum(by[(s, "interval")]["cpu_us_per_frame"] * by[(s, "interval")]["frames"]
                 for s in scns)
     cpu_m = sum(by[(s, "mcl")]["cpu_us_per_frame"] * by[(s, "mcl")]["frames"] for s in scns)
