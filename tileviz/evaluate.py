@@ -907,7 +907,14 @@ def write_outputs(results: Sequence[RunResult], out: Path, command: str = "",
     text += [f"- {line}" for line in notes]
     text += [""]
     text += ["Columns: see `tileviz/evaluate.py` (module docstring). Widths and RMSE over the "
-             "vouched frames; MCL widths are the box around its 95 % ellipse.", ""]
+             "vouched frames; MCL widths are the box around its 95 % ellipse. False vouches: "
+             "frames vouched for (not lost) whose set missed the truth. Detection delay (from "
+             "the fault's first frame to the first frame that noticed something: a refused or "
+             "rejected view, a compass that missed, lost) and recovery time (from the fault's "
+             "last frame to the first frame vouched for with the truth inside; 1 = the next "
+             "frame) in frames of 0.05 s, median / max over the fault events of every run; "
+             "\"not detected\" / \"not recovered\": events without such a frame before the "
+             "next fault or the run's end.", ""]
     (out / "results.md").write_text("\n".join(text), encoding="utf-8")
     plot_coverage(rows, out / "coverage.png")
     for s in scns:
