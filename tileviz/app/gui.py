@@ -37,16 +37,22 @@ class Controls:
     ``submit``: puts a command on the loop's queue (never blocks). ``cfg``: the starting
     configuration (initial slider values). ``layers``: initial layer visibility. ``display``,
     ``playing``, ``speed`` (x real time), ``max_speed``, ``mcl`` (the MCL baseline runs):
-    initial states.
+    initial states. ``replay``: what is replayed (a dataset) instead of simulated, or None: the
+    controls that steer the simulator (setpoint, kidnap, seed, floor and camera, faults, recording)
+    are hidden then and the noise sliders, showing the dataset's declared bounds, are disabled.
     """
 
     def __init__(self, server: Any, submit: Callable[[object], None], cfg: Config, *,
                  layers: dict[str, bool], display: bool, playing: bool, speed: float = 1.0,
-                 max_speed: bool = False, mcl: bool = False) -> None:
+                 max_speed: bool = False, mcl: bool = False, replay: str | None = None) -> None:
         self.server = server
         self._submit = submit
         gui = server.gui
         self.status = gui.add_markdown("starting...")
+        if replay is not None:
+            gui.add_markdown(f"Replaying `{replay}`: setpoint, kidnap, noise, faults, floor and "
+                             "recording belong to the simulator. Mode and extractor replay from "
+                             "frame 0.")
 
         with gui.add_folder("Playback"):
             self.play = gui.add_button("Pause" if playing else "Play")
@@ -114,7 +120,8 @@ class Controls:
             self._on_change(h, lambda: C.SetInflation(self.inflation_xy.value,
                                                       self.inflation_t.value))
 
-        with gui.add_folder("Floor and camera", expand_by_default=False):
+        folders: dict[str, Any] = {}
+        with gui.add_folder("Floor and camera", expand_by_default=False) as folders["floor"]:
             self.tile_size = gui.add_number("Tile size L (m)", cfg.floor.tile_size, min=0.05,
                                             max=5.0, step=0.001)
             self.ppm = gui.add_number("Pixels per metre", cfg.camera.ppm, min=20.0, max=2000.0,
@@ -130,7 +137,7 @@ class Controls:
         for name, h in self.layers.items():
             self._on_change(h, lambda n=name, hh=h: C.SetLayer(n, bool(hh.value)))
 
-        with gui.add_folder("Faults", expand_by_default=False):
+        with gui.add_folder("Faults", expand_by_default=False) as folders["faults"]:
             self.fault = gui.add_dropdown("Fault", FAULTS, initial_value="slip")
             self.fault_frames = gui.add_number("Frames (0: default)", 0, min=0, max=100000,
                                                step=1)
@@ -138,7 +145,7 @@ class Controls:
         self._on_click(self.inject, lambda: C.Inject(
             str(self.fault.value), _integer("frames", self.fault_frames.value) or None))
 
-        with gui.add_folder("Record"):
+        with gui.add_folder("Record") as folders["record"]:
             self.record_name = gui.add_text("Dataset name", "live-run")
             self.record = gui.add_button("Start recording")
         self._recording = False
@@ -149,6 +156,15 @@ class Controls:
         self.gizmo = server.scene.add_transform_controls(
             "/target_gizmo", scale=0.6, disable_rotations=True, active_axes=(True, True, False),
             depth_test=False, position=(tx, ty, 0.05), visible=cfg.sim.setpoint == "manual")
+        self.simulator = replay is None
+        if not self.simulator:
+            for h in (self.setpoint, self.pick, self.target, self.waypoints, self.set_waypoints,
+                      self.kidnap, self.seed, *folders.values()):
+                h.visible = False
+            for h in (self.speed_error, self.yaw_error, self.compass_error, self.fraction):
+                h.disabled = True
+            self.reset.label = "Replay from frame 0"
+            self.gizmo.visible = False
 
         @self.gizmo.on_update
         async def _(event: Any) -> None:
@@ -211,7 +227,9 @@ class Controls:
             self.timeline.max = hi
         if shown >= 0 and self.timeline.value != shown:
             self.timeline.value = shown
-        if self.setpoint.value != setpoint:
+        if not self.simulator:
+            setpoint = "replay"  # no simulator to steer: nothing below applies
+        elif self.setpoint.value != setpoint:
             self.setpoint.value = setpoint
         self.gizmo.visible = setpoint == "manual"
         if setpoint == "manual" and tuple(self.target.value) != tuple(target):

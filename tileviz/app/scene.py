@@ -52,6 +52,8 @@ Z_WEDGE = 0.29
 Z_TRUTH = 0.31
 TEXTURE_PIXELS = 1600
 """Largest side of the floor texture, pixels."""
+PATH_KINDS = ("lissajous", "dataset")
+"""Setpoint kinds (``set_world``) whose path is drawn: the Lissajous lap, a dataset's true path."""
 
 
 def yaw_wxyz(theta: float) -> tuple[float, float, float, float]:
@@ -218,11 +220,16 @@ class SceneView:
         self.path: Any = None
         self.waypoints: Any = None
         self._setpoint_kind = "lissajous"
+        self._unknown: set[str] = set()
+        """Layers hidden on the shown frame because it does not know their value (a dataset
+        frame has no setpoint, may have no true pose)."""
 
     def set_world(self, cfg: Config, *, path: Sequence[tuple[float, float]],
-                  waypoints: Sequence[tuple[float, float]], setpoint_kind: str) -> None:
+                  waypoints: Sequence[tuple[float, float]], setpoint_kind: str,
+                  closed: bool = True) -> None:
         """(Re)draw the static layers: the floor (only when the floor or the room changed), the
-        Lissajous path and the waypoint loop, and the camera footprint for ``cfg.camera``."""
+        path (a loop when ``closed``: the Lissajous lap; else a dataset's true path; drawn for the
+        :data:`PATH_KINDS`) and the waypoint loop, and the camera footprint for ``cfg.camera``."""
         half = float(cfg.sim.room_half_size)
         floor_key = (cfg.floor, half)
         s = self.scene
@@ -240,7 +247,8 @@ class SceneView:
             self._nodes["floor"] = [self.floor]
             self._nodes["grid"] = [self.grid]
             self._floor_key = floor_key
-        pts = np.asarray(list(path) + list(path[:1]), np.float64) if path else np.zeros((0, 2))
+        pts = (np.asarray(list(path) + (list(path[:1]) if closed else []), np.float64)
+               if path else np.zeros((0, 2)))
         self.path = s.add_line_segments("/path", _polyline_segments(pts, max(len(pts) - 1, 1),
                                                                     0.004),
                                         COLOURS["path"], thickness=1.5, thickness_units="screen")
@@ -274,13 +282,25 @@ class SceneView:
                         b.visible = False  # shown again box by box by the next show()
             elif name == "path":
                 if self.path is not None:
-                    self.path.visible = on and self._setpoint_kind == "lissajous"
+                    self.path.visible = on and self._setpoint_kind in PATH_KINDS
                 if self.waypoints is not None:
                     self.waypoints.visible = on and self._setpoint_kind == "waypoints"
             else:
                 for h in self._nodes.get(name, []):
-                    h.visible = on
+                    h.visible = on and name not in self._unknown
         self.layers = dict(layers)
+
+    def _set_known(self, name: str, known: bool) -> None:
+        """Hide layer ``name`` while the shown frame does not know its value; show it again
+        (if the layer is on) when it does."""
+        if known == (name not in self._unknown):
+            return
+        if known:
+            self._unknown.discard(name)
+        else:
+            self._unknown.add(name)
+        for h in self._nodes.get(name, []):
+            h.visible = known and self.layers.get(name, True)
 
     # ------------------------------------------------------------------ per frame
     def show(self, rec: Any, trail_truth: np.ndarray, trail_est: np.ndarray, *,
@@ -291,11 +311,17 @@ class SceneView:
         ``mcl``: the frame's :class:`tileviz.app.history.ParticleView` (None: no cloud)."""
         self._show_mcl(mcl)
         truth: Pose | None = rec.truth
+        self._set_known("truth", truth is not None)
+        self._set_known("setpoint", rec.setpoint is not None)
         if truth is not None:
             self.robot.position = (truth.x, truth.y, 0.0)
             self.robot.wxyz = yaw_wxyz(truth.theta)
             self.truth.position = (truth.x, truth.y, Z_TRUTH)
             self.truth.wxyz = yaw_wxyz(truth.theta)
+        elif rec.updated.hull() is not None:  # no true pose (a dataset): the robot at the estimate
+            cx, cy, ct = rec.updated.hull().centre
+            self.robot.position = (cx, cy, 0.0)
+            self.robot.wxyz = yaw_wxyz(ct)
         if self.layers.get("prediction", True):
             self._show_set("prediction", rec.predicted)
         if self.layers.get("boxes", True):

@@ -14,7 +14,9 @@ paused: one frame per Step), ``--intervals/--no-intervals`` (draw the boxes),
 ``--output-file NAME`` (CSV of the six equivalence residuals per frame, written under
 ``--out-dir``), ``--seed``, ``--history``, ``--push-rate``, ``--image-rate``, ``--speed``,
 ``--max-speed``, ``--mcl``/``--particles`` (the Monte Carlo Localization baseline beside the
-boxes).
+boxes), ``--mode``, ``--extractor``, and ``--dataset DIR``: replay a recorded tileviz-dataset/1
+folder instead of simulating (its meta.json sets the floor and the camera; the boxes are those
+``python -m tileviz replay`` writes).
 """
 
 from __future__ import annotations
@@ -36,8 +38,8 @@ from tileviz.app.history import METRIC_NAMES, Entry
 from tileviz.app.plots import summary
 from tileviz.app.scene import TRAIL_SEGMENTS
 from tileviz.app.session import Session, SessionOptions
-from tileviz.cliutil import Parser, positive_float, positive_int, run_cli
-from tileviz.config import PRESETS, Config, preset
+from tileviz.cliutil import CliError, Parser, positive_float, positive_int, run_cli
+from tileviz.config import EXTRACTORS, MODES, PRESETS, Config, preset
 
 __all__ = ["App", "config_from_args", "main", "options_from_args", "parser"]
 
@@ -101,15 +103,16 @@ class App:
         server.gui.configure_theme(control_width="medium", show_share_button=False,
                                    titlebar_content=None)
         server.scene.set_up_direction("+z")
-        a = self.cfg.sim.lissajous_amplitude  # the path spans [-a, a]^2
-        server.initial_camera.position = (0.0, -1.9 * a, 2.2 * a)
-        server.initial_camera.look_at = (0.0, 0.0, 0.0)
+        (cx, cy), a = view_of(s.source.path(), s.cfg.sim.initial_pose[:2])
+        server.initial_camera.position = (cx, cy - 1.9 * a, 2.2 * a)
+        server.initial_camera.look_at = (cx, cy, 0.0)
         server.scene.configure_default_lights(enabled=True, cast_shadow=False)
         self.scene = SceneView(server.scene, pool=max(1, self.cfg.localizer.max_boxes),
                                particles=self.options.mcl_particles)
         self.controls = Controls(server, self.submit, self.cfg, layers=s.layers,
                                  display=s.display, playing=s.playing, speed=s.speed,
-                                 max_speed=s.max_speed, mcl=s.mcl is not None)
+                                 max_speed=s.max_speed, mcl=s.mcl is not None,
+                                 replay=None if s.source.simulator else s.source.describe())
         panel = server.gui.add_panel()
         with panel.add_tab("Vision"):
             self.panels = ImagePanels(server.gui, width=self.cfg.camera.width,
@@ -249,8 +252,8 @@ class App:
         assert s is not None
         if s.world_version != self._world_version:
             self._world_version = s.world_version
-            self.scene.set_world(s.cfg, path=s.source.lissajous_path(),
-                                 waypoints=s.cfg.sim.waypoints, setpoint_kind=s.setpoint_kind)
+            self.scene.set_world(s.cfg, path=s.source.path(), waypoints=s.cfg.sim.waypoints,
+                                 setpoint_kind=s.setpoint_kind, closed=s.source.path_closed)
         self.scene.apply_layers(s.layers)
         pos = s.display_position()
         entry = s.history.get(pos) if pos in s.history else None
@@ -317,6 +320,9 @@ class App:
         rate = f"{s.rate:.0f} frames/s" if s.playing else "-"
         lines.append(f"loop {rate}, history {len(s.history)}/{s.history.capacity}, "
                      f"mode {s.cfg.localizer.mode}, extractor {s.cfg.vision.extractor}")
+        if not s.source.simulator:
+            lines.append(f"replaying `{s.source.describe()}`"
+                         + (f": **{s.ended}**" if s.ended else ""))
         if s.recording is not None:
             lines.append(f"recording to `{s.recording_path}` ({s.recording.count} frames)")
         if s.degraded:
@@ -334,7 +340,14 @@ def parser() -> Parser:
                    help="address to listen on (default 127.0.0.1: this machine only)")
     p.add_argument("--port", type=_port, default=8080, help="port (default 8080; the next free "
                    "one if taken)")
-    p.add_argument("--preset", choices=PRESETS, default="default")
+    p.add_argument("--preset", choices=PRESETS, default=None,
+                   help="simulator preset (default: default)")
+    p.add_argument("--dataset", metavar="DIR", help="replay this tileviz-dataset/1 folder "
+                   "instead of simulating (its meta.json sets the floor and the camera)")
+    p.add_argument("--mode", choices=MODES, default=None,
+                   help="localizer mode (default autonomous)")
+    p.add_argument("--extractor", choices=EXTRACTORS, default=None,
+                   help="vision extractor (default: the preset's or the dataset's)")
     p.add_argument("--interactive", action="store_true",
                    help="start paused; each Step advances one frame")
     p.add_argument("--intervals", action=argparse.BooleanOptionalAction, default=True,
@@ -396,19 +409,53 @@ def _int_range(name: str, lo: int, hi: int) -> Any:
 
 
 def config_from_args(args: argparse.Namespace) -> Config:
-    """The preset with the command line's floor, camera and seed."""
-    cfg = preset(args.preset)
+    """The preset with the command line's floor, camera, seed, mode and extractor; with
+    ``--dataset``, the configuration ``python -m tileviz replay`` uses for that dataset (its meta
+    and the mode and extractor), the seed (of the MCL baseline) from the command line. A bad
+    dataset folder or meta.json raises DatasetError (a ValueError) naming the file."""
+    if args.dataset is not None:
+        from tileviz.app.sources import replay_config
+        from tileviz.dataset import DatasetSource
+
+        clash = [name for name, v in (("--preset", args.preset), ("--tile-size", args.tile_size),
+                                      ("--ppm", args.ppm)) if v is not None]
+        if clash:
+            raise CliError(f"{', '.join(clash)} cannot be used with --dataset (the dataset's "
+                           "meta.json sets the floor and the camera)")
+        meta = DatasetSource(args.dataset).meta  # checks meta.json and the frames.csv header
+        cfg = replay_config(meta, mode=args.mode, extractor=args.extractor)
+        return _with_seed(cfg, args.seed)
+    cfg = preset(args.preset or "default")
     if args.tile_size is not None:
         cfg = replace(cfg, floor=replace(cfg.floor, tile_size=args.tile_size,
                                          grout_width=min(cfg.floor.grout_width,
                                                          args.tile_size / 8)))
     if args.ppm is not None:
         cfg = replace(cfg, camera=replace(cfg.camera, ppm=args.ppm))
-    if args.seed is not None:
-        if not 0 <= args.seed < 2**32:
-            raise ValueError(f"--seed must be in [0, 2^32), got {args.seed}")
-        cfg = replace(cfg, sim=replace(cfg.sim, seed=args.seed))
-    return cfg
+    if args.mode is not None:
+        cfg = replace(cfg, localizer=replace(cfg.localizer, mode=args.mode))
+    if args.extractor is not None:
+        cfg = replace(cfg, vision=replace(cfg.vision, extractor=args.extractor))
+    return _with_seed(cfg, args.seed)
+
+
+def _with_seed(cfg: Config, seed: int | None) -> Config:
+    if seed is None:
+        return cfg
+    if not 0 <= seed < 2**32:
+        raise ValueError(f"--seed must be in [0, 2^32), got {seed}")
+    return replace(cfg, sim=replace(cfg.sim, seed=seed))
+
+
+def view_of(path: list[tuple[float, float]], fallback: tuple[float, ...]) -> tuple[
+        tuple[float, float], float]:
+    """Where the initial camera looks: the centre (x, y) of ``path`` and its half span (at least
+    2 m), metres; around ``fallback`` (x, y) when there is no path."""
+    if not path:
+        return (float(fallback[0]), float(fallback[1])), 4.0
+    xs, ys = [p[0] for p in path], [p[1] for p in path]
+    centre = (0.5 * (min(xs) + max(xs)), 0.5 * (min(ys) + max(ys)))
+    return centre, max(0.5 * (max(xs) - min(xs)), 0.5 * (max(ys) - min(ys)), 2.0)
 
 
 def options_from_args(args: argparse.Namespace) -> SessionOptions:
@@ -416,7 +463,8 @@ def options_from_args(args: argparse.Namespace) -> SessionOptions:
     return SessionOptions(history=args.history, display=args.display, intervals=args.intervals,
                           interactive=args.interactive, out_dir=Path(args.out_dir),
                           output_file=args.output_file, speed=args.speed,
-                          max_speed=args.max_speed, mcl=args.mcl, mcl_particles=args.particles)
+                          max_speed=args.max_speed, mcl=args.mcl, mcl_particles=args.particles,
+                          dataset=Path(args.dataset) if args.dataset is not None else None)
 
 
 def _force_exit() -> None:

@@ -1,9 +1,15 @@
-"""The live run behind the server: simulator -> runner -> history, driven by commands.
+"""The live run behind the server: source -> runner -> history, driven by commands.
 
-:class:`Session` holds everything that changes while the demo runs (the simulator, the runner,
-the history, the playback state, the files being written) and nothing of viser: the app's loop
-thread is its only caller (``apply`` a command, ``advance`` one frame), so no lock is needed on
-the simulation. Tests drive it directly.
+:class:`Session` holds everything that changes while the demo runs (the source of frames, the
+runner, the history, the playback state, the files being written) and nothing of viser: the app's
+loop thread is its only caller (``apply`` a command, ``advance`` one frame), so no lock is needed
+on the simulation. Tests drive it directly.
+
+The source (:mod:`tileviz.app.sources`) is the simulator, or a recorded dataset replayed with the
+same reader and Runner as ``python -m tileviz replay`` (``SessionOptions.dataset``). A replay
+pauses at its last frame (or at a bad row, with a note naming it); commands only a simulator
+understands (:data:`SIMULATOR_ONLY`) leave a note and change nothing; a new localizer mode,
+extractor or inflation replays from frame 0.
 
 Positions: the history numbers its entries 0, 1, 2, ... (a *position*); an entry's record keeps
 the source's frame index. They differ only after a frame failed (a gap in frame indices).
@@ -29,7 +35,16 @@ from tileviz.config import Config, LocalizerConfig, NoiseConfig
 from tileviz.runner import Runner, initial_box
 from tileviz.types import FrameInput
 
-__all__ = ["Session", "SessionOptions"]
+__all__ = ["SIMULATOR_ONLY", "Session", "SessionOptions"]
+
+SIMULATOR_ONLY: dict[str, str] = {
+    "SetSetpoint": "the setpoint", "SetManualTarget": "the setpoint",
+    "SetWaypoints": "the setpoint", "Kidnap": "kidnap", "SetNoise": "the sensor noise",
+    "Inject": "fault injection", "Restart": "a new floor or camera",
+    "StartRecording": "recording", "StopRecording": "recording",
+}
+"""Commands that steer the simulator (by name), and what they change: a replay refuses them with a
+note."""
 
 
 @dataclass(frozen=True)
@@ -57,6 +72,9 @@ class SessionOptions:
     """Its particle count."""
     renderer: Any = None
     """A renderer for the simulator (tests); None = the real floor renderer."""
+    dataset: Path | None = None
+    """Replay this tileviz-dataset/1 folder instead of simulating (the Config passed to the
+    session should be :func:`tileviz.app.sources.replay_config` of its meta)."""
 
 
 @dataclass
@@ -83,8 +101,6 @@ class Session:
         self.layers: dict[str, bool] = {name: True for name in C.LAYERS}
         for name in ("prediction", "boxes", "wedge"):
             self.layers[name] = bool(o.intervals)
-        # the tile grid, when the floor texture is too coarse to show the grout lines
-        self.layers["grid"] = texture_pixels_per_tile(cfg) < 24.0
         self.notes: deque[Note] = deque(maxlen=8)
         self.errors = 0
         """Frames that raised (logged, skipped)."""
@@ -114,16 +130,29 @@ class Session:
         """The MCL baseline (:class:`tileviz.baselines.mcl.MCL`) when on, else None."""
         self._mcl_odometry: Any = None
         self._mcl_wanted = bool(o.mcl)
+        self.ended: str | None = None
+        """Why the source has no more frames (a replay's end or bad row), or None."""
         self._build(cfg)
+        # the tile grid, when the floor texture is too coarse to show the grout lines
+        self.layers["grid"] = texture_pixels_per_tile(self.cfg) < 24.0
+        if not self.source.simulator:
+            self.layers["setpoint"] = False  # a dataset has none
         if o.output_file is not None:
             self._open_csv()
 
     # ------------------------------------------------------------------ run set-up
     def _build(self, cfg: Config) -> None:
-        from tileviz.sim.source import SimSource  # pymunk: only when a run starts
+        from tileviz.app.sources import make_source  # pymunk: only when a run starts
 
+        self.source = make_source(cfg, dataset=self.options.dataset,
+                                  renderer=self.options.renderer)
+        floor_half = getattr(self.source, "floor_half_size", None)
+        if floor_half is not None:  # a dataset: a floor under its whole true path
+            half = floor_half(cfg.sim.room_half_size)
+            cfg = replace(cfg, sim=replace(cfg.sim, room_half_size=half))
+            self.setpoint_kind = "dataset"
         self.cfg = cfg
-        self.source = SimSource(cfg, renderer=self.options.renderer)
+        self.ended = None
         self.runner = Runner(cfg, keep_stages=self.display)
         if self._mcl_wanted:
             self._start_mcl(initial_box(cfg))
@@ -206,10 +235,20 @@ class Session:
 
     def compute(self) -> Entry | None:
         """Make one new frame (source -> runner -> history) and show it. A frame that raises is
-        logged as one line and skipped; None then."""
+        logged as one line and skipped; None then. At the source's end (a replay's last frame or
+        bad row) the run pauses with a note; None then."""
+        from tileviz.app.sources import SourceEnded
+
         before = self.source.index
         try:
             frame = next(self.source)
+        except SourceEnded as e:
+            self.playing = False
+            if self.ended != str(e):
+                self.ended = str(e)
+                self.note(f"{e} (step back or scrub the timeline; Reset replays from frame 0)",
+                          e.level)
+            return None
         except Exception as e:  # noqa: BLE001 - the loop must survive any frame
             self._frame_failed(before, f"simulator: {e}", missed=self.source.index != before)
             return None
@@ -331,9 +370,14 @@ class Session:
     def apply(self, cmd: object) -> None:
         """Apply one command (:mod:`tileviz.app.commands`). Bad values raise ValueError naming
         them; nothing is changed then."""
-        handler = getattr(self, f"_on_{type(cmd).__name__}", None)
+        name = type(cmd).__name__
+        handler = getattr(self, f"_on_{name}", None)
         if handler is None:
-            raise ValueError(f"unknown command {type(cmd).__name__}")
+            raise ValueError(f"unknown command {name}")
+        if name in SIMULATOR_ONLY and not self.source.simulator:
+            self.note(f"{name}: {SIMULATOR_ONLY[name]} belongs to the simulator; "
+                      f"replaying {self.source.describe()} (nothing changed)")
+            return
         handler(cmd)
         self.version += 1
 
@@ -399,6 +443,10 @@ class Session:
 
     def _on_Relocalize(self, cmd: C.Relocalize) -> None:
         pose = self.source.pose
+        if pose is None:
+            self.note("Relocalize: the true pose of the next frame is not known (a dataset "
+                      "without x, y, theta, or its end); nothing changed")
+            return
         box = initial_box(self.cfg, pose=pose.as_tuple())
         self.runner.reset(box)
         if self.mcl is not None:
@@ -412,6 +460,13 @@ class Session:
             cfg = replace(cfg, sim=replace(cfg.sim, seed=int(cmd.seed)))
         self._new_run_files()
         self._build(cfg)
+        if self.source.restart_on_settings:
+            self._replay_from_start("Reset")
+
+    def _replay_from_start(self, why: str) -> None:
+        """A replay started again: show its frame 0 at once, and say so."""
+        self.compute()
+        self.note(f"{why}: replaying {self.source.describe()} from frame 0")
 
     def _on_Restart(self, cmd: C.Restart) -> None:
         floor = replace(self.cfg.floor, tile_size=float(cmd.tile_size),
@@ -422,16 +477,26 @@ class Session:
         self._build(cfg)
         self.note(f"new run: tile size {cmd.tile_size:g} m, {cmd.ppm:g} px/m")
 
-    def _reconfigure(self, cfg: Config) -> None:
+    def _reconfigure(self, cfg: Config, what: str = "new settings") -> None:
+        """New localizer or vision settings: from the next frame on (the simulator), or from frame
+        0 (a replay: its boxes are then those ``replay`` writes with these settings)."""
+        if self.source.restart_on_settings:
+            if cfg == self.cfg:
+                return
+            self._new_run_files()
+            self._build(cfg)
+            self._replay_from_start(what)
+            return
         self.runner.reconfigure(cfg)
         self.cfg = cfg
 
     def _on_SetMode(self, cmd: C.SetMode) -> None:
-        self._reconfigure(replace(self.cfg, localizer=replace(self.cfg.localizer, mode=cmd.mode)))
+        self._reconfigure(replace(self.cfg, localizer=replace(self.cfg.localizer, mode=cmd.mode)),
+                          f"mode {cmd.mode}")
 
     def _on_SetExtractor(self, cmd: C.SetExtractor) -> None:
         vision = replace(self.cfg.vision, extractor=cmd.extractor)
-        self._reconfigure(replace(self.cfg, vision=vision))
+        self._reconfigure(replace(self.cfg, vision=vision), f"extractor {cmd.extractor}")
 
     def _on_SetNoise(self, cmd: C.SetNoise) -> None:
         noise = NoiseConfig(cmd.speed_error, cmd.yaw_rate_error, cmd.compass_error, cmd.fraction)
@@ -445,7 +510,7 @@ class Session:
     def _on_SetInflation(self, cmd: C.SetInflation) -> None:
         loc: LocalizerConfig = replace(self.cfg.localizer,
                                        truth_inflation=(cmd.xy, cmd.xy, cmd.theta))
-        self._reconfigure(replace(self.cfg, localizer=loc))
+        self._reconfigure(replace(self.cfg, localizer=loc), "truth inflation")
 
     def _on_SetDisplay(self, cmd: C.SetDisplay) -> None:
         self.display = bool(cmd.on)

@@ -1,0 +1,219 @@
+"""Where the live run's frames come from: the pymunk simulator or a recorded dataset.
+
+:class:`tileviz.app.session.Session` steps one *run source*; both kinds answer the same few
+questions (:class:`RunSource`), so the session has no per-kind branches beyond the gate on the
+commands that only a simulator understands (``simulator``) and the restart on new localizer
+settings (``restart_on_settings``).
+
+- :class:`LiveSimulator`: the simulator (:class:`tileviz.sim.source.SimSource`), endless; it obeys
+  setpoint, kidnap, noise and fault commands.
+- :class:`DatasetReplay`: a tileviz-dataset/1 folder read by
+  :class:`tileviz.dataset.DatasetSource`, the reader ``python -m tileviz replay`` uses. Its end,
+  and a bad row, raise :class:`SourceEnded` (every frame before it was delivered).
+
+Units: metres, radians, seconds; world frame as in ``shared/dataset-format.md``.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+from dataclasses import replace
+from pathlib import Path
+from typing import Any, Protocol
+
+from tileviz.config import Config
+from tileviz.dataset import MAX_MAGNITUDE, DatasetMeta, DatasetSource
+from tileviz.sim.source import SimSource
+from tileviz.types import FrameInput, Pose
+
+__all__ = [
+    "DatasetReplay", "LiveSimulator", "RunSource", "SourceEnded", "make_source", "replay_config",
+]
+
+PATH_POINTS = 4000
+"""Most points of a dataset's drawn true path (longer paths are thinned evenly)."""
+FLOOR_MARGIN = 1.5
+"""Floor drawn beyond the farthest true position of a dataset, metres."""
+MAX_FLOOR_HALF = 500.0
+"""Largest half side of the drawn floor for a dataset, metres."""
+
+
+class SourceEnded(Exception):
+    """The source has no more frames: ``level`` ``info`` at the end of a dataset, ``error`` when a
+    bad row stopped it (the message names the file and the row)."""
+
+    def __init__(self, message: str, level: str = "info") -> None:
+        super().__init__(message)
+        self.level = level
+
+
+class RunSource(Protocol):
+    """What the session needs of a source of frames."""
+
+    simulator: bool
+    """True: setpoint, kidnap, noise, fault, floor/camera and recording commands apply."""
+    restart_on_settings: bool
+    """True: a new localizer mode, extractor or inflation replays from frame 0 (so every box
+    shown is one the command-line replay writes with those settings)."""
+    path_closed: bool
+    """Whether :meth:`path` is a loop (its last point joins its first)."""
+    index: int
+    """Index of the next frame ``next()`` returns."""
+
+    def __next__(self) -> FrameInput: ...
+
+    @property
+    def pose(self) -> Pose | None:
+        """The true pose of the next frame, or None when unknown."""
+        ...
+
+    def path(self) -> list[tuple[float, float]]:
+        """The path to draw on the floor (x, y), metres."""
+        ...
+
+    def describe(self) -> str:
+        """A few words for the readout."""
+        ...
+
+
+class LiveSimulator(SimSource):
+    """The simulator as a run source (see :class:`tileviz.sim.source.SimSource`)."""
+
+    simulator = True
+    restart_on_settings = False
+    path_closed = True
+
+    def path(self) -> list[tuple[float, float]]:
+        """One lap of the configured Lissajous curve, metres."""
+        return self.lissajous_path()
+
+    def describe(self) -> str:
+        return "simulator"
+
+
+def replay_config(meta: DatasetMeta, *, mode: str | None = None,
+                  extractor: str | None = None, base: Config | None = None) -> Config:
+    """The configuration ``python -m tileviz replay`` uses for a dataset: the meta's floor,
+    camera, bounds and start (over ``base``, or the stored tileviz config), then ``mode`` and
+    ``extractor`` when given."""
+    cfg = meta.to_config(base)
+    if mode is not None:
+        cfg = replace(cfg, localizer=replace(cfg.localizer, mode=mode))
+    if extractor is not None:
+        cfg = replace(cfg, vision=replace(cfg.vision, extractor=extractor))
+    return cfg
+
+
+class DatasetReplay:
+    """A recorded dataset as a run source: frame after frame from ``folder`` (validated row by
+    row as ``replay`` does), then :class:`SourceEnded`.
+
+    Opening checks meta.json and the header of frames.csv (DatasetError, a ValueError naming the
+    file). ``frames``: frames delivered so far.
+    """
+
+    simulator = False
+    restart_on_settings = True
+    path_closed = False
+
+    def __init__(self, folder: str | os.PathLike[str]) -> None:
+        self.folder = Path(folder)
+        self.dataset = DatasetSource(self.folder)
+        self.meta = self.dataset.meta
+        self._frames = iter(self.dataset)
+        self.index = 0
+        self.frames = 0
+        self._ahead: FrameInput | None = None
+        self._end: SourceEnded | None = None
+        self._path: list[tuple[float, float]] | None = None
+
+    def _fetch(self) -> FrameInput:
+        if self._end is not None:
+            raise self._end
+        try:
+            return next(self._frames)
+        except StopIteration:
+            self._end = SourceEnded(f"end of dataset, {self.frames} frames")
+        except Exception as e:  # noqa: BLE001 - DatasetError names file and row; anything else
+            self._end = SourceEnded(f"dataset stopped after {self.frames} frames: {e}", "error")
+        raise self._end
+
+    def __iter__(self) -> DatasetReplay:
+        return self
+
+    def __next__(self) -> FrameInput:
+        if self._ahead is not None:
+            frame, self._ahead = self._ahead, None
+        else:
+            frame = self._fetch()
+        self.frames += 1
+        self.index = frame.index + 1
+        return frame
+
+    @property
+    def pose(self) -> Pose | None:
+        """The true pose of the next frame (read ahead; its errors wait for ``next()``)."""
+        if self._ahead is None:
+            try:
+                self._ahead = self._fetch()
+            except SourceEnded:
+                return None
+        return self._ahead.truth
+
+    def path(self) -> list[tuple[float, float]]:
+        """The true (x, y) of the rows before the first one without a readable truth (read from
+        frames.csv alone, no image), thinned to at most :data:`PATH_POINTS` points."""
+        if self._path is None:
+            self._path = truth_path(self.dataset.frames_path, self.dataset.columns)
+        return self._path
+
+    def describe(self) -> str:
+        return f"dataset {self.folder}"
+
+    def floor_half_size(self, at_least: float) -> float:
+        """Half side of a floor centred on the origin that holds the true path (plus a margin),
+        and at least ``at_least``; metres."""
+        far = max((max(abs(x), abs(y)) for x, y in self.path()), default=0.0)
+        return min(max(at_least, math.ceil(far + FLOOR_MARGIN)), MAX_FLOOR_HALF)
+
+
+def truth_path(frames_csv: Path, columns: list[str]) -> list[tuple[float, float]]:
+    """The (x, y) columns of ``frames_csv`` (header ``columns``) up to the first row without
+    finite numbers there; thinned evenly to :data:`PATH_POINTS` points. For drawing only: the
+    reader proper (:class:`tileviz.dataset.DatasetSource`) validates each row when it gets there.
+    """
+    if "x" not in columns or "y" not in columns:
+        return []
+    ix, iy = columns.index("x"), columns.index("y")
+    points: list[tuple[float, float]] = []
+    try:
+        with open(frames_csv, newline="", encoding="utf-8") as f:
+            reader = csv.reader(f)
+            next(reader, None)
+            for cells in reader:
+                if not cells or all(not c.strip() for c in cells):
+                    continue
+                try:
+                    x, y = float(cells[ix]), float(cells[iy])
+                except (ValueError, IndexError):
+                    break
+                if not (math.isfinite(x) and math.isfinite(y)) or max(abs(x), abs(y)) > (
+                        MAX_MAGNITUDE):
+                    break
+                points.append((x, y))
+    except (OSError, UnicodeDecodeError, csv.Error):
+        pass
+    if len(points) > PATH_POINTS:
+        step = len(points) / PATH_POINTS
+        points = [points[int(i * step)] for i in range(PATH_POINTS)] + [points[-1]]
+    return points
+
+
+def make_source(cfg: Config, *, dataset: Path | None = None, renderer: Any = None) -> RunSource:
+    """The run source: a replay of ``dataset`` when given, else the simulator for ``cfg``
+    (``renderer``: the simulator's camera, None = the real floor renderer)."""
+    if dataset is not None:
+        return DatasetReplay(dataset)
+    return LiveSimulator(cfg, renderer=renderer)
