@@ -17,9 +17,13 @@ Measures, per run:
 - detection delay: frames from F to the first frame where the method noticed something: a view
   refused by vision, a view ``rejected`` by the localizer, a compass that misses the set, or
   ``lost``. "not needed" when the fault broke no bound the localizer relies on (H2 odometry, H3
-  compass, H4 for the views it used) and nothing was noticed; "never" when it broke one unnoticed.
-- recovery time: frames from E to the first later frame that is ``contracted`` and contains the
-  truth; "never" when there is none (e.g. ``lost``).
+  compass, H4 for the views it used, from F to E + 1) and nothing was noticed; "never" when it
+  broke one unnoticed.
+- recovery time: frames from E to the first later frame that is vouched for (not ``lost``) and
+  contains the truth; "never" when there is none (e.g. ``lost``).
+
+Detection and recovery are computed by ``tileviz.evaluate.event_outcomes`` (and
+``tileviz.evaluate.noticed``), the code behind the same columns of ``python -m tileviz evaluate``.
 - containment: over the frames from F to the end whose status vouches for the set (every status
   but ``lost``), the share whose set contains the true pose.
 - wrong vouched frames are then explained or not: each must belong to a run of consecutive
@@ -31,8 +35,9 @@ Measures, per run:
 - views that vision accepted on a faulty frame although they were outside their declared bounds
   are listed with seed, frame and true pose (they would be the vision's fault).
 
-Recovery setting (``max_slip``, metres and radians): ``default`` (0.1, 0.1), ``seed`` (0.04, 0.1)
--- below half a tile minus the tracking set's width, so a re-inflation leaves one lattice cell
+Recovery setting (``max_slip``, metres and radians, ``tileviz.evaluate.RECOVERY_MAX_SLIP``, the
+``interval-recovery`` method of the evaluation): ``default`` (0.1, 0.1), ``seed`` (0.04, 0.1) --
+below half a tile minus the tracking set's width, so a re-inflation leaves one lattice cell
 (``tileviz.localizer``, "Recovery").
 
 The Markdown table goes to stdout and to ``--out`` (default ``docs/faults.md``).
@@ -52,14 +57,17 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+import numpy as np  # noqa: E402
+
 from tileviz.config import Config, preset  # noqa: E402
+from tileviz.evaluate import RECOVERY_MAX_SLIP, event_outcomes, noticed  # noqa: E402
 from tileviz.runner import FrameRecord, Runner  # noqa: E402
 from tileviz.sim.sensors import prediction_encloses  # noqa: E402
 from tileviz.sim.source import SimSource  # noqa: E402
 from tileviz.types import Box  # noqa: E402
 from tileviz.vision import observation_error  # noqa: E402
 
-MAX_SLIP = {"default": (0.1, 0.1), "seed": (0.04, 0.1)}
+MAX_SLIP = RECOVERY_MAX_SLIP
 """Recovery setting per preset (metres, radians)."""
 
 
@@ -178,6 +186,12 @@ def run_one(name: str, seed: int, spec: FaultSpec, recovery: bool, before: int,
     src = SimSource(cfg)
     runner = Runner(cfg)
     res = RunResult(name, spec.label, recovery, seed)
+    # per frame, for tileviz.evaluate.event_outcomes
+    faults: list[bool] = []
+    alarms: list[bool] = []
+    vouches: list[bool] = []
+    insides: list[bool] = []
+    holds: list[bool] = []  # no hypothesis broken at the frame
     prev: FrameRecord | None = None
     chain = False  # inside a run of frames without the truth that a broken hypothesis started
     k = 0
@@ -210,13 +224,13 @@ def run_one(name: str, seed: int, spec: FaultSpec, recovery: bool, before: int,
                 res.bad_views.append(
                     f"{name} seed {seed} frame {k} ({spec.kind}): pose ({truth.x:.4f}, "
                     f"{truth.y:.4f}, {truth.theta:.4f}), status {rec.status}")
-        if started and k <= res.end + 1:  # an odometry fault on frame E shows at E + 1
-            res.broke |= broken
-        noticed = (not rec.vision.accepted or rec.status in ("rejected", "lost")
-                   or (step is not None and step.compass_rejected))
-        if started and noticed and res.detection is None:
-            res.detection = k - res.start
         inside = rec.updated.contains(truth.x, truth.y, truth.theta)
+        faults.append(faulty)
+        alarms.append(noticed(rec.status, step is not None and step.compass_rejected,
+                              rec.vision.accepted))
+        vouches.append(rec.status != "lost")
+        insides.append(inside)
+        holds.append(not broken)
         if broken:
             chain = True
         repaired = reinflated and _near(rec, max_slip) is True and view_ok is not False
@@ -237,9 +251,6 @@ def run_one(name: str, seed: int, spec: FaultSpec, recovery: bool, before: int,
                     res.wrong_explained += 1
                 else:
                     res.wrong_unexplained.append(k)
-            if (res.recovery_frames is None and k > res.end and rec.status == "contracted"
-                    and inside):
-                res.recovery_frames = k - res.end
         elif vouched and not inside:
             res.wrong_before_fault += 1
         prev = rec
@@ -248,6 +259,13 @@ def run_one(name: str, seed: int, spec: FaultSpec, recovery: bool, before: int,
             break
         if k > before + 10_000:
             raise RuntimeError(f"fault {spec.label} never showed on a frame")
+    events = event_outcomes(np.array(faults), np.array(alarms), np.array(vouches),
+                            np.array(insides), np.array(holds))
+    if len(events) != 1 or (events[0].start, events[0].end) != (res.start, res.end):
+        raise RuntimeError(f"fault {spec.label}: labelled frames are not one run: {events}")
+    res.detection = events[0].detection
+    res.broke = not events[0].harmless
+    res.recovery_frames = events[0].recovery
     return res
 
 
