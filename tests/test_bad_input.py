@@ -118,6 +118,28 @@ def test_replay_options_out_of_range(args: list[str], needle: str, recorded: Pat
     _one_line_error(_cli(["replay", str(recorded), *args, "--quiet"], tmp_path), needle)
 
 
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    ("args", "needle"),
+    [
+        (["--dataset", "no/such/folder"], "no/such/folder: not a dataset folder"),
+        (["--dataset", "{bad_meta}"], "meta.json: format must be 'tileviz-dataset/1'"),
+        (["--dataset", "{recorded}", "--tile-size", "0.5"],
+         "--tile-size cannot be used with --dataset"),
+        (["--dataset", "{recorded}", "--mode", "psychic"], "invalid choice: 'psychic'"),
+    ],
+)
+def test_serve_dataset_that_cannot_be_replayed(args: list[str], needle: str, recorded: Path,
+                                               tmp_path: Path) -> None:
+    (tmp_path / "bad").mkdir()
+    (tmp_path / "bad" / "meta.json").write_text('{"format": "other"}')
+    (tmp_path / "bad" / "frames.csv").write_text("index,t,image,speed,yaw_rate\n")
+    args = [a.format(bad_meta=tmp_path / "bad", recorded=recorded) for a in args]
+    r = _cli(["serve", "--port", "0", *args], tmp_path)
+    _one_line_error(r, needle)
+    assert r.returncode == 2 and "open http" not in r.stdout  # no server was started
+
+
 @pytest.fixture(scope="module")
 def images(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """Image files as a user might pass them: broken ones and good ones."""

@@ -334,8 +334,8 @@ class App:
 
 # ---------------------------------------------------------------------------------- command line
 def parser() -> Parser:
-    p = Parser(prog="tileviz serve", description="The live demo: simulation, vision and the "
-               "interval localizer in the browser (viser).")
+    p = Parser(prog="tileviz serve", description="The live demo: simulation (or a recorded "
+               "dataset, --dataset), vision and the interval localizer in the browser (viser).")
     p.add_argument("--host", default="127.0.0.1",
                    help="address to listen on (default 127.0.0.1: this machine only)")
     p.add_argument("--port", type=_port, default=8080, help="port (default 8080; the next free "
