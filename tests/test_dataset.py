@@ -213,3 +213,55 @@ def test_fault_labels_round_trip(tmp_path: Path) -> None:
                                compass=None, faults=faults))
     back = list(DatasetSource(tmp_path / "f"))
     assert [f.faults for f in back] == [(), ("slip",), (), ("cable", "glare")]
+
+
+def _frames_then_error(folder: Path, prefetch: int) -> tuple[list[FrameInput], str]:
+    """Every frame delivered before the reader stopped, and its error ('' if none)."""
+    got: list[FrameInput] = []
+    try:
+        for f in DatasetSource(folder, prefetch=prefetch):
+            got.append(f)
+    except DatasetError as e:
+        return got, str(e)
+    return got, ""
+
+
+@pytest.mark.parametrize("damage", ["none", "bad row", "bad image", "missing image"])
+def test_prefetch_gives_the_same_frames_and_the_same_error(tmp_path: Path, damage: str) -> None:
+    """Decoding ahead on a thread changes nothing a user sees: same frames (pixels, odometry),
+    and a bad row or image stops the replay at the same frame with the same message."""
+    rows = [[str(i), f"{0.1 * i:.1f}", "pics/b.png" if i % 2 else "pics/c.png", "0.5", "0.1",
+             "", "", "", ""] for i in range(12)]
+    if damage == "bad row":
+        rows[7][3] = "fast"
+    elif damage == "missing image":
+        rows[7][2] = "pics/gone.png"
+    elif damage == "bad image":
+        rows[7][2] = "pics/bad.png"
+    folder = _foreign_dataset(tmp_path, rows)
+    (folder / "pics" / "bad.png").write_bytes(b"\x89PNG not really")
+    plain, plain_err = _frames_then_error(folder, 0)
+    ahead, ahead_err = _frames_then_error(folder, 4)
+    assert ahead_err == plain_err
+    assert (plain_err == "") == (damage == "none")
+    assert [f.index for f in ahead] == [f.index for f in plain]
+    assert len(plain) == (12 if damage == "none" else 7)
+    for a, b in zip(ahead, plain, strict=True):
+        assert np.array_equal(a.image, b.image) and a.image.flags.c_contiguous
+        assert a.odometry == b.odometry
+
+
+def test_images_are_rgb(tmp_path: Path) -> None:
+    """The file's pixels in RGB order (OpenCV decodes BGR)."""
+    folder = _foreign_dataset(tmp_path)
+    img = np.zeros((H, W, 3), np.uint8)
+    img[..., 0] = 10  # blue in OpenCV's order
+    img[..., 2] = 250  # red
+    cv2.imwrite(str(folder / "pics" / "b.png"), img)
+    frame = list(DatasetSource(folder, prefetch=2))[1]
+    assert frame.image[0, 0].tolist() == [250, 0, 10]
+
+
+def test_prefetch_must_be_a_count(tmp_path: Path) -> None:
+    with pytest.raises(ValueError, match="prefetch must be an integer >= 0"):
+        DatasetSource(_foreign_dataset(tmp_path), prefetch=-1)

@@ -155,7 +155,8 @@ def replay(argv: list[str]) -> int:
         )
         from tileviz.runner import Runner
 
-        source = DatasetSource(args.dataset)
+        # images decode on a background thread while the previous frame's vision runs
+        source = DatasetSource(args.dataset, prefetch=8)
         cfg = source.meta.to_config()
         cfg = replace(cfg, localizer=replace(cfg.localizer, mode=args.mode))
         if args.extractor:

@@ -16,7 +16,9 @@ import csv
 import json
 import math
 import os
+from collections import deque
 from collections.abc import Iterator
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import IO, TYPE_CHECKING, Any
@@ -366,7 +368,13 @@ class DatasetSource:
     Images may be PNG or JPEG with any names; they are returned as HxWx3 uint8 RGB.
     """
 
-    def __init__(self, folder: str | os.PathLike[str]) -> None:
+    def __init__(self, folder: str | os.PathLike[str], *, prefetch: int = 0) -> None:
+        """``prefetch``: images decoded ahead of the frame being delivered, on a background
+        thread (OpenCV's decoder releases the GIL, so decoding overlaps the caller's vision);
+        0 decodes each image when its frame is asked for. Errors still arrive in row order."""
+        if not isinstance(prefetch, int) or prefetch < 0:
+            raise ValueError(f"prefetch must be an integer >= 0, got {prefetch!r}")
+        self.prefetch = prefetch
         self.folder = Path(folder)
         self.meta = read_meta(folder)
         self.frames_path = self.folder / "frames.csv"
@@ -469,27 +477,63 @@ class DatasetSource:
         if (w, h) != (self.meta.image_width, self.meta.image_height):
             raise DatasetError(f"{where}: image {name!r} is {w}x{h}, meta.json says "
                                f"{self.meta.image_width}x{self.meta.image_height}")
-        return image[:, :, ::-1]
+        # (the same pixels as image[:, :, ::-1], contiguous, 30x cheaper than numpy's copy)
+        return cv2.cvtColor(image, cv2.COLOR_BGR2RGB)
+
+    def _jobs(self) -> Iterator[tuple[_Row, Odometry | None, str]]:
+        """(row, its odometry, where) in order. A bad row raises DatasetError after the row
+        before it was given (without odometry: it has no successor)."""
+        rows = self._rows()
+        current = next(rows, None)
+        while current is not None:
+            where = f"{self.frames_path} row {current.line}"
+            try:
+                nxt = next(rows, None)
+            except DatasetError:
+                yield current, None, where
+                raise
+            odometry = None
+            if nxt is not None:
+                odometry = Odometry(current.speed, current.yaw_rate, nxt.t - current.t)
+            yield current, odometry, where
+            current = nxt
 
     def __iter__(self) -> Iterator[FrameInput]:
         """The frames in order. A bad row raises DatasetError naming it, after every frame
         before it was delivered (the one just before it without odometry, as a last frame)."""
-        rows = self._rows()
-        current = next(rows, None)
-        while current is not None:
+        if self.prefetch == 0:
+            for row, odometry, where in self._jobs():
+                yield self._frame(row, odometry, self.load_image(row.image, where))
+            return
+        yield from self._prefetched()
+
+    def _prefetched(self) -> Iterator[FrameInput]:
+        """:meth:`__iter__` with up to ``prefetch`` images decoding ahead on one thread."""
+        jobs = self._jobs()
+        pending: deque[tuple[_Row, Odometry | None, Future[np.ndarray]]] = deque()
+        error: DatasetError | None = None
+        with ThreadPoolExecutor(1, thread_name_prefix="tileviz-decode") as pool:
             try:
-                nxt = next(rows, None)
-            except DatasetError:
-                where = f"{self.frames_path} row {current.line}"
-                yield self._frame(current, None, self.load_image(current.image, where))
-                raise
-            where = f"{self.frames_path} row {current.line}"
-            image = self.load_image(current.image, where)
-            odometry = None
-            if nxt is not None:
-                odometry = Odometry(current.speed, current.yaw_rate, nxt.t - current.t)
-            yield self._frame(current, odometry, image)
-            current = nxt
+                while True:
+                    while error is None and len(pending) < self.prefetch:
+                        try:
+                            row, odometry, where = next(jobs)
+                        except StopIteration:
+                            break
+                        except DatasetError as e:
+                            error = e  # raised once the frames before it are delivered
+                            break
+                        pending.append(
+                            (row, odometry, pool.submit(self.load_image, row.image, where)))
+                    if not pending:
+                        break
+                    row, odometry, image = pending.popleft()
+                    yield self._frame(row, odometry, image.result())
+            finally:
+                for *_, fut in pending:
+                    fut.cancel()
+        if error is not None:
+            raise error
 
     def _frame(self, row: _Row, odometry: Odometry | None, image: np.ndarray) -> FrameInput:
         return FrameInput(
