@@ -320,14 +320,17 @@ class App:
         rate = f"{s.rate:.0f} frames/s" if s.playing else "-"
         lines.append(f"loop {rate}, history {len(s.history)}/{s.history.capacity}, "
                      f"mode {s.cfg.localizer.mode}, extractor {s.cfg.vision.extractor}")
+        notes = list(s.notes)[-3:]
         if not s.source.simulator:
+            # its end stays in view after newer notes pushed the note about it out
+            said = s.ended is not None and any(n.text.startswith(s.ended) for n in notes)
             lines.append(f"replaying `{s.source.describe()}`"
-                         + (f": **{s.ended}**" if s.ended else ""))
+                         + (f": **{s.ended}**" if s.ended and not said else ""))
         if s.recording is not None:
             lines.append(f"recording to `{s.recording_path}` ({s.recording.count} frames)")
         if s.degraded:
             lines.append("**a frame failed: the set may miss the truth (Relocalize or Reset)**")
-        for n in list(s.notes)[-3:]:
+        for n in notes:
             lines.append(("**error:** " if n.level == "error" else "") + n.text)
         return "  \n".join(lines)
 
