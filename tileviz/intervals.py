@@ -31,6 +31,7 @@ __all__ = [
     "add",
     "asin_preimage",
     "cos_range",
+    "cos_sin_range",
     "down",
     "hull",
     "intersect",
@@ -168,6 +169,52 @@ def sin_range(lo: float, hi: float) -> Interval:
     return _trig_range(_sin, lo, hi, 0.5)
 
 
+def cos_sin_range(lo: float, hi: float) -> tuple[float, float, float, float]:
+    """``cos_range(lo, hi) + sin_range(lo, hi)`` as (c_lo, c_hi, s_lo, s_hi), bit for bit, in
+    one call (the localizer's hot path needs both over the same interval: the quotients t/pi
+    are shared). Same method as :func:`_trig_range`: end values widened by TRIG_ULPS ulps, the
+    extremum +-1 added when [lo, hi] may contain it, clamped to [-1, 1]."""
+    p = lo * _INV_PI  # = lo / pi - 0 (phase 0: cos), exactly as _trig_range computes it
+    q = hi * _INV_PI
+    k1 = _ceil(p - (abs(p) + 1.0) * _Q_REL)
+    k2 = _floor(q + (abs(q) + 1.0) * _Q_REL)
+    if k2 > k1:
+        c_lo = -1.0
+        c_hi = 1.0
+    else:
+        a = _cos(lo)
+        b = _cos(hi)
+        if a > b:
+            a, b = b, a
+        c_lo = a - TRIG_ULPS * _ulp(a)
+        c_hi = b + TRIG_ULPS * _ulp(b)
+        if k1 == k2:
+            if k1 & 1:
+                c_lo = -1.0
+            else:
+                c_hi = 1.0
+        c_lo = c_lo if c_lo > -1.0 else -1.0
+        c_hi = c_hi if c_hi < 1.0 else 1.0
+    p = p - 0.5  # phase 1/2: sin
+    q = q - 0.5
+    k1 = _ceil(p - (abs(p) + 1.0) * _Q_REL)
+    k2 = _floor(q + (abs(q) + 1.0) * _Q_REL)
+    if k2 > k1:
+        return (c_lo, c_hi, -1.0, 1.0)
+    a = _sin(lo)
+    b = _sin(hi)
+    if a > b:
+        a, b = b, a
+    s_lo = a - TRIG_ULPS * _ulp(a)
+    s_hi = b + TRIG_ULPS * _ulp(b)
+    if k1 == k2:
+        if k1 & 1:
+            s_lo = -1.0
+        else:
+            s_hi = 1.0
+    return (c_lo, c_hi, s_lo if s_lo > -1.0 else -1.0, s_hi if s_hi < 1.0 else 1.0)
+
+
 # --- lattices ---------------------------------------------------------------------------------
 
 
@@ -193,28 +240,44 @@ def _piece_hi(k: int, c_hi: float, period: float, period_error: float) -> float:
 
 def _index_range(
     lo: float, hi: float, c_lo: float, c_hi: float, period: float, period_error: float
-) -> tuple[int, int]:
-    """The first and last k whose outward piece [c_lo, c_hi] + k P meets [lo, hi]
-    (first > last when none does)."""
+) -> tuple[int, int, float, float]:
+    """(k1, k2, b1, a2): the first and last k whose outward piece [c_lo, c_hi] + k P meets
+    [lo, hi] (k1 > k2 when none does), with the bounds the walks computed on the way: b1 the upper
+    bound of piece k1 and a2 the lower bound of piece k2 (outward, as :func:`_piece_hi` and
+    :func:`_piece_lo`), so that a caller left with a single piece rounds nothing again."""
     # The quotients are good to a few ulps: the estimate is right but for a rounding tie, which
     # the walks below settle with the outward piece bounds themselves.
     k1 = _ceil((lo - c_hi) / period)
-    if _piece_hi(k1 - 1, c_hi, period, period_error) >= lo:
+    b = _piece_hi(k1 - 1, c_hi, period, period_error)
+    if b >= lo:
         k1 -= 1
-        while _piece_hi(k1 - 1, c_hi, period, period_error) >= lo:
+        b1 = b
+        b = _piece_hi(k1 - 1, c_hi, period, period_error)
+        while b >= lo:
             k1 -= 1
+            b1 = b
+            b = _piece_hi(k1 - 1, c_hi, period, period_error)
     else:
-        while _piece_hi(k1, c_hi, period, period_error) < lo:
+        b1 = _piece_hi(k1, c_hi, period, period_error)
+        while b1 < lo:
             k1 += 1
+            b1 = _piece_hi(k1, c_hi, period, period_error)
     k2 = _floor((hi - c_lo) / period)
-    if _piece_lo(k2 + 1, c_lo, period, period_error) <= hi:
+    a = _piece_lo(k2 + 1, c_lo, period, period_error)
+    if a <= hi:
         k2 += 1
-        while _piece_lo(k2 + 1, c_lo, period, period_error) <= hi:
+        a2 = a
+        a = _piece_lo(k2 + 1, c_lo, period, period_error)
+        while a <= hi:
             k2 += 1
+            a2 = a
+            a = _piece_lo(k2 + 1, c_lo, period, period_error)
     else:
-        while _piece_lo(k2, c_lo, period, period_error) > hi:
+        a2 = _piece_lo(k2, c_lo, period, period_error)
+        while a2 > hi:
             k2 -= 1
-    return k1, k2
+            a2 = _piece_lo(k2, c_lo, period, period_error)
+    return k1, k2, b1, a2
 
 
 def lattice_intersect(
@@ -240,9 +303,11 @@ def lattice_intersect(
             f"lattice_intersect needs lo <= hi, c_lo <= c_hi and period > 0, got "
             f"[{lo}, {hi}], [{c_lo}, {c_hi}], {period}"
         )
-    k1, k2 = _index_range(lo, hi, c_lo, c_hi, period, period_error)
-    if k1 > k2:
-        return []
+    k1, k2, b1, a2 = _index_range(lo, hi, c_lo, c_hi, period, period_error)
+    if k1 >= k2:
+        if k1 > k2:
+            return []
+        return [(a2 if a2 > lo else lo, b1 if b1 < hi else hi)]  # the one piece, k1 = k2
     if c_hi - c_lo >= period or (max_pieces is not None and k2 - k1 + 1 > max_pieces):
         a = _piece_lo(k1, c_lo, period, period_error)
         b = _piece_hi(k2, c_hi, period, period_error)
@@ -281,7 +346,9 @@ def lattice_pieces_indexed(
     """[lo, hi] ∩ ([c_lo, c_hi] + k period) for every k, as (k, piece_lo, piece_hi), unmerged
     (outward rounded as in :func:`lattice_intersect`). Pieces may touch or overlap when
     c_hi - c_lo is close to the period; the caller decides."""
-    k1, k2 = _index_range(lo, hi, c_lo, c_hi, period, period_error)
+    k1, k2, b1, a2 = _index_range(lo, hi, c_lo, c_hi, period, period_error)
+    if k1 == k2:
+        return [(k1, a2 if a2 > lo else lo, b1 if b1 < hi else hi)]
     return _clipped_pieces(k1, k2, lo, hi, c_lo, c_hi, period, period_error)
 
 
@@ -291,11 +358,12 @@ def lattice_hull(
     """The hull of [lo, hi] ∩ ([c_lo, c_hi] + period * Z), or None (see lattice_intersect).
 
     This is what a forward-backward contractor on sin(pi (t - c) / period) = 0 computes."""
-    k1, k2 = _index_range(lo, hi, c_lo, c_hi, period, period_error)
+    k1, k2, b, a = _index_range(lo, hi, c_lo, c_hi, period, period_error)
     if k1 > k2:
         return None
-    a = _piece_lo(k1, c_lo, period, period_error)
-    b = _piece_hi(k2, c_hi, period, period_error)
+    if k1 < k2:
+        a = _piece_lo(k1, c_lo, period, period_error)
+        b = _piece_hi(k2, c_hi, period, period_error)
     return (a if a > lo else lo, b if b < hi else hi)
 
 

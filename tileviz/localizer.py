@@ -129,12 +129,11 @@ from tileviz.intervals import (
     TWO_PI_ERROR,
     acos_preimage,
     asin_preimage,
-    cos_range,
+    cos_sin_range,
     lattice_hull,
     lattice_intersect,
     lattice_pieces_indexed,
     mul,
-    sin_range,
 )
 from tileviz.types import Box, BoxSet, Observation, Odometry, Pose, SensorBounds
 
@@ -308,8 +307,7 @@ def predict_box(
     tn_hi = n(t_hi + n(dt * w_hi, _INF), _INF)
     h_lo = t_lo if t_lo < tn_lo else tn_lo
     h_hi = t_hi if t_hi > tn_hi else tn_hi
-    c_lo, c_hi = cos_range(h_lo, h_hi)
-    s_lo, s_hi = sin_range(h_lo, h_hi)
+    c_lo, c_hi, s_lo, s_hi = cos_sin_range(h_lo, h_hi)
     d_lo = n(dt * v_lo, -_INF)
     d_hi = n(dt * v_hi, _INF)
     dx_lo, dx_hi = mul(d_lo, d_hi, c_lo, c_hi)
@@ -367,8 +365,7 @@ def _lever_ranges(
     """Enclosures (gx_lo, gx_hi, gy_lo, gy_hi) of the lever arm rho (cos, sin)(s) over
     s in [s_lo, s_hi] (s = heading + phi)."""
     n = _nextafter
-    c_lo, c_hi = cos_range(s_lo, s_hi)
-    d_lo, d_hi = sin_range(s_lo, s_hi)
+    c_lo, c_hi, d_lo, d_hi = cos_sin_range(s_lo, s_hi)
     return (
         n(min(rho_lo * c_lo, rho_hi * c_lo), -_INF),
         n(max(rho_lo * c_hi, rho_hi * c_hi), _INF),
@@ -673,8 +670,34 @@ def _tidy(boxes: list[Tuple6], cap: int) -> tuple[list[Tuple6], bool]:
     return out, False
 
 
+# Building the frozen result objects through their dataclass __init__ (one object.__setattr__
+# per field) cost as much as the whole prediction; the hot path fills the same slots directly.
+# The objects are the same as Box(*b) / BoxSet(boxes) (tests/test_localizer.py checks it).
+_new = object.__new__
+_BOX_SLOTS = tuple(Box.__dict__[k].__set__
+                   for k in ("x_lo", "x_hi", "y_lo", "y_hi", "t_lo", "t_hi"))
+_BOXSET_SLOT = BoxSet.__dict__["boxes"].__set__
+
+
+def _box(b: Tuple6) -> Box:
+    """``Box(*b)``, built without the frozen dataclass __init__."""
+    s0, s1, s2, s3, s4, s5 = _BOX_SLOTS
+    x_lo, x_hi, y_lo, y_hi, t_lo, t_hi = b
+    o = _new(Box)
+    s0(o, x_lo)
+    s1(o, x_hi)
+    s2(o, y_lo)
+    s3(o, y_hi)
+    s4(o, t_lo)
+    s5(o, t_hi)
+    return o
+
+
 def _to_boxset(boxes: list[Tuple6]) -> BoxSet:
-    return BoxSet(tuple(Box(*b) for b in boxes))
+    """``BoxSet(tuple(Box(*b) for b in boxes))``, built without the dataclass __init__s."""
+    o = _new(BoxSet)
+    _BOXSET_SLOT(o, (_box(boxes[0]),) if len(boxes) == 1 else tuple(map(_box, boxes)))
+    return o
 
 
 def inflate_box(b: Tuple6, d: float, dt: float) -> Tuple6:
@@ -770,10 +793,16 @@ class Localizer:
         mode = cfg.mode
         cap = cfg.max_boxes
         hulled = False
-        # validate every input first, so a bad frame changes nothing
+        # validate every input first, so a bad frame changes nothing. The fast test is
+        # _all_finite written out (every value within +-LIMIT, NaN fails, a non-number raises
+        # TypeError); on failure the checks that name the culprit run.
         if odometry is not None:
             v, w, dt = odometry.speed, odometry.yaw_rate, odometry.dt
-            if not _all_finite(v, w, dt) or dt < 0:
+            try:
+                ok = -1e9 <= v <= 1e9 and -1e9 <= w <= 1e9 and 0 <= dt <= 1e9
+            except TypeError:
+                ok = False
+            if not ok:
                 _finite("odometry.speed", v)
                 _finite("odometry.yaw_rate", w)
                 _nonneg("odometry.dt", dt)
@@ -782,7 +811,12 @@ class Localizer:
         if observation is not None:
             o = observation
             e, e3 = o.position_error, o.heading_error
-            if not _all_finite(o.y1, o.y2, o.y3, e, e3) or e < 0 or e3 < 0:
+            try:
+                ok = (-1e9 <= o.y1 <= 1e9 and -1e9 <= o.y2 <= 1e9 and -1e9 <= o.y3 <= 1e9
+                      and 0 <= e <= 1e9 and 0 <= e3 <= 1e9)
+            except TypeError:
+                ok = False
+            if not ok:
                 _finite("observation.y1", o.y1)
                 _finite("observation.y2", o.y2)
                 _finite("observation.y3", o.y3)
@@ -894,7 +928,8 @@ class Localizer:
                     self._window = 0
                     updated_boxes = [_hull_all(updated_boxes)]
         self._boxes = updated_boxes
-        return LocalizerStep(
+        result = _new(LocalizerStep)  # LocalizerStep(...) without its frozen __init__
+        result.__dict__.update(
             predicted=predicted,
             updated=predicted if updated_boxes is boxes else _to_boxset(updated_boxes),
             status=status,
@@ -904,6 +939,7 @@ class Localizer:
             rejections=self._rejections,
             reinflated=reinflated,
         )
+        return result
 
     def _compass_cut(self, boxes: list[Tuple6], compass: float) -> list[Tuple6]:
         """The boxes' poses whose heading is within ``compass_error`` of ``compass`` (mod 2 pi)."""
