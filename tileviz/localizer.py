@@ -345,18 +345,14 @@ def observation_windows(obs: Observation) -> tuple[Window, Window, Window, Windo
     t_lo = n(obs.y3 - e3, -_INF)
     t_hi = n(obs.y3 + e3, _INF)
     # R(m pi/2)(a, b): m=0 (a, b), m=1 (-b, a), m=2 (-a, -b), m=3 (b, -a); negation is exact.
-    us = (
-        (a_lo, a_hi, b_lo, b_hi),
-        (-b_hi, -b_lo, a_lo, a_hi),
-        (-a_hi, -a_lo, -b_hi, -b_lo),
-        (b_lo, b_hi, -a_hi, -a_lo),
+    # [h] + m pi/2 with the rigorous bounds of m pi/2 (_QUARTER_LO / _QUARTER_HI).
+    return (
+        (a_lo, a_hi, b_lo, b_hi, t_lo, t_hi),
+        (-b_hi, -b_lo, a_lo, a_hi, n(t_lo + _QUARTER_LO[1], -_INF), n(t_hi + _QUARTER_HI[1], _INF)),
+        (-a_hi, -a_lo, -b_hi, -b_lo,
+         n(t_lo + _QUARTER_LO[2], -_INF), n(t_hi + _QUARTER_HI[2], _INF)),
+        (b_lo, b_hi, -a_hi, -a_lo, n(t_lo + _QUARTER_LO[3], -_INF), n(t_hi + _QUARTER_HI[3], _INF)),
     )
-    out = []
-    for m in range(4):
-        h_lo = t_lo if m == 0 else n(t_lo + _QUARTER_LO[m], -_INF)
-        h_hi = t_hi if m == 0 else n(t_hi + _QUARTER_HI[m], _INF)
-        out.append(us[m] + (h_lo, h_hi))
-    return (out[0], out[1], out[2], out[3])
 
 
 def _lever_ranges(
@@ -428,24 +424,27 @@ def _refine_cell(
     py_hi: float,
     lever: Lever,
     max_passes: int,
-    g0: tuple[float, float, float, float] | None = None,
+    s_lo: float,
+    s_hi: float,
+    g: tuple[float, float, float, float],
 ) -> tuple[Tuple6 | None, int]:
     """Contract one cell: the camera centre c = (x, y) + rho (cos, sin)(t + phi) must lie in the
     lattice piece [px] x [py]. Alternates the exact projections of that constraint onto x, y and
     the heading (the latter the hull of the arccos / arcsin preimage) until the heading stops
-    moving (FIXPOINT_TOL) or ``max_passes`` passes. ``g0``: the lever-arm ranges
-    (gx_lo, gx_hi, gy_lo, gy_hi) over [t_lo, t_hi] when the caller has them. Returns (box or None
+    moving (FIXPOINT_TOL) or ``max_passes`` passes. ``s_lo, s_hi``: [t] + phi (outward) and ``g``
+    the lever-arm ranges (gx_lo, gx_hi, gy_lo, gy_hi) over it, as the caller computed them for
+    the first pass (:func:`_contract_cells`: the same for every cell). Returns (box or None
     when empty, passes)."""
     n = _nextafter
     rho_lo, rho_hi, phi_lo, phi_hi = lever
+    gx_lo, gx_hi, gy_lo, gy_hi = g
     p = 0
     while True:
         p += 1
-        s_lo = n(t_lo + phi_lo, -_INF)
-        s_hi = n(t_hi + phi_hi, _INF)
-        gx_lo, gx_hi, gy_lo, gy_hi = (
-            g0 if p == 1 and g0 is not None else _lever_ranges(s_lo, s_hi, rho_lo, rho_hi)
-        )
+        if p > 1:
+            s_lo = n(t_lo + phi_lo, -_INF)
+            s_hi = n(t_hi + phi_hi, _INF)
+            gx_lo, gx_hi, gy_lo, gy_hi = _lever_ranges(s_lo, s_hi, rho_lo, rho_hi)
         # x and y through the lever arm, then the heading: rho cos(t + phi) in ([c] - [x]) etc.
         rx = _lever_axis(x_lo, x_hi, gx_lo, gx_hi, px_lo, px_hi, rho_lo, rho_hi)
         if rx is None:
@@ -507,8 +506,9 @@ def _contract_cells(
         c = b
     else:
         rho_lo, rho_hi, phi_lo, phi_hi = lever
-        g = _lever_ranges(_nextafter(a_lo + phi_lo, -_INF), _nextafter(a_hi + phi_hi, _INF),
-                          rho_lo, rho_hi)
+        s_lo = _nextafter(a_lo + phi_lo, -_INF)
+        s_hi = _nextafter(a_hi + phi_hi, _INF)
+        g = _lever_ranges(s_lo, s_hi, rho_lo, rho_hi)
         c = (_nextafter(x_lo + g[0], -_INF), _nextafter(x_hi + g[1], _INF),
              _nextafter(y_lo + g[2], -_INF), _nextafter(y_hi + g[3], _INF))
     xs = lattice_intersect(c[0], c[1], win[0], win[1], tile_size, max_pieces=max_cells)
@@ -532,7 +532,7 @@ def _contract_cells(
         for py_lo, py_hi in ys:
             box, p = _refine_cell(
                 x_lo, x_hi, y_lo, y_hi, a_lo, a_hi,
-                px_lo, px_hi, py_lo, py_hi, lever, max_passes, g,
+                px_lo, px_hi, py_lo, py_hi, lever, max_passes, s_lo, s_hi, g,
             )
             if p > passes:
                 passes = p
@@ -672,7 +672,7 @@ def _tidy(boxes: list[Tuple6], cap: int) -> tuple[list[Tuple6], bool]:
 
 # Building the frozen result objects through their dataclass __init__ (one object.__setattr__
 # per field) cost as much as the whole prediction; the hot path fills the same slots directly.
-# The objects are the same as Box(*b) / BoxSet(boxes) (tests/test_localizer.py checks it).
+# The objects are the same as Box(*b) / BoxSet(boxes) (tests/test_localizer_golden.py checks).
 _new = object.__new__
 _BOX_SLOTS = tuple(Box.__dict__[k].__set__
                    for k in ("x_lo", "x_hi", "y_lo", "y_hi", "t_lo", "t_hi"))
@@ -847,8 +847,8 @@ class Localizer:
                         and -1e9 <= b[4] and b[5] <= 1e9 and b[5] - b[4] <= _TURN):
                     boxes = _in_range(boxes)  # raises, or cuts a heading to one turn
                     break
-            boxes, h = _tidy(boxes, cap)
-            hulled = hulled or h
+            if len(boxes) > 1:  # (one box is tidy: cap >= 1, LocalizerConfig checks it)
+                boxes, hulled = _tidy(boxes, cap)
         else:
             boxes = list(self._boxes)
 
@@ -863,7 +863,9 @@ class Localizer:
             c_lo = _nextafter(compass - self._ec, -_INF)
             c_hi = _nextafter(compass + self._ec, _INF)
             cut = [p for b in boxes for p in compass_pieces(b, c_lo, c_hi)]
-            if cut:
+            if len(cut) == 1:
+                boxes = cut
+            elif cut:
                 boxes, h = _tidy(cut, cap)
                 hulled = hulled or h
             else:
@@ -904,8 +906,11 @@ class Localizer:
             if out:
                 status = "contracted"
                 self._rejections = 0
-                updated_boxes, h = _tidy(out, cap)
-                hulled = hulled or h
+                if len(out) == 1:
+                    updated_boxes = out
+                else:
+                    updated_boxes, h = _tidy(out, cap)
+                    hulled = hulled or h
             else:
                 self._rejections += 1
                 status = "rejected"
