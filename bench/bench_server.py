@@ -97,9 +97,33 @@ async def ws_run(url: str, seconds: float) -> tuple[Counter, int, float, int]:
         return got, got["timeline_max"] - start, t1 - t0, stages
 
 
-def browser_run(url: str, seconds: float,
-                viewport: tuple[int, int] = (1400, 900)) -> tuple[Counter, float, int]:
-    """What the page's own websocket receives while ``seconds`` pass, decoded and counted."""
+PAGE_COUNTERS = """
+(() => {
+  // counted inside the page: websocket messages (one per server push) and animation frames
+  const c = {messages: 0, bytes: 0, frames: 0};
+  window.__tileviz = c;
+  const Native = window.WebSocket;
+  window.WebSocket = function (...args) {
+    const ws = new Native(...args);
+    ws.addEventListener("message", (ev) => {
+      c.messages += 1;
+      c.bytes += ev.data.byteLength || ev.data.size || ev.data.length || 0;
+    });
+    return ws;
+  };
+  window.WebSocket.prototype = Native.prototype;
+  Object.assign(window.WebSocket, Native);
+  const tick = () => { c.frames += 1; requestAnimationFrame(tick); };
+  requestAnimationFrame(tick);
+})();
+"""
+"""Counters the page keeps itself (no devtools traffic involved)."""
+
+
+def browser_run(url: str, seconds: float, viewport: tuple[int, int] = (1400, 900),
+                ) -> tuple[Counter, float, int, dict[str, float]]:
+    """What the page's own websocket receives while ``seconds`` pass, decoded and counted, and
+    the page's own counts (websocket messages, bytes, animation frames)."""
     from playwright.sync_api import sync_playwright
 
     frames: list[tuple[bool, bytes]] = []
@@ -114,20 +138,26 @@ def browser_run(url: str, seconds: float,
     with sync_playwright() as p:
         browser = p.chromium.launch(executable_path="/usr/bin/chromium", args=ARGS)
         page = browser.new_page(viewport={"width": viewport[0], "height": viewport[1]})
+        page.add_init_script(PAGE_COUNTERS)
         page.on("websocket", on_ws)
         page.goto(url)
         page.wait_for_selector("canvas", timeout=60_000)
         page.wait_for_timeout(3000)
+        read = "() => ({...window.__tileviz, now: performance.now()})"
+        c0 = page.evaluate(read)
         recording["on"] = True
         t0 = time.perf_counter()
         page.wait_for_timeout(seconds * 1000)
         recording["on"] = False
         span = time.perf_counter() - t0
+        c1 = page.evaluate(read)
         browser.close()
+    secs = (c1["now"] - c0["now"]) / 1e3
+    inpage = {k: (c1[k] - c0[k]) / secs for k in ("messages", "bytes", "frames")}
     before = [m for on, f in frames if not on for m in decode_window(f)]
     during = [m for on, f in frames if on for m in decode_window(f)]
     got = count(during, image_uuids(before), timeline_uuid(before))
-    return got, span, sum(1 for on, _ in frames if on)
+    return got, span, sum(1 for on, _ in frames if on), inpage
 
 
 def start_server(tmp: str, args: argparse.Namespace, speed: str) -> tuple[Any, str]:
@@ -189,7 +219,7 @@ def main() -> int:
             proc, url = start_server(tmp, args, args.browser_speed)
             try:
                 vw, vh = (int(v) for v in args.viewport.lower().split("x"))
-                bgot, bspan, nframes = browser_run(url, args.seconds, (vw, vh))
+                bgot, bspan, nframes, inpage = browser_run(url, args.seconds, (vw, vh))
             finally:
                 stop_server(proc)
             print(f"chromium page ({vw}x{vh}, software WebGL; server at speed "
@@ -198,6 +228,9 @@ def main() -> int:
                   f"{bgot['stage'] / bspan:.1f} stage images/s "
                   f"({nframes / bspan:.1f} websocket messages/s; load average "
                   f"{os.getloadavg()[0]:.1f})")
+            print(f"  counted in the page itself: {inpage['messages']:.1f} websocket "
+                  f"messages/s ({inpage['bytes'] / 1e3:.0f} kB/s), "
+                  f"{inpage['frames']:.1f} animation frames/s")
     return 0
 
 
