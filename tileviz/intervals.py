@@ -114,7 +114,21 @@ def mul(a_lo: float, a_hi: float, b_lo: float, b_hi: float) -> Interval:
     p2 = a_lo * b_hi
     p3 = a_hi * b_lo
     p4 = a_hi * b_hi
-    return (_nextafter(min(p1, p2, p3, p4), -_INF), _nextafter(max(p1, p2, p3, p4), _INF))
+    lo = p1  # min(p1, p2, p3, p4) and max(...) written out (same ties: the first one wins)
+    hi = p1
+    if p2 < lo:
+        lo = p2
+    elif p2 > hi:
+        hi = p2
+    if p3 < lo:
+        lo = p3
+    elif p3 > hi:
+        hi = p3
+    if p4 < lo:
+        lo = p4
+    elif p4 > hi:
+        hi = p4
+    return (_nextafter(lo, -_INF), _nextafter(hi, _INF))
 
 
 def intersect(a_lo: float, a_hi: float, b_lo: float, b_hi: float) -> Interval | None:
@@ -246,37 +260,54 @@ def _index_range(
     bound of piece k1 and a2 the lower bound of piece k2 (outward, as :func:`_piece_hi` and
     :func:`_piece_lo`), so that a caller left with a single piece rounds nothing again."""
     # The quotients are good to a few ulps: the estimate is right but for a rounding tie, which
-    # the walks below settle with the outward piece bounds themselves.
-    k1 = _ceil((lo - c_hi) / period)
-    b = _piece_hi(k1 - 1, c_hi, period, period_error)
-    if b >= lo:
-        k1 -= 1
-        b1 = b
-        b = _piece_hi(k1 - 1, c_hi, period, period_error)
-        while b >= lo:
-            k1 -= 1
+    # the walks settle with the outward piece bounds themselves. Each walk starts one step
+    # outside the estimate and moves until it crosses the bound (usually 2 evaluations).
+    # _piece_hi / _piece_lo are written out here: this runs several times per localizer frame.
+    n = _nextafter
+    k = _ceil((lo - c_hi) / period) - 1
+    step = 0
+    while True:  # k1: the smallest k with piece_hi(k) >= lo
+        if k == 0:
+            b = c_hi
+        else:
+            b = n(n(k * period, _INF) + c_hi, _INF)
+            if period_error:
+                b = n(b + abs(k) * period_error, _INF)
+        if b >= lo:
+            if step > 0:
+                k1, b1 = k, b
+                break
+            step = -1
             b1 = b
-            b = _piece_hi(k1 - 1, c_hi, period, period_error)
-    else:
-        b1 = _piece_hi(k1, c_hi, period, period_error)
-        while b1 < lo:
-            k1 += 1
-            b1 = _piece_hi(k1, c_hi, period, period_error)
-    k2 = _floor((hi - c_lo) / period)
-    a = _piece_lo(k2 + 1, c_lo, period, period_error)
-    if a <= hi:
-        k2 += 1
-        a2 = a
-        a = _piece_lo(k2 + 1, c_lo, period, period_error)
-        while a <= hi:
-            k2 += 1
+            k -= 1
+        elif step < 0:
+            k1 = k + 1
+            break
+        else:
+            step = 1
+            k += 1
+    k = _floor((hi - c_lo) / period) + 1
+    step = 0
+    while True:  # k2: the largest k with piece_lo(k) <= hi
+        if k == 0:
+            a = c_lo
+        else:
+            a = n(n(k * period, -_INF) + c_lo, -_INF)
+            if period_error:
+                a = n(a - abs(k) * period_error, -_INF)
+        if a <= hi:
+            if step < 0:
+                k2, a2 = k, a
+                break
+            step = 1
             a2 = a
-            a = _piece_lo(k2 + 1, c_lo, period, period_error)
-    else:
-        a2 = _piece_lo(k2, c_lo, period, period_error)
-        while a2 > hi:
-            k2 -= 1
-            a2 = _piece_lo(k2, c_lo, period, period_error)
+            k += 1
+        elif step > 0:
+            k2 = k - 1
+            break
+        else:
+            step = -1
+            k -= 1
     return k1, k2, b1, a2
 
 

@@ -171,6 +171,8 @@ _QUARTER_LO = (0.0, HALF_PI_LO, _nextafter(2.0 * HALF_PI_LO, -_INF),
 _QUARTER_HI = (0.0, HALF_PI_HI, _nextafter(2.0 * HALF_PI_HI, _INF),
                _nextafter(3.0 * HALF_PI_HI, _INF))
 """Rigorous bounds of m pi/2, m = 0..3."""
+_EIGHTH_TURN = 0.5 * HALF_PI
+"""pi/4 (rounded): heading windows this wide or wider may overlap (contract_box)."""
 
 
 @dataclass(frozen=True)
@@ -362,12 +364,20 @@ def _lever_ranges(
     s in [s_lo, s_hi] (s = heading + phi)."""
     n = _nextafter
     c_lo, c_hi, d_lo, d_hi = cos_sin_range(s_lo, s_hi)
-    return (
-        n(min(rho_lo * c_lo, rho_hi * c_lo), -_INF),
-        n(max(rho_lo * c_hi, rho_hi * c_hi), _INF),
-        n(min(rho_lo * d_lo, rho_hi * d_lo), -_INF),
-        n(max(rho_lo * d_hi, rho_hi * d_hi), _INF),
-    )
+    # min(p, q) / max(p, q) of the two products, written out (same ties: p wins)
+    p = rho_lo * c_lo
+    q = rho_hi * c_lo
+    gx_lo = q if q < p else p
+    p = rho_lo * c_hi
+    q = rho_hi * c_hi
+    gx_hi = q if q > p else p
+    p = rho_lo * d_lo
+    q = rho_hi * d_lo
+    gy_lo = q if q < p else p
+    p = rho_lo * d_hi
+    q = rho_hi * d_hi
+    gy_hi = q if q > p else p
+    return (n(gx_lo, -_INF), n(gx_hi, _INF), n(gy_lo, -_INF), n(gy_hi, _INF))
 
 
 def _lever_axis(
@@ -587,7 +597,7 @@ def contract_box(
     passes = 0
     hulled = False
     h_lo, h_hi = windows[0][4], windows[0][5]
-    if h_hi - h_lo >= 0.5 * HALF_PI:
+    if h_hi - h_lo >= _EIGHTH_TURN:
         for win in windows:
             boxes, p, h = contract_branch(b, win, tile_size, lever, max_passes, max_cells)
             out.extend(boxes)
