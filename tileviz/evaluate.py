@@ -38,7 +38,9 @@ degrees):
 - ``false_vouches``: interval methods: frames vouched for (not ``lost``) whose set did not hold
   the truth, the frames the guarantee is about (0 whenever its hypotheses hold).
 - ``rejected_frames`` / ``lost_frames``: frames with that status (interval methods only).
-- Fault events (scenarios with faults, interval methods; otherwise empty): an event is a run of
+- Fault events (scenarios with faults, the autonomous interval methods ``interval`` and
+  ``interval-recovery``; otherwise empty: truth mode restarts from the truth every frame, odometry
+  mode uses no view, MCL has no status): an event is a run of
   consecutive frames the simulator labelled faulty, first frame F, last frame E
   (:func:`fault_events`; a kidnap: one frame). ``fault_events``: their number over the runs.
   ``detection_median_frames`` / ``detection_max_frames``: frames from F to the first frame where
@@ -105,6 +107,10 @@ METHODS = ("interval", "interval-recovery", "interval-truth", "odometry", "mcl")
 """Method names, in table order."""
 INTERVAL_METHODS = METHODS[:4]
 """The methods that report a status (the interval localizer in its modes)."""
+FAULT_METHODS = ("interval", "interval-recovery")
+"""The methods with detection and recovery figures: the autonomous localizer. Truth mode starts
+afresh from the truth every frame and odometry mode never uses a view: neither has a fault to
+notice or to recover from in the same sense."""
 METHOD_LABELS = {
     "interval": "interval (autonomous)",
     "interval-recovery": "interval (autonomous, recovery on)",
@@ -224,14 +230,12 @@ def _schedule(scn: Scenario, frames: int, dt: float,
 # One implementation for this evaluation and bench/faults.py.
 
 
-def noticed(status: str, compass_rejected: bool, has_view: bool, mode: str = "autonomous") -> bool:
-    """Whether the interval localizer showed, at one frame, that something was wrong: a view
-    ``rejected``, ``lost``, a compass reading that missed the set (``compass_rejected``), or no
-    view to use (``has_view`` False: vision refused the frame, so the status is ``predicted``).
-    Mode ``odometry`` never uses views: only its compass can notice anything."""
-    if status in ("rejected", "lost") or compass_rejected:
-        return True
-    return mode != "odometry" and not has_view
+def noticed(status: str, compass_rejected: bool, has_view: bool) -> bool:
+    """Whether the autonomous interval localizer showed, at one frame, that something was wrong:
+    a view ``rejected``, ``lost``, a compass reading that missed the set (``compass_rejected``),
+    or no view to use (``has_view`` False: vision refused the frame, so the status is
+    ``predicted``)."""
+    return status in ("rejected", "lost") or compass_rejected or not has_view
 
 
 def fault_events(faulty: np.ndarray) -> list[tuple[int, int]]:
@@ -311,8 +315,8 @@ class MethodTrace:
     half-widths) in x, y (m) and theta (rad, continuous). ``centre`` (n, 3): hull centre / particle
     mean. ``inside`` (n,): truth inside the set (MCL: inside the 95 % ellipse). ``status`` (n,)
     :data:`STATUS_CODES`. ``boxes`` (n,): number of boxes (MCL: 0). ``alarm`` (n,): the method
-    :func:`noticed` something at the frame (MCL: never). ``cpu_s``: total CPU time of the steps,
-    seconds."""
+    :func:`noticed` something at the frame (:data:`FAULT_METHODS` only; False for the others).
+    ``cpu_s``: total CPU time of the steps, seconds."""
 
     lo: np.ndarray
     hi: np.ndarray
@@ -399,8 +403,6 @@ def run_one(task: Task) -> RunResult:
     intervals = {"interval": localizer("autonomous"),
                  "interval-recovery": localizer("autonomous", RECOVERY_MAX_SLIP[scn.preset]),
                  "interval-truth": localizer("truth"), "odometry": localizer("odometry")}
-    modes = {"interval": "autonomous", "interval-recovery": "autonomous",
-             "interval-truth": "truth", "odometry": "odometry"}
     room = cfg.sim.room_half_size
     mcl = MCL(tile_size=L, camera_offset=offset, bounds=bounds, initial=box0,
               config=MclConfig(particles=task.particles, inject_rate=task.mcl_inject,
@@ -457,7 +459,8 @@ def run_one(task: Task) -> RunResult:
             tr = res.methods[name]
             tr.cpu_s += clock() - c0
             _record_set(tr, k, st.updated, st.status, tt)
-            tr.alarm[k] = noticed(st.status, st.compass_rejected, obs is not None, modes[name])
+            if name in FAULT_METHODS:
+                tr.alarm[k] = noticed(st.status, st.compass_rejected, obs is not None)
         c0 = clock()
         est = mcl.step(pending, frame.compass, obs)
         tr = res.methods["mcl"]
@@ -493,13 +496,13 @@ def _pct(a: np.ndarray, q: float) -> float:
 
 
 FAULT_COLUMNS = COLUMNS[COLUMNS.index("fault_events"):COLUMNS.index("cpu_us_per_frame")]
-"""The fault columns: None for MCL and for scenarios without faults."""
+"""The fault columns: None but for :data:`FAULT_METHODS` on scenarios with faults."""
 
 
 def _fault_metrics(results: Sequence[RunResult], method: str) -> dict[str, Any]:
     """The :data:`FAULT_COLUMNS` over every fault event of ``results`` (:func:`event_outcomes`);
     medians and maxima in frames, NaN when no event was detected (recovered)."""
-    if method not in INTERVAL_METHODS or not any(SCENARIOS[r.scenario].faults for r in results):
+    if method not in FAULT_METHODS or not any(SCENARIOS[r.scenario].faults for r in results):
         return dict.fromkeys(FAULT_COLUMNS)
     events: list[EventOutcome] = []
     for r in results:
@@ -665,11 +668,13 @@ def figures(rows: Sequence[dict[str, Any]]) -> list[str]:
                    f"(target 100 %: {verdict}).")
     else:
         out.append("No scenario had all its inputs within their bounds.")
-    fv = {m: sum(by[(s, m)]["false_vouches"] for s in scns) for m in ("interval",
-                                                                      "interval-recovery")}
-    out.append(f"Frames vouched for while the truth was outside the set (false vouches), all "
-               f"scenarios: {fv['interval']} with recovery off, {fv['interval-recovery']} with "
-               f"recovery on.")
+    fv = {(m, part): sum(by[(s, m)]["false_vouches"] for s in group)
+          for m in FAULT_METHODS for part, group in (("bounded", bounded), ("all", scns))}
+    out.append(f"Frames vouched for while the truth was outside the set (false vouches), "
+               f"recovery off / on: {fv[('interval', 'bounded')]} / "
+               f"{fv[('interval-recovery', 'bounded')]} on the scenarios whose inputs all "
+               f"respected their bounds, {fv[('interval', 'all')]} / "
+               f"{fv[('interval-recovery', 'all')]} on all.")
     cpu_i = sum(by[(s, "interval")]["cpu_us_per_frame"] * by[(s, "interval")]["frames"]
                 for s in scns)
     cpu_m = sum(by[(s, "mcl")]["cpu_us_per_frame"] * by[(s, "mcl")]["frames"] for s in scns)
@@ -730,8 +735,9 @@ def _bins(n: int) -> np.ndarray:
 
 
 def plot_errors(res: RunResult, path: Path) -> None:
-    """One run: for x, y and heading, the autonomous interval set's bounds and the MCL 95 %
-    region, relative to the truth; bottom: the x width of every method, log scale. Fault frames
+    """One run: for x, y and heading, the autonomous interval set's bounds (recovery off: band;
+    on: dotted lines) and the MCL 95 % region, relative to the truth; bottom: the x width of every
+    method, log scale. Fault frames
     shaded gray, lost frames red. Runs longer than :data:`PLOT_BINS` frames are drawn per bin of
     consecutive frames: the lowest lower bound and the highest upper bound (the envelope), the
     mean of the MCL mean, the largest width."""
@@ -754,6 +760,7 @@ def plot_errors(res: RunResult, path: Path) -> None:
     t = res.t[starts]
     fig, axes = plt.subplots(4, 1, figsize=(9.0, 9.0), dpi=100, sharex=True)
     iv = res.methods["interval"]
+    rc = res.methods["interval-recovery"]
     mc = res.methods["mcl"]
     labels = ("x error (cm)", "y error (cm)", "heading error (deg)")
     scale = (100.0, 100.0, math.degrees(1.0))
@@ -767,6 +774,10 @@ def plot_errors(res: RunResult, path: Path) -> None:
                  "mc_hi": hi_env((mc.hi[:, j] - truth) * s)}
         ax.fill_between(t, bands["iv_lo"], bands["iv_hi"], step="post", color="tab:blue",
                         alpha=0.35, lw=0, label="interval set (autonomous)")
+        ax.plot(t, lo_env((rc.lo[:, j] - truth) * s), color="tab:orange", lw=1.0, ls=":",
+                drawstyle="steps-post", label="interval set, recovery on")
+        ax.plot(t, hi_env((rc.hi[:, j] - truth) * s), color="tab:orange", lw=1.0, ls=":",
+                drawstyle="steps-post")
         ax.plot(t, bands["mc_lo"], color="tab:red", lw=0.7, ls="--", drawstyle="steps-post",
                 label="MCL 95 % bounds")
         ax.plot(t, bands["mc_hi"], color="tab:red", lw=0.7, ls="--", drawstyle="steps-post")
@@ -784,7 +795,7 @@ def plot_errors(res: RunResult, path: Path) -> None:
         lim = min(np.nanmax(mags, initial=0.0), 100.0 * np.nanmedian(mags)) if mags.size else 0.0
         if np.isfinite(lim) and lim > 0:
             ax.set_ylim(-1.2 * lim, 1.2 * lim)
-    axes[0].legend(fontsize=7, loc="upper right", ncols=3)
+    axes[0].legend(fontsize=7, loc="upper right", ncols=4)
     ax = axes[3]
     for m in METHODS:
         tr = res.methods[m]
