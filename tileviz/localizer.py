@@ -227,17 +227,6 @@ def _nonneg(name: str, v: object) -> float:
     return f
 
 
-def _all_finite(*values: object) -> bool:
-    """True when every value is a number within +-LIMIT (False for NaN, inf, non-numbers)."""
-    try:
-        for v in values:
-            if not -1e9 <= v <= 1e9:  # LIMIT, as literals: this runs on every step
-                return False
-    except TypeError:
-        return False
-    return True
-
-
 def _check_box(name: str, box: Box) -> Tuple6:
     if not isinstance(box, Box):
         raise ValueError(f"{name} must be a Box, got {type(box).__name__}")
@@ -337,24 +326,33 @@ def observation_windows(obs: Observation) -> tuple[Window, Window, Window, Windo
     """The four rotation branches of an observation (design.md, corrected Theorem 1):
     for m = 0..3, [u] = R(m pi/2) ([y1 +- e], [y2 +- e]) and [h] = [y3 +- e3] + m pi/2, so the pose
     is consistent with branch m iff c in [u] + L Z^2 and theta in [h] + 2 pi Z."""
+    w0 = _view_window(obs)
+    return (w0, _branch_window(w0, 1), _branch_window(w0, 2), _branch_window(w0, 3))
+
+
+def _view_window(obs: Observation) -> Window:
+    """Branch m = 0 of :func:`observation_windows`: ([y1 +- e], [y2 +- e], [y3 +- e3]), outward."""
     n = _nextafter
     e = obs.position_error
     e3 = obs.heading_error
-    a_lo = n(obs.y1 - e, -_INF)
-    a_hi = n(obs.y1 + e, _INF)
-    b_lo = n(obs.y2 - e, -_INF)
-    b_hi = n(obs.y2 + e, _INF)
-    t_lo = n(obs.y3 - e3, -_INF)
-    t_hi = n(obs.y3 + e3, _INF)
-    # R(m pi/2)(a, b): m=0 (a, b), m=1 (-b, a), m=2 (-a, -b), m=3 (b, -a); negation is exact.
-    # [h] + m pi/2 with the rigorous bounds of m pi/2 (_QUARTER_LO / _QUARTER_HI).
-    return (
-        (a_lo, a_hi, b_lo, b_hi, t_lo, t_hi),
-        (-b_hi, -b_lo, a_lo, a_hi, n(t_lo + _QUARTER_LO[1], -_INF), n(t_hi + _QUARTER_HI[1], _INF)),
-        (-a_hi, -a_lo, -b_hi, -b_lo,
-         n(t_lo + _QUARTER_LO[2], -_INF), n(t_hi + _QUARTER_HI[2], _INF)),
-        (b_lo, b_hi, -a_hi, -a_lo, n(t_lo + _QUARTER_LO[3], -_INF), n(t_hi + _QUARTER_HI[3], _INF)),
-    )
+    return (n(obs.y1 - e, -_INF), n(obs.y1 + e, _INF), n(obs.y2 - e, -_INF), n(obs.y2 + e, _INF),
+            n(obs.y3 - e3, -_INF), n(obs.y3 + e3, _INF))
+
+
+def _branch_window(w0: Window, m: int) -> Window:
+    """Branch m (0..3) of :func:`observation_windows` from branch 0: [u] = R(m pi/2)([a], [b])
+    (m=1 (-b, a), m=2 (-a, -b), m=3 (b, -a): negation is exact) and [h] = [h0] + m pi/2 with the
+    rigorous bounds of m pi/2. The localizer builds only the branches the heading meets."""
+    if m == 0:
+        return w0
+    a_lo, a_hi, b_lo, b_hi, t_lo, t_hi = w0
+    h_lo = _nextafter(t_lo + _QUARTER_LO[m], -_INF)
+    h_hi = _nextafter(t_hi + _QUARTER_HI[m], _INF)
+    if m == 1:
+        return (-b_hi, -b_lo, a_lo, a_hi, h_lo, h_hi)
+    if m == 2:
+        return (-a_hi, -a_lo, -b_hi, -b_lo, h_lo, h_hi)
+    return (b_lo, b_hi, -a_hi, -a_lo, h_lo, h_hi)
 
 
 def _lever_ranges(
@@ -593,21 +591,35 @@ def contract_box(
     The branches' heading windows are [h0] + m pi/2 + 2 pi Z = [h0] + k pi/2 with m = k mod 4, so
     one pass over the pi/2-lattice finds every branch piece the box heading meets (when the
     windows are disjoint, e3 < pi/4; otherwise each branch is cut on its own)."""
+    return _contract_view(b, windows[0], windows, tile_size, lever, max_passes, max_cells)
+
+
+def _contract_view(
+    b: Tuple6,
+    w0: Window,
+    windows: tuple[Window, Window, Window, Window] | None,
+    tile_size: float,
+    lever: Lever | None,
+    max_passes: int,
+    max_cells: int,
+) -> tuple[list[Tuple6], int, bool]:
+    """:func:`contract_box` with ``windows`` built on demand from branch 0 ``w0`` when None
+    (only the branches the heading meets are needed)."""
     out: list[Tuple6] = []
     passes = 0
     hulled = False
-    h_lo, h_hi = windows[0][4], windows[0][5]
+    h_lo, h_hi = w0[4], w0[5]
     if h_hi - h_lo >= _EIGHTH_TURN:
-        for win in windows:
+        for m in range(4):
+            win = _branch_window(w0, m) if windows is None else windows[m]
             boxes, p, h = contract_branch(b, win, tile_size, lever, max_passes, max_cells)
             out.extend(boxes)
             passes = max(passes, p)
             hulled = hulled or h
         return out, passes, hulled
     for k, a_lo, a_hi in lattice_pieces_indexed(b[4], b[5], h_lo, h_hi, HALF_PI, HALF_PI_ERROR):
-        p, h = _contract_cells(
-            b, a_lo, a_hi, windows[k & 3], tile_size, lever, max_passes, max_cells, out
-        )
+        win = _branch_window(w0, k & 3) if windows is None else windows[k & 3]
+        p, h = _contract_cells(b, a_lo, a_hi, win, tile_size, lever, max_passes, max_cells, out)
         if p > passes:
             passes = p
         hulled = hulled or h
@@ -803,9 +815,9 @@ class Localizer:
         mode = cfg.mode
         cap = cfg.max_boxes
         hulled = False
-        # validate every input first, so a bad frame changes nothing. The fast test is
-        # _all_finite written out (every value within +-LIMIT, NaN fails, a non-number raises
-        # TypeError); on failure the checks that name the culprit run.
+        # validate every input first, so a bad frame changes nothing. The fast test: every value
+        # within +-LIMIT (written as literals; NaN fails, a non-number raises TypeError); on
+        # failure the checks that name the culprit run.
         if odometry is not None:
             v, w, dt = odometry.speed, odometry.yaw_rate, odometry.dt
             try:
@@ -816,8 +828,13 @@ class Localizer:
                 _finite("odometry.speed", v)
                 _finite("odometry.yaw_rate", w)
                 _nonneg("odometry.dt", dt)
-        if compass is not None and not _all_finite(compass):
-            _finite("compass", compass)
+        if compass is not None:
+            try:
+                ok = -1e9 <= compass <= 1e9
+            except TypeError:
+                ok = False
+            if not ok:
+                _finite("compass", compass)
         if observation is not None:
             o = observation
             e, e3 = o.position_error, o.heading_error
@@ -834,7 +851,11 @@ class Localizer:
                 _nonneg("observation.heading_error", e3)
         if truth is not None:
             tx, ty, tt = truth.x, truth.y, truth.theta
-            if not _all_finite(tx, ty, tt):
+            try:
+                ok = -1e9 <= tx <= 1e9 and -1e9 <= ty <= 1e9 and -1e9 <= tt <= 1e9
+            except TypeError:
+                ok = False
+            if not ok:
                 _finite("truth.x", tx)
                 _finite("truth.y", ty)
                 _finite("truth.theta", tt)
@@ -851,7 +872,9 @@ class Localizer:
             n = _nextafter
             v_lo, v_hi = n(v - self._ev, -_INF), n(v + self._ev, _INF)
             w_lo, w_hi = n(w - self._ew, -_INF), n(w + self._ew, _INF)
-            boxes = [predict_box(b, v_lo, v_hi, w_lo, w_hi, dt) for b in self._boxes]
+            prior = self._boxes
+            boxes = ([predict_box(prior[0], v_lo, v_hi, w_lo, w_hi, dt)] if len(prior) == 1 else
+                     [predict_box(b, v_lo, v_hi, w_lo, w_hi, dt) for b in prior])
             for b in boxes:
                 if not (-1e9 <= b[0] and b[1] <= 1e9 and -1e9 <= b[2] and b[3] <= 1e9
                         and -1e9 <= b[4] and b[5] <= 1e9 and b[5] - b[4] <= _TURN):
@@ -872,7 +895,8 @@ class Localizer:
         if compass is not None:
             c_lo = _nextafter(compass - self._ec, -_INF)
             c_hi = _nextafter(compass + self._ec, _INF)
-            cut = [p for b in boxes for p in compass_pieces(b, c_lo, c_hi)]
+            cut = (compass_pieces(boxes[0], c_lo, c_hi) if len(boxes) == 1 else
+                   [p for b in boxes for p in compass_pieces(b, c_lo, c_hi)])
             if len(cut) == 1:
                 boxes = cut
             elif cut:
@@ -899,19 +923,21 @@ class Localizer:
             status = "predicted"
             updated_boxes = boxes
         else:
-            windows = observation_windows(observation)
+            view = _view_window(observation)
             out: list[Tuple6] = []
             if following:
                 # within slip_window frames of a noticed fault: the view contracts the prediction
                 # inflated by max_slip (it holds the plain prediction)
-                out, passes, h = self._slip_candidates(raw, compass, windows)
+                out, passes, h = self._slip_candidates(raw, compass, view)
                 hulled = hulled or h
                 reinflated = bool(out)
             else:
                 for b in boxes:
-                    got, p, h = contract_box(b, windows, self._L, self._lever, cfg.passes, cap)
+                    got, p, h = _contract_view(b, view, None, self._L, self._lever, cfg.passes,
+                                               cap)
                     out.extend(got)
-                    passes = max(passes, p)
+                    if p > passes:
+                        passes = p
                     hulled = hulled or h
             if out:
                 status = "contracted"
@@ -930,7 +956,7 @@ class Localizer:
                     # prediction) or the odometry is (keep what the view allows within max_slip)
                     self._window = cfg.slip_window
                     if not following:  # (when following, that set was just found empty)
-                        extra, p, h = self._slip_candidates(raw, compass, windows)
+                        extra, p, h = self._slip_candidates(raw, compass, view)
                         passes = max(passes, p)
                         hulled = hulled or h
                         if extra:
@@ -966,10 +992,11 @@ class Localizer:
         self,
         raw: list[Tuple6],
         compass: float | None,
-        windows: tuple[Window, Window, Window, Window] | None,
+        view: Window | None,
     ) -> tuple[list[Tuple6], int, bool]:
         """Recovery: the poses within ``max_slip`` of the prediction ``raw`` (before the compass)
-        that the compass and the view ``windows`` allow, as disjoint boxes (one per lattice cell).
+        that the compass and the view allow (``view``: branch 0 of its windows, or None), as
+        disjoint boxes (one per lattice cell).
         Without a view, only the part the compass meets (none when it misses them all); with a
         view, a compass that misses every candidate is ignored, as in :meth:`step`.
         Returns (boxes, largest number of contraction passes, hulled)."""
@@ -982,14 +1009,14 @@ class Localizer:
             if cut:
                 grown, h = _tidy(cut, cap)
                 hulled = hulled or h
-            elif windows is None:
+            elif view is None:
                 return [], 0, hulled  # the compass misses the slip candidates too
-        if windows is None:
+        if view is None:
             return grown, 0, hulled
         out: list[Tuple6] = []
         passes = 0
         for b in grown:
-            got, p, h = contract_box(b, windows, self._L, self._lever, cfg.passes, cap)
+            got, p, h = _contract_view(b, view, None, self._L, self._lever, cfg.passes, cap)
             out.extend(got)
             passes = max(passes, p)
             hulled = hulled or h
