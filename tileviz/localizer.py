@@ -301,8 +301,17 @@ def predict_box(
     c_lo, c_hi, s_lo, s_hi = cos_sin_range(h_lo, h_hi)
     d_lo = n(dt * v_lo, -_INF)
     d_hi = n(dt * v_hi, _INF)
-    dx_lo, dx_hi = mul(d_lo, d_hi, c_lo, c_hi)
-    dy_lo, dy_hi = mul(d_lo, d_hi, s_lo, s_hi)
+    if d_lo >= 0.0:
+        # moving forward: which of the four products is the least / greatest follows from the
+        # signs (rounding is monotone, so these are mul's min and max, up to the sign of a zero,
+        # which the outward step removes)
+        dx_lo = n((d_lo if c_lo >= 0.0 else d_hi) * c_lo, -_INF)
+        dx_hi = n((d_hi if c_hi >= 0.0 else d_lo) * c_hi, _INF)
+        dy_lo = n((d_lo if s_lo >= 0.0 else d_hi) * s_lo, -_INF)
+        dy_hi = n((d_hi if s_hi >= 0.0 else d_lo) * s_hi, _INF)
+    else:
+        dx_lo, dx_hi = mul(d_lo, d_hi, c_lo, c_hi)
+        dy_lo, dy_hi = mul(d_lo, d_hi, s_lo, s_hi)
     return (
         n(x_lo + dx_lo, -_INF),
         n(x_hi + dx_hi, _INF),
@@ -316,10 +325,11 @@ def predict_box(
 def compass_pieces(b: Tuple6, h_lo: float, h_hi: float) -> list[Tuple6]:
     """Box ``b`` with its heading intersected with [h_lo, h_hi] + 2 pi Z (the compass reading
     +- its bound, any 2 pi shift): zero, one or (for a wide heading) several boxes."""
-    return [
-        (b[0], b[1], b[2], b[3], lo, hi)
-        for lo, hi in lattice_intersect(b[4], b[5], h_lo, h_hi, TWO_PI, period_error=TWO_PI_ERROR)
-    ]
+    pieces = lattice_intersect(b[4], b[5], h_lo, h_hi, TWO_PI, period_error=TWO_PI_ERROR)
+    if len(pieces) == 1:  # the usual case, without a comprehension's frame
+        lo, hi = pieces[0]
+        return [(b[0], b[1], b[2], b[3], lo, hi)]
+    return [(b[0], b[1], b[2], b[3], lo, hi) for lo, hi in pieces]
 
 
 def observation_windows(obs: Observation) -> tuple[Window, Window, Window, Window]:
