@@ -231,26 +231,29 @@ class World:
         v_cmd = 0.5 * (left + right)
         w_cmd = (right - left) / self.sim.wheel_base
         body, control, h = self.body, self.control, dt / self.substeps
-        start = self.pose
+        # the body's state is read once after each substep (every pymunk read is a C call that
+        # gives up the GIL, and waits for it again when another thread holds it)
+        p0, th = body.position, body.angle
+        start = Pose(float(p0.x), float(p0.y), float(th))
         speeds: list[float] = []
         rates: list[float] = []
         lateral = 0.0
         self._contact = False
         monotone = True
         for _ in range(self.substeps):
-            th = body.angle
             c, s = math.cos(th), math.sin(th)
             control.velocity = (v_cmd * c, v_cmd * s)
             control.angular_velocity = w_cmd
-            p0 = body.position
             self.space.step(h)
             pymunk.Body.update_position(body, h)
-            d = body.position - p0
+            p1, th1 = body.position, body.angle
+            d = p1 - p0
             speeds.append((d.x * c + d.y * s) / h)
             lateral = max(lateral, abs(-d.x * s + d.y * c) / h)
-            rates.append((body.angle - th) / h)
+            rates.append((th1 - th) / h)
+            p0, th = p1, th1
         self.time += dt
-        end = self.pose
+        end = Pose(float(p0.x), float(p0.y), float(th))
         yaw_rate = (end.theta - start.theta) / dt
         speed = math.fsum(speeds) / len(speeds)
         if any(r > 0 for r in rates) and any(r < 0 for r in rates):
