@@ -260,54 +260,49 @@ def _index_range(
     bound of piece k1 and a2 the lower bound of piece k2 (outward, as :func:`_piece_hi` and
     :func:`_piece_lo`), so that a caller left with a single piece rounds nothing again."""
     # The quotients are good to a few ulps: the estimate is right but for a rounding tie, which
-    # the walks settle with the outward piece bounds themselves. Each walk starts one step
-    # outside the estimate and moves until it crosses the bound (usually 2 evaluations).
-    # _piece_hi / _piece_lo are written out here: this runs several times per localizer frame.
+    # the walks settle with the outward piece bounds themselves. This runs several times per
+    # localizer frame, so the two checks of the estimate write _piece_hi / _piece_lo out.
     n = _nextafter
-    k = _ceil((lo - c_hi) / period) - 1
-    step = 0
-    while True:  # k1: the smallest k with piece_hi(k) >= lo
-        if k == 0:
-            b = c_hi
-        else:
-            b = n(n(k * period, _INF) + c_hi, _INF)
-            if period_error:
-                b = n(b + abs(k) * period_error, _INF)
-        if b >= lo:
-            if step > 0:
-                k1, b1 = k, b
-                break
-            step = -1
+    k1 = _ceil((lo - c_hi) / period)
+    k = k1 - 1
+    b = n(n(k * period, _INF) + c_hi, _INF) if k else c_hi  # _piece_hi(k1 - 1)
+    if period_error and k:
+        b = n(b + abs(k) * period_error, _INF)
+    if b >= lo:  # piece k1 - 1 reaches lo too: walk down
+        k1 = k
+        b1 = b
+        b = _piece_hi(k1 - 1, c_hi, period, period_error)
+        while b >= lo:
+            k1 -= 1
             b1 = b
-            k -= 1
-        elif step < 0:
-            k1 = k + 1
-            break
-        else:
-            step = 1
-            k += 1
-    k = _floor((hi - c_lo) / period) + 1
-    step = 0
-    while True:  # k2: the largest k with piece_lo(k) <= hi
-        if k == 0:
-            a = c_lo
-        else:
-            a = n(n(k * period, -_INF) + c_lo, -_INF)
-            if period_error:
-                a = n(a - abs(k) * period_error, -_INF)
-        if a <= hi:
-            if step < 0:
-                k2, a2 = k, a
-                break
-            step = 1
+            b = _piece_hi(k1 - 1, c_hi, period, period_error)
+    else:
+        b1 = n(n(k1 * period, _INF) + c_hi, _INF) if k1 else c_hi  # _piece_hi(k1)
+        if period_error and k1:
+            b1 = n(b1 + abs(k1) * period_error, _INF)
+        while b1 < lo:  # piece k1 ends below lo: walk up
+            k1 += 1
+            b1 = _piece_hi(k1, c_hi, period, period_error)
+    k2 = _floor((hi - c_lo) / period)
+    k = k2 + 1
+    a = n(n(k * period, -_INF) + c_lo, -_INF) if k else c_lo  # _piece_lo(k2 + 1)
+    if period_error and k:
+        a = n(a - abs(k) * period_error, -_INF)
+    if a <= hi:  # piece k2 + 1 starts below hi too: walk up
+        k2 = k
+        a2 = a
+        a = _piece_lo(k2 + 1, c_lo, period, period_error)
+        while a <= hi:
+            k2 += 1
             a2 = a
-            k += 1
-        elif step > 0:
-            k2 = k - 1
-            break
-        else:
-            step = -1
-            k -= 1
+            a = _piece_lo(k2 + 1, c_lo, period, period_error)
+    else:
+        a2 = n(n(k2 * period, -_INF) + c_lo, -_INF) if k2 else c_lo  # _piece_lo(k2)
+        if period_error and k2:
+            a2 = n(a2 - abs(k2) * period_error, -_INF)
+        while a2 > hi:  # piece k2 starts above hi: walk down
+            k2 -= 1
+            a2 = _piece_lo(k2, c_lo, period, period_error)
     return k1, k2, b1, a2
 
 
