@@ -2,17 +2,28 @@
 
 Both methods get the same inputs: a simulated run (default preset unless ``--preset``) is made once
 and vision is run once per frame; the odometry, compass and observations are kept. Then each method
-is run over the whole sequence ``--repeat`` times and its CPU time (``time.process_time``) around
-the ``step`` calls alone is divided by the frame count; the best repeat is kept (the least
-disturbed by other processes on a shared machine). MCL is timed with several particle counts.
+is run over the whole sequence ``--repeat`` times and its CPU time (``--clock``, by default
+``time.process_time``) around the ``step`` calls alone is divided by the frame count; the best
+repeat is kept (the least disturbed by other processes on a shared machine). MCL is timed with
+several particle counts.
 
 ``--after-vision`` runs vision (untimed) right before every timed step, as the frame loop and
 ``tileviz evaluate`` do: the step then starts with caches full of image buffers and costs more
 (about 3x for the interval localizer on this machine); that is why ``evaluate``'s CPU column is
-higher than the isolated figure.
+higher than the isolated figure. Two things make it so, and the script prints both:
+
+- a floor: an empty function timed the same way. With ``--clock process`` (``evaluate``'s clock)
+  it counts every thread of the process, and OpenCV's worker threads are still busy for a while
+  after ``extract`` returns; ``--clock thread`` (``time.thread_time``) counts the calling thread
+  only (both methods run on it: MCL's numpy calls here are single-threaded). The floor is paid
+  by every method alike, so it weighs most on the cheapest.
+- cold caches: vision evicts the interpreter's code and the method's bytecode, so the first step
+  after it runs several times slower than a step in a tight loop; the more distinct code a step
+  runs, the more it pays.
 
     python bench/bench_mcl.py                       # 60 s of default preset, 1000 particles
     python bench/bench_mcl.py --seconds 30 --preset seed --particles 100 1000 10000
+    python bench/bench_mcl.py --seconds 30 --after-vision --clock thread
 """
 
 from __future__ import annotations
@@ -39,7 +50,11 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--after-vision", action="store_true",
                     help="run vision (untimed) before every timed step, as the frame loop does")
+    ap.add_argument("--clock", choices=("process", "thread"), default="process",
+                    help="CPU clock: process (all threads, as tileviz evaluate) or thread "
+                    "(the calling thread only)")
     args = ap.parse_args()
+    clock = time.process_time if args.clock == "process" else time.thread_time
 
     cfg = preset(args.preset)
     n = int(round(args.seconds / cfg.sim.dt))
@@ -62,13 +77,20 @@ def main() -> None:
         for odo, comp, obs, image in inputs:
             if args.after_vision:
                 extract(image, camera=cfg.camera, tile_size=L, vision=cfg.vision)
-            c0 = time.process_time()
+            c0 = clock()
             step(odo, comp, obs)
-            total += time.process_time() - c0
+            total += clock() - c0
         return total / n
 
     print(f"preset {args.preset}: {n} frames, {used} with an observation; "
-          f"vision {1e3 * vis / n:.2f} ms CPU/frame (not counted below)")
+          f"vision {1e3 * vis / n:.2f} ms CPU/frame (not counted below); clock {args.clock}")
+
+    def empty(odo: object, comp: object, obs: object) -> None:
+        """Nothing: what the timing itself costs."""
+
+    where = " (each step right after vision)" if args.after_vision else ""
+    t_floor = min(timed(empty) for _ in range(args.repeat))
+    print(f"floor (an empty function, same timing): {1e6 * t_floor:8.1f} us CPU/frame{where}")
 
     def time_interval() -> float:
         loc = Localizer(tile_size=L, camera_offset=off, bounds=bounds, config=cfg.localizer,
@@ -81,13 +103,13 @@ def main() -> None:
         return timed(mcl.step)
 
     t_int = min(time_interval() for _ in range(args.repeat))
-    where = " (each step right after vision)" if args.after_vision else ""
     print(f"interval localizer (autonomous): {1e6 * t_int:8.1f} us CPU/frame{where}")
     for p in args.particles:
         t_mcl = min(time_mcl(p) for _ in range(args.repeat))
         ratio = t_mcl / t_int if t_int > 0 else math.inf
+        net = (t_mcl - t_floor) / (t_int - t_floor) if t_int > t_floor else math.inf
         print(f"MCL, {p:6d} particles:          {1e6 * t_mcl:8.1f} us CPU/frame "
-              f"= {ratio:5.1f}x the interval localizer")
+              f"= {ratio:5.1f}x the interval localizer ({net:.1f}x without the floor)")
 
 
 if __name__ == "__main__":
