@@ -385,6 +385,13 @@ def main() -> int:
         "",
         f"Measured by `{cmd}` ({len(results)} runs, {elapsed:.0f} s). Definitions in "
         "`bench/faults.py`; the guarantee and its hypotheses in `docs/guarantees.md`.",
+        "Detection delay and recovery time are computed by the code behind the same columns of "
+        "the evaluation table (`tileviz.evaluate.event_outcomes`): there, per scenario, over "
+        "long runs with several faults, for the autonomous localizer with recovery off "
+        "(`interval`) and on (`interval-recovery`, the `max_slip` below) "
+        "([evaluation.md](evaluation.md), [eval/results.md](eval/results.md)). This page adds "
+        "one fault at a time, more fault types, and the explanation of every wrong vouched "
+        "frame.",
         f"Fault after {args.before} frames, run on for {args.after} frames after its end; "
         "20 frames a second. Recovery on: `max_slip` = "
         + ", ".join(f"{n} {v}" for n, v in MAX_SLIP.items()) + " (m, rad).",
