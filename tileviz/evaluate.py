@@ -935,8 +935,9 @@ def write_outputs(results: Sequence[RunResult], out: Path, command: str = "",
 
 
 def _parser() -> Parser:
-    p = Parser(prog="tileviz evaluate", description="Evaluate the interval localizer, its "
-               "truth and odometry modes and an MCL baseline over simulated runs.")
+    p = Parser(prog="tileviz evaluate", description="Evaluate the interval localizer "
+               "(recovery off and on), its truth and odometry modes and an MCL baseline over "
+               "simulated runs.")
     p.add_argument("--runs", type=positive_int("--runs"), default=2,
                    help="runs (seeds) per scenario (default 2)")
     p.add_argument("--scenarios", default=",".join(DEFAULT_SCENARIOS),
