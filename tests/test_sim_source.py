@@ -242,3 +242,67 @@ def test_default_renderer_draws_the_floor_at_the_true_pose() -> None:
     with pytest.raises(ValueError, match="glare"):
         src.inject("glare", radius=-5.0)
     assert next(src).image.std() > 1.0  # refused at injection, the run goes on
+
+
+class SpyRenderer:
+    """The real floor renderer, remembering the poses and faults it was asked to draw."""
+
+    def __init__(self, cfg: Config) -> None:
+        from tileviz.sim.camera import FloorRenderer
+
+        self.inner = FloorRenderer(cfg.floor, cfg.camera)
+        self.calls: list[tuple[Pose, object]] = []
+
+    def resolve_faults(self, faults: object, rng: np.random.Generator | None) -> object:
+        return self.inner.resolve_faults(faults, rng)  # type: ignore[arg-type]
+
+    def render(self, pose: Pose, rng: np.random.Generator | None = None,
+               faults: object = None) -> np.ndarray:
+        self.calls.append((pose, faults))
+        return self.inner.render(pose, rng=rng, faults=faults)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("kind", ["cable", "box", "shadow"])
+def test_an_edge_fault_lies_still_on_the_floor_while_the_robot_moves(kind: str) -> None:
+    """A cable (box edge, shadow edge) lasting many frames is drawn once, where it is, and then
+    stays at the same place on the floor: its image position follows the robot's motion, its
+    other parameters do not change."""
+    from tileviz.sim.camera import edge_to_floor
+
+    cfg = _cfg()
+    cam = SpyRenderer(cfg)
+    src = SimSource(cfg, renderer=cam)
+    _take(src, 5)
+    src.inject(kind, frames=30)
+    _take(src, 31)
+    drawn = [(pose, faults[0][1]) for pose, faults in cam.calls[5:35]]
+    assert cam.calls[35][1] is None  # over after 30 frames
+    first_pose, first = drawn[0]
+    assert set(first) >= {"angle", "offset"}  # drawn once, all of them
+    p0, q0 = edge_to_floor(first["angle"], first["offset"], first_pose, cfg.camera)
+    nx, ny = -(q0[1] - p0[1]), q0[0] - p0[0]
+    norm = math.hypot(nx, ny)
+    for pose, params in drawn:
+        assert {k: v for k, v in params.items() if k not in ("angle", "offset")} == \
+            {k: v for k, v in first.items() if k not in ("angle", "offset")}
+        p, q = edge_to_floor(params["angle"], params["offset"], pose, cfg.camera)
+        # both points of the edge seen at this frame lie on the first frame's floor line
+        for x, y in (p, q):
+            assert abs(((x - p0[0]) * nx + (y - p0[1]) * ny) / norm) < 1e-9
+    moved = math.hypot(drawn[-1][0].x - first_pose.x, drawn[-1][0].y - first_pose.y)
+    assert moved > 0.05  # the robot did move: the edge moved across the image
+    assert abs(drawn[-1][1]["offset"] - first["offset"]) + \
+        abs(drawn[-1][1]["angle"] - first["angle"]) > 1e-3
+
+
+def test_a_glare_or_blur_keeps_its_drawn_parameters_for_its_frames() -> None:
+    cfg = _cfg()
+    cam = SpyRenderer(cfg)
+    src = SimSource(cfg, renderer=cam)
+    src.inject("glare", frames=4)
+    src.inject("motion_blur", frames=4, length=12.0)
+    _take(src, 4)
+    glares = [f[0][1] for _, f in cam.calls]
+    blurs = [f[1][1] for _, f in cam.calls]
+    assert all(g == glares[0] for g in glares) and {"x", "y", "radius"} <= set(glares[0])
+    assert all(b == blurs[0] for b in blurs) and blurs[0]["length"] == 12.0

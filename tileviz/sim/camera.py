@@ -112,6 +112,35 @@ def pixel_of(x: float, y: float, pose: Pose, camera: CameraConfig) -> tuple[floa
     )
 
 
+EDGE_FAULTS = ("cable", "box", "shadow")
+"""Faults drawn along a straight edge (``angle``, ``offset``): objects that lie on the floor."""
+
+
+def edge_to_floor(angle: float, offset: float, pose: Pose,
+                  camera: CameraConfig) -> tuple[tuple[float, float], tuple[float, float]]:
+    """Two world points (metres) of the fault edge (``angle`` rad, ``offset`` px, image frame as
+    in :class:`Fault`) seen at ``pose``: the edge's foot from the image centre and the point one
+    pixel further along it."""
+    cx, cy = (camera.width - 1) / 2.0, (camera.height - 1) / 2.0
+    u0, v0 = -math.sin(angle) * offset, math.cos(angle) * offset
+    p = floor_point(cx + u0, cy + v0, pose, camera)
+    q = floor_point(cx + u0 + math.cos(angle), cy + v0 + math.sin(angle), pose, camera)
+    return p, q
+
+
+def edge_in_image(p: tuple[float, float], q: tuple[float, float], pose: Pose,
+                  camera: CameraConfig) -> tuple[float, float]:
+    """(``angle`` rad, ``offset`` px) of the floor edge through world points ``p`` and ``q``
+    seen at ``pose`` (the inverse of :func:`edge_to_floor`; the view is orthographic, so the
+    edge keeps its place on the floor)."""
+    cx, cy = (camera.width - 1) / 2.0, (camera.height - 1) / 2.0
+    pc, pr = pixel_of(p[0], p[1], pose, camera)
+    qc, qr = pixel_of(q[0], q[1], pose, camera)
+    angle = math.atan2(qr - pr, qc - pc)
+    offset = -math.sin(angle) * (pc - cx) + math.cos(angle) * (pr - cy)
+    return angle, offset
+
+
 def _periodic_smooth_noise(rng: np.random.Generator, n: int, scale: float) -> np.ndarray:
     """n x n periodic Gaussian-filtered white noise (filter sigma ``scale`` texels), unit std."""
     white = rng.standard_normal((n, n))
@@ -311,6 +340,16 @@ class FloorRenderer:
         return out
 
     # ------------------------------------------------------------------ faults
+    def resolve_faults(
+        self,
+        faults: Iterable[Fault | tuple[str, Mapping[str, float]]] | None,
+        rng: np.random.Generator | None,
+    ) -> list[tuple[str, dict[str, float]]]:
+        """The faults validated, every parameter filled in (drawn from ``rng`` where missing,
+        fixed defaults when it is None): ``(kind, params)`` pairs :meth:`render` takes as they
+        are. Raises ValueError naming a bad fault or parameter."""
+        return self._resolve_faults(faults, rng)
+
     def _resolve_faults(
         self,
         faults: Iterable[Fault | tuple[str, Mapping[str, float]]] | None,

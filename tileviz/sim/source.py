@@ -62,6 +62,11 @@ class ActiveFault:
     kind: str
     remaining: int
     params: dict[str, Any] = field(default_factory=dict)
+    anchor: tuple[tuple[float, float], tuple[float, float]] | None = None
+    """World points (metres) of an edge fault's line once it was first drawn: a cable, a box
+    or a shadow edge lies on the floor and stays there while the robot moves."""
+    resolved: bool = False
+    """True once the parameters left out were drawn (on the fault's first frame)."""
 
 
 class SimSource:
@@ -163,9 +168,33 @@ class SimSource:
 
     def _render(self, pose: Pose, camera_faults: list[ActiveFault]) -> np.ndarray:
         if camera_faults:
-            spec = [(f.kind, dict(f.params)) for f in camera_faults]
+            spec = [(f.kind, self._fault_params(f, pose)) for f in camera_faults]
             return self.renderer.render(pose, rng=self._image_rng, faults=spec)
         return self.renderer.render(pose, rng=self._image_rng)
+
+    def _fault_params(self, fault: ActiveFault, pose: Pose) -> dict[str, Any]:
+        """A camera fault's parameters at ``pose``. On its first frame the parameters left out
+        are drawn (from the image noise stream) and kept for the fault's whole duration; an
+        edge fault (cable, box, shadow) is then pinned to the floor, so later frames see it
+        where the robot's motion puts it. A renderer without ``resolve_faults`` gets the
+        parameters as given."""
+        from tileviz.sim.camera import EDGE_FAULTS, edge_in_image, edge_to_floor
+
+        resolve = getattr(self.renderer, "resolve_faults", None)
+        if resolve is None:
+            return dict(fault.params)
+        if not fault.resolved:
+            fault.params = resolve([(fault.kind, fault.params)], self._image_rng)[0][1]
+            fault.resolved = True
+            if fault.kind in EDGE_FAULTS:
+                fault.anchor = edge_to_floor(fault.params["angle"], fault.params["offset"],
+                                             pose, self.cfg.camera)
+            return dict(fault.params)
+        params = dict(fault.params)
+        if fault.anchor is not None:
+            params["angle"], params["offset"] = edge_in_image(*fault.anchor, pose,
+                                                              self.cfg.camera)
+        return params
 
     def _odometry_fault(self, step: StepTruth) -> OdometryFault | None:
         dv = dw = 0.0
@@ -256,8 +285,10 @@ class SimSource:
         - ``kidnap``: same as :meth:`kidnap` with ``x``, ``y``, ``theta``.
         - a camera fault of ``tileviz.sim.camera.FAULT_KINDS`` (cable, box, shadow, glare,
           motion_blur, dropout) is handed to the renderer as ``faults=[(kind, params)]`` for
-          ``frames`` frames (default 1); parameters left out are drawn anew every frame from the
-          image noise stream. A 2 s dropout at 20 Hz: ``inject("dropout", frames=40)``.
+          ``frames`` frames (default 1); parameters left out are drawn on its first frame from
+          the image noise stream and kept; ``angle``/``offset`` of a cable, box or shadow are
+          the image frame's on that first frame, after which the edge stays put on the floor
+          while the robot moves. A 2 s dropout at 20 Hz: ``inject("dropout", frames=40)``.
         """
         if kind == "kidnap":
             missing = [k for k in ("x", "y", "theta") if k not in params]
