@@ -21,7 +21,6 @@ from __future__ import annotations
 import argparse
 import asyncio
 import os
-import re
 import subprocess
 import sys
 import tempfile
@@ -33,7 +32,7 @@ from typing import Any
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from tileviz.app.wsclient import ViserClient, decode_window  # noqa: E402
+from tileviz.app.wsclient import ViserClient, decode_window, start_serve  # noqa: E402
 
 ARGS = ["--headless", "--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
         "--disable-background-networking", "--disable-component-update", "--no-first-run"]
@@ -152,19 +151,13 @@ def browser_run(url: str, seconds: float, viewport: tuple[int, int] = (1400, 900
 
 def start_server(tmp: str, args: argparse.Namespace, speed: str) -> tuple[Any, str]:
     """``serve.py`` in its own process at ``speed`` (``max`` or a multiple of real time)."""
-    cmd = [sys.executable, str(REPO / "serve.py"), "--port", "0", "--out-dir", tmp,
-           "--push-rate", str(args.push_rate), "--image-rate", str(args.image_rate),
-           "--display" if args.display else "--no-display"]
+    cmd = ["--port", "0", "--out-dir", tmp, "--push-rate", str(args.push_rate),
+           "--image-rate", str(args.image_rate), "--display" if args.display else "--no-display"]
     cmd += ["--max-speed"] if speed == "max" else ["--speed", speed]
-    env = dict(os.environ, PYTHONPATH=str(REPO))
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
-                            env=env)
-    for line in proc.stdout:  # type: ignore[union-attr]
-        m = re.search(r"open (http://\S+)", line)
-        if m:
-            return proc, m.group(1)
-    proc.kill()
-    raise SystemExit("serve.py did not start")
+    try:
+        return start_serve(cmd, stderr=subprocess.DEVNULL)
+    except RuntimeError as e:
+        raise SystemExit(str(e)) from None
 
 
 def stop_server(proc: Any) -> None:

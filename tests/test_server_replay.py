@@ -6,12 +6,9 @@ from __future__ import annotations
 
 import asyncio
 import csv
-import os
 import re
 import shutil
 import signal
-import subprocess
-import sys
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -22,13 +19,12 @@ from tileviz.app import commands as C
 from tileviz.app.scene import SceneView
 from tileviz.app.session import SIMULATOR_ONLY, Session, SessionOptions
 from tileviz.app.sources import replay_config
-from tileviz.app.wsclient import ViserClient
+from tileviz.app.wsclient import ViserClient, start_serve
 from tileviz.cli import main as cli
 from tileviz.dataset import DatasetSource, read_meta, replay_row
 from tileviz.runner import Runner
 from tileviz.types import Box, BoxSet
 
-REPO = Path(__file__).resolve().parents[1]
 DURATION = 1.5
 """Seconds recorded: 31 frames at the default 20 Hz."""
 
@@ -286,19 +282,10 @@ def visible(c: ViserClient, label: str) -> bool:
 
 
 def test_serve_dataset_replays_in_the_browser_to_the_end(dataset, frames, tmp_path):
-    env = dict(os.environ, PYTHONPATH=str(REPO))
-    proc = subprocess.Popen([sys.executable, str(REPO / "serve.py"), "--port", "0",
-                             "--dataset", str(dataset), "--max-speed", "--mode", "autonomous",
-                             "--out-dir", str(tmp_path)], cwd=tmp_path, env=env,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc, url = start_serve(["--port", "0", "--dataset", str(dataset), "--max-speed",
+                             "--mode", "autonomous", "--out-dir", str(tmp_path)], cwd=tmp_path)
     try:
-        url = None
-        for line in proc.stdout:  # type: ignore[union-attr]
-            m = re.search(r"open (http://127\.0\.0\.1:\d+/)", line)
-            if m:
-                url = m.group(1)
-                break
-        assert url is not None, proc.stderr.read()  # type: ignore[union-attr]
+        assert re.fullmatch(r"http://127\.0\.0\.1:\d+/", url), url
 
         def status(m: dict, pattern: str) -> bool:
             return (m.get("type") in ("GuiUpdateMessage", "GuiMarkdownMessage")

@@ -16,7 +16,7 @@ import pytest
 
 from tileviz.app.server import App
 from tileviz.app.session import Session, SessionOptions
-from tileviz.app.wsclient import ViserClient
+from tileviz.app.wsclient import ViserClient, start_serve
 from tileviz.config import preset
 
 REPO = Path(__file__).resolve().parents[1]
@@ -200,19 +200,10 @@ def test_table_6_1_options_reach_the_run(tmp_path):
 
 
 def test_serve_prints_the_url_serves_the_page_and_stops_on_ctrl_c(tmp_path):
-    env = dict(os.environ, PYTHONPATH=str(REPO))
-    proc = subprocess.Popen([sys.executable, str(REPO / "serve.py"), "--port", "0",
-                             "--out-dir", str(tmp_path), "--output-file", "res.csv"],
-                            cwd=tmp_path, env=env, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
+    proc, url = start_serve(["--port", "0", "--out-dir", str(tmp_path),
+                             "--output-file", "res.csv"], cwd=tmp_path)
     try:
-        url = None
-        for line in proc.stdout:  # type: ignore[union-attr]
-            m = re.search(r"open (http://127\.0\.0\.1:\d+/)", line)
-            if m:
-                url = m.group(1)
-                break
-        assert url is not None
+        assert re.fullmatch(r"http://127\.0\.0\.1:\d+/", url), url  # loopback by default
         page = urllib.request.urlopen(url, timeout=30).read().decode()
         assert "<html" in page.lower()
         proc.send_signal(signal.SIGINT)

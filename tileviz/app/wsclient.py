@@ -18,14 +18,19 @@ run for connected clients.
 from __future__ import annotations
 
 import asyncio
-from collections.abc import Iterator
+import os
+import re
+import subprocess
+import sys
+from collections.abc import Iterator, Sequence
+from pathlib import Path
 from typing import Any
 
 import msgpack
 import numpy as np
 import zstandard
 
-__all__ = ["ViserClient", "decode_window", "subprotocol"]
+__all__ = ["ViserClient", "decode_window", "start_serve", "subprotocol"]
 
 
 def subprotocol() -> str:
@@ -43,6 +48,24 @@ def _resolve(obj: Any, buffers: list[memoryview]) -> Any:
     if isinstance(obj, list):
         return [_resolve(v, buffers) for v in obj]
     return obj
+
+
+def start_serve(args: Sequence[str], *, cwd: str | os.PathLike[str] | None = None,
+                stderr: int | None = subprocess.PIPE) -> tuple[subprocess.Popen[str], str]:
+    """Start ``serve.py`` of this checkout with ``args`` in its own process and return it with
+    the URL it prints once it serves (e.g. ``http://127.0.0.1:PORT/``). If it exits before
+    printing one, raises RuntimeError with its stderr. The caller stops the process."""
+    repo = Path(__file__).resolve().parents[2]
+    env = dict(os.environ, PYTHONPATH=str(repo))
+    proc = subprocess.Popen([sys.executable, str(repo / "serve.py"), *args], cwd=cwd, env=env,
+                            stdout=subprocess.PIPE, stderr=stderr, text=True)
+    for line in proc.stdout:  # type: ignore[union-attr]
+        m = re.search(r"open (http://\S+)", line)
+        if m:
+            return proc, m.group(1)
+    proc.kill()
+    err = proc.stderr.read() if proc.stderr is not None else ""
+    raise RuntimeError(f"serve.py did not start: {err.strip()}")
 
 
 def decode_window(payload: bytes) -> list[dict[str, Any]]:
