@@ -27,6 +27,7 @@ import numpy as np
 
 from tileviz.config import Config, preset
 from tileviz.dataset import DatasetMeta, DatasetSource, DatasetWriter
+from tileviz.parallel import vision_ahead
 from tileviz.runner import Runner
 from tileviz.sim.source import SimSource
 
@@ -88,6 +89,8 @@ def timing(folder: Path, repeats: int = 3, limit: int = 600) -> dict[str, float]
     """Wall ms per frame over the first ``limit`` frames, best of ``repeats`` passes, the
     cases interleaved so they see the same load:
 
+    - ``jobs2``: ``python -m tileviz replay --jobs 2`` (decode + vision in 2 worker processes,
+      the localizer in order in this one; worker start-up included);
     - ``replay``: what ``python -m tileviz replay`` does (images decoded ahead on a thread);
     - ``serial``: the same with every image decoded when its frame is asked for;
     - ``decode``: reading and decoding the images alone;
@@ -95,7 +98,7 @@ def timing(folder: Path, repeats: int = 3, limit: int = 600) -> dict[str, float]
     cfg = DatasetSource(folder).meta.to_config()
     names = [f.image_name for f in itertools.islice(DatasetSource(folder), limit)]
     images = [f.image for f in itertools.islice(DatasetSource(folder), limit)]
-    best = dict.fromkeys(("replay", "serial", "decode", "bare"), math.inf)
+    best = dict.fromkeys(("jobs2", "replay", "serial", "decode", "bare"), math.inf)
 
     def clocked(key: str, work: object) -> None:
         t0 = time.perf_counter()
@@ -107,7 +110,14 @@ def timing(folder: Path, repeats: int = 3, limit: int = 600) -> dict[str, float]
                 itertools.islice(DatasetSource(folder, prefetch=prefetch), limit)):
             pass
 
+    def parallel() -> None:
+        src = DatasetSource(folder)
+        runner = Runner(cfg)
+        for frame, vision in itertools.islice(vision_ahead(src, cfg, 2), limit):
+            runner.process(frame, vision)
+
     for _ in range(repeats):
+        clocked("jobs2", parallel)
         clocked("replay", lambda: replay(8))
         clocked("serial", lambda: replay(0))
         clocked("decode", lambda: [cv2.imdecode(np.fromfile(folder / n, np.uint8),
@@ -139,6 +149,8 @@ def main() -> None:
             print(f"{mode:>10}: " + "  ".join(
                 f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in s.items()))
         tm = timing(folder)
+        print(f"replay --jobs 2 {tm['jobs2']:.3f} ms/frame (ratio to the bare calls "
+              f"{tm['jobs2'] / tm['bare']:.2f})")
         print(f"replay (decode+vision+localizer) {tm['replay']:.3f} ms/frame "
               f"({tm['serial']:.3f} without decoding ahead; decoding alone "
               f"{tm['decode']:.3f}); bare OpenCV calls of the original pipeline "

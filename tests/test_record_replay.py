@@ -51,13 +51,15 @@ def live_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, list[list[
     return folder, rows
 
 
+@pytest.mark.parametrize("jobs", ["1", "2"])
 def test_replay_reproduces_live_sets(live_run: tuple[Path, list[list[str]]],
-                                     tmp_path: Path) -> None:
+                                     tmp_path: Path, jobs: str) -> None:
+    """The same sets as the live run, with vision in this process or in 2 worker processes."""
     folder, live_rows = live_run
     out = tmp_path / "result.csv"
     eq = tmp_path / "eq.csv"
     code = tileviz_main(["replay", str(folder), "--mode", "autonomous", "--out", str(out),
-                         "--output-file", str(eq), "--quiet"])
+                         "--output-file", str(eq), "--quiet", "--jobs", jobs])
     assert code == 0
     rows = _read_csv(out)
     assert tuple(rows[0]) == REPLAY_COLUMNS
@@ -127,8 +129,9 @@ def test_cli_errors_are_one_line(args: list[str], needle: str, tmp_path: Path) -
     assert "Traceback" not in r.stderr
 
 
+@pytest.mark.parametrize(("jobs", "damage"), [("1", "row"), ("2", "row"), ("2", "image")])
 def test_replay_stops_at_bad_row_keeping_rows_written(
-        live_run: tuple[Path, list[list[str]]], tmp_path: Path) -> None:
+        live_run: tuple[Path, list[list[str]]], tmp_path: Path, jobs: str, damage: str) -> None:
     src, live_rows = live_run
     import shutil
 
@@ -136,14 +139,19 @@ def test_replay_stops_at_bad_row_keeping_rows_written(
     shutil.copytree(src, folder)
     lines = (folder / "frames.csv").read_text().splitlines()
     cells = lines[11].split(",")
-    cells[3] = "fast"
+    if damage == "row":
+        cells[3] = "fast"
+        needle = "frames.csv row 12: speed is not a number ('fast')"
+    else:
+        (folder / cells[2]).unlink()
+        needle = f"frames.csv row 12: image '{cells[2]}' is missing"
     lines[11] = ",".join(cells)
     (folder / "frames.csv").write_text("\n".join(lines) + "\n")
     out = tmp_path / "partial.csv"
-    r = _cli("replay", str(folder), "--out", str(out), "--quiet")
+    r = _cli("replay", str(folder), "--out", str(out), "--quiet", "--jobs", jobs)
     assert r.returncode != 0
     assert r.stderr.strip().count("\n") == 0
-    assert "frames.csv row 12: speed is not a number ('fast')" in r.stderr
+    assert needle in r.stderr, r.stderr
     rows = _read_csv(out)
     # every frame before the bad row was written, complete and identical to the live run
     assert rows[1:] == live_rows[: len(rows) - 1] and len(rows) - 1 >= 9

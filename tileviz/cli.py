@@ -137,6 +137,10 @@ def replay_parser() -> Parser:
     p.add_argument("--extractor", choices=EXTRACTORS, default=None,
                    help="vision extractor (default: the dataset's, else robust)")
     p.add_argument("--max-boxes", type=positive_int("--max-boxes"), default=None)
+    p.add_argument("--jobs", type=positive_int("--jobs"), default=1,
+                   help="processes that decode images and run vision, several frames at once "
+                   "(the localizer stays in order in this process); default 1: one process, "
+                   "images decoded ahead on a thread")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     return p
 
@@ -168,8 +172,15 @@ def replay(argv: list[str]) -> int:
         runner = Runner(cfg)
         bar = _progress(None, "replay", not args.quiet)
         n = 0
+        if args.jobs > 1:
+            from tileviz.parallel import vision_ahead
+
+            records = (runner.process(frame, vision)
+                       for frame, vision in vision_ahead(source, cfg, args.jobs))
+        else:
+            records = runner.run(source)
         try:
-            for rec in runner.run(source):
+            for rec in records:
                 out.row(replay_row(rec))
                 if eq is not None:
                     eq.row(residual_row(rec))

@@ -46,6 +46,8 @@ MIN_TILE_PX = 4.0
 MAX_PPM = 1e5
 """Largest ppm (10 micrometres a pixel): beyond it the image stages' kernels (sized in pixels
 from metres) would not fit in memory."""
+_NO_IMAGE = np.zeros((0, 0, 3), np.uint8)
+"""The image of a frame whose image is read elsewhere."""
 FAULTS_FILE = "faults.csv"
 """Optional tileviz extension: ``index,faults`` with ``;``-separated labels of injected faults."""
 
@@ -506,6 +508,13 @@ class DatasetSource:
                 yield self._frame(row, odometry, self.load_image(row.image, where))
             return
         yield from self._prefetched()
+
+    def frames_without_images(self) -> Iterator[tuple[FrameInput, str]]:
+        """Every frame in order with an empty image (0x0x3) and the text naming its row (for
+        :meth:`load_image`), for a reader that decodes the images elsewhere
+        (:mod:`tileviz.parallel`). A bad row raises DatasetError as :meth:`__iter__` does."""
+        for row, odometry, where in self._jobs():
+            yield self._frame(row, odometry, _NO_IMAGE), where
 
     def _prefetched(self) -> Iterator[FrameInput]:
         """:meth:`__iter__` with up to ``prefetch`` images decoding ahead on one thread."""

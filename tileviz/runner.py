@@ -151,8 +151,10 @@ class Runner:
             hull = self.localizer.current.hull()
             self.localizer = self._make_localizer(hull if hull is not None else initial_box(cfg))
 
-    def process(self, frame: FrameInput) -> FrameRecord:
+    def process(self, frame: FrameInput, vision: VisionResult | None = None) -> FrameRecord:
         """Run one frame: predict with the previous frame's odometry, contract with this image.
+        ``vision``: this frame's vision result when it was computed elsewhere (a replay that
+        runs vision in worker processes, :mod:`tileviz.parallel`); None runs it here.
         Bad numbers raise ValueError naming the frame (this frame's odometry is checked now,
         though the localizer only uses it on the next frame)."""
         odo = frame.odometry
@@ -161,14 +163,19 @@ class Runner:
             raise ValueError(f"frame {frame.index}: odometry must hold finite numbers "
                              f"(dt >= 0), got {odo}")
         t0 = time.perf_counter()
-        vision = extract(
-            frame.image,
-            camera=self.cfg.camera,
-            tile_size=self.cfg.floor.tile_size,
-            vision=self.cfg.vision,
-            keep_stages=self.keep_stages,
-        )
-        t1 = time.perf_counter()
+        if vision is None:
+            vision = extract(
+                frame.image,
+                camera=self.cfg.camera,
+                tile_size=self.cfg.floor.tile_size,
+                vision=self.cfg.vision,
+                keep_stages=self.keep_stages,
+            )
+            t1 = time.perf_counter()
+            vision_ms = (t1 - t0) * 1e3
+        else:
+            t1 = t0
+            vision_ms = sum(vision.timings.values())  # the worker's stage times
         try:
             step: LocalizerStep = self.localizer.step(
                 odometry=self._pending_odometry,
@@ -198,7 +205,7 @@ class Runner:
             updated=step.updated,
             status=step.status,
             residuals=residuals,
-            timings={"vision_ms": (t1 - t0) * 1e3, "localizer_ms": (t2 - t1) * 1e3},
+            timings={"vision_ms": vision_ms, "localizer_ms": (t2 - t1) * 1e3},
             step=step,
         )
 
