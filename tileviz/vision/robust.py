@@ -316,7 +316,9 @@ class _Run:
     def _noise_sigma(self) -> float:
         """Gaussian noise std of the image, gray levels (Immerkaer's fast estimate)."""
         k = np.array([[1, -2, 1], [-2, 4, -2], [1, -2, 1]], np.float32)
-        r = cv2.filter2D(self.gray, cv2.CV_32F, k)
+        # integer kernel on 8-bit pixels: |r| <= 16 * 255 fits 16 bits exactly, and the L1 sum
+        # is the same exact integer as in float (half the time of a float32 filter)
+        r = cv2.filter2D(self.gray, cv2.CV_16S, k)
         sigma = math.sqrt(math.pi / 2.0) * float(cv2.norm(r[1:-1, 1:-1], cv2.NORM_L1)) / (
             6.0 * (self.w - 2) * (self.h - 2)
         )
