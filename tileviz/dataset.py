@@ -17,11 +17,11 @@ import json
 import math
 import os
 from collections import deque
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import IO, TYPE_CHECKING, Any
+from typing import IO, TYPE_CHECKING, Any, TypeVar
 
 import cv2
 import numpy as np
@@ -46,6 +46,8 @@ MIN_TILE_PX = 4.0
 MAX_PPM = 1e5
 """Largest ppm (10 micrometres a pixel): beyond it the image stages' kernels (sized in pixels
 from metres) would not fit in memory."""
+T = TypeVar("T")
+R = TypeVar("R")
 _NO_IMAGE = np.zeros((0, 0, 3), np.uint8)
 """The image of a frame whose image is read elsewhere."""
 FAULTS_FILE = "faults.csv"
@@ -364,6 +366,36 @@ def _parse_float(text: str, column: str, where: str) -> float:
     return v
 
 
+def results_in_order(items: Iterator[T], submit: Callable[[T], Future[R]],
+                     window: int) -> Iterator[tuple[T, R]]:
+    """``(item, result)`` for every item of ``items`` in order, the work of up to ``window``
+    items submitted ahead (``submit`` hands one to an executor). An error raised by ``items``
+    (a bad row) is raised after every earlier item was delivered; an item's own error when its
+    turn comes. Work not yet taken is cancelled when the caller stops early."""
+    pending: deque[tuple[T, Future[R]]] = deque()
+    error: Exception | None = None
+    try:
+        while True:
+            while error is None and len(pending) < window:
+                try:
+                    item = next(items)
+                except StopIteration:
+                    break
+                except Exception as e:  # noqa: BLE001 - raised at its turn, below
+                    error = e
+                    break
+                pending.append((item, submit(item)))
+            if not pending:
+                break
+            item, fut = pending.popleft()
+            yield item, fut.result()
+    finally:
+        for _, fut in pending:
+            fut.cancel()
+    if error is not None:
+        raise error
+
+
 class DatasetSource:
     """Read a dataset as :class:`FrameInput` objects, validating every row as it goes.
 
@@ -518,31 +550,11 @@ class DatasetSource:
 
     def _prefetched(self) -> Iterator[FrameInput]:
         """:meth:`__iter__` with up to ``prefetch`` images decoding ahead on one thread."""
-        jobs = self._jobs()
-        pending: deque[tuple[_Row, Odometry | None, Future[np.ndarray]]] = deque()
-        error: DatasetError | None = None
         with ThreadPoolExecutor(1, thread_name_prefix="tileviz-decode") as pool:
-            try:
-                while True:
-                    while error is None and len(pending) < self.prefetch:
-                        try:
-                            row, odometry, where = next(jobs)
-                        except StopIteration:
-                            break
-                        except DatasetError as e:
-                            error = e  # raised once the frames before it are delivered
-                            break
-                        pending.append(
-                            (row, odometry, pool.submit(self.load_image, row.image, where)))
-                    if not pending:
-                        break
-                    row, odometry, image = pending.popleft()
-                    yield self._frame(row, odometry, image.result())
-            finally:
-                for *_, fut in pending:
-                    fut.cancel()
-        if error is not None:
-            raise error
+            for (row, odometry, _), image in results_in_order(
+                    self._jobs(), lambda job: pool.submit(self.load_image, job[0].image, job[2]),
+                    self.prefetch):
+                yield self._frame(row, odometry, image)
 
     def _frame(self, row: _Row, odometry: Odometry | None, image: np.ndarray) -> FrameInput:
         return FrameInput(

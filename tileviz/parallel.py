@@ -17,15 +17,14 @@ No viser, no pymunk here.
 from __future__ import annotations
 
 import multiprocessing
-from collections import deque
 from collections.abc import Iterator
-from concurrent.futures import Future, ProcessPoolExecutor
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import cv2
 
 from tileviz.config import Config
-from tileviz.dataset import DatasetSource
+from tileviz.dataset import DatasetSource, results_in_order
 from tileviz.types import FrameInput
 from tileviz.vision import VisionResult, extract
 
@@ -60,31 +59,11 @@ def vision_ahead(source: DatasetSource, cfg: Config, jobs: int,
     if not isinstance(jobs, int) or jobs < 1:
         raise ValueError(f"jobs must be an integer >= 1, got {jobs!r}")
     ahead = 4 * jobs if window is None else max(1, int(window))
-    rows = source.frames_without_images()
-    pending: deque[tuple[FrameInput, Future[VisionResult]]] = deque()
     ctx = multiprocessing.get_context("spawn")  # no fork of a process with OpenCV threads
     with ProcessPoolExecutor(jobs, mp_context=ctx, initializer=_init,
                              initargs=(str(Path(source.folder)), cfg, cv2.getNumThreads()),
                              ) as pool:
-        error: Exception | None = None
-        try:
-            while True:
-                while error is None and len(pending) < ahead:
-                    try:
-                        frame, where = next(rows)
-                    except StopIteration:
-                        break
-                    except Exception as e:  # noqa: BLE001 - raised at its turn, below
-                        error = e
-                        break
-                    assert frame.image_name is not None
-                    pending.append((frame, pool.submit(_vision, frame.image_name, where)))
-                if not pending:
-                    break
-                frame, vision = pending.popleft()
-                yield frame, vision.result()
-        finally:
-            for _, fut in pending:
-                fut.cancel()
-    if error is not None:
-        raise error
+        for (frame, _), vision in results_in_order(
+                source.frames_without_images(),
+                lambda job: pool.submit(_vision, job[0].image_name, job[1]), ahead):
+            yield frame, vision
