@@ -18,10 +18,9 @@ import pytest
 from tileviz.app import commands as C
 from tileviz.app.scene import SceneView
 from tileviz.app.session import SIMULATOR_ONLY, Session, SessionOptions
-from tileviz.app.sources import replay_config
 from tileviz.app.wsclient import ViserClient, start_serve
 from tileviz.cli import main as cli
-from tileviz.dataset import DatasetSource, read_meta, replay_row
+from tileviz.dataset import DatasetSource, read_meta, replay_config, replay_row
 from tileviz.runner import Runner
 from tileviz.types import Box, BoxSet
 

@@ -154,6 +154,7 @@ def replay(argv: list[str]) -> int:
             RESIDUAL_COLUMNS,
             CsvOut,
             DatasetSource,
+            replay_config,
             replay_row,
             residual_row,
         )
@@ -161,10 +162,7 @@ def replay(argv: list[str]) -> int:
 
         # images decode on a background thread while the previous frame's vision runs
         source = DatasetSource(args.dataset, prefetch=8)
-        cfg = source.meta.to_config()
-        cfg = replace(cfg, localizer=replace(cfg.localizer, mode=args.mode))
-        if args.extractor:
-            cfg = replace(cfg, vision=replace(cfg.vision, extractor=args.extractor))
+        cfg = replay_config(source.meta, mode=args.mode, extractor=args.extractor)
         if args.max_boxes:
             cfg = replace(cfg, localizer=replace(cfg.localizer, max_boxes=args.max_boxes))
         out = CsvOut(args.out, REPLAY_COLUMNS)

@@ -366,6 +366,19 @@ def _parse_float(text: str, column: str, where: str) -> float:
     return v
 
 
+def replay_config(meta: DatasetMeta, *, mode: str | None = None,
+                  extractor: str | None = None, base: Config | None = None) -> Config:
+    """The configuration ``python -m tileviz replay`` uses for a dataset: the meta's floor,
+    camera, bounds and start (over ``base``, or the stored tileviz config), then ``mode`` and
+    ``extractor`` when given."""
+    cfg = meta.to_config(base)
+    if mode is not None:
+        cfg = replace(cfg, localizer=replace(cfg.localizer, mode=mode))
+    if extractor is not None:
+        cfg = replace(cfg, vision=replace(cfg.vision, extractor=extractor))
+    return cfg
+
+
 def results_in_order(items: Iterator[T], submit: Callable[[T], Future[R]],
                      window: int) -> Iterator[tuple[T, R]]:
     """``(item, result)`` for every item of ``items`` in order, the work of up to ``window``

@@ -74,7 +74,7 @@ class SessionOptions:
     """A renderer for the simulator (tests); None = the real floor renderer."""
     dataset: Path | None = None
     """Replay this tileviz-dataset/1 folder instead of simulating (the Config passed to the
-    session should be :func:`tileviz.app.sources.replay_config` of its meta)."""
+    session should be :func:`tileviz.dataset.replay_config` of its meta)."""
 
 
 @dataclass

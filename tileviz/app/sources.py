@@ -19,12 +19,11 @@ from __future__ import annotations
 import csv
 import math
 import os
-from dataclasses import replace
 from pathlib import Path
 from typing import Any, Protocol
 
 from tileviz.config import Config
-from tileviz.dataset import MAX_MAGNITUDE, DatasetMeta, DatasetSource
+from tileviz.dataset import MAX_MAGNITUDE, DatasetSource, replay_config
 from tileviz.sim.source import SimSource
 from tileviz.types import FrameInput, Pose
 
@@ -91,19 +90,6 @@ class LiveSimulator(SimSource):
 
     def describe(self) -> str:
         return "simulator"
-
-
-def replay_config(meta: DatasetMeta, *, mode: str | None = None,
-                  extractor: str | None = None, base: Config | None = None) -> Config:
-    """The configuration ``python -m tileviz replay`` uses for a dataset: the meta's floor,
-    camera, bounds and start (over ``base``, or the stored tileviz config), then ``mode`` and
-    ``extractor`` when given."""
-    cfg = meta.to_config(base)
-    if mode is not None:
-        cfg = replace(cfg, localizer=replace(cfg.localizer, mode=mode))
-    if extractor is not None:
-        cfg = replace(cfg, vision=replace(cfg.vision, extractor=extractor))
-    return cfg
 
 
 class DatasetReplay:
