@@ -3,6 +3,9 @@ OpenCV calls with the seed constants (same run, interleaved), and the robust ext
 
     python bench/bench_vision.py [--frames 200] [--threads N] [--clock wall|cpu]
 
+OpenCV runs on one thread (importing tileviz.vision sets it, for reproducible edges) unless
+``--threads N`` is given; both chains then run on N threads.
+
 Frames are rendered once (default floor, random poses, camera noise on) and reused, so only the
 vision is timed. Each figure is the median over frames of the per-frame time. The bare chain is
 exactly what the original called (report chapter 4, ``shared/seed-code-facts.md``): cvtColor,
@@ -103,7 +106,8 @@ def parse(doc: str, argv: list[str] | None, threads: bool = False) -> argparse.N
                     "does not inflate")
     if threads:
         ap.add_argument("--threads", type=int, default=None,
-                        help="cv2.setNumThreads (default: OpenCV's choice)")
+                        help="cv2.setNumThreads for both chains (default: 1, as tileviz.vision "
+                        "sets it)")
     args = ap.parse_args(argv)
     global clock
     if args.clock == "cpu":

@@ -4,9 +4,9 @@ observations extracted on ``jobs`` processes, handed back in frame order.
 Vision of one frame does not depend on any other frame, so a replay (a batch job) can run it for
 several frames at once; the localizer, which does depend on the previous frame, stays in the
 calling process and takes the frames in order. Each worker runs OpenCV with the calling process's
-thread count (a different count can change the last digits of an observation: some of OpenCV's
-parallel reductions round differently), so the results are bit for bit those of
-:func:`tileviz.vision.extract` in the calling process;
+thread count (one, as :mod:`tileviz.vision` sets it, unless the caller changed it: OpenCV's
+multi-threaded Canny gives edges that depend on the count), so the results are bit for bit those
+of :func:`tileviz.vision.extract` in the calling process;
 an error (a missing or unreadable image, an image of the wrong size) is raised when its frame's
 turn comes, after every frame before it was delivered, as :class:`tileviz.dataset.DatasetSource`
 does.
@@ -36,8 +36,8 @@ _worker: tuple[DatasetSource, Config] | None = None
 
 def _init(folder: str, cfg: Config, threads: int) -> None:
     global _worker
-    # OpenCV's thread count as in the calling process: some of its parallel reductions round
-    # differently on another count, and a replay must give the same sets whatever --jobs
+    # OpenCV's thread count as in the calling process (importing tileviz.vision set one):
+    # Canny's edges depend on it, and a replay must give the same sets whatever --jobs
     cv2.setNumThreads(threads)
     _worker = (DatasetSource(folder), cfg)
 

@@ -11,6 +11,14 @@
 
 Both return a :class:`VisionResult`. Image frame: x = column, y = row; the observation follows
 design.md (see :mod:`tileviz.vision.geometry`). No viser, no pymunk here.
+
+Importing this module sets OpenCV to one thread (``cv2.setNumThreads(1)``). OpenCV's
+multi-threaded Canny splits the image into stripes and its edges depend on the stripe count: on
+2 threads 1 frame in 3601 of a recording got other edge pixels than on 1 thread, and its
+observation moved in the 7th digit. On one thread an observation is the same on every machine,
+so a replay reproduces the live run whatever the core count. At 320x240 the single thread costs
+no measurable time (``python bench/bench_vision.py --threads 1``); a program that wants OpenCV's
+threads back may call ``cv2.setNumThreads`` after this import, and gives up that reproducibility.
 """
 
 from __future__ import annotations
@@ -26,6 +34,8 @@ from tileviz.vision.faithful import extract_faithful
 from tileviz.vision.geometry import observation_error
 from tileviz.vision.result import REASONS, VisionResult
 from tileviz.vision.robust import extract_robust
+
+cv2.setNumThreads(1)
 
 MIN_TILE_PX = 4.0
 """Smallest tile period in pixels (tile_size * ppm) there is a floor to see in."""
