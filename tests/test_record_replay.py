@@ -154,4 +154,4 @@ def test_replay_stops_at_bad_row_keeping_rows_written(
     assert needle in r.stderr, r.stderr
     rows = _read_csv(out)
     # every frame before the bad row was written, complete and identical to the live run
-    assert rows[1:] == live_rows[: len(rows) - 1] and len(rows) - 1 >= 9
+    assert rows[1:] == live_rows[: len(rows) - 1] and len(rows) - 1 == 10
