@@ -327,11 +327,13 @@ class _Run:
 
     def _heading(self, dx: np.ndarray, dy: np.ndarray) -> float:
         """First y3 estimate (rad) from the gradient directions of the edge pixels."""
-        idx = np.flatnonzero(self.edges)
-        if idx.size < 20:
+        # the edge pixels in row-major order (as np.flatnonzero gives them, 4x faster)
+        pts = cv2.findNonZero(self.edges)
+        if pts is None or len(pts) < 20:
             raise _Fail("no lines")
-        gx = dx.ravel()[idx].astype(np.float32)
-        gy = dy.ravel()[idx].astype(np.float32)
+        pts = pts.reshape(-1, 2)
+        gx = dx[pts[:, 1], pts[:, 0]].astype(np.float32)
+        gy = dy[pts[:, 1], pts[:, 0]].astype(np.float32)
         c2 = gx * gx - gy * gy
         s2 = 2.0 * gx * gy
         ang = np.arctan2(2.0 * c2 * s2, c2 * c2 - s2 * s2)  # 4 phi
@@ -339,7 +341,9 @@ class _Run:
         nb = 90
         b = ((ang + math.pi) * (nb / (2.0 * math.pi))).astype(np.int32) % nb
         hist = np.bincount(b, weights=wgt, minlength=nb)
-        smooth = hist + np.roll(hist, 1) + np.roll(hist, -1)
+        # hist + np.roll(hist, 1) + np.roll(hist, -1), the same sums without np.roll's overhead
+        smooth = (hist + np.concatenate((hist[-1:], hist[:-1]))
+                  + np.concatenate((hist[1:], hist[:1])))
         peak = (int(np.argmax(smooth)) + 0.5) * (2.0 * math.pi / nb) - math.pi
         near = np.abs(np.remainder(ang - peak + math.pi, 2.0 * math.pi) - math.pi) < 0.35
         wn = wgt[near]
