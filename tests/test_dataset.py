@@ -265,3 +265,26 @@ def test_images_are_rgb(tmp_path: Path) -> None:
 def test_prefetch_must_be_a_count(tmp_path: Path) -> None:
     with pytest.raises(ValueError, match="prefetch must be an integer >= 0"):
         DatasetSource(_foreign_dataset(tmp_path), prefetch=-1)
+
+
+@pytest.mark.parametrize("kind", ["rgb8", "gray8", "rgba8", "rgb16", "gray16", "jpeg"])
+def test_every_png_kind_reads_as_opencv_reads_it(tmp_path: Path, kind: str) -> None:
+    """8-bit RGB PNGs (what record writes) go through libspng, any other file through OpenCV;
+    either way a frame's pixels are OpenCV's IMREAD_COLOR pixels in RGB order."""
+    folder = _foreign_dataset(tmp_path)
+    rng = np.random.default_rng(3)
+    if kind.endswith("16"):
+        img = rng.integers(0, 65536, (H, W, 3), dtype=np.uint16)
+    else:
+        img = rng.integers(0, 256, (H, W, 4), dtype=np.uint8)
+    img = {"rgb8": img[..., :3], "gray8": img[..., 0], "rgba8": img, "rgb16": img,
+           "gray16": img[..., 0], "jpeg": img[..., :3]}[kind]
+    name = "pics/b.jpg" if kind == "jpeg" else "pics/b.png"
+    cv2.imwrite(str(folder / name), np.ascontiguousarray(img))
+    if kind == "jpeg":
+        lines = (folder / "frames.csv").read_text().replace("pics/b.png", name)
+        (folder / "frames.csv").write_text(lines)
+    expected = cv2.cvtColor(cv2.imread(str(folder / name), cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
+    frame = list(DatasetSource(folder))[1]
+    assert frame.image.dtype == np.uint8 and frame.image.shape == (H, W, 3)
+    assert np.array_equal(frame.image, expected)

@@ -25,6 +25,7 @@ from typing import IO, TYPE_CHECKING, Any, TypeVar
 
 import cv2
 import numpy as np
+import pyspng
 
 from tileviz.config import Config
 from tileviz.types import FrameInput, Odometry, Pose
@@ -342,6 +343,30 @@ class _Row:
     truth: Pose | None
 
 
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+def _decode(raw: bytes, data: np.ndarray) -> np.ndarray | None:
+    """The image in ``raw`` (``data``: the same bytes as an array) as HxWx3 RGB uint8, or None
+    if it cannot be read. An 8-bit RGB, non-interlaced PNG (what ``record`` writes) is decoded
+    by libspng (pyspng): the same pixels as OpenCV's decoder (both are exact), in about 0.8 of
+    its time and without the BGR->RGB step; any other file, or one libspng refuses, by OpenCV."""
+    # IHDR: width, height at 16, bit depth at 24, colour type at 25 (2 = RGB), interlace at 28
+    if len(raw) > 33 and raw.startswith(_PNG_SIGNATURE) and raw[24] == 8 and raw[25] == 2 \
+            and raw[28] == 0:
+        try:
+            image = pyspng.load(raw, "RGB")
+        except Exception:  # noqa: BLE001 - OpenCV decides, and its verdict is the error
+            image = None
+        if image is not None and image.dtype == np.uint8 and image.ndim == 3:
+            return image
+    image = cv2.imdecode(data, cv2.IMREAD_COLOR) if data.size else None
+    if image is None:
+        return None
+    # (the same pixels as image[:, :, ::-1], contiguous, 30x cheaper than numpy's copy)
+    return cv2.cvtColor(image, cv2.COLOR_BGR2RGB)
+
+
 def _truncated(data: np.ndarray) -> bool:
     """Whether a PNG or JPEG file (by its signature) lacks its end marker (IEND chunk, EOI): a
     cut-off file, which the decoders would half-decode or complain about on stderr."""
@@ -514,18 +539,18 @@ class DatasetSource:
         path = (self.folder / name)
         if not path.is_file():
             raise DatasetError(f"{where}: image {name!r} is missing")
-        data = np.fromfile(path, dtype=np.uint8)
+        raw = path.read_bytes()
+        data = np.frombuffer(raw, dtype=np.uint8)
         if _truncated(data):
             raise DatasetError(f"{where}: image {name!r} is truncated (no end marker)")
-        image = cv2.imdecode(data, cv2.IMREAD_COLOR) if data.size else None
+        image = _decode(raw, data)
         if image is None:
             raise DatasetError(f"{where}: image {name!r} is not a readable PNG/JPEG")
         h, w = image.shape[:2]
         if (w, h) != (self.meta.image_width, self.meta.image_height):
             raise DatasetError(f"{where}: image {name!r} is {w}x{h}, meta.json says "
                                f"{self.meta.image_width}x{self.meta.image_height}")
-        # (the same pixels as image[:, :, ::-1], contiguous, 30x cheaper than numpy's copy)
-        return cv2.cvtColor(image, cv2.COLOR_BGR2RGB)
+        return image
 
     def _jobs(self) -> Iterator[tuple[_Row, Odometry | None, str]]:
         """(row, its odometry, where) in order. A bad row raises DatasetError after the row
