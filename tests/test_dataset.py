@@ -267,8 +267,10 @@ def test_prefetch_must_be_a_count(tmp_path: Path) -> None:
         DatasetSource(_foreign_dataset(tmp_path), prefetch=-1)
 
 
+@pytest.mark.parametrize("prefetch", [0, 2])
 @pytest.mark.parametrize("kind", ["rgb8", "gray8", "rgba8", "rgb16", "gray16", "jpeg"])
-def test_every_png_kind_reads_as_opencv_reads_it(tmp_path: Path, kind: str) -> None:
+def test_every_png_kind_reads_as_opencv_reads_it(tmp_path: Path, kind: str,
+                                                  prefetch: int) -> None:
     """8-bit RGB PNGs (what record writes) go through libspng, any other file through OpenCV;
     either way a frame's pixels are OpenCV's IMREAD_COLOR pixels in RGB order."""
     folder = _foreign_dataset(tmp_path)
@@ -285,6 +287,6 @@ def test_every_png_kind_reads_as_opencv_reads_it(tmp_path: Path, kind: str) -> N
         lines = (folder / "frames.csv").read_text().replace("pics/b.png", name)
         (folder / "frames.csv").write_text(lines)
     expected = cv2.cvtColor(cv2.imread(str(folder / name), cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
-    frame = list(DatasetSource(folder))[1]
+    frame = list(DatasetSource(folder, prefetch=prefetch))[1]
     assert frame.image.dtype == np.uint8 and frame.image.shape == (H, W, 3)
     assert np.array_equal(frame.image, expected)
