@@ -21,7 +21,7 @@ higher than the isolated figure. Two things make it so, and the script prints bo
   after it runs several times slower than a step in a tight loop; the more distinct code a step
   runs, the more it pays. ``--after-sweep MB`` shows it without vision: it writes once over an
   MB-sized array (untimed) before every step. With 32 MB (this machine's L3) the interval step
-  costs as much as after vision (13 -> 38 us here), with 2 MB (its L2s) little more (15 us);
+  costs as much as after vision (13 -> 39 us here), with 2 MB (its L2s) little more (15 us);
   OpenCV's thread count does not matter. The pure-Python step touches many objects (frames,
   tuples, floats, dicts); compiling it with mypyc (tried, not kept) gave 13.2 -> 11.2 us alone
   and 37 -> 32 us after vision.
