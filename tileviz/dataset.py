@@ -346,13 +346,13 @@ class _Row:
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
 
-def _decode(raw: bytes, data: np.ndarray, spng: bool = True) -> np.ndarray | None:
-    """The image in ``raw`` (``data``: the same bytes as an array) as HxWx3 RGB uint8, or None
-    if it cannot be read. With ``spng``, an 8-bit RGB, non-interlaced PNG (what ``record``
-    writes) is decoded by libspng (pyspng): the same pixels as OpenCV's decoder (both are
-    exact), in about 0.8 of its time and without the BGR->RGB step; any other file, or one
-    libspng refuses, by OpenCV. pyspng holds the GIL while it decodes and OpenCV does not, so a
-    background decoding thread wants ``spng=False`` to overlap the caller's work."""
+def _decode(raw: bytes, spng: bool = True) -> np.ndarray | None:
+    """The image in the file bytes ``raw`` as HxWx3 RGB uint8, or None if it cannot be read.
+    With ``spng``, an 8-bit RGB, non-interlaced PNG (what ``record`` writes) is decoded by
+    libspng (pyspng): the same pixels as OpenCV's decoder (both are exact), in about 0.8 of its
+    time and without the BGR->RGB step; any other file, or one libspng refuses, by OpenCV.
+    pyspng holds the GIL while it decodes and OpenCV does not, so a background decoding thread
+    wants ``spng=False`` to overlap the caller's work."""
     # IHDR: width, height at 16, bit depth at 24, colour type at 25 (2 = RGB), interlace at 28
     if spng and len(raw) > 33 and raw.startswith(_PNG_SIGNATURE) and raw[24] == 8 \
             and raw[25] == 2 and raw[28] == 0:
@@ -362,7 +362,7 @@ def _decode(raw: bytes, data: np.ndarray, spng: bool = True) -> np.ndarray | Non
             image = None
         if image is not None and image.dtype == np.uint8 and image.ndim == 3:
             return image
-    image = cv2.imdecode(data, cv2.IMREAD_COLOR) if data.size else None
+    image = cv2.imdecode(np.frombuffer(raw, np.uint8), cv2.IMREAD_COLOR) if raw else None
     if image is None:
         return None
     # (the same pixels as image[:, :, ::-1], contiguous, 30x cheaper than numpy's copy)
@@ -542,11 +542,10 @@ class DatasetSource:
         if not path.is_file():
             raise DatasetError(f"{where}: image {name!r} is missing")
         raw = path.read_bytes()
-        data = np.frombuffer(raw, dtype=np.uint8)
-        if _truncated(data):
+        if _truncated(np.frombuffer(raw, np.uint8)):
             raise DatasetError(f"{where}: image {name!r} is truncated (no end marker)")
         # a prefetching source decodes on a thread: OpenCV's decoder lets the caller run
-        image = _decode(raw, data, spng=self.prefetch == 0)
+        image = _decode(raw, spng=self.prefetch == 0)
         if image is None:
             raise DatasetError(f"{where}: image {name!r} is not a readable PNG/JPEG")
         h, w = image.shape[:2]
