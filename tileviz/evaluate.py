@@ -833,16 +833,6 @@ def _shade(ax: Any, t: np.ndarray, mask: np.ndarray, color: str, label: str) -> 
 # --------------------------------------------------------------------------------- driver
 
 
-def _worker_init() -> None:
-    """One thread per worker: the workers share the cores."""
-    try:
-        import cv2
-
-        cv2.setNumThreads(1)
-    except ImportError:  # pragma: no cover - cv2 is a dependency
-        pass
-
-
 def evaluate(
     scenarios: Sequence[str],
     *,
@@ -885,8 +875,8 @@ def evaluate(
             import multiprocessing
 
             ctx = multiprocessing.get_context("spawn")
-            with ProcessPoolExecutor(max_workers=jobs, mp_context=ctx,
-                                     initializer=_worker_init) as pool:
+            # (OpenCV runs on one thread in each worker: importing tileviz.vision sets it)
+            with ProcessPoolExecutor(max_workers=jobs, mp_context=ctx) as pool:
                 futures = [pool.submit(run_one, t) for t in tasks]
                 for fut in as_completed(futures):
                     results.append(fut.result())
