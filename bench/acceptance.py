@@ -90,10 +90,12 @@ def timing(folder: Path, repeats: int = 3, limit: int = 600) -> dict[str, float]
     cases interleaved so they see the same load:
 
     - ``jobs2``: ``python -m tileviz replay --jobs 2`` (decode + vision in 2 worker processes,
-      the localizer in order in this one), from its first frame on: the workers' start-up
+      the localizer in order in this one; ``replay``'s default on a 2-core machine), from its
+      first frame on: the workers' start-up
       (``jobs2_startup_s``, seconds, once per replay) is left out, as it is spread over
       12000 frames in a 10-minute replay;
-    - ``replay``: what ``python -m tileviz replay`` does (images decoded ahead on a thread);
+    - ``replay``: what ``python -m tileviz replay --jobs 1`` does (images decoded ahead on a
+      thread);
     - ``serial``: the same with every image decoded when its frame is asked for;
     - ``decode``: reading and decoding the images alone;
     - ``bare``: the bare OpenCV calls of the original pipeline on the decoded images, with
@@ -171,7 +173,7 @@ def main() -> None:
         tm = timing(folder)
         print(f"replay --jobs 2 {tm['jobs2']:.3f} ms/frame once started (ratio to the bare "
               f"calls {tm['jobs2'] / tm['bare']:.2f}; start-up {tm['jobs2_startup_s']:.2f} s)")
-        print(f"replay (decode+vision+localizer) {tm['replay']:.3f} ms/frame "
+        print(f"replay --jobs 1 (decode+vision+localizer) {tm['replay']:.3f} ms/frame "
               f"({tm['serial']:.3f} without decoding ahead; decoding alone "
               f"{tm['decode']:.3f}); bare OpenCV calls of the original pipeline "
               f"{tm['bare']:.3f} ms/frame; ratio {tm['replay'] / tm['bare']:.2f}")

@@ -290,3 +290,20 @@ def test_every_png_kind_reads_as_opencv_reads_it(tmp_path: Path, kind: str,
     frame = list(DatasetSource(folder, prefetch=prefetch))[1]
     assert frame.image.dtype == np.uint8 and frame.image.shape == (H, W, 3)
     assert np.array_equal(frame.image, expected)
+
+
+def test_png_level_trades_disk_for_speed(tmp_path: Path) -> None:
+    """Level 0 (the default) stores the pixels; level 9 compresses; both read back exactly."""
+    rng = np.random.default_rng(5)
+    meta = DatasetMeta.from_config(Config())
+    meta = DatasetMeta(**{**meta.__dict__, "image_width": W, "image_height": H})
+    img = np.repeat(rng.integers(100, 110, (H, W, 1), dtype=np.uint8), 3, axis=2)
+    sizes = {}
+    for level in (0, 9):
+        with DatasetWriter(tmp_path / f"l{level}", meta, png_level=level) as w:
+            w.write(FrameInput(index=0, t=0.0, image=img, odometry=None, compass=None))
+        sizes[level] = (tmp_path / f"l{level}" / "images" / "000000.png").stat().st_size
+        assert np.array_equal(next(iter(DatasetSource(tmp_path / f"l{level}"))).image, img)
+    assert sizes[0] > 3 * W * H > 2 * sizes[9]
+    with pytest.raises(ValueError, match="png_level must be an integer 0..9"):
+        DatasetWriter(tmp_path / "bad", meta, png_level=10)

@@ -117,6 +117,7 @@ def _cli(*args: str) -> subprocess.CompletedProcess[str]:
         (["replay", "nowhere", "--mode", "fly", "--out", "x.csv"], "invalid choice"),
         (["record", "x", "--duration", "-1"], "--duration must be a finite number > 0"),
         (["record", "x", "--duration", "1", "--ppm", "nan"], "--ppm must be a finite number"),
+        (["record", "x", "--duration", "1", "--png-level", "10"], "--png-level: invalid choice"),
         (["frobnicate"], "unknown command"),
     ],
 )

@@ -249,7 +249,12 @@ class DatasetWriter:
     """Write a dataset frame by frame; every row is flushed as soon as it is written, so a crash
     leaves a valid (shorter) dataset.
 
-    ``image_format``: ``png`` (lossless, replays bit-exactly) or ``jpg``.
+    ``image_format``: ``png`` (lossless, replays bit-exactly) or ``jpg``. ``png_level``: zlib
+    compression 0..9 of the PNGs. The default 0 stores the pixels, as a robot log keeps raw
+    camera images: a noisy 320x240 camera image shrinks only 1.8x with OpenCV's default
+    compression (127 vs 226 KB), while level 0 writes 7x faster (0.39 vs 2.75 ms) and decodes
+    25x faster (libspng 0.03 vs 0.91 ms; ``python bench/png_levels.py``), which was most of a
+    replay's decoding time.
     """
 
     def __init__(
@@ -258,16 +263,24 @@ class DatasetWriter:
         meta: DatasetMeta,
         *,
         image_format: str = "png",
+        png_level: int = 0,
         overwrite: bool = False,
     ) -> None:
         if image_format not in ("png", "jpg"):
             raise ValueError(f"image_format must be 'png' or 'jpg', got {image_format!r}")
+        if not isinstance(png_level, int) or not 0 <= png_level <= 9:
+            raise ValueError(f"png_level must be an integer 0..9, got {png_level!r}")
         self.folder = Path(folder)
         if self.folder.exists() and any(self.folder.iterdir()) and not overwrite:
             raise ValueError(f"{self.folder}: output folder exists and is not empty")
         (self.folder / "images").mkdir(parents=True, exist_ok=True)
         self.meta = meta
         self.image_format = image_format
+        self._params = (
+            [cv2.IMWRITE_JPEG_QUALITY, 95] if image_format == "jpg" else
+            # stored pixels: filtering only costs the reader time
+            [cv2.IMWRITE_PNG_COMPRESSION, 0, cv2.IMWRITE_PNG_FILTER, cv2.IMWRITE_PNG_FILTER_NONE]
+            if png_level == 0 else [cv2.IMWRITE_PNG_COMPRESSION, png_level])
         (self.folder / "meta.json").write_text(
             json.dumps(meta.to_json(), indent=2) + "\n", encoding="utf-8"
         )
@@ -286,8 +299,7 @@ class DatasetWriter:
             raise ValueError("dataset writer is closed")
         name = f"images/{self.count:06d}.{self.image_format}"
         image = _rgb(frame.image)
-        params = [cv2.IMWRITE_JPEG_QUALITY, 95] if self.image_format == "jpg" else []
-        if not cv2.imwrite(str(self.folder / name), image[:, :, ::-1], params):
+        if not cv2.imwrite(str(self.folder / name), image[:, :, ::-1], self._params):
             raise OSError(f"cannot write {self.folder / name}")
         odo = frame.odometry
         truth = frame.truth
