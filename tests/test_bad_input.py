@@ -300,6 +300,24 @@ def test_missing_or_corrupt_piece_is_named(damage, needle: str, tmp_path: Path) 
     _expect(folder, needle)
 
 
+@pytest.mark.parametrize("jobs", ["1", "2"])
+def test_damaged_png_data_is_one_line(tmp_path: Path, jobs: str) -> None:
+    """A PNG whose compressed pixels were damaged (end marker intact): one line naming the row
+    and the file, not also the PNG library's own complaint, whichever decoder met it."""
+    folder = _dataset(tmp_path)
+    png = folder / "images" / "a.png"
+    cv2.imwrite(str(png), np.random.default_rng(1).integers(0, 256, (H, W, 3), np.uint8))
+    raw = bytearray(png.read_bytes())
+    raw[60:160] = bytes(100)  # inside the IDAT chunk
+    png.write_bytes(bytes(raw))
+    r = subprocess.run([sys.executable, "-m", "tileviz", "replay", str(folder), "--out",
+                        str(tmp_path / "out.csv"), "--quiet", "--jobs", jobs],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2
+    assert r.stderr.count("\n") == 1, r.stderr
+    assert "row 2: image 'images/a.png' is not a readable PNG/JPEG" in r.stderr
+
+
 def test_a_dataset_with_a_header_only_has_no_frames(tmp_path: Path) -> None:
     assert list(DatasetSource(_dataset(tmp_path, rows=[]))) == []
 

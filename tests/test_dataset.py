@@ -268,21 +268,29 @@ def test_prefetch_must_be_a_count(tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize("prefetch", [0, 2])
-@pytest.mark.parametrize("kind", ["rgb8", "gray8", "rgba8", "rgb16", "gray16", "jpeg"])
+@pytest.mark.parametrize("kind", ["rgb8", "gray8", "rgba8", "rgb16", "gray16", "rgba16",
+                                  "palette", "jpeg"])
 def test_every_png_kind_reads_as_opencv_reads_it(tmp_path: Path, kind: str,
                                                   prefetch: int) -> None:
-    """8-bit RGB PNGs (what record writes) go through libspng, any other file through OpenCV;
-    either way a frame's pixels are OpenCV's IMREAD_COLOR pixels in RGB order."""
+    """PNGs go through libspng (in the caller's thread) or OpenCV (a prefetching source), JPEGs
+    through OpenCV; either way a frame's pixels are OpenCV's IMREAD_COLOR pixels in RGB order."""
     folder = _foreign_dataset(tmp_path)
     rng = np.random.default_rng(3)
     if kind.endswith("16"):
         img = rng.integers(0, 65536, (H, W, 3), dtype=np.uint16)
     else:
         img = rng.integers(0, 256, (H, W, 4), dtype=np.uint8)
-    img = {"rgb8": img[..., :3], "gray8": img[..., 0], "rgba8": img, "rgb16": img,
-           "gray16": img[..., 0], "jpeg": img[..., :3]}[kind]
+    img = {"rgb8": img[..., :3], "gray8": img[..., 0], "rgba8": img, "rgb16": img[..., :3],
+           "gray16": img[..., 0], "rgba16": img, "palette": img[..., :3],
+           "jpeg": img[..., :3]}[kind]
     name = "pics/b.jpg" if kind == "jpeg" else "pics/b.png"
-    cv2.imwrite(str(folder / name), np.ascontiguousarray(img))
+    if kind == "palette":  # OpenCV writes no palette PNG; Pillow does (RGB order)
+        from PIL import Image
+
+        Image.fromarray(np.ascontiguousarray(img)).quantize(64).save(folder / name)
+        assert (folder / name).read_bytes()[25] == 3  # IHDR colour type 3: palette
+    else:
+        cv2.imwrite(str(folder / name), np.ascontiguousarray(img))
     if kind == "jpeg":
         lines = (folder / "frames.csv").read_text().replace("pics/b.png", name)
         (folder / "frames.csv").write_text(lines)

@@ -16,6 +16,7 @@ import csv
 import json
 import math
 import os
+import zlib
 from collections import deque
 from collections.abc import Callable, Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -360,14 +361,18 @@ _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
 def _decode(raw: bytes, spng: bool = True) -> np.ndarray | None:
     """The image in the file bytes ``raw`` as HxWx3 RGB uint8, or None if it cannot be read.
-    With ``spng``, an 8-bit RGB, non-interlaced PNG (what ``record`` writes) is decoded by
-    libspng (pyspng): the same pixels as OpenCV's decoder (both are exact), in about 0.8 of its
-    time and without the BGR->RGB step; any other file, or one libspng refuses, by OpenCV.
-    pyspng holds the GIL while it decodes and OpenCV does not, so a background decoding thread
-    wants ``spng=False`` to overlap the caller's work."""
-    # IHDR: width, height at 16, bit depth at 24, colour type at 25 (2 = RGB), interlace at 28
-    if spng and len(raw) > 33 and raw.startswith(_PNG_SIGNATURE) and raw[24] == 8 \
-            and raw[25] == 2 and raw[28] == 0:
+
+    With ``spng``, a non-interlaced PNG is decoded by libspng (pyspng): the same pixels as
+    OpenCV's decoder for every PNG kind (8/16-bit, gray, RGB, alpha, palette: tested), in less
+    time and without the BGR->RGB step; anything else, or a PNG libspng refuses, goes to OpenCV.
+    A PNG is read only if every chunk's CRC holds: pyspng decodes damaged data as if it were
+    whole, and OpenCV's libpng prints its own complaint on stderr beside the one-line error
+    the caller gives. pyspng holds the GIL while it decodes and OpenCV does not, so a background
+    decoding thread wants ``spng=False`` to overlap the caller's work."""
+    png = raw.startswith(_PNG_SIGNATURE)
+    if png and not _png_chunks_intact(raw):
+        return None  # (pyspng decodes damaged data without a word; OpenCV's libpng complains)
+    if png and spng and len(raw) > 33 and raw[28] == 0:  # IHDR's interlace byte
         try:
             image = pyspng.load(raw, "RGB")
         except Exception:  # noqa: BLE001 - OpenCV decides, and its verdict is the error
@@ -379,6 +384,24 @@ def _decode(raw: bytes, spng: bool = True) -> np.ndarray | None:
         return None
     # (the same pixels as image[:, :, ::-1], contiguous, 30x cheaper than numpy's copy)
     return cv2.cvtColor(image, cv2.COLOR_BGR2RGB)
+
+
+def _png_chunks_intact(raw: bytes) -> bool:
+    """Whether every chunk of the PNG file ``raw`` is complete and matches its CRC, up to IEND
+    (0.06 ms for a stored 320x240 image)."""
+    view = memoryview(raw)
+    pos = len(_PNG_SIGNATURE)
+    while pos + 12 <= len(raw):
+        length = int.from_bytes(view[pos:pos + 4], "big")
+        end = pos + 8 + length
+        if end + 4 > len(raw):
+            return False
+        if zlib.crc32(view[pos + 4:end]) != int.from_bytes(view[end:end + 4], "big"):
+            return False
+        if view[pos + 4:pos + 8] == b"IEND":
+            return True
+        pos = end + 4
+    return False
 
 
 def _truncated(data: np.ndarray) -> bool:
