@@ -315,3 +315,11 @@ def test_png_level_trades_disk_for_speed(tmp_path: Path) -> None:
     assert sizes[0] > 3 * W * H > 2 * sizes[9]
     with pytest.raises(ValueError, match="png_level must be an integer 0..9"):
         DatasetWriter(tmp_path / "bad", meta, png_level=10)
+
+
+def test_row_count_for_the_progress_bar(tmp_path: Path) -> None:
+    folder = _foreign_dataset(tmp_path)
+    with open(folder / "frames.csv", "a", encoding="utf-8") as f:
+        f.write("\n , , \n")  # blank rows: skipped by the reader, not counted
+    src = DatasetSource(folder)
+    assert src.row_count() == 3 == len(list(src))

@@ -51,16 +51,21 @@ def live_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, list[list[
     return folder, rows
 
 
-@pytest.mark.parametrize("jobs", ["1", "2"])
+@pytest.mark.parametrize("jobs", ["1", "2", "default"])
 def test_replay_reproduces_live_sets(live_run: tuple[Path, list[list[str]]],
-                                     tmp_path: Path, jobs: str) -> None:
-    """The same sets as the live run, with vision in this process or in 2 worker processes."""
+                                     tmp_path: Path, jobs: str,
+                                     capsys: pytest.CaptureFixture[str]) -> None:
+    """The same sets as the live run, with vision in this process or in worker processes (2, or
+    the default: one per core); the progress bar knows the frame count."""
     folder, live_rows = live_run
     out = tmp_path / "result.csv"
     eq = tmp_path / "eq.csv"
+    flags = ["--quiet", "--jobs", jobs] if jobs != "default" else []
     code = tileviz_main(["replay", str(folder), "--mode", "autonomous", "--out", str(out),
-                         "--output-file", str(eq), "--quiet", "--jobs", jobs])
+                         "--output-file", str(eq), *flags])
     assert code == 0
+    if jobs == "default":
+        assert f"{FRAMES}/{FRAMES}" in capsys.readouterr().err
     rows = _read_csv(out)
     assert tuple(rows[0]) == REPLAY_COLUMNS
     assert rows[1:] == live_rows

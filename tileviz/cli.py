@@ -184,7 +184,7 @@ def replay(argv: list[str]) -> int:
         out = CsvOut(args.out, REPLAY_COLUMNS)
         eq = CsvOut(args.output_file, RESIDUAL_COLUMNS) if args.output_file else None
         runner = Runner(cfg)
-        bar = _progress(None, "replay", not args.quiet)
+        bar = _progress(source.row_count() or None, "replay", not args.quiet)
         n = 0
         jobs = args.jobs if args.jobs is not None else default_jobs()
         if jobs > 1:

@@ -522,6 +522,17 @@ class DatasetSource:
             raise DatasetError(f"{path}: not UTF-8 text") from None
         return out
 
+    def row_count(self) -> int:
+        """How many non-blank data rows frames.csv has (for a progress bar: the rows are not
+        checked here; a bad one still stops the frames at its turn)."""
+        try:
+            with open(self.frames_path, newline="", encoding="utf-8") as f:
+                rows = csv.reader(f)
+                next(rows, None)
+                return sum(1 for cells in rows if any(c.strip() for c in cells))
+        except (UnicodeDecodeError, csv.Error, OSError):
+            return 0
+
     def _rows(self) -> Iterator[_Row]:
         try:
             yield from self._parse_rows()
