@@ -371,7 +371,7 @@ def _decode(raw: bytes, spng: bool = True) -> np.ndarray | None:
     decoding thread wants ``spng=False`` to overlap the caller's work."""
     png = raw.startswith(_PNG_SIGNATURE)
     if png and not _png_chunks_intact(raw):
-        return None  # (pyspng decodes damaged data without a word; OpenCV's libpng complains)
+        return None
     if png and spng and len(raw) > 33 and raw[28] == 0:  # IHDR's interlace byte
         try:
             image = pyspng.load(raw, "RGB")
@@ -404,14 +404,13 @@ def _png_chunks_intact(raw: bytes) -> bool:
     return False
 
 
-def _truncated(data: np.ndarray) -> bool:
+def _truncated(raw: bytes) -> bool:
     """Whether a PNG or JPEG file (by its signature) lacks its end marker (IEND chunk, EOI): a
     cut-off file, which the decoders would half-decode or complain about on stderr."""
-    head = data[:8].tobytes()
-    if head.startswith(b"\x89PNG\r\n\x1a\n"):
-        return data.tobytes().rfind(b"IEND") < 0
-    if head.startswith(b"\xff\xd8"):
-        return data.tobytes().rfind(b"\xff\xd9") < 2
+    if raw.startswith(_PNG_SIGNATURE):
+        return raw.rfind(b"IEND") < 0
+    if raw.startswith(b"\xff\xd8"):
+        return raw.rfind(b"\xff\xd9") < 2
     return False
 
 
@@ -588,7 +587,7 @@ class DatasetSource:
         if not path.is_file():
             raise DatasetError(f"{where}: image {name!r} is missing")
         raw = path.read_bytes()
-        if _truncated(np.frombuffer(raw, np.uint8)):
+        if _truncated(raw):
             raise DatasetError(f"{where}: image {name!r} is truncated (no end marker)")
         # a prefetching source decodes on a thread: OpenCV's decoder lets the caller run
         image = _decode(raw, spng=self.prefetch == 0)
