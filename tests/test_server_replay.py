@@ -8,7 +8,6 @@ import asyncio
 import csv
 import re
 import shutil
-import signal
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -18,7 +17,7 @@ import pytest
 from tileviz.app import commands as C
 from tileviz.app.scene import SceneView
 from tileviz.app.session import SIMULATOR_ONLY, Session, SessionOptions
-from tileviz.app.wsclient import ViserClient, start_serve
+from tileviz.app.wsclient import ViserClient, serving, stop_serve
 from tileviz.cli import main as cli
 from tileviz.dataset import DatasetSource, read_meta, replay_config, replay_row
 from tileviz.runner import Runner
@@ -281,9 +280,8 @@ def visible(c: ViserClient, label: str) -> bool:
 
 
 def test_serve_dataset_replays_in_the_browser_to_the_end(dataset, frames, tmp_path):
-    proc, url = start_serve(["--port", "0", "--dataset", str(dataset), "--max-speed",
-                             "--mode", "autonomous", "--out-dir", str(tmp_path)], cwd=tmp_path)
-    try:
+    with serving(["--port", "0", "--dataset", str(dataset), "--max-speed", "--mode",
+                  "autonomous", "--out-dir", str(tmp_path)], cwd=tmp_path) as (proc, url):
         assert re.fullmatch(r"http://127\.0\.0\.1:\d+/", url), url
 
         def status(m: dict, pattern: str) -> bool:
@@ -310,10 +308,6 @@ def test_serve_dataset_replays_in_the_browser_to_the_end(dataset, frames, tmp_pa
                                  start=mark)
 
         asyncio.run(scenario())
-        proc.send_signal(signal.SIGINT)
-        out, err = proc.communicate(timeout=60)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
+        out, err = stop_serve(proc)
     assert proc.returncode == 0, err
     assert "Traceback" not in err

@@ -6,7 +6,6 @@ from __future__ import annotations
 import asyncio
 import os
 import re
-import signal
 import subprocess
 import sys
 import urllib.request
@@ -16,7 +15,7 @@ import pytest
 
 from tileviz.app.server import App
 from tileviz.app.session import Session, SessionOptions
-from tileviz.app.wsclient import ViserClient, start_serve
+from tileviz.app.wsclient import ViserClient, serving, stop_serve
 from tileviz.config import preset
 
 REPO = Path(__file__).resolve().parents[1]
@@ -200,17 +199,12 @@ def test_table_6_1_options_reach_the_run(tmp_path):
 
 
 def test_serve_prints_the_url_serves_the_page_and_stops_on_ctrl_c(tmp_path):
-    proc, url = start_serve(["--port", "0", "--out-dir", str(tmp_path),
-                             "--output-file", "res.csv"], cwd=tmp_path)
-    try:
+    with serving(["--port", "0", "--out-dir", str(tmp_path), "--output-file", "res.csv"],
+                 cwd=tmp_path) as (proc, url):
         assert re.fullmatch(r"http://127\.0\.0\.1:\d+/", url), url  # loopback by default
         page = urllib.request.urlopen(url, timeout=30).read().decode()
         assert "<html" in page.lower()
-        proc.send_signal(signal.SIGINT)
-        out, err = proc.communicate(timeout=60)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
+        out, err = stop_serve(proc)
     assert proc.returncode == 0, err
     assert "stopped" in out and "Traceback" not in err
     rows = (tmp_path / "res.csv").read_text().splitlines()

@@ -20,9 +20,11 @@ from __future__ import annotations
 import asyncio
 import os
 import re
+import signal
 import subprocess
 import sys
 from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -30,7 +32,8 @@ import msgpack
 import numpy as np
 import zstandard
 
-__all__ = ["ViserClient", "decode_window", "start_serve", "subprotocol"]
+__all__ = ["ViserClient", "decode_window", "serving", "start_serve", "stop_serve",
+           "subprotocol"]
 
 
 def subprotocol() -> str:
@@ -66,6 +69,27 @@ def start_serve(args: Sequence[str], *, cwd: str | os.PathLike[str] | None = Non
     proc.kill()
     err = proc.stderr.read() if proc.stderr is not None else ""
     raise RuntimeError(f"serve.py did not start: {err.strip()}")
+
+
+@contextmanager
+def serving(args: Sequence[str], *, cwd: str | os.PathLike[str] | None = None,
+            ) -> Iterator[tuple[subprocess.Popen[str], str]]:
+    """:func:`start_serve` as a context: ``(process, url)``, the process killed on leaving if it
+    is still running (a failed test leaves no server behind)."""
+    proc, url = start_serve(args, cwd=cwd)
+    try:
+        yield proc, url
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+
+
+def stop_serve(proc: subprocess.Popen[str], timeout: float = 60.0) -> tuple[str, str]:
+    """Stop ``serve.py`` as Ctrl-C does (SIGINT) and return its (stdout, stderr) once it has
+    exited (``timeout`` seconds at most, else subprocess.TimeoutExpired)."""
+    proc.send_signal(signal.SIGINT)
+    return proc.communicate(timeout=timeout)
 
 
 def decode_window(payload: bytes) -> list[dict[str, Any]]:
