@@ -96,8 +96,8 @@ def compare(imgs: list[np.ndarray], cam: CameraConfig, tile_size: float,
 
 def parse(doc: str, argv: list[str] | None, threads: bool = False) -> argparse.Namespace:
     """The options shared by the benchmarks (``--frames``, ``--clock``), applied: with
-    ``--clock cpu`` this module's ``clock`` becomes the thread's CPU time and OpenCV runs on
-    this thread alone."""
+    ``--clock cpu`` this module's ``clock`` becomes the thread's CPU time (OpenCV runs on this
+    thread alone: importing tileviz.vision set one thread)."""
     ap = argparse.ArgumentParser(description=doc.splitlines()[0])
     ap.add_argument("--frames", type=int, default=200)
     ap.add_argument("--clock", choices=("wall", "cpu"), default="wall",
@@ -112,7 +112,6 @@ def parse(doc: str, argv: list[str] | None, threads: bool = False) -> argparse.N
     global clock
     if args.clock == "cpu":
         clock = time.thread_time
-        cv2.setNumThreads(1)
     return args
 
 
