@@ -28,7 +28,7 @@ import numpy as np
 from tileviz.config import Config, preset
 from tileviz.dataset import DatasetMeta, DatasetSource, DatasetWriter
 from tileviz.parallel import vision_ahead
-from tileviz.runner import Runner
+from tileviz.pipeline import FrameLoop
 from tileviz.sim.source import SimSource
 
 
@@ -42,7 +42,7 @@ def replay_stats(folder: Path, mode: str) -> dict[str, float]:
     src = DatasetSource(folder)
     cfg = src.meta.to_config()
     cfg = replace(cfg, localizer=replace(cfg.localizer, mode=mode))
-    runner = Runner(cfg)
+    runner = FrameLoop(cfg)
     inside = vouched = 0
     statuses: dict[str, int] = {}
     wx, wy, wt, boxes = [], [], [], []
@@ -113,13 +113,13 @@ def timing(folder: Path, repeats: int = 3, limit: int = 600) -> dict[str, float]
         best[key] = min(best[key], (time.perf_counter() - t0) / len(images) * 1e3)
 
     def replay(prefetch: int) -> None:
-        for _rec in Runner(cfg).run(
+        for _rec in FrameLoop(cfg).run(
                 itertools.islice(DatasetSource(folder, prefetch=prefetch), limit)):
             pass
 
     def parallel() -> None:
         src = DatasetSource(folder)
-        runner = Runner(cfg)
+        runner = FrameLoop(cfg)
         t0 = time.perf_counter()
         first = 0.0
         for k, (frame, vision) in enumerate(itertools.islice(vision_ahead(src, cfg, 2), limit)):

@@ -46,7 +46,7 @@ import numpy as np
 from tileviz.baselines.mcl import MCL, MclConfig
 from tileviz.config import preset
 from tileviz.localizer import Localizer
-from tileviz.runner import initial_box
+from tileviz.pipeline import initial_box
 from tileviz.sim.source import SimSource
 from tileviz.types import SensorBounds
 from tileviz.vision import extract

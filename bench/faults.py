@@ -4,7 +4,7 @@
     python bench/faults.py --seeds 5 --seed-preset-seeds 2 --jobs 1
     python bench/faults.py --out ''              # print only, do not write docs/faults.md
 
-Each run simulates the preset (``SimSource``, Lissajous setpoint) through ``Runner`` (robust
+Each run simulates the preset (``SimSource``, Lissajous setpoint) through ``FrameLoop`` (robust
 vision, interval localizer in mode ``autonomous``), injects one fault with ``SimSource.inject``
 after ``--before`` frames, and goes on for ``--after`` frames past the fault's end. Every fault
 runs twice: recovery off (``LocalizerConfig.max_slip = (0, 0)``, the default) and on (``max_slip``
@@ -61,7 +61,7 @@ import numpy as np  # noqa: E402
 
 from tileviz.config import Config, preset  # noqa: E402
 from tileviz.evaluation import RECOVERY_MAX_SLIP, event_outcomes, noticed  # noqa: E402
-from tileviz.runner import FrameRecord, Runner  # noqa: E402
+from tileviz.pipeline import FrameLoop, FrameRecord  # noqa: E402
 from tileviz.sim.sensors import prediction_encloses  # noqa: E402
 from tileviz.sim.source import SimSource  # noqa: E402
 from tileviz.types import Box  # noqa: E402
@@ -184,7 +184,7 @@ def run_one(name: str, seed: int, spec: FaultSpec, recovery: bool, before: int,
                   localizer=replace(cfg.localizer, max_slip=max_slip))
     nz = cfg.noise
     src = SimSource(cfg)
-    runner = Runner(cfg)
+    runner = FrameLoop(cfg)
     res = RunResult(name, spec.label, recovery, seed)
     # per frame, for tileviz.evaluation.event_outcomes
     faults: list[bool] = []

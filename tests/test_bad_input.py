@@ -2,7 +2,7 @@
 
 Command lines out of range, missing or corrupt dataset pieces, unreadable/empty/constant/huge
 images, NaN, inf and absurd magnitudes in every numeric field of meta.json, frames.csv and the
-Localizer/Runner inputs. Each gives one clear error naming the problem (a CLI: one line on
+Localizer/FrameLoop inputs. Each gives one clear error naming the problem (a CLI: one line on
 stderr, a non-zero exit, no traceback) and nothing already written is lost.
 
 Cases already covered elsewhere are not repeated: ``tests/test_dataset.py`` (bad meta keys and
@@ -37,7 +37,7 @@ from tileviz.dataset import (
     read_meta,
 )
 from tileviz.localizer import LIMIT, Localizer
-from tileviz.runner import Runner
+from tileviz.pipeline import FrameLoop
 from tileviz.sim.source import SimSource
 from tileviz.types import Box, FrameInput, Observation, Odometry, Pose, SensorBounds
 from tileviz.vision import extract
@@ -480,7 +480,7 @@ def test_a_prediction_that_leaves_the_representable_range_is_refused() -> None:
 def test_runner_names_the_frame_with_a_bad_number_and_goes_on() -> None:
     cfg = preset("default")
     frames = list(itertools.islice(SimSource(cfg), 4))
-    runner, clean = Runner(cfg), Runner(cfg)
+    runner, clean = FrameLoop(cfg), FrameLoop(cfg)
     assert runner.process(frames[0]).updated == clean.process(frames[0]).updated
     bad_odometry = replace(frames[1], odometry=replace(frames[1].odometry, speed=math.nan))
     with pytest.raises(ValueError, match="frame 1: odometry"):

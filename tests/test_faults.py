@@ -2,8 +2,8 @@
 of ``tileviz.localizer`` is broken, notices the faults it can, and recovers where it can.
 
 Two levels: the localizer alone on a synthetic drive (exact motion and views, faults added by
-hand), and the whole loop (SimSource -> robust vision -> Localizer through Runner) with the faults
-SimSource injects. The limits the geometry imposes (a push by a whole tile is invisible; a
+hand), and the whole loop (SimSource -> robust vision -> Localizer through FrameLoop) with the
+faults SimSource injects. The limits the geometry imposes (a push by a whole tile is invisible; a
 kidnap beyond ``max_slip`` ends ``lost``) are tested as such.
 """
 
@@ -20,7 +20,7 @@ from hypothesis import strategies as st
 
 from tileviz.config import Config, LocalizerConfig, preset
 from tileviz.localizer import Localizer, LocalizerStep
-from tileviz.runner import FrameRecord, Runner
+from tileviz.pipeline import FrameLoop, FrameRecord
 from tileviz.sim.source import SimSource
 from tileviz.tiles import observe
 from tileviz.types import Box, FrameInput, Observation, Odometry, Pose, SensorBounds
@@ -278,7 +278,7 @@ def _simulate(inject: Callable[[SimSource], None], kind: str, *, max_slip=(0.0, 
     cfg = replace(cfg, sim=replace(cfg.sim, seed=seed),
                   localizer=replace(cfg.localizer, max_slip=max_slip))
     src = SimSource(cfg)
-    runner = Runner(cfg)
+    runner = FrameLoop(cfg)
     frames, records = [], []
     start = end = -1
     k = 0

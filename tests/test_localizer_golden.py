@@ -159,7 +159,7 @@ def make_inputs(seq: Sequence) -> dict[str, np.ndarray]:
 
 def setup_of(seq: Sequence) -> dict[str, Any]:
     """The localizer's constructor arguments, as JSON-able values."""
-    from tileviz.runner import initial_box
+    from tileviz.pipeline import initial_box
 
     cfg = seq.config()
     return {

@@ -21,7 +21,7 @@ from tileviz.dataset import (
     DatasetWriter,
     replay_row,
 )
-from tileviz.runner import Runner
+from tileviz.pipeline import FrameLoop
 from tileviz.sim.source import SimSource
 
 FRAMES = 60
@@ -42,7 +42,7 @@ def live_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, list[list[
     """Simulate FRAMES frames, localize them live and record them as a dataset."""
     cfg = _small_cfg()
     folder = tmp_path_factory.mktemp("rec") / "ds"
-    runner = Runner(cfg)
+    runner = FrameLoop(cfg)
     rows = []
     with DatasetWriter(folder, DatasetMeta.from_config(cfg)) as writer:
         for frame in itertools.islice(SimSource(cfg), FRAMES):

@@ -20,7 +20,7 @@ from tileviz.app.session import SIMULATOR_ONLY, Session, SessionOptions
 from tileviz.app.wsclient import ViserClient, serving, stop_serve
 from tileviz.cli import main as cli
 from tileviz.dataset import DatasetSource, read_meta, replay_config, replay_row
-from tileviz.runner import Runner
+from tileviz.pipeline import FrameLoop
 from tileviz.types import Box, BoxSet
 
 DURATION = 1.5
@@ -77,7 +77,7 @@ def test_the_replay_shows_the_boxes_the_command_line_replay_writes(dataset, fram
     want = cli_replay(dataset, tmp_path / "r.csv")
     assert shown_rows(s) == want[1:]
     # not only the hull: the very same contracted boxes, frame by frame
-    runner = Runner(replay_config(read_meta(dataset)))
+    runner = FrameLoop(replay_config(read_meta(dataset)))
     for p, rec in enumerate(runner.run(DatasetSource(dataset))):
         assert s.history.get(p).record.updated == rec.updated
         assert s.history.get(p).record.truth == rec.truth  # the robot stands at the true pose

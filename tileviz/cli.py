@@ -174,7 +174,7 @@ def replay(argv: list[str]) -> int:
             replay_row,
             residual_row,
         )
-        from tileviz.runner import Runner
+        from tileviz.pipeline import FrameLoop
 
         # images decode on a background thread while the previous frame's vision runs
         source = DatasetSource(args.dataset, prefetch=8)
@@ -183,7 +183,7 @@ def replay(argv: list[str]) -> int:
             cfg = replace(cfg, localizer=replace(cfg.localizer, max_boxes=args.max_boxes))
         out = CsvOut(args.out, REPLAY_COLUMNS)
         eq = CsvOut(args.output_file, RESIDUAL_COLUMNS) if args.output_file else None
-        runner = Runner(cfg)
+        runner = FrameLoop(cfg)
         bar = _progress(source.row_count() or None, "replay", not args.quiet)
         n = 0
         jobs = args.jobs if args.jobs is not None else default_jobs()

@@ -12,11 +12,17 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, field, fields, is_dataclass, replace
-from typing import Any
+from typing import Any, Literal, get_args
 
-EXTRACTORS = ("faithful", "robust")
-MODES = ("autonomous", "truth", "odometry")
-SETPOINTS = ("lissajous", "manual", "waypoints")
+Extractor = Literal["faithful", "robust"]
+"""A vision extractor (:mod:`tileviz.vision`)."""
+Mode = Literal["autonomous", "truth", "odometry"]
+"""A localizer mode (``docs/method.md``, "Statuses and modes")."""
+Setpoint = Literal["lissajous", "manual", "waypoints"]
+"""A setpoint kind of the simulator's controller."""
+EXTRACTORS: tuple[Extractor, ...] = get_args(Extractor)
+MODES: tuple[Mode, ...] = get_args(Mode)
+SETPOINTS: tuple[Setpoint, ...] = get_args(Setpoint)
 
 
 def finite_number(name: str, value: object) -> float:
@@ -132,7 +138,7 @@ class NoiseConfig:
 class VisionConfig:
     """Image pipeline constants. Defaults are the original implementation's (report ch. 4)."""
 
-    extractor: str = "robust"
+    extractor: Extractor = "robust"
     """``faithful`` (report chapter 4, corrected) or ``robust`` (checks, refuses bad frames)."""
     laplacian_ksize: int = 1
     canny_low: float = 50.0
@@ -171,7 +177,7 @@ class VisionConfig:
 class LocalizerConfig:
     """The interval localizer."""
 
-    mode: str = "autonomous"
+    mode: Mode = "autonomous"
     """``autonomous`` (only the initial pose known), ``truth`` (reset to the inflated truth every
     frame, report 7.1) or ``odometry`` (prediction only, report Fig 7.1)."""
     max_boxes: int = 16

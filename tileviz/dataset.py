@@ -32,7 +32,7 @@ from tileviz.config import Config
 from tileviz.types import FrameInput, Odometry, Pose
 
 if TYPE_CHECKING:
-    from tileviz.runner import FrameRecord
+    from tileviz.pipeline import FrameRecord
 
 FORMAT = "tileviz-dataset/1"
 FRAME_COLUMNS = ("index", "t", "image", "speed", "yaw_rate", "compass", "x", "y", "theta")

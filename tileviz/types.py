@@ -8,12 +8,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Literal, get_args
 
 import numpy as np
 
 TWO_PI = 2.0 * math.pi
 
-STATUSES = ("contracted", "predicted", "rejected", "lost")
+Status = Literal["contracted", "predicted", "rejected", "lost"]
+STATUSES: tuple[Status, ...] = get_args(Status)
 """Per-frame localizer status (meanings in ``shared/dataset-format.md``)."""
 
 

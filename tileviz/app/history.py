@@ -1,6 +1,6 @@
 """The bounded history of processed frames the live server shows, steps back through and scrubs.
 
-Each :class:`Entry` holds one immutable :class:`tileviz.runner.FrameRecord` and the images shown
+Each :class:`Entry` holds one immutable :class:`tileviz.pipeline.FrameRecord` and the images shown
 for it, JPEG-encoded once when the frame was made (the camera view, then every pipeline stage).
 Showing an old frame re-sends those same bytes and the same record: nothing is recomputed, so a
 frame looks exactly the same live and from the history.
@@ -25,7 +25,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from tileviz.runner import FrameRecord
+from tileviz.pipeline import FrameRecord
 from tileviz.types import STATUSES
 
 __all__ = [

@@ -6,7 +6,7 @@ loop thread is its only caller (``apply`` a command, ``advance`` one frame), so 
 on the simulation. Tests drive it directly.
 
 The source (:mod:`tileviz.app.sources`) is the simulator, or a recorded dataset replayed with the
-same reader and Runner as ``python -m tileviz replay`` (``SessionOptions.dataset``). A replay
+same reader and frame loop as ``python -m tileviz replay`` (``SessionOptions.dataset``). A replay
 pauses at its last frame (or at a bad row, with a note naming it); commands only a simulator
 understands (:data:`SIMULATOR_ONLY`) leave a note and change nothing; a new localizer mode,
 extractor or inflation replays from frame 0.
@@ -32,10 +32,13 @@ from tileviz.app.history import Encoder, Entry, History, ParticleView
 from tileviz.app.outputs import output_path, sanitize_name
 from tileviz.app.scene import texture_pixels_per_tile
 from tileviz.config import Config, LocalizerConfig, NoiseConfig
-from tileviz.runner import Runner, initial_box
+from tileviz.pipeline import FrameLoop, FrameRecord, initial_box
 from tileviz.types import FrameInput
 
-__all__ = ["SIMULATOR_ONLY", "Session", "SessionOptions"]
+__all__ = ["MCL", "SIMULATOR_ONLY", "Session", "SessionOptions"]
+
+MCL = "mcl"
+"""The MCL baseline's name in the frame loop and its records."""
 
 SIMULATOR_ONLY: dict[str, str] = {
     "SetSetpoint": "the setpoint", "SetManualTarget": "the setpoint",
@@ -126,9 +129,6 @@ class Session:
         self._rate_n = 0
         self.cfg = cfg
         self.setpoint_kind = cfg.sim.setpoint
-        self.mcl: Any = None
-        """The MCL baseline (:class:`tileviz.baselines.mcl.MCL`) when on, else None."""
-        self._mcl_odometry: Any = None
         self._mcl_wanted = bool(o.mcl)
         self.ended: str | None = None
         """Why the source has no more frames (a replay's end or bad row), or None."""
@@ -153,7 +153,8 @@ class Session:
             self.setpoint_kind = "dataset"
         self.cfg = cfg
         self.ended = None
-        self.runner = Runner(cfg, keep_stages=self.display)
+        self.runner = FrameLoop(cfg, keep_stages=self.display)
+        """The frame loop: the interval localizer and, when on, the MCL baseline (:data:`MCL`)."""
         if self._mcl_wanted:
             self._start_mcl(initial_box(cfg))
         self.history.clear()
@@ -262,7 +263,7 @@ class Session:
             from tileviz.dataset import residual_row
 
             self.csv.row(residual_row(rec))
-        particles = self._step_mcl(frame, rec) if self.mcl is not None else None
+        particles = self._mcl_view(rec)
         entry = Entry.make(rec, stages=self.display, encoder=self.encoder, mcl=particles)
         self.shown = self.history.append(entry)
         self.frames_computed += 1
@@ -271,36 +272,36 @@ class Session:
         return entry
 
     # ------------------------------------------------------------------ MCL baseline
+    @property
+    def mcl(self) -> Any:
+        """The MCL baseline (:class:`tileviz.baselines.MclEstimator`) when on, else None."""
+        return self.runner.estimators.get(MCL)
+
     def _start_mcl(self, box: Any) -> None:
-        from tileviz.baselines.mcl import MCL, MclConfig
-        from tileviz.types import Box
+        """(Re)start the MCL baseline in ``box``, stepped by the frame loop from the next frame
+        on; if it raises it leaves the loop, not stopping the demo (:meth:`_mcl_view`)."""
+        from tileviz.baselines import MclConfig, MclEstimator
 
-        room = self.cfg.sim.room_half_size
-        self.mcl = MCL(tile_size=self.cfg.floor.tile_size, camera_offset=self.cfg.camera.offset,
-                       bounds=self.runner.bounds, initial=box,
-                       config=MclConfig(particles=self.options.mcl_particles,
-                                        seed=self.cfg.sim.seed),
-                       region=Box(-room, room, -room, room, -math.pi, math.pi))
-        self._mcl_odometry = None
+        config = MclConfig(particles=self.options.mcl_particles, seed=self.cfg.sim.seed)
+        self.runner.add(MCL, MclEstimator.from_config(self.cfg, initial=box, config=config,
+                                                      bounds=self.runner.bounds), optional=True)
 
-    def _step_mcl(self, frame: FrameInput, rec: Any) -> ParticleView | None:
-        """One MCL step on the frame's inputs (the previous frame's odometry, as the runner)."""
-        try:
-            est = self.mcl.step(self._mcl_odometry, frame.compass, rec.vision.observation)
-        except Exception as e:  # noqa: BLE001 - the baseline must not stop the demo
-            self.mcl = None
+    def _mcl_view(self, rec: FrameRecord) -> ParticleView | None:
+        """The particles MCL left at this frame, or None (off, or it failed here: a note)."""
+        if MCL in rec.dropped:
             self._mcl_wanted = False
-            self.note(f"MCL stopped at frame {frame.index}: {e}", "error")
+            self.note(f"MCL stopped at frame {rec.index}: {rec.dropped[MCL]}", "error")
             return None
-        self._mcl_odometry = frame.odometry
-        return ParticleView.of(est, frame.truth)
+        est = rec.estimates.get(MCL)
+        return ParticleView.of(est, rec.truth) if est is not None else None
 
     def _on_SetMcl(self, cmd: C.SetMcl) -> None:
         self._mcl_wanted = bool(cmd.on)
         if not cmd.on:
-            self.mcl = None
+            self.runner.remove(MCL)
         elif self.mcl is None:
-            hull = self.runner.localizer.current.hull()
+            primary = self.runner.primary
+            hull = primary.current.hull() if primary is not None else None
             self._start_mcl(hull if hull is not None else initial_box(self.cfg))
 
     def _frame_failed(self, index: int, message: str, *, missed: bool) -> None:
@@ -450,7 +451,7 @@ class Session:
         box = initial_box(self.cfg, pose=pose.as_tuple())
         self.runner.reset(box)
         if self.mcl is not None:
-            self._start_mcl(box)
+            self._start_mcl(box)  # a fresh filter (its seed's particles), as at the start
         self.degraded = False
         self.note("localizer restarted at the true pose (within the initial pose error)")
 
@@ -503,7 +504,7 @@ class Session:
         self.source.set_noise(noise)
         self._reconfigure(replace(self.cfg, noise=noise))
         if self.mcl is not None:
-            self.mcl.bounds = self.runner.bounds  # its motion noise and compass likelihood
+            self.mcl.mcl.bounds = self.runner.bounds  # its motion noise and compass likelihood
         if self.recording is not None:
             self._stop_recording("the declared bounds changed; its meta.json would be wrong")
 

@@ -13,8 +13,8 @@ then vision *once* per frame, then the same inputs go to five methods (:data:`ME
 - ``odometry``: mode ``odometry`` (prediction and compass only, report Fig 7.1);
 - ``mcl``: Monte Carlo Localization (:mod:`tileviz.baselines.mcl`), ``--particles`` particles.
 
-Frame alignment as in :class:`tileviz.runner.Runner`: frame k predicts with the odometry of frame
-k-1 (the motion into frame k), then uses the compass and the image of frame k.
+Frame alignment as in :class:`tileviz.pipeline.FrameLoop`: frame k predicts with the odometry of
+frame k-1 (the motion into frame k), then uses the compass and the image of frame k.
 
 Metrics (per scenario and method, frames pooled over the runs; widths and errors in metres and
 degrees):

@@ -11,11 +11,13 @@ from typing import Any
 
 import numpy as np
 
-from tileviz.baselines.mcl import MCL, MclConfig
+from tileviz.baselines import MclConfig, MclEstimate, MclEstimator
+from tileviz.config import Mode
+from tileviz.core.estimators import Estimator, IntervalEstimator, sensor_bounds
 from tileviz.evaluation.events import noticed
 from tileviz.evaluation.scenarios import RECOVERY_MAX_SLIP, SCENARIOS, fault_schedule
-from tileviz.localizer import Localizer
-from tileviz.runner import initial_box
+from tileviz.localizer import LocalizerStep
+from tileviz.pipeline import FrameLoop, initial_box
 from tileviz.types import STATUSES, Box, BoxSet, FrameInput, Odometry, Pose, SensorBounds
 
 __all__ = [
@@ -129,9 +131,10 @@ def _odometry_ok(odo: Odometry | None, step: Any, bounds: SensorBounds) -> bool:
 
 
 def run_one(task: Task) -> RunResult:
-    """Simulate one run of ``task`` and step every method on it (vision once per frame)."""
+    """Simulate one run of ``task`` and step every method on it: one :class:`FrameLoop` (vision
+    once per frame) drives the five estimators; this function only reads its records."""
     from tileviz.sim.source import SimSource  # pymunk: only here, not at import
-    from tileviz.vision import extract, observation_error
+    from tileviz.vision import observation_error
 
     scn = SCENARIOS[task.scenario]
     cfg = scn.config(task.seed)
@@ -139,39 +142,41 @@ def run_one(task: Task) -> RunResult:
     n = max(1, int(round(task.duration / dt)))
     L = cfg.floor.tile_size
     offset = cfg.camera.offset
-    bounds = SensorBounds(cfg.noise.speed_error, cfg.noise.yaw_rate_error,
-                          cfg.noise.compass_error)
+    bounds = sensor_bounds(cfg)
     box0 = initial_box(cfg)
     key = zlib.crc32(task.scenario.encode())
     fault_rng = np.random.default_rng(np.random.SeedSequence([task.seed, key, 1]))
     plan = fault_schedule(scn, n, dt, fault_rng)
 
-    def localizer(mode: str, max_slip: tuple[float, float] = (0.0, 0.0)) -> Localizer:
-        return Localizer(tile_size=L, camera_offset=offset, bounds=bounds,
-                         config=replace(cfg.localizer, mode=mode, max_slip=max_slip),
-                         initial=box0)
+    def interval(mode: Mode, max_slip: tuple[float, float] = (0.0, 0.0)) -> IntervalEstimator:
+        return IntervalEstimator.from_config(cfg, initial=box0, bounds=bounds, mode=mode,
+                                             max_slip=max_slip)
 
-    intervals = {"interval": localizer("autonomous"),
-                 "interval-recovery": localizer("autonomous", RECOVERY_MAX_SLIP[scn.preset]),
-                 "interval-truth": localizer("truth"), "odometry": localizer("odometry")}
+    mcl_seed = int(np.random.SeedSequence([task.seed, key, 2]).generate_state(1)[0])
+    estimators: dict[str, Estimator[Any]] = {
+        "interval": interval("autonomous"),
+        "interval-recovery": interval("autonomous", RECOVERY_MAX_SLIP[scn.preset]),
+        "interval-truth": interval("truth"),
+        "odometry": interval("odometry"),
+        "mcl": MclEstimator.from_config(
+            cfg, initial=box0, bounds=bounds,
+            config=MclConfig(particles=task.particles, inject_rate=task.mcl_inject,
+                             sigma_scale=task.mcl_sigma_scale, seed=mcl_seed)),
+    }
+    assert tuple(estimators) == METHODS
+    # this thread's CPU time: OpenCV's worker threads, still busy after vision returns, are
+    # not charged to the method stepped next; the methods take turns at being stepped first
+    # after vision (which leaves the caches cold for whoever comes next)
+    loop = FrameLoop(cfg, estimators=estimators, residuals=False, clock=time.thread_time,
+                     rotate=True)
     room = cfg.sim.room_half_size
-    mcl = MCL(tile_size=L, camera_offset=offset, bounds=bounds, initial=box0,
-              config=MclConfig(particles=task.particles, inject_rate=task.mcl_inject,
-                               sigma_scale=task.mcl_sigma_scale,
-                               seed=int(np.random.SeedSequence([task.seed, key, 2])
-                                        .generate_state(1)[0])),
-              region=Box(-room, room, -room, room, -math.pi, math.pi))
 
     res = RunResult(scenario=task.scenario, run=task.run, seed=task.seed,
                     t=np.zeros(n), truth=np.zeros((n, 3)), fault=np.zeros(n, bool),
                     in_bounds=np.ones(n, bool), accepted=np.zeros(n, bool), vision_s=0.0,
                     methods={m: MethodTrace.empty(n) for m in METHODS})
     src = SimSource(cfg)
-    pending: Odometry | None = None
-    pending_step: Any = None
-    # this thread's CPU time: OpenCV's worker threads, still busy after vision returns, are
-    # not charged to the method stepped next
-    clock = time.thread_time
+    pending_step: Any = None  # the simulator's true step behind the odometry used at frame k
     for k in range(n):
         far_view = False
         for kind, frames, params in plan.get(k, []):
@@ -188,33 +193,27 @@ def run_one(task: Task) -> RunResult:
             pose = Pose(float(x), float(y), float(fault_rng.uniform(-math.pi, math.pi)))
             frame = replace(frame, image=src.renderer.render(pose, rng=fault_rng),
                             faults=(*frame.faults, "far_view"))
-        step_k = src.last_step
-        truth = frame.truth
+        rec = loop.process(frame)
+        truth = rec.truth
         assert truth is not None  # the simulator always knows it
         tt = truth.as_tuple()
-        res.t[k] = frame.t
+        res.t[k] = rec.t
         res.truth[k] = tt
         res.fault[k] = bool(frame.faults)
-        c0 = clock()
-        vision = extract(frame.image, camera=cfg.camera, tile_size=L, vision=cfg.vision)
-        res.vision_s += clock() - c0
-        obs = vision.observation
-        ok = _odometry_ok(pending, pending_step, bounds) and "kidnap" not in frame.faults
+        res.vision_s += rec.timings["vision_ms"] / 1e3
+        obs = rec.vision.observation
+        ok = _odometry_ok(rec.motion, pending_step, bounds) and "kidnap" not in frame.faults
         if obs is not None:
             res.accepted[k] = True
             e1, e2, e3 = observation_error(obs, truth, L, offset)
             ok = ok and max(abs(e1), abs(e2)) <= obs.position_error \
                 and abs(e3) <= obs.heading_error
         res.in_bounds[k] = ok
-        # the methods take turns at being stepped first after vision (which leaves the caches
-        # cold for whoever comes next), so none of them pays that alone
-        r = k % len(METHODS)
-        for name in METHODS[r:] + METHODS[:r]:
+        for name in METHODS:
             tr = res.methods[name]
+            tr.cpu_s += rec.timings[f"{name}_ms"] / 1e3
             if name == "mcl":
-                c0 = clock()
-                est = mcl.step(pending, frame.compass, obs)
-                tr.cpu_s += clock() - c0
+                est: MclEstimate = rec.estimates[name]
                 hw = np.array(est.half_widths())
                 mean = est.mean.copy()
                 mean[2] += 2.0 * math.pi * round((tt[2] - mean[2]) / (2.0 * math.pi))
@@ -224,12 +223,9 @@ def run_one(task: Task) -> RunResult:
                 tr.inside[k] = est.ellipse_contains(tt[0], tt[1])
                 tr.status[k] = STATUS_CODES["estimate"]
                 continue
-            loc = intervals[name]
-            c0 = clock()
-            st = loc.step(pending, frame.compass, obs, truth)
-            tr.cpu_s += clock() - c0
+            st: LocalizerStep = rec.estimates[name]
             _record_set(tr, k, st.updated, st.status, tt)
             if name in FAULT_METHODS:
                 tr.alarm[k] = noticed(st.status, st.compass_rejected, obs is not None)
-        pending, pending_step = frame.odometry, step_k
+        pending_step = src.last_step
     return res
