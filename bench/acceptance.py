@@ -30,6 +30,9 @@ from tileviz.dataset import DatasetMeta, DatasetSource, DatasetWriter
 from tileviz.parallel import vision_ahead
 from tileviz.pipeline import FrameLoop
 from tileviz.sim.source import SimSource
+from tileviz.vision import set_opencv_threads
+
+set_opencv_threads()  # as every tileviz entry point (workers re-run this on import)
 
 
 def record(cfg: Config, folder: Path, frames: int) -> None:

@@ -36,7 +36,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from tileviz.config import VisionConfig  # noqa: E402
 from tileviz.sim.camera import FloorRenderer, random_camera, random_floor  # noqa: E402
 from tileviz.types import Pose  # noqa: E402
-from tileviz.vision import extract, observation_error  # noqa: E402
+from tileviz.vision import extract, observation_error, set_opencv_threads  # noqa: E402
+
+set_opencv_threads()  # as every tileviz entry point (workers re-run this on import)
 
 FAULTS = ("cable", "box", "shadow", "glare", "motion_blur")
 

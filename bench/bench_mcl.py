@@ -49,7 +49,9 @@ from tileviz.localizer import Localizer
 from tileviz.pipeline import initial_box
 from tileviz.sim.source import SimSource
 from tileviz.types import SensorBounds
-from tileviz.vision import extract
+from tileviz.vision import extract, set_opencv_threads
+
+set_opencv_threads()  # as every tileviz entry point (workers re-run this on import)
 
 
 def main() -> None:

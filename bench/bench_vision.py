@@ -35,7 +35,7 @@ from tileviz.types import Pose  # noqa: E402
 
 clock = time.perf_counter
 """The clock every figure is read from (``--clock``)."""
-from tileviz.vision import extract  # noqa: E402
+from tileviz.vision import OPENCV_THREADS, extract, set_opencv_threads  # noqa: E402
 
 SEED_KERNEL_1 = np.ones((1, 1), np.uint8)
 
@@ -106,8 +106,8 @@ def parse(doc: str, argv: list[str] | None, threads: bool = False) -> argparse.N
                     "does not inflate")
     if threads:
         ap.add_argument("--threads", type=int, default=None,
-                        help="cv2.setNumThreads for both chains (default: 1, as tileviz.vision "
-                        "sets it)")
+                        help="cv2.setNumThreads for both chains (default: 1, as every tileviz "
+                        "entry point sets it)")
     args = ap.parse_args(argv)
     global clock
     if args.clock == "cpu":
@@ -117,8 +117,7 @@ def parse(doc: str, argv: list[str] | None, threads: bool = False) -> argparse.N
 
 def main(argv: list[str] | None = None) -> int:
     args = parse(__doc__, argv, threads=True)
-    if args.threads is not None:
-        cv2.setNumThreads(args.threads)
+    set_opencv_threads(args.threads if args.threads is not None else OPENCV_THREADS)
     print(f"OpenCV {cv2.__version__}, {cv2.getNumThreads()} threads, {args.clock} clock; "
           f"numpy {np.__version__}; {args.frames} frames per case; medians in ms")
     base = preset("default")

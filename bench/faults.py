@@ -65,7 +65,9 @@ from tileviz.pipeline import FrameLoop, FrameRecord  # noqa: E402
 from tileviz.sim.sensors import prediction_encloses  # noqa: E402
 from tileviz.sim.source import SimSource  # noqa: E402
 from tileviz.types import Box  # noqa: E402
-from tileviz.vision import observation_error  # noqa: E402
+from tileviz.vision import observation_error, set_opencv_threads  # noqa: E402
+
+set_opencv_threads()  # as every tileviz entry point (workers re-run this on import)
 
 MAX_SLIP = RECOVERY_MAX_SLIP
 """Recovery setting per preset (metres, radians)."""

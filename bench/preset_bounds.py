@@ -21,7 +21,9 @@ import numpy as np
 from tileviz.config import preset
 from tileviz.sim.camera import FloorRenderer
 from tileviz.types import Pose
-from tileviz.vision import extract, observation_error
+from tileviz.vision import extract, observation_error, set_opencv_threads
+
+set_opencv_threads()  # as every tileviz entry point (workers re-run this on import)
 
 
 def study(name: str, poses: int, seed: int) -> None:

@@ -3,7 +3,9 @@
 Hypothesis runs the same examples on every machine and every run (``derandomize``: CI stays
 stable) and never fails a test for being slow (no deadline, no too-slow health check): the
 machine a test runs on may be loaded, and time is not what these tests assert. And no test may
-leave the process rounding upward."""
+leave the process rounding upward. The session makes the process set-up of every tileviz entry
+point (OpenCV on :data:`tileviz.vision.OPENCV_THREADS` threads), so in-process runs match the
+commands'."""
 
 from __future__ import annotations
 
@@ -11,6 +13,10 @@ from collections.abc import Iterator
 
 import pytest
 from hypothesis import HealthCheck, settings
+
+from tileviz.vision import set_opencv_threads
+
+set_opencv_threads()
 
 settings.register_profile(
     "tileviz",

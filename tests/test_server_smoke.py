@@ -179,12 +179,12 @@ def test_bad_options_give_one_line_and_exit_2(args, word):
 
 
 def test_table_6_1_options_reach_the_run(tmp_path):
-    from tileviz.app.server import config_from_args, options_from_args, parser
+    from tileviz.app.server import options_from_args, parser, serve_config
 
     args = parser().parse_args(["--interactive", "--no-intervals", "--no-display", "--ppm", "150",
                                 "--tile-size", "0.5", "--output-file", "eq.csv", "--preset",
                                 "seed", "--out-dir", str(tmp_path)])
-    cfg, options = config_from_args(args), options_from_args(args)
+    cfg, options = serve_config(args), options_from_args(args)
     assert (cfg.camera.ppm, cfg.floor.tile_size, cfg.camera.width) == (150.0, 0.5, 256)
     assert options.interactive and not options.display and not options.intervals
     assert options.output_file == "eq.csv" and options.out_dir == tmp_path

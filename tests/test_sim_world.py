@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 
 from tileviz.config import SimConfig, preset
 from tileviz.sim.controller import Controller, Gains, wrap_pi
-from tileviz.sim.setpoints import Lissajous, ManualTarget, Waypoints, make_setpoint
+from tileviz.sim.setpoints import Lissajous, ManualTarget, Waypoints
 from tileviz.sim.world import World
 from tileviz.types import Pose
 
@@ -220,7 +220,7 @@ def test_waypoints_are_visited_in_order_and_loop() -> None:
 
 def test_controller_never_asks_more_than_the_wheels_can_and_keeps_the_turn() -> None:
     ctl = Controller(0.4, 0.5, Gains(kp=50.0, kv=50.0))
-    goal = make_setpoint("manual", target=(5, 5)).target(0.0, Pose(0, 0, 0))
+    goal = ManualTarget(5, 5).target(0.0, Pose(0, 0, 0))
     for theta in (0.0, 1.0, 2.5, -3.0):
         left, right = ctl.command(Pose(0.0, 0.0, theta), goal, 0.05)
         assert abs(left) <= 0.5 and abs(right) <= 0.5
@@ -245,7 +245,5 @@ def test_bad_inputs_raise_naming_the_quantity() -> None:
         Waypoints([])
     with pytest.raises(ValueError, match="manual target"):
         ManualTarget(math.nan, 1.0)
-    with pytest.raises(ValueError, match="setpoint"):
-        make_setpoint("spiral")
     with pytest.raises(ValueError, match="kp"):
         Gains(kp=-1.0)

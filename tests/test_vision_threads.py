@@ -3,8 +3,10 @@
 
 ``data/canny_threads_frame.png`` is frame 1597 of a recorded default-preset run: on 2 OpenCV
 threads, Canny's stripes give it other edge pixels than on 1 thread, and the robust extractor's
-observation moved in its 7th digit. Importing tileviz.vision puts OpenCV on one thread, so a
-process started with OpenCV on 2 threads extracts the same observation as this one.
+observation moved in its 7th digit. Every entry point puts OpenCV on one thread
+(``tileviz.vision.set_opencv_threads``, called by ``tileviz.cliutil.run_cli``), so a command run in
+a process started with OpenCV on 2 threads extracts the same observation as this one; importing
+tileviz.vision alone changes nothing.
 """
 
 from __future__ import annotations
@@ -26,14 +28,21 @@ _CHILD = """
 import json, sys
 import cv2
 cv2.setNumThreads(2)  # what a program (or OPENCV_FOR_THREADS_NUM) may have set before
+from tileviz.cliutil import run_cli
 from tileviz.config import preset
 from tileviz.vision import extract
+imported = cv2.getNumThreads()
 cfg = preset("default")
 rgb = cv2.cvtColor(cv2.imread(sys.argv[1], cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
-res = extract(rgb, camera=cfg.camera, tile_size=cfg.floor.tile_size, vision=cfg.vision)
-o = res.observation
-print(json.dumps({"threads": cv2.getNumThreads(),
-                  "y": None if o is None else [o.y1, o.y2, o.y3]}))
+
+def body():
+    res = extract(rgb, camera=cfg.camera, tile_size=cfg.floor.tile_size, vision=cfg.vision)
+    o = res.observation
+    print(json.dumps({"imported": imported, "threads": cv2.getNumThreads(),
+                      "y": None if o is None else [o.y1, o.y2, o.y3]}))
+    return 0
+
+run_cli("child", body)  # the entry point's set-up, as every tileviz command
 """
 
 
@@ -45,8 +54,8 @@ def _here() -> list[float] | None:
     return None if o is None else [o.y1, o.y2, o.y3]
 
 
-def test_importing_vision_puts_opencv_on_one_thread() -> None:
-    assert cv2.getNumThreads() == 1
+def test_the_test_session_runs_opencv_on_one_thread_as_the_entry_points() -> None:
+    assert cv2.getNumThreads() == 1  # tests/conftest.py
 
 
 def test_observation_is_the_same_in_a_process_that_had_two_threads() -> None:
@@ -54,7 +63,8 @@ def test_observation_is_the_same_in_a_process_that_had_two_threads() -> None:
     out = subprocess.run([sys.executable, "-c", _CHILD, str(FRAME)], capture_output=True,
                          text=True, env=env, timeout=600, check=True)
     child = json.loads(out.stdout.strip().splitlines()[-1])
-    assert child["threads"] == 1
+    assert child["imported"] == 2  # importing tileviz changed nothing
+    assert child["threads"] == 1  # the entry point's set-up did
     here = _here()
     assert here is not None, "the stored frame gives an observation"
     assert child["y"] == here  # bit for bit, not approximately

@@ -11,23 +11,21 @@ from pathlib import Path
 from tileviz.cliutil import (
     CliError,
     Parser,
+    config_from_args,
     float_in,
     nonneg_int,
     positive_int,
     run_cli,
 )
-from tileviz.config import EXTRACTORS, MODES, PRESETS, SETPOINTS, Config, preset
+from tileviz.config import EXTRACTORS, MODES, PRESETS, SETPOINTS
+from tileviz.core.constants import MAX_PPM, MIN_TILE_PX
 
 MAX_DURATION = 86400.0
 """Longest recording, simulated seconds (a day)."""
 MAX_TILE = 1000.0
 """Largest tile size, metres."""
-MAX_PPM = 1e5
-"""Largest ppm (``tileviz.dataset.MAX_PPM``)."""
 MAX_DT = 1.0
 """Longest frame period, seconds."""
-MIN_TILE_PX = 4.0
-"""A tile must span at least this many pixels (``tileviz.dataset.MIN_TILE_PX``)."""
 
 
 def _progress(total: int | None, desc: str, enabled: bool) -> object:
@@ -67,35 +65,6 @@ def record_parser() -> Parser:
     return p
 
 
-def config_from_args(cfg: Config, args: object) -> Config:
-    """Apply the common command-line overrides to a preset."""
-    a = vars(args)
-    floor, camera, noise, sim = cfg.floor, cfg.camera, cfg.noise, cfg.sim
-    if a.get("tile_size") is not None:
-        floor = replace(floor, tile_size=a["tile_size"],
-                        grout_width=min(floor.grout_width, a["tile_size"] / 8))
-    cam = {k: a[k] for k in ("ppm", "width", "height") if a.get(k) is not None}
-    camera = replace(camera, **cam)
-    nz = {k: a[k] for k in ("speed_error", "yaw_rate_error", "compass_error")
-          if a.get(k) is not None}
-    noise = replace(noise, **nz)
-    sm: dict[str, object] = {}
-    if a.get("dt") is not None:
-        sm["dt"] = a["dt"]
-    if a.get("setpoint") is not None:
-        sm["setpoint"] = a["setpoint"]
-    if a.get("seed") is not None:
-        sm["seed"] = a["seed"]
-        floor = replace(floor, seed=a["seed"] + 1)
-    sim = replace(sim, **sm)
-    out = replace(cfg, floor=floor, camera=camera, noise=noise, sim=sim)
-    if a.get("extractor") is not None:
-        out = replace(out, vision=replace(out.vision, extractor=a["extractor"]))
-    if a.get("mode") is not None:
-        out = replace(out, localizer=replace(out.localizer, mode=a["mode"]))
-    return out
-
-
 def record(argv: list[str]) -> int:
     args = record_parser().parse_args(argv)
 
@@ -103,7 +72,7 @@ def record(argv: list[str]) -> int:
         from tileviz.dataset import DatasetMeta, DatasetWriter
         from tileviz.sim.source import SimSource
 
-        cfg = config_from_args(preset(args.preset), args)
+        cfg = config_from_args(args)
         tile_px = cfg.floor.tile_size * cfg.camera.ppm
         if tile_px < MIN_TILE_PX:
             raise CliError(f"--tile-size x --ppm: a tile must span at least {MIN_TILE_PX:g} "

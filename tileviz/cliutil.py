@@ -6,7 +6,11 @@ import argparse
 import math
 import sys
 from collections.abc import Callable
-from typing import NoReturn
+from dataclasses import replace
+from typing import TYPE_CHECKING, Any, NoReturn
+
+if TYPE_CHECKING:
+    from tileviz.config import Config
 
 
 class CliError(Exception):
@@ -95,7 +99,13 @@ def positive_int(name: str) -> Callable[[str], int]:
 
 
 def run_cli(prog: str, body: Callable[[], int]) -> int:
-    """Run ``body``; turn expected errors into one line on stderr and exit status 2."""
+    """Run ``body`` as the command ``prog`` (every ``python -m tileviz`` command and ``serve.py``
+    go through here): first the process set-up (:func:`tileviz.vision.set_opencv_threads`: OpenCV
+    on one thread, so observations do not depend on the core count), then ``body``; expected
+    errors become one line on stderr and exit status 2."""
+    from tileviz.vision import set_opencv_threads
+
+    set_opencv_threads()
     try:
         return body()
     except KeyboardInterrupt:
@@ -104,3 +114,32 @@ def run_cli(prog: str, body: Callable[[], int]) -> int:
     except (CliError, ValueError, OSError) as e:
         sys.stderr.write(f"{prog}: error: {e}\n")
         return 2
+
+
+def config_from_args(args: argparse.Namespace, *, floor_seed: bool = True) -> Config:
+    """The configuration a command line asks for: the preset ``args.preset`` (``default`` when
+    None or absent) with every option the command has and the user gave (not None) applied:
+    ``tile_size`` (metres; the grout follows, :meth:`tileviz.config.FloorConfig.with_tile_size`),
+    ``ppm``, ``width``, ``height`` (pixels), ``speed_error``, ``yaw_rate_error``,
+    ``compass_error``, ``dt``, ``setpoint``, ``seed`` (the simulator's; with ``floor_seed`` the
+    floor's appearance seed becomes ``seed + 1``, as ``record`` does), ``extractor`` and
+    ``mode``. The configuration validates itself: a bad value raises ValueError naming it."""
+    from tileviz.config import preset
+
+    a: dict[str, Any] = {k: v for k, v in vars(args).items() if v is not None}
+    cfg = preset(a.get("preset", "default"))
+    floor, camera, noise, sim = cfg.floor, cfg.camera, cfg.noise, cfg.sim
+    if "tile_size" in a:
+        floor = floor.with_tile_size(a["tile_size"])
+    camera = replace(camera, **{k: a[k] for k in ("ppm", "width", "height") if k in a})
+    noise = replace(noise, **{k: a[k] for k in ("speed_error", "yaw_rate_error",
+                                                 "compass_error") if k in a})
+    sim = replace(sim, **{k: a[k] for k in ("dt", "setpoint", "seed") if k in a})
+    if "seed" in a and floor_seed:
+        floor = replace(floor, seed=a["seed"] + 1)
+    out = replace(cfg, floor=floor, camera=camera, noise=noise, sim=sim)
+    if "extractor" in a:
+        out = replace(out, vision=replace(out.vision, extractor=a["extractor"]))
+    if "mode" in a:
+        out = replace(out, localizer=replace(out.localizer, mode=a["mode"]))
+    return out

@@ -52,6 +52,10 @@ def _check_nonneg(name: str, value: float) -> None:
         raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
 
 
+MAX_GROUT_FRACTION = 1.0 / 8.0
+"""When a floor is given another tile size, its grout is at most this fraction of the tile."""
+
+
 @dataclass(frozen=True)
 class FloorConfig:
     """The tiled floor. Grout line centres lie on x = kL and y = kL (world frame)."""
@@ -70,6 +74,13 @@ class FloorConfig:
     """Mean number of dark stains per tile (fixed to the floor)."""
     seed: int = 1
     """Seed of the floor's appearance (tile brightness, texture, stains)."""
+
+    def with_tile_size(self, tile_size: float) -> FloorConfig:
+        """This floor with tiles of side ``tile_size`` metres; the grout keeps its width, at most
+        ``tile_size`` x :data:`MAX_GROUT_FRACTION` (a narrow line on any tile). ValueError on a
+        bad size."""
+        return replace(self, tile_size=tile_size,
+                       grout_width=min(self.grout_width, tile_size * MAX_GROUT_FRACTION))
 
     def __post_init__(self) -> None:
         _check_positive("tile_size", self.tile_size)

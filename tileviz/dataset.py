@@ -29,6 +29,7 @@ import numpy as np
 import pyspng
 
 from tileviz.config import Config
+from tileviz.core.constants import LIMIT, MAX_PPM, MIN_TILE_PX
 from tileviz.types import FrameInput, Odometry, Pose
 
 if TYPE_CHECKING:
@@ -41,13 +42,8 @@ REPLAY_COLUMNS = (
     "index", "t", "status", "x_lo", "x_hi", "y_lo", "y_hi", "theta_lo", "theta_hi", "boxes",
 )
 RESIDUAL_COLUMNS = ("index", "t", "r1", "r2", "r3", "r4", "r5", "r6")
-MAX_MAGNITUDE = 1e9
-"""Largest magnitude of a number in meta.json (the localizer's ``LIMIT``)."""
-MIN_TILE_PX = 4.0
-"""A tile must span at least this many pixels (tile_size * ppm): finer is no floor to see."""
-MAX_PPM = 1e5
-"""Largest ppm (10 micrometres a pixel): beyond it the image stages' kernels (sized in pixels
-from metres) would not fit in memory."""
+MAX_MAGNITUDE = LIMIT
+"""Largest magnitude of a number in meta.json (the localizer's)."""
 T = TypeVar("T")
 R = TypeVar("R")
 _NO_IMAGE = np.zeros((0, 0, 3), np.uint8)
@@ -202,10 +198,9 @@ class DatasetMeta:
                     base = Config.from_dict(stored)
                 except (ValueError, TypeError):
                     base = Config()
-        floor_grout = min(base.floor.grout_width, self.tile_size / 4)
         return replace(
             base,
-            floor=replace(base.floor, tile_size=self.tile_size, grout_width=floor_grout)
+            floor=base.floor.with_tile_size(self.tile_size)
             if base.floor.tile_size != self.tile_size else base.floor,
             camera=replace(
                 base.camera, ppm=self.ppm, width=self.image_width, height=self.image_height,

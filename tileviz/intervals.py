@@ -16,6 +16,8 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
+from tileviz.core.constants import HALF_PI, TWO_PI
+
 __all__ = [
     "HALF_PI",
     "HALF_PI_ERROR",
@@ -58,15 +60,11 @@ _sin = math.sin
 _ceil = math.ceil
 _floor = math.floor
 
-TWO_PI = 2.0 * math.pi
-"""The float nearest 2 pi (used as the heading period)."""
 TWO_PI_ERROR = 5e-16
 """A bound on |2 pi - TWO_PI| (the true gap is 2.45e-16)."""
 PI_LO = _nextafter(math.pi, -_INF)
 PI_HI = _nextafter(math.pi, _INF)
 """PI_LO < pi < PI_HI."""
-HALF_PI = 0.5 * math.pi
-"""The float nearest pi/2 (the period of the heading branches)."""
 HALF_PI_ERROR = 1.25e-16
 """A bound on |pi/2 - HALF_PI| (the true gap is 6.1e-17)."""
 HALF_PI_LO = _nextafter(0.5 * math.pi, -_INF)

@@ -4,7 +4,7 @@ observations extracted on ``jobs`` processes, handed back in frame order.
 Vision of one frame does not depend on any other frame, so a replay (a batch job) can run it for
 several frames at once; the localizer, which does depend on the previous frame, stays in the
 calling process and takes the frames in order. Each worker runs OpenCV with the calling process's
-thread count (one, as :mod:`tileviz.vision` sets it, unless the caller changed it: OpenCV's
+thread count (one, as every entry point sets it, unless the caller changed it: OpenCV's
 multi-threaded Canny gives edges that depend on the count), so the results are bit for bit those
 of :func:`tileviz.vision.extract` in the calling process;
 an error (a missing or unreadable image, an image of the wrong size) is raised when its frame's
@@ -27,7 +27,7 @@ import cv2
 from tileviz.config import Config
 from tileviz.dataset import DatasetSource, results_in_order
 from tileviz.types import FrameInput
-from tileviz.vision import VisionResult, extract
+from tileviz.vision import VisionResult, extract, set_opencv_threads
 
 __all__ = ["CHUNK", "vision_ahead"]
 
@@ -43,9 +43,9 @@ _worker: tuple[DatasetSource, Config] | None = None
 
 def _init(folder: str, cfg: Config, threads: int) -> None:
     global _worker
-    # OpenCV's thread count as in the calling process (importing tileviz.vision set one):
-    # Canny's edges depend on it, and a replay must give the same sets whatever --jobs
-    cv2.setNumThreads(threads)
+    # OpenCV's thread count as in the calling process (the entry point set one): Canny's edges
+    # depend on it, and a replay must give the same sets whatever --jobs
+    set_opencv_threads(threads)
     _worker = (DatasetSource(folder), cfg)
 
 

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import math
 
-from tileviz.intervals import lattice_intersect
+from tileviz.core.constants import HALF_PI, TWO_PI
 from tileviz.types import Observation, Pose
 
 __all__ = [
@@ -32,14 +32,11 @@ __all__ = [
     "equivalent_parameters",
     "equivalent_pose",
     "equivalent_poses",
-    "lattice_intersect",
     "observe",
     "quarter_turn",
     "quarter_turns",
 ]
 
-_HALF_PI = 0.5 * math.pi
-_TWO_PI = 2.0 * math.pi
 
 
 def quarter_turn(m: int, a: float, b: float) -> tuple[float, float]:
@@ -56,7 +53,7 @@ def quarter_turn(m: int, a: float, b: float) -> tuple[float, float]:
 
 def quarter_turns(theta: float) -> int:
     """The m in {0, 1, 2, 3} with theta - m pi/2 in [-pi/4, pi/4) (mod 2 pi)."""
-    return math.floor((theta + 0.25 * math.pi) / _HALF_PI) & 3
+    return math.floor((theta + 0.25 * math.pi) / HALF_PI) & 3
 
 
 def camera_centre(pose: Pose, offset: tuple[float, float]) -> tuple[float, float]:
@@ -86,12 +83,12 @@ def observe(
         raise ValueError(f"tile_size must be > 0, got {tile_size!r}")
     cx, cy = camera_centre(pose, offset)
     m = quarter_turns(pose.theta)
-    y3 = math.remainder(pose.theta - m * _HALF_PI, _TWO_PI)
+    y3 = math.remainder(pose.theta - m * HALF_PI, TWO_PI)
     if y3 >= 0.25 * math.pi:  # rounding at the branch edge
-        y3 -= _HALF_PI
+        y3 -= HALF_PI
         m = (m + 1) & 3
     elif y3 < -0.25 * math.pi:
-        y3 += _HALF_PI
+        y3 += HALF_PI
         m = (m - 1) & 3
     u1, u2 = quarter_turn(-m, cx, cy)
     return (_mod(u1, tile_size), _mod(u2, tile_size), y3)
@@ -108,7 +105,7 @@ def equivalent_parameters(
     out = []
     for m in range(4):
         z1, z2 = quarter_turn(m, y1, y2)
-        out.append((_mod(z1, tile_size), _mod(z2, tile_size), y3 + m * _HALF_PI))
+        out.append((_mod(z1, tile_size), _mod(z2, tile_size), y3 + m * HALF_PI))
     return out
 
 
@@ -126,7 +123,7 @@ def equivalent_pose(
     ax, ay = quarter_turn(m, cx, cy)
     ax += tile_size * shift[0]
     ay += tile_size * shift[1]
-    theta = pose.theta + m * _HALF_PI
+    theta = pose.theta + m * HALF_PI
     f, left = offset
     ct = math.cos(theta)
     st = math.sin(theta)
@@ -163,7 +160,7 @@ def equivalence_residuals(
     k = math.pi / tile_size
     out: list[float] = []
     for family in ((0, 2), (1, 3)):
-        m = min(family, key=lambda j: abs(math.remainder(d - j * _HALF_PI, _TWO_PI)))
+        m = min(family, key=lambda j: abs(math.remainder(d - j * HALF_PI, TWO_PI)))
         u1, u2 = quarter_turn(-m, cx, cy)
         out.append(math.sin(k * (u1 - obs.y1)))
         out.append(math.sin(k * (u2 - obs.y2)))

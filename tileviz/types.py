@@ -12,7 +12,8 @@ from typing import Literal, get_args
 
 import numpy as np
 
-from tileviz.intervals import TWO_PI, turn_shift
+from tileviz.core.constants import TWO_PI
+from tileviz.intervals import turn_shift
 
 Status = Literal["contracted", "predicted", "rejected", "lost"]
 STATUSES: tuple[Status, ...] = get_args(Status)

@@ -33,6 +33,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+from tileviz import cliutil
 from tileviz.app import commands as C
 from tileviz.app.history import METRIC_NAMES, Entry
 from tileviz.app.plots import summary
@@ -41,7 +42,7 @@ from tileviz.app.session import Session, SessionOptions
 from tileviz.cliutil import CliError, Parser, positive_float, positive_int, run_cli
 from tileviz.config import EXTRACTORS, MODES, PRESETS, Config, preset
 
-__all__ = ["App", "config_from_args", "main", "options_from_args", "parser"]
+__all__ = ["App", "main", "options_from_args", "parser", "serve_config"]
 
 _COL = {name: i for i, name in enumerate(METRIC_NAMES)}
 QUEUE_SIZE = 1000
@@ -411,11 +412,13 @@ def _int_range(name: str, lo: int, hi: int) -> Any:
     return _ranged(name, lo, hi, positive_int(name))
 
 
-def config_from_args(args: argparse.Namespace) -> Config:
-    """The preset with the command line's floor, camera, seed, mode and extractor; with
-    ``--dataset``, the configuration ``python -m tileviz replay`` uses for that dataset (its meta
-    and the mode and extractor), the seed (of the MCL baseline) from the command line. A bad
-    dataset folder or meta.json raises DatasetError (a ValueError) naming the file."""
+def serve_config(args: argparse.Namespace) -> Config:
+    """``serve``'s configuration: :func:`tileviz.cliutil.config_from_args` (the preset with the
+    command line's floor, camera, seed, mode and extractor; the seed leaves the floor's
+    appearance alone); with ``--dataset``, the configuration ``python -m tileviz replay`` uses
+    for that dataset (its meta and the mode and extractor), the seed (of the MCL baseline) from
+    the command line. A bad dataset folder or meta.json raises DatasetError (a ValueError)
+    naming the file."""
     if args.dataset is not None:
         from tileviz.app.sources import replay_config
         from tileviz.dataset import DatasetSource
@@ -428,18 +431,9 @@ def config_from_args(args: argparse.Namespace) -> Config:
         meta = DatasetSource(args.dataset).meta  # checks meta.json and the frames.csv header
         cfg = replay_config(meta, mode=args.mode, extractor=args.extractor)
         return _with_seed(cfg, args.seed)
-    cfg = preset(args.preset or "default")
-    if args.tile_size is not None:
-        cfg = replace(cfg, floor=replace(cfg.floor, tile_size=args.tile_size,
-                                         grout_width=min(cfg.floor.grout_width,
-                                                         args.tile_size / 8)))
-    if args.ppm is not None:
-        cfg = replace(cfg, camera=replace(cfg.camera, ppm=args.ppm))
-    if args.mode is not None:
-        cfg = replace(cfg, localizer=replace(cfg.localizer, mode=args.mode))
-    if args.extractor is not None:
-        cfg = replace(cfg, vision=replace(cfg.vision, extractor=args.extractor))
-    return _with_seed(cfg, args.seed)
+    _with_seed(preset("default"), args.seed)  # the seed's range, named
+    # the run's seed leaves the floor's appearance as the preset has it
+    return cliutil.config_from_args(args, floor_seed=False)
 
 
 def _with_seed(cfg: Config, seed: int | None) -> Config:
@@ -484,7 +478,7 @@ def main(command: str = "serve", argv: list[str] | None = None) -> int:
         return 2
 
     def body() -> int:
-        app = App(config_from_args(args), options_from_args(args), host=args.host,
+        app = App(serve_config(args), options_from_args(args), host=args.host,
                   port=args.port, push_rate=args.push_rate, image_rate=args.image_rate)
         stopping = threading.Event()
 

@@ -470,8 +470,7 @@ class Session:
         self.note(f"{why}: replaying {self.source.describe()} from frame 0")
 
     def _on_Restart(self, cmd: C.Restart) -> None:
-        floor = replace(self.cfg.floor, tile_size=float(cmd.tile_size),
-                        grout_width=min(self.cfg.floor.grout_width, cmd.tile_size / 8))
+        floor = self.cfg.floor.with_tile_size(float(cmd.tile_size))
         camera = replace(self.cfg.camera, ppm=float(cmd.ppm))
         cfg = replace(self.cfg, floor=floor, camera=camera)  # validates (ValueError)
         self._new_run_files()

@@ -59,12 +59,11 @@ from statistics import NormalDist
 
 import numpy as np
 
+from tileviz.core.constants import HALF_PI, TWO_PI
 from tileviz.types import Box, Observation, Odometry, SensorBounds
 
 __all__ = ["CHI2_2D_95", "MCL", "MOTION_NOISES", "MclConfig", "MclEstimate", "chi2_2d"]
 
-TWO_PI = 2.0 * math.pi
-HALF_PI = 0.5 * math.pi
 CHI2_2D_95 = -2.0 * math.log(0.05)
 """The 95 % quantile of the chi-square distribution with 2 degrees of freedom (5.991)."""
 MOTION_NOISES = ("uniform", "gaussian")

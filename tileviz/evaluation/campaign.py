@@ -54,9 +54,16 @@ def evaluate(
         else:
             import multiprocessing
 
+            import cv2
+
+            from tileviz.vision import set_opencv_threads
+
             ctx = multiprocessing.get_context("spawn")
-            # (OpenCV runs on one thread in each worker: importing tileviz.vision sets it)
-            with ProcessPoolExecutor(max_workers=jobs, mp_context=ctx) as pool:
+            # each worker runs OpenCV on this process's thread count (one, as the entry point set
+            # it): the same observations whatever --jobs
+            with ProcessPoolExecutor(max_workers=jobs, mp_context=ctx,
+                                     initializer=set_opencv_threads,
+                                     initargs=(cv2.getNumThreads(),)) as pool:
                 futures = [pool.submit(run_one, t) for t in tasks]
                 for fut in as_completed(futures):
                     results.append(fut.result())

@@ -128,17 +128,3 @@ class Waypoints:
             x, y = self.points[self.index]
         # a single point is a place to stop at; a loop is driven through
         return Target(x, y, stop=len(self.points) == 1)
-
-
-def make_setpoint(kind: str, *, amplitude: float = 4.0, omega: float = 0.04,
-                  target: tuple[float, float] = (1.0, 1.0),
-                  waypoints: Sequence[tuple[float, float]] = ((1.0, 1.0),),
-                  radius: float = 0.3) -> Lissajous | ManualTarget | Waypoints:
-    """Build a setpoint by kind name (``lissajous``, ``manual`` or ``waypoints``)."""
-    if kind == "lissajous":
-        return Lissajous(amplitude, omega)
-    if kind == "manual":
-        return ManualTarget(*target)
-    if kind == "waypoints":
-        return Waypoints(waypoints, radius)
-    raise ValueError(f"setpoint must be one of lissajous, manual, waypoints; got {kind!r}")

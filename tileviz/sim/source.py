@@ -329,10 +329,6 @@ class SimSource:
             # a dry run without noise: the renderer names any bad parameter
             self.renderer.render(self.world.pose, rng=None, faults=[(kind, dict(params))])
 
-    def clear_faults(self) -> None:
-        """Stop every fault in progress."""
-        self.faults = []
-
     def lissajous_path(self, n: int = 400) -> list[tuple[float, float]]:
         """One lap of the configured Lissajous curve, for drawing (metres)."""
         return Lissajous(self.cfg.sim.lissajous_amplitude, self.cfg.sim.lissajous_omega).path(n)

@@ -12,13 +12,15 @@
 Both return a :class:`VisionResult`. Image frame: x = column, y = row; the observation follows
 design.md (see :mod:`tileviz.vision.geometry`). No viser, no pymunk here.
 
-Importing this module sets OpenCV to one thread (``cv2.setNumThreads(1)``). OpenCV's
-multi-threaded Canny splits the image into stripes and its edges depend on the stripe count: on
-2 threads 1 frame in 3601 of a recording got other edge pixels than on 1 thread, and its
-observation moved in the 7th digit. On one thread an observation is the same on every machine,
-so a replay reproduces the live run whatever the core count. At 320x240 the single thread costs
-no measurable time (``python bench/bench_vision.py --threads 1``); a program that wants OpenCV's
-threads back may call ``cv2.setNumThreads`` after this import, and gives up that reproducibility.
+OpenCV's thread count (:func:`set_opencv_threads`): importing this module leaves it alone; every
+entry point sets it to :data:`OPENCV_THREADS` (one) before any image is processed: the commands
+(``tileviz.cliutil.run_cli``: record, replay, extract, evaluate, serve), the replay's and the
+evaluation's worker processes, the bench scripts and the tests (``tests/conftest.py``). OpenCV's
+multi-threaded Canny splits the image into stripes and its edges depend on the stripe count, so
+an observation can differ between thread counts in its last digits; on one thread it is the same
+on every machine, and a replay reproduces the live run whatever the core count. A program that
+calls :func:`extract` without that set-up gets OpenCV's own count and gives up that
+reproducibility.
 """
 
 from __future__ import annotations
@@ -30,19 +32,26 @@ import cv2
 import numpy as np
 
 from tileviz.config import CameraConfig, VisionConfig
+from tileviz.core.constants import MAX_TILE_PX, MIN_TILE_PX
 from tileviz.vision.faithful import extract_faithful
 from tileviz.vision.geometry import observation_error
 from tileviz.vision.result import REASONS, VisionResult
 from tileviz.vision.robust import extract_robust
 
-cv2.setNumThreads(1)
+OPENCV_THREADS = 1
+"""The OpenCV thread count every tileviz entry point sets (module docstring)."""
 
-MIN_TILE_PX = 4.0
-"""Smallest tile period in pixels (tile_size * ppm) there is a floor to see in."""
-MAX_TILE_PX = 1e5
-"""Largest tile period in pixels: beyond it the image is far smaller than a tile."""
 
-__all__ = ["REASONS", "VisionResult", "extract", "observation_error", "to_gray"]
+def set_opencv_threads(threads: int = OPENCV_THREADS) -> None:
+    """Run OpenCV's functions on ``threads`` threads in this process (module docstring)."""
+    cv2.setNumThreads(int(threads))
+
+
+
+__all__ = [
+    "OPENCV_THREADS", "REASONS", "VisionResult", "extract", "observation_error",
+    "set_opencv_threads", "to_gray",
+]
 
 
 def to_gray(image: np.ndarray) -> np.ndarray:

@@ -65,9 +65,7 @@ def _config(args: argparse.Namespace, image: np.ndarray) -> Config:
         cam = replace(cam, ppm=args.ppm)
     floor = cfg.floor
     if args.tile_size is not None:
-        if cfg.floor.grout_width >= args.tile_size / 2:
-            floor = replace(floor, grout_width=0.0)
-        floor = replace(floor, tile_size=args.tile_size)
+        floor = floor.with_tile_size(args.tile_size)
     vision = cfg.vision
     if args.extractor is not None:
         vision = replace(vision, extractor=args.extractor)

@@ -32,6 +32,7 @@ import numpy as np
 from tileviz.config import CameraConfig, VisionConfig
 from tileviz.types import Observation
 from tileviz.vision import draw
+from tileviz.vision.geometry import circular_median, median
 from tileviz.vision.result import BAG_HORIZONTAL, BAG_VERTICAL, VisionResult
 
 __all__ = ["extract_faithful"]
@@ -124,23 +125,6 @@ def extract_faithful(
     return VisionResult(extractor="faithful", stages=stages, timings=tm, **out)
 
 
-def _median(values: list[float]) -> float:
-    """Median of a non-empty list (plain Python: faster than numpy for a few dozen values)."""
-    v = sorted(values)
-    k = len(v) // 2
-    return v[k] if len(v) % 2 else 0.5 * (v[k - 1] + v[k])
-
-
-def _circular_median(values: list[float], period: float) -> float:
-    """:func:`tileviz.vision.geometry.circular_median` for a short list, in plain Python."""
-    k = 2.0 * math.pi / period
-    ref = math.atan2(sum(math.sin(k * v) for v in values), sum(math.cos(k * v) for v in values))
-    ref /= k
-    dev = [(v - ref + 0.5 * period) % period - 0.5 * period for v in values]
-    out = (ref + _median(dev)) % period
-    return 0.0 if out >= period else out
-
-
 def _parameters(
     seg: np.ndarray, *, camera: CameraConfig, tile_size: float, vision: VisionConfig
 ) -> dict:
@@ -175,13 +159,13 @@ def _parameters(
     res: dict = {"median": None, "observation": None, "accepted": False, "reason": "no lines"}
     y3 = 0.0
     if n:
-        mx, my = _median(c4), _median(s4)
+        mx, my = median(c4), median(s4)
         thr = vision.l1_threshold
         keep = [i for i in range(n) if abs(c4[i] - mx) + abs(s4[i] - my) < thr]
         res["median"] = (mx, my)
         res["reason"] = "too few segments"
         if len(keep) >= vision.min_segments:
-            mx, my = _median([c4[i] for i in keep]), _median([s4[i] for i in keep])
+            mx, my = median([c4[i] for i in keep]), median([s4[i] for i in keep])
             res["median"] = (mx, my)
             y3 = math.atan2(my, mx) / 4.0  # in (-pi/4, pi/4]
             if y3 >= 0.25 * math.pi:
@@ -235,8 +219,8 @@ def _bags(
     if not fam[0] or not fam[1]:
         return {"reason": "one family"}
     obs = Observation(
-        y1=_circular_median(fam[0], tile_size),  # eq. 4.6, signed and circular
-        y2=_circular_median(fam[1], tile_size),
+        y1=circular_median(fam[0], tile_size),  # eq. 4.6, signed and circular
+        y2=circular_median(fam[1], tile_size),
         y3=y3,
         position_error=vision.position_error_px / ppm,
         heading_error=vision.heading_error,
