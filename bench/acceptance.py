@@ -26,9 +26,9 @@ import cv2
 import numpy as np
 
 from tileviz.config import Config, preset
-from tileviz.dataset import DatasetMeta, DatasetSource, DatasetWriter
-from tileviz.parallel import vision_ahead
+from tileviz.datasets import DatasetMeta, DatasetSource, DatasetWriter
 from tileviz.pipeline import FrameLoop
+from tileviz.pipeline.workers import vision_ahead
 from tileviz.sim.source import SimSource
 from tileviz.vision import set_opencv_threads
 

@@ -14,7 +14,7 @@ from tileviz.app.history import Entry, History
 from tileviz.app.outputs import output_path, sanitize_name
 from tileviz.app.session import Session, SessionOptions
 from tileviz.config import preset
-from tileviz.dataset import DatasetSource, read_meta
+from tileviz.datasets import DatasetSource, read_meta
 
 
 @pytest.fixture(scope="module")

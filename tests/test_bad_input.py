@@ -28,7 +28,7 @@ import numpy as np
 import pytest
 
 from tileviz.config import LocalizerConfig, preset
-from tileviz.dataset import (
+from tileviz.datasets import (
     FORMAT,
     DatasetError,
     DatasetMeta,

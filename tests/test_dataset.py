@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from tileviz.config import Config
-from tileviz.dataset import (
+from tileviz.datasets import (
     FORMAT,
     DatasetError,
     DatasetMeta,

@@ -14,14 +14,9 @@ import pytest
 
 from tileviz.__main__ import main as tileviz_main
 from tileviz.config import preset
-from tileviz.dataset import (
-    REPLAY_COLUMNS,
-    RESIDUAL_COLUMNS,
-    DatasetMeta,
-    DatasetWriter,
-    replay_row,
-)
+from tileviz.datasets import DatasetMeta, DatasetWriter
 from tileviz.pipeline import FrameLoop
+from tileviz.pipeline.outputs import REPLAY_COLUMNS, RESIDUAL_COLUMNS, replay_row
 from tileviz.sim.source import SimSource
 
 FRAMES = 60

@@ -19,8 +19,9 @@ from tileviz.app.scene import SceneView
 from tileviz.app.session import SIMULATOR_ONLY, Session, SessionOptions
 from tileviz.app.wsclient import ViserClient, serving, stop_serve
 from tileviz.cli import main as cli
-from tileviz.dataset import DatasetSource, read_meta, replay_config, replay_row
+from tileviz.datasets import DatasetSource, read_meta, replay_config
 from tileviz.pipeline import FrameLoop
+from tileviz.pipeline.outputs import replay_row
 from tileviz.types import Box, BoxSet
 
 DURATION = 1.5
@@ -259,7 +260,7 @@ def test_a_dataset_frame_draws_no_setpoint_and_the_robot_at_the_estimate_without
 
 def read_meta_default():
     from tileviz.config import preset
-    from tileviz.dataset import DatasetMeta
+    from tileviz.datasets import DatasetMeta
 
     return DatasetMeta.from_config(preset("default"))
 

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import os
 import sys
 from dataclasses import replace
 from pathlib import Path
@@ -69,7 +68,7 @@ def record(argv: list[str]) -> int:
     args = record_parser().parse_args(argv)
 
     def body() -> int:
-        from tileviz.dataset import DatasetMeta, DatasetWriter
+        from tileviz.datasets import DatasetMeta, DatasetWriter
         from tileviz.sim.source import SimSource
 
         cfg = config_from_args(args)
@@ -100,16 +99,6 @@ def record(argv: list[str]) -> int:
     return run_cli("tileviz record", body)
 
 
-def default_jobs() -> int:
-    """``replay``'s default ``--jobs``: the cores this process may run on, at most 4 (beyond
-    that the in-order localizer and the workers' start-up gain little)."""
-    try:
-        cores = len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        cores = os.cpu_count() or 1
-    return max(1, min(4, cores))
-
-
 def replay_parser() -> Parser:
     p = Parser(prog="tileviz replay", description="Replay a tileviz-dataset/1 folder through "
                "vision and the localizer; write one CSV row per frame.")
@@ -134,47 +123,22 @@ def replay(argv: list[str]) -> int:
     args = replay_parser().parse_args(argv)
 
     def body() -> int:
-        from tileviz.dataset import (
-            REPLAY_COLUMNS,
-            RESIDUAL_COLUMNS,
-            CsvOut,
-            DatasetSource,
-            replay_config,
-            replay_row,
-            residual_row,
-        )
-        from tileviz.pipeline import FrameLoop
+        from tileviz.pipeline.replay import replay as run_replay
 
-        # images decode on a background thread while the previous frame's vision runs
-        source = DatasetSource(args.dataset, prefetch=8)
-        cfg = replay_config(source.meta, mode=args.mode, extractor=args.extractor)
-        if args.max_boxes:
-            cfg = replace(cfg, localizer=replace(cfg.localizer, max_boxes=args.max_boxes))
-        out = CsvOut(args.out, REPLAY_COLUMNS)
-        eq = CsvOut(args.output_file, RESIDUAL_COLUMNS) if args.output_file else None
-        runner = FrameLoop(cfg)
-        bar = _progress(source.row_count() or None, "replay", not args.quiet)
-        n = 0
-        jobs = args.jobs if args.jobs is not None else default_jobs()
-        if jobs > 1:
-            from tileviz.parallel import vision_ahead
+        bar = None
 
-            records = (runner.process(frame, vision)
-                       for frame, vision in vision_ahead(source, cfg, jobs))
-        else:
-            records = runner.run(source)
+        def on_total(total: int | None) -> None:
+            nonlocal bar
+            bar = _progress(total, "replay", not args.quiet)
+
         try:
-            for rec in records:
-                out.row(replay_row(rec))
-                if eq is not None:
-                    eq.row(residual_row(rec))
-                n += 1
-                bar.update(1)  # type: ignore[attr-defined]
+            n = run_replay(args.dataset, out=args.out, output_file=args.output_file,
+                           mode=args.mode, extractor=args.extractor, max_boxes=args.max_boxes,
+                           jobs=args.jobs, on_total=on_total,
+                           on_frame=lambda rec: bar.update(1))  # type: ignore[attr-defined]
         finally:
-            bar.close()  # type: ignore[attr-defined]
-            out.close()
-            if eq is not None:
-                eq.close()
+            if bar is not None:
+                bar.close()  # type: ignore[attr-defined]
         print(f"replayed {n} frames into {args.out}")
         return 0
 

@@ -421,7 +421,7 @@ def serve_config(args: argparse.Namespace) -> Config:
     naming the file."""
     if args.dataset is not None:
         from tileviz.app.sources import replay_config
-        from tileviz.dataset import DatasetSource
+        from tileviz.datasets import DatasetSource
 
         clash = [name for name, v in (("--preset", args.preset), ("--tile-size", args.tile_size),
                                       ("--ppm", args.ppm)) if v is not None]

@@ -77,7 +77,7 @@ class SessionOptions:
     """A renderer for the simulator (tests); None = the real floor renderer."""
     dataset: Path | None = None
     """Replay this tileviz-dataset/1 folder instead of simulating (the Config passed to the
-    session should be :func:`tileviz.dataset.replay_config` of its meta)."""
+    session should be :func:`tileviz.datasets.replay_config` of its meta)."""
 
 
 @dataclass
@@ -164,7 +164,7 @@ class Session:
         self.version += 1
 
     def _open_csv(self) -> None:
-        from tileviz.dataset import RESIDUAL_COLUMNS, CsvOut
+        from tileviz.pipeline.outputs import RESIDUAL_COLUMNS, CsvOut
 
         name = self.options.output_file or "residuals"
         self.csv_path = output_path(self.options.out_dir, name, suffix=".csv",
@@ -260,7 +260,7 @@ class Session:
             self._frame_failed(frame.index, str(e), missed=True)
             return None
         if self.csv is not None:
-            from tileviz.dataset import residual_row
+            from tileviz.pipeline.outputs import residual_row
 
             self.csv.row(residual_row(rec))
         particles = self._mcl_view(rec)
@@ -341,7 +341,7 @@ class Session:
             self._stop_recording(f"write failed: {e}", level="error")
 
     def _open_recording(self, frame: FrameInput) -> None:
-        from tileviz.dataset import DatasetMeta, DatasetWriter
+        from tileviz.datasets import DatasetMeta, DatasetWriter
 
         folder = self._record_pending
         assert folder is not None

@@ -8,7 +8,7 @@ settings (``restart_on_settings``).
 - :class:`LiveSimulator`: the simulator (:class:`tileviz.sim.source.SimSource`), endless; it obeys
   setpoint, kidnap, noise and fault commands.
 - :class:`DatasetReplay`: a tileviz-dataset/1 folder read by
-  :class:`tileviz.dataset.DatasetSource`, the reader ``python -m tileviz replay`` uses. Its end,
+  :class:`tileviz.datasets.DatasetSource`, the reader ``python -m tileviz replay`` uses. Its end,
   and a bad row, raise :class:`SourceEnded` (every frame before it was delivered).
 
 Units: metres, radians, seconds; world frame as in ``shared/dataset-format.md``.
@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Any, Protocol
 
 from tileviz.config import Config
-from tileviz.dataset import MAX_MAGNITUDE, DatasetSource, replay_config
+from tileviz.datasets import MAX_MAGNITUDE, DatasetSource, replay_config
 from tileviz.sim.source import SimSource
 from tileviz.types import FrameInput, Pose
 
@@ -168,7 +168,7 @@ class DatasetReplay:
 def truth_path(frames_csv: Path, columns: list[str]) -> list[tuple[float, float]]:
     """The (x, y) columns of ``frames_csv`` (header ``columns``) up to the first row without
     finite numbers there; thinned evenly to :data:`PATH_POINTS` points. For drawing only: the
-    reader proper (:class:`tileviz.dataset.DatasetSource`) validates each row when it gets there.
+    reader proper (:class:`tileviz.datasets.DatasetSource`) validates each row when it gets there.
     """
     if "x" not in columns or "y" not in columns:
         return []

@@ -3,7 +3,7 @@
 :class:`FrameLoop` serves the live server, the replay CLI, the evaluation and the tests. A
 *source* yields :class:`~tileviz.types.FrameInput` objects: the simulator
 (:class:`tileviz.sim.source.SimSource`) or a dataset reader
-(:class:`tileviz.dataset.DatasetSource`). Frame alignment, the same for every estimator: frame k
+(:class:`tileviz.datasets.DatasetSource`). Frame alignment, the same for every estimator: frame k
 hands the odometry of frame k-1 (the motion from frame k-1 to frame k) to each estimator's
 prediction, then the compass and the observation of image k (:class:`StepInputs`).
 

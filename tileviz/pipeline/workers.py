@@ -8,7 +8,7 @@ thread count (one, as every entry point sets it, unless the caller changed it: O
 multi-threaded Canny gives edges that depend on the count), so the results are bit for bit those
 of :func:`tileviz.vision.extract` in the calling process;
 an error (a missing or unreadable image, an image of the wrong size) is raised when its frame's
-turn comes, after every frame before it was delivered, as :class:`tileviz.dataset.DatasetSource`
+turn comes, after every frame before it was delivered, as :class:`tileviz.datasets.DatasetSource`
 does.
 
 No viser, no pymunk here.
@@ -25,7 +25,8 @@ from typing import TypeVar
 import cv2
 
 from tileviz.config import Config
-from tileviz.dataset import DatasetSource, results_in_order
+from tileviz.datasets import DatasetSource
+from tileviz.pipeline.parallel import results_in_order
 from tileviz.types import FrameInput
 from tileviz.vision import VisionResult, extract, set_opencv_threads
 

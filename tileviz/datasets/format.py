@@ -1,0 +1,246 @@
+"""tileviz-dataset/1, the format: ``meta.json`` (:class:`DatasetMeta`), the columns of
+``frames.csv`` and how their numbers are written and parsed.
+
+The contract is ``docs/dataset-format.md``. A dataset is a folder with ``meta.json``,
+``frames.csv`` and images. Row k of ``frames.csv``: the image taken at pose k, the compass measured
+at frame k, and the odometry (speed, yaw rate) describing the motion from frame k to frame k+1,
+held over ``t[k+1] - t[k]`` seconds (``meta.dt`` when ``t`` is missing on the next row or there is
+no next row).
+
+Errors are :class:`DatasetError` (a ValueError) whose message names the file and, for rows, the
+row number (1-based line number of ``frames.csv`` counting the header as line 1).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+from tileviz.config import Config
+from tileviz.core.constants import LIMIT, MAX_PPM, MIN_TILE_PX
+
+__all__ = [
+    "FAULTS_FILE", "FORMAT", "FRAME_COLUMNS", "MAX_MAGNITUDE", "REQUIRED_COLUMNS",
+    "DatasetError", "DatasetMeta", "num_text", "parse_float", "read_meta", "replay_config",
+]
+
+FORMAT = "tileviz-dataset/1"
+FRAME_COLUMNS = ("index", "t", "image", "speed", "yaw_rate", "compass", "x", "y", "theta")
+REQUIRED_COLUMNS = ("index", "t", "image", "speed", "yaw_rate")
+MAX_MAGNITUDE = LIMIT
+"""Largest magnitude of a number in meta.json (the localizer's)."""
+FAULTS_FILE = "faults.csv"
+"""Optional tileviz extension: ``index,faults`` with ``;``-separated labels of injected faults."""
+
+
+class DatasetError(ValueError):
+    """A dataset that does not follow tileviz-dataset/1; the message names file and row."""
+
+
+def num_text(x: float) -> str:
+    """A float written so that it round-trips exactly (``repr``)."""
+    return repr(float(x))
+
+
+@dataclass(frozen=True)
+class DatasetMeta:
+    """The contents of ``meta.json`` (units: metres, seconds, radians, pixels)."""
+
+    name: str
+    tile_size: float
+    ppm: float
+    image_width: int
+    image_height: int
+    camera_offset: tuple[float, float]
+    dt: float
+    initial_pose: tuple[float, float, float]
+    initial_pose_error: tuple[float, float, float]
+    speed_error: float
+    yaw_rate_error: float
+    compass_error: float
+    extra: dict[str, Any] = field(default_factory=dict)
+    """Unknown keys, kept and ignored."""
+
+    @classmethod
+    def from_config(cls, cfg: Config, name: str = "tileviz run") -> DatasetMeta:
+        return cls(
+            name=name,
+            tile_size=cfg.floor.tile_size,
+            ppm=cfg.camera.ppm,
+            image_width=cfg.camera.width,
+            image_height=cfg.camera.height,
+            camera_offset=tuple(cfg.camera.offset),  # type: ignore[arg-type]
+            dt=cfg.sim.dt,
+            initial_pose=tuple(cfg.sim.initial_pose),  # type: ignore[arg-type]
+            initial_pose_error=tuple(cfg.sim.initial_pose_error),  # type: ignore[arg-type]
+            speed_error=cfg.noise.speed_error,
+            yaw_rate_error=cfg.noise.yaw_rate_error,
+            compass_error=cfg.noise.compass_error,
+            extra={"tileviz_config": cfg.to_dict()},
+        )
+
+    def to_json(self) -> dict[str, Any]:
+        d: dict[str, Any] = dict(self.extra)
+        d.update(
+            format=FORMAT,
+            name=self.name,
+            tile_size=self.tile_size,
+            ppm=self.ppm,
+            image_width=self.image_width,
+            image_height=self.image_height,
+            camera_offset=list(self.camera_offset),
+            dt=self.dt,
+            initial_pose=list(self.initial_pose),
+            initial_pose_error=list(self.initial_pose_error),
+            speed_error=self.speed_error,
+            yaw_rate_error=self.yaw_rate_error,
+            compass_error=self.compass_error,
+        )
+        return d
+
+    @classmethod
+    def from_json(cls, d: Any, where: str = "meta.json") -> DatasetMeta:
+        """Validate and parse; errors name the key."""
+        if not isinstance(d, dict):
+            raise DatasetError(f"{where}: must be a JSON object")
+        if d.get("format") != FORMAT:
+            raise DatasetError(
+                f"{where}: format must be {FORMAT!r}, got {d.get('format', '(missing)')!r}"
+            )
+        known = {
+            "format", "name", "tile_size", "ppm", "image_width", "image_height", "camera_offset",
+            "dt", "initial_pose", "initial_pose_error", "speed_error", "yaw_rate_error",
+            "compass_error",
+        }
+        missing = sorted(k for k in known - {"name"} if k not in d)
+        if missing:
+            raise DatasetError(f"{where}: missing key(s) {', '.join(missing)}")
+
+        def number(key: str, *, positive: bool) -> float:
+            v = d[key]
+            if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+                raise DatasetError(f"{where}: {key} must be a finite number, got {v!r}")
+            if abs(v) > MAX_MAGNITUDE:
+                raise DatasetError(f"{where}: {key} must be within +-{MAX_MAGNITUDE:g}, got {v!r}")
+            if positive and v <= 0 or not positive and v < 0:
+                raise DatasetError(f"{where}: {key} must be {'> 0' if positive else '>= 0'}, "
+                                   f"got {v!r}")
+            return float(v)
+
+        def integer(key: str) -> int:
+            v = d[key]
+            if isinstance(v, bool) or not isinstance(v, int) or v <= 0:
+                raise DatasetError(f"{where}: {key} must be an integer > 0, got {v!r}")
+            return v
+
+        def vector(key: str, n: int, *, nonneg: bool = False) -> tuple[float, ...]:
+            v = d[key]
+            ok = isinstance(v, list) and len(v) == n and all(
+                not isinstance(e, bool) and isinstance(e, int | float) and math.isfinite(e)
+                and abs(e) <= MAX_MAGNITUDE and (e >= 0 or not nonneg) for e in v
+            )
+            if not ok:
+                what = "non-negative " if nonneg else ""
+                raise DatasetError(f"{where}: {key} must be a list of {n} finite {what}numbers "
+                                   f"within +-{MAX_MAGNITUDE:g}, got {v!r}")
+            return tuple(float(e) for e in v)
+
+        if number("ppm", positive=True) > MAX_PPM:
+            raise DatasetError(f"{where}: ppm must be <= {MAX_PPM:g}, got {d['ppm']!r}")
+        tile_px = number("tile_size", positive=True) * number("ppm", positive=True)
+        if tile_px < MIN_TILE_PX:
+            raise DatasetError(f"{where}: a tile must span at least {MIN_TILE_PX:g} pixels "
+                               f"(tile_size * ppm), got {tile_px!r}")
+        name = d.get("name", "")
+        return cls(
+            name=str(name),
+            tile_size=number("tile_size", positive=True),
+            ppm=number("ppm", positive=True),
+            image_width=integer("image_width"),
+            image_height=integer("image_height"),
+            camera_offset=vector("camera_offset", 2),  # type: ignore[arg-type]
+            dt=number("dt", positive=True),
+            initial_pose=vector("initial_pose", 3),  # type: ignore[arg-type]
+            initial_pose_error=vector("initial_pose_error", 3, nonneg=True),  # type: ignore[arg-type]
+            speed_error=number("speed_error", positive=False),
+            yaw_rate_error=number("yaw_rate_error", positive=False),
+            compass_error=number("compass_error", positive=False),
+            extra={k: v for k, v in d.items() if k not in known},
+        )
+
+    def to_config(self, base: Config | None = None) -> Config:
+        """A Config for replaying: geometry, bounds and start from the meta, the rest from
+        ``base`` (or, for datasets tileviz recorded, from the stored ``tileviz_config``)."""
+        if base is None:
+            stored = self.extra.get("tileviz_config")
+            base = Config()
+            if isinstance(stored, dict):
+                try:
+                    base = Config.from_dict(stored)
+                except (ValueError, TypeError):
+                    base = Config()
+        return replace(
+            base,
+            floor=base.floor.with_tile_size(self.tile_size)
+            if base.floor.tile_size != self.tile_size else base.floor,
+            camera=replace(
+                base.camera, ppm=self.ppm, width=self.image_width, height=self.image_height,
+                offset=self.camera_offset,
+            ),
+            noise=replace(
+                base.noise, speed_error=self.speed_error, yaw_rate_error=self.yaw_rate_error,
+                compass_error=self.compass_error,
+            ),
+            sim=replace(
+                base.sim, dt=self.dt, initial_pose=self.initial_pose,
+                initial_pose_error=self.initial_pose_error,
+            ),
+        )
+
+
+def read_meta(folder: str | os.PathLike[str]) -> DatasetMeta:
+    """Read and validate ``folder/meta.json``."""
+    path = Path(folder) / "meta.json"
+    if not Path(folder).is_dir():
+        raise DatasetError(f"{folder}: not a dataset folder (no such directory)")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as e:
+        raise DatasetError(f"{path}: cannot read ({e.strerror or e})") from None
+    except UnicodeDecodeError:
+        raise DatasetError(f"{path}: not UTF-8 text") from None
+    try:
+        d = json.loads(text)
+    except json.JSONDecodeError as e:
+        raise DatasetError(f"{path}: not valid JSON ({e.msg} at line {e.lineno})") from None
+    return DatasetMeta.from_json(d, where=str(path))
+
+
+def parse_float(text: str, column: str, where: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise DatasetError(f"{where}: {column} is not a number ({text!r})") from None
+    if not math.isfinite(v):
+        raise DatasetError(f"{where}: {column} is not finite ({text!r})")
+    if abs(v) > MAX_MAGNITUDE:
+        raise DatasetError(f"{where}: {column} is out of range ({text!r}; |value| <= "
+                           f"{MAX_MAGNITUDE:g})")
+    return v
+
+
+def replay_config(meta: DatasetMeta, *, mode: str | None = None,
+                  extractor: str | None = None, base: Config | None = None) -> Config:
+    """The configuration ``python -m tileviz replay`` uses for a dataset: the meta's floor,
+    camera, bounds and start (over ``base``, or the stored tileviz config), then ``mode`` and
+    ``extractor`` when given."""
+    cfg = meta.to_config(base)
+    if mode is not None:
+        cfg = replace(cfg, localizer=replace(cfg.localizer, mode=mode))
+    if extractor is not None:
+        cfg = replace(cfg, vision=replace(cfg.vision, extractor=extractor))
+    return cfg

@@ -1,0 +1,226 @@
+"""Reading a tileviz-dataset/1 folder as frames (:class:`DatasetSource`), every row validated as
+it is reached; images decoded ahead on a thread when asked."""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+from collections.abc import Iterator
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from tileviz.datasets.format import (
+    FAULTS_FILE,
+    REQUIRED_COLUMNS,
+    DatasetError,
+    parse_float,
+    read_meta,
+)
+from tileviz.datasets.images import decode_image, truncated
+from tileviz.pipeline.parallel import results_in_order
+from tileviz.types import FrameInput, Odometry, Pose
+
+__all__ = ["DatasetSource"]
+
+_NO_IMAGE = np.zeros((0, 0, 3), np.uint8)
+
+
+@dataclass(frozen=True)
+class _Row:
+    line: int
+    index: int
+    t: float
+    image: str
+    speed: float
+    yaw_rate: float
+    compass: float | None
+    truth: Pose | None
+
+
+class DatasetSource:
+    """Read a dataset as :class:`FrameInput` objects, validating every row as it goes.
+
+    Images may be PNG or JPEG with any names; they are returned as HxWx3 uint8 RGB.
+    """
+
+    def __init__(self, folder: str | os.PathLike[str], *, prefetch: int = 0) -> None:
+        """``prefetch``: images decoded ahead of the frame being delivered, on a background
+        thread (OpenCV's decoder releases the GIL, so decoding overlaps the caller's vision);
+        0 decodes each image when its frame is asked for. Errors still arrive in row order."""
+        if not isinstance(prefetch, int) or prefetch < 0:
+            raise ValueError(f"prefetch must be an integer >= 0, got {prefetch!r}")
+        self.prefetch = prefetch
+        self.folder = Path(folder)
+        self.meta = read_meta(folder)
+        self.frames_path = self.folder / "frames.csv"
+        if not self.frames_path.is_file():
+            raise DatasetError(f"{self.frames_path}: missing")
+        try:
+            with open(self.frames_path, newline="", encoding="utf-8") as f:
+                header = next(csv.reader(f), None)
+        except UnicodeDecodeError:
+            raise DatasetError(f"{self.frames_path}: not UTF-8 text") from None
+        if header is None:
+            raise DatasetError(f"{self.frames_path}: empty (no header row)")
+        header = [h.strip() for h in header]
+        missing = [c for c in REQUIRED_COLUMNS if c not in header]
+        if missing:
+            raise DatasetError(f"{self.frames_path}: missing column(s) {', '.join(missing)}")
+        self.columns = header
+        self.faults = self._read_faults()
+
+    def _read_faults(self) -> dict[int, tuple[str, ...]]:
+        path = self.folder / FAULTS_FILE
+        if not path.is_file():
+            return {}
+        out: dict[int, tuple[str, ...]] = {}
+        try:
+            with open(path, newline="", encoding="utf-8") as f:
+                for lineno, cells in enumerate(csv.reader(f), start=1):
+                    if lineno == 1 or not cells:
+                        continue
+                    try:
+                        out[int(cells[0])] = tuple(x for x in cells[1].split(";") if x)
+                    except (ValueError, IndexError):
+                        raise DatasetError(
+                            f"{path} row {lineno}: expected 'index,labels'") from None
+        except UnicodeDecodeError:
+            raise DatasetError(f"{path}: not UTF-8 text") from None
+        return out
+
+    def row_count(self) -> int:
+        """How many non-blank data rows frames.csv has (for a progress bar: the rows are not
+        checked here; a bad one still stops the frames at its turn)."""
+        try:
+            with open(self.frames_path, newline="", encoding="utf-8") as f:
+                rows = csv.reader(f)
+                next(rows, None)
+                return sum(1 for cells in rows if any(c.strip() for c in cells))
+        except (UnicodeDecodeError, csv.Error, OSError):
+            return 0
+
+    def _rows(self) -> Iterator[_Row]:
+        try:
+            yield from self._parse_rows()
+        except UnicodeDecodeError:
+            raise DatasetError(f"{self.frames_path}: not UTF-8 text") from None
+
+    def _parse_rows(self) -> Iterator[_Row]:
+        with open(self.frames_path, newline="", encoding="utf-8") as f:
+            reader = csv.reader(f)
+            next(reader)
+            expected_index = 0
+            last_t = -math.inf
+            for lineno, cells in enumerate(reader, start=2):
+                where = f"{self.frames_path} row {lineno}"
+                if not cells or all(not c.strip() for c in cells):
+                    continue
+                if len(cells) < len(self.columns):
+                    raise DatasetError(f"{where}: truncated ({len(cells)} of "
+                                       f"{len(self.columns)} columns)")
+                rec = {c: cells[i].strip() for i, c in enumerate(self.columns)}
+                try:
+                    index = int(rec["index"])
+                except ValueError:
+                    raise DatasetError(f"{where}: index is not an integer "
+                                       f"({rec['index']!r})") from None
+                if index != expected_index:
+                    raise DatasetError(f"{where}: index {index}, expected {expected_index}")
+                expected_index += 1
+                t = parse_float(rec["t"], "t", where)
+                if t <= last_t:
+                    raise DatasetError(f"{where}: t={t!r} does not increase")
+                last_t = t
+                if not rec["image"]:
+                    raise DatasetError(f"{where}: image is empty")
+                speed = parse_float(rec["speed"], "speed", where)
+                yaw_rate = parse_float(rec["yaw_rate"], "yaw_rate", where)
+                comp_text = rec.get("compass", "")
+                compass = parse_float(comp_text, "compass", where) if comp_text else None
+                if compass is not None and not -math.pi - 1e-9 <= compass <= math.pi + 1e-9:
+                    raise DatasetError(f"{where}: compass {compass!r} is not in (-pi, pi]")
+                cells_truth = [rec.get(c, "") for c in ("x", "y", "theta")]
+                truth = None
+                if any(cells_truth):
+                    if not all(cells_truth):
+                        raise DatasetError(f"{where}: x, y, theta must be all given or all empty")
+                    truth = Pose(*(parse_float(v, c, where)
+                                   for v, c in zip(cells_truth, ("x", "y", "theta"), strict=True)))
+                yield _Row(lineno, index, t, rec["image"], speed, yaw_rate, compass, truth)
+
+    def load_image(self, name: str, where: str) -> np.ndarray:
+        """Read one image as HxWx3 RGB uint8; errors name the row and the file."""
+        path = (self.folder / name)
+        if not path.is_file():
+            raise DatasetError(f"{where}: image {name!r} is missing")
+        raw = path.read_bytes()
+        if truncated(raw):
+            raise DatasetError(f"{where}: image {name!r} is truncated (no end marker)")
+        # a prefetching source decodes on a thread: OpenCV's decoder lets the caller run
+        image = decode_image(raw, spng=self.prefetch == 0)
+        if image is None:
+            raise DatasetError(f"{where}: image {name!r} is not a readable PNG/JPEG")
+        h, w = image.shape[:2]
+        if (w, h) != (self.meta.image_width, self.meta.image_height):
+            raise DatasetError(f"{where}: image {name!r} is {w}x{h}, meta.json says "
+                               f"{self.meta.image_width}x{self.meta.image_height}")
+        return image
+
+    def _jobs(self) -> Iterator[tuple[_Row, Odometry | None, str]]:
+        """(row, its odometry, where) in order. A bad row raises DatasetError after the row
+        before it was given (without odometry: it has no successor)."""
+        rows = self._rows()
+        current = next(rows, None)
+        while current is not None:
+            where = f"{self.frames_path} row {current.line}"
+            try:
+                nxt = next(rows, None)
+            except DatasetError:
+                yield current, None, where
+                raise
+            odometry = None
+            if nxt is not None:
+                odometry = Odometry(current.speed, current.yaw_rate, nxt.t - current.t)
+            yield current, odometry, where
+            current = nxt
+
+    def __iter__(self) -> Iterator[FrameInput]:
+        """The frames in order. A bad row raises DatasetError naming it, after every frame
+        before it was delivered (the one just before it without odometry, as a last frame)."""
+        if self.prefetch == 0:
+            for row, odometry, where in self._jobs():
+                yield self._frame(row, odometry, self.load_image(row.image, where))
+            return
+        yield from self._prefetched()
+
+    def frames_without_images(self) -> Iterator[tuple[FrameInput, str]]:
+        """Every frame in order with an empty image (0x0x3) and the text naming its row (for
+        :meth:`load_image`), for a reader that decodes the images elsewhere
+        (:mod:`tileviz.pipeline.workers`). A bad row raises DatasetError as :meth:`__iter__`
+        does."""
+        for row, odometry, where in self._jobs():
+            yield self._frame(row, odometry, _NO_IMAGE), where
+
+    def _prefetched(self) -> Iterator[FrameInput]:
+        """:meth:`__iter__` with up to ``prefetch`` images decoding ahead on one thread."""
+        with ThreadPoolExecutor(1, thread_name_prefix="tileviz-decode") as pool:
+            for (row, odometry, _), image in results_in_order(
+                    self._jobs(), lambda job: pool.submit(self.load_image, job[0].image, job[2]),
+                    self.prefetch):
+                yield self._frame(row, odometry, image)
+
+    def _frame(self, row: _Row, odometry: Odometry | None, image: np.ndarray) -> FrameInput:
+        return FrameInput(
+            index=row.index,
+            t=row.t,
+            image=np.ascontiguousarray(image),
+            odometry=odometry,
+            compass=row.compass,
+            truth=row.truth,
+            image_name=row.image,
+            faults=self.faults.get(row.index, ()),
+        )

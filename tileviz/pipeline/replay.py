@@ -1,0 +1,90 @@
+"""Replay a recorded dataset through the frame loop and write its output files
+(``python -m tileviz replay``; the CLI in :mod:`tileviz.cli` only parses the options).
+
+Vision runs in ``jobs`` worker processes (:func:`tileviz.pipeline.workers.vision_ahead`) or, with
+one job, in this process with the images decoded ahead on a thread; the localizer steps the frames
+in order in this process. The output is the same whatever ``jobs``.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Iterator
+from dataclasses import replace
+
+from tileviz.config import Extractor, Mode
+from tileviz.datasets import DatasetSource, replay_config
+from tileviz.pipeline.frame_loop import FrameLoop, FrameRecord
+from tileviz.pipeline.outputs import (
+    REPLAY_COLUMNS,
+    RESIDUAL_COLUMNS,
+    CsvOut,
+    replay_row,
+    residual_row,
+)
+
+__all__ = ["default_jobs", "replay"]
+
+
+def default_jobs() -> int:
+    """The default worker count: the cores this process may run on, at most 4 (beyond that the
+    in-order localizer and the workers' start-up gain little)."""
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        cores = os.cpu_count() or 1
+    return max(1, min(4, cores))
+
+
+def replay(
+    dataset: str | os.PathLike[str],
+    *,
+    out: str | os.PathLike[str],
+    output_file: str | os.PathLike[str] | None = None,
+    mode: Mode | None = None,
+    extractor: Extractor | None = None,
+    max_boxes: int | None = None,
+    jobs: int | None = None,
+    on_total: Callable[[int | None], None] | None = None,
+    on_frame: Callable[[FrameRecord], None] | None = None,
+) -> int:
+    """Replay ``dataset`` and write the replay CSV ``out`` (one row per frame) and, when given,
+    the equivalence-residual CSV ``output_file``; returns the number of frames replayed. ``mode``,
+    ``extractor``, ``max_boxes`` override the dataset's configuration
+    (:func:`tileviz.datasets.replay_config`); ``jobs``: vision processes (default
+    :func:`default_jobs`). ``on_total`` gets the frame count when known (None otherwise) before
+    the first frame, ``on_frame`` every record. A bad row or image raises DatasetError (a
+    ValueError) after every frame before it was written."""
+    # images decode on a background thread while the previous frame's vision runs
+    source = DatasetSource(dataset, prefetch=8)
+    cfg = replay_config(source.meta, mode=mode, extractor=extractor)
+    if max_boxes:
+        cfg = replace(cfg, localizer=replace(cfg.localizer, max_boxes=max_boxes))
+    csv_out = CsvOut(out, REPLAY_COLUMNS)
+    eq = CsvOut(output_file, RESIDUAL_COLUMNS) if output_file else None
+    loop = FrameLoop(cfg)
+    if on_total is not None:
+        on_total(source.row_count() or None)
+    n = 0
+    jobs = jobs if jobs is not None else default_jobs()
+    records: Iterator[FrameRecord]
+    if jobs > 1:
+        from tileviz.pipeline.workers import vision_ahead
+
+        records = (loop.process(frame, vision)
+                   for frame, vision in vision_ahead(source, cfg, jobs))
+    else:
+        records = loop.run(source)
+    try:
+        for rec in records:
+            csv_out.row(replay_row(rec))
+            if eq is not None:
+                eq.row(residual_row(rec))
+            n += 1
+            if on_frame is not None:
+                on_frame(rec)
+    finally:
+        csv_out.close()
+        if eq is not None:
+            eq.close()
+    return n
