@@ -12,9 +12,9 @@ from pathlib import Path
 
 import pytest
 
+from tests.wsclient import ViserClient
 from tileviz.app.server import App
 from tileviz.app.session import SessionOptions
-from tileviz.app.wsclient import ViserClient
 from tileviz.config import preset
 
 REPO = Path(__file__).resolve().parents[1]
@@ -24,7 +24,7 @@ LOAD_SECONDS = 60.0
 # The clients run in their own process, as browsers would: they must not share the server's GIL.
 LOAD = """
 import asyncio, sys, time
-from tileviz.app.wsclient import ViserClient
+from tests.wsclient import ViserClient
 
 async def churn(url, until):
     n = 0

@@ -13,9 +13,9 @@ from pathlib import Path
 
 import pytest
 
+from tests.wsclient import ViserClient, serving, stop_serve
 from tileviz.app.server import App
 from tileviz.app.session import Session, SessionOptions
-from tileviz.app.wsclient import ViserClient, serving, stop_serve
 from tileviz.config import preset
 
 REPO = Path(__file__).resolve().parents[1]

@@ -15,7 +15,8 @@ from dataclasses import dataclass
 from tileviz.config import EXTRACTORS, MODES, SETPOINTS, finite_number
 
 __all__ = [
-    "LAYERS", "Command", "Inject", "Kidnap", "Live", "Pause", "Play", "Relocalize", "Report",
+    "LAYERS", "SIMULATOR_ONLY", "Command", "Inject", "Kidnap", "Live", "Pause", "Play",
+    "Relocalize", "Report",
     "Reset", "Restart", "Seek", "SetDisplay", "SetExtractor", "SetInflation", "SetLayer",
     "SetManualTarget", "SetMaxSpeed", "SetMcl", "SetMode", "SetNoise", "SetSetpoint", "SetSpeed",
     "SetWaypoints", "StartRecording", "Step", "StepBack", "StopRecording", "TogglePlay",
@@ -321,3 +322,10 @@ Command = (
     | StartRecording | StopRecording | Report
 )
 """Any command the loop understands."""
+
+SIMULATOR_ONLY: dict[type[Command], str] = {
+    SetSetpoint: "the setpoint", SetManualTarget: "the setpoint", SetWaypoints: "the setpoint",
+    Kidnap: "kidnap", SetNoise: "the sensor noise", Inject: "fault injection",
+    Restart: "a new floor or camera", StartRecording: "recording", StopRecording: "recording",
+}
+"""Commands that steer the simulator, and what they change: a replay refuses them with a note."""

@@ -13,15 +13,29 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from tileviz.app import commands as C
 from tileviz.config import EXTRACTORS, MODES, SETPOINTS, Config
+from tileviz.sim.camera import FAULT_KINDS
+from tileviz.sim.source import ODOMETRY_FAULTS
+
+if TYPE_CHECKING:
+    from viser import (
+        GuiButtonHandle,
+        GuiEvent,
+        GuiFolderHandle,
+        GuiInputHandle,
+        SceneClickEvent,
+        TransformControlsEvent,
+        ViserServer,
+    )
 
 __all__ = ["Controls"]
 
-FAULTS = ("slip", "odometry_outlier", "cable", "box", "shadow", "glare", "motion_blur", "dropout")
-"""Faults the simulator can inject (``SimSource.inject``)."""
+FAULTS = ODOMETRY_FAULTS + FAULT_KINDS
+"""Faults the simulator can inject (``SimSource.inject``): its odometry faults, then the
+camera's."""
 
 LAYER_TITLES = {
     "floor": "Floor", "grid": "Tile grid", "robot": "Robot", "footprint": "Camera footprint",
@@ -42,7 +56,7 @@ class Controls:
     are hidden then and the noise sliders, showing the dataset's declared bounds, are disabled.
     """
 
-    def __init__(self, server: Any, submit: Callable[[object], None], cfg: Config, *,
+    def __init__(self, server: ViserServer, submit: Callable[[object], None], cfg: Config, *,
                  layers: dict[str, bool], display: bool, playing: bool, speed: float = 1.0,
                  max_speed: bool = False, mcl: bool = False, replay: str | None = None) -> None:
         self.server = server
@@ -120,7 +134,7 @@ class Controls:
             self._on_change(h, lambda: C.SetInflation(self.inflation_xy.value,
                                                       self.inflation_t.value))
 
-        folders: dict[str, Any] = {}
+        folders: dict[str, GuiFolderHandle] = {}
         with gui.add_folder("Floor and camera", expand_by_default=False) as folders["floor"]:
             self.tile_size = gui.add_number("Tile size L (m)", cfg.floor.tile_size, min=0.05,
                                             max=5.0, step=0.001)
@@ -167,7 +181,7 @@ class Controls:
             self.gizmo.visible = False
 
         @self.gizmo.on_update
-        async def _(event: Any) -> None:
+        async def _(event: TransformControlsEvent) -> None:
             if event.client is None or event.phase != "end":
                 return
             x, y = float(event.target.position[0]), float(event.target.position[1])
@@ -181,15 +195,15 @@ class Controls:
             cmd = C.Report(f"refused: {e}")
         self._submit(cmd)
 
-    def _on_click(self, handle: Any, factory: Callable[[], object]) -> None:
+    def _on_click(self, handle: GuiButtonHandle, factory: Callable[[], object]) -> None:
         @handle.on_click
-        async def _(event: Any) -> None:
+        async def _(event: GuiEvent[GuiButtonHandle]) -> None:
             if event.client is not None:
                 self._make(factory)
 
-    def _on_change(self, handle: Any, factory: Callable[[], object]) -> None:
+    def _on_change(self, handle: GuiInputHandle[Any], factory: Callable[[], object]) -> None:
         @handle.on_update
-        async def _(event: Any) -> None:
+        async def _(event: GuiEvent[GuiInputHandle[Any]]) -> None:
             if event.client is not None:
                 self._make(factory)
 
@@ -197,13 +211,13 @@ class Controls:
         scene = self.server.scene
 
         @self.pick.on_click
-        async def _(event: Any) -> None:
+        async def _(event: GuiEvent[GuiButtonHandle]) -> None:
             if event.client is None:
                 return
             self.pick.disabled = True
 
             @scene.on_click()
-            async def picked(click: Any) -> None:
+            async def picked(click: SceneClickEvent) -> None:
                 scene.remove_click_callback(picked)
                 self.pick.disabled = False
                 point = floor_point(click.ray_origin, click.ray_direction)

@@ -9,11 +9,14 @@ series that need it rather than sent as NaN.
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from tileviz.app.history import METRIC_NAMES
+
+if TYPE_CHECKING:
+    from viser import GuiApi
 
 __all__ = ["Plots"]
 
@@ -38,7 +41,7 @@ class Plots:
     residuals, the box widths, the centre error, and the MCL baseline's error (shown while it
     runs)."""
 
-    def __init__(self, gui: Any, *, height: int = 190) -> None:
+    def __init__(self, gui: GuiApi, *, height: int = 190) -> None:
         x = np.zeros(2)
         zeros = np.zeros(2)
         self.residuals = gui.add_uplot(
