@@ -286,7 +286,7 @@ def test_serve_dataset_replays_in_the_browser_to_the_end(dataset, frames, tmp_pa
         assert re.fullmatch(r"http://127\.0\.0\.1:\d+/", url), url
 
         def status(m: dict, pattern: str) -> bool:
-            return (m.get("type") in ("GuiUpdateMessage", "GuiMarkdownMessage")
+            return (m.get("type") in ("GuiUpdateMessage", "GuiHtmlMessage")
                     and re.search(pattern, str(m.get("updates", m.get("props", {})))) is not None)
 
         async def scenario() -> None:
@@ -296,7 +296,7 @@ def test_serve_dataset_replays_in_the_browser_to_the_end(dataset, frames, tmp_pa
                 await c.wait_for(lambda m: status(m, rf"end of dataset, {frames} frames"),
                                  timeout=120)
                 shown = [int(x) for m in c.messages
-                         for x in re.findall(r"\*\*frame (\d+)\*\*", str(m.get("updates", "")))]
+                         for x in re.findall(r"<b>frame (\d+)</b>", str(m.get("updates", "")))]
                 assert max(shown) == frames - 1 and len(set(shown)) >= 2
                 # the simulator's controls are not shown
                 for label in ("Kidnap (teleport the robot)", "Setpoint", "Faults", "Record",
@@ -305,7 +305,7 @@ def test_serve_dataset_replays_in_the_browser_to_the_end(dataset, frames, tmp_pa
                 assert visible(c, "Step back") and visible(c, "Mode")
                 mark = len(c.messages)
                 await c.click("Step back")
-                await c.wait_for(lambda m: status(m, rf"\*\*frame {frames - 2}\*\*"),
+                await c.wait_for(lambda m: status(m, rf"<b>frame {frames - 2}</b>"),
                                  start=mark)
 
         asyncio.run(scenario())

@@ -112,10 +112,10 @@ def test_a_refused_gui_value_becomes_a_note_and_the_loop_goes_on(app):
                           "updates": {"value": "1, 2; banana"}})
             await c.click("Drive the waypoints")
             await c.wait_for(lambda m: m.get("type") == "GuiUpdateMessage"
-                             and "waypoint 1" in str(m["updates"].get("_markdown", "")))
+                             and "waypoint 1" in str(m["updates"].get("content", "")))
             await c.click("Step")
             await c.wait_for(lambda m: m.get("type") == "GuiUpdateMessage"
-                             and "frame 1" in str(m["updates"].get("_markdown", "")))
+                             and "frame 1" in str(m["updates"].get("content", "")))
             assert app.running
 
     asyncio.run(scenario())
@@ -151,7 +151,7 @@ def test_the_target_follows_a_click_on_the_floor_and_the_gizmo(app):
             assert app.session.cfg.sim.manual_target == pytest.approx((-0.5, 2.5))
             await c.click("Step")
             await c.wait_for(lambda m: m.get("type") == "GuiUpdateMessage"
-                             and "frame 1" in str(m["updates"].get("_markdown", "")))
+                             and "frame 1" in str(m["updates"].get("content", "")))
             assert app.session.shown_entry().record.setpoint == pytest.approx((-0.5, 2.5))
 
     asyncio.run(scenario())

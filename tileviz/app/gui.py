@@ -62,7 +62,7 @@ class Controls:
         self.server = server
         self._submit = submit
         gui = server.gui
-        self.status = gui.add_markdown("starting...")
+        self.status = gui.add_html("starting...")
         if replay is not None:
             gui.add_markdown(f"Replaying `{replay}`: setpoint, kidnap, noise, faults, floor and "
                              "recording belong to the simulator. Mode and extractor replay from "

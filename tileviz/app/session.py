@@ -33,6 +33,7 @@ from tileviz.app.outputs import output_path, sanitize_name
 from tileviz.app.scene import texture_pixels_per_tile
 from tileviz.config import Config, LocalizerConfig, NoiseConfig
 from tileviz.runner import Runner, initial_box
+from tileviz.summary import RunTally
 from tileviz.types import FrameInput
 
 __all__ = ["Session", "SessionOptions"]
@@ -63,6 +64,9 @@ class SessionOptions:
     """Its particle count."""
     renderer: Any = None
     """A renderer for the simulator (tests); None = the real floor renderer."""
+    start_frame: int = 0
+    """The frame shown first (frame index): the frames before it are computed on start, without
+    stage images."""
     dataset: Path | None = None
     """Replay this tileviz-dataset/1 folder instead of simulating (the Config passed to the
     session should be :func:`tileviz.dataset.replay_config` of its meta)."""
@@ -148,6 +152,7 @@ class Session:
         if self._mcl_wanted:
             self._start_mcl(initial_box(cfg))
         self.history.clear()
+        self.tally = RunTally()
         self.shown = -1
         self.degraded = False
         self.world_version += 1
@@ -215,6 +220,26 @@ class Session:
                     return p
         return pos
 
+    def skip_to(self, index: int) -> None:
+        """Compute frames until the shown one has frame index ``index`` or more (the frames on the
+        way keep no stage images), or the source ends (then the note says so)."""
+        keep = self.runner.keep_stages
+        display, self.display = self.display, False
+        self.runner.keep_stages = False
+        try:
+            while index > 0:
+                entry = self.shown_entry()
+                if entry is not None and entry.index >= index - 1:
+                    break
+                if self.compute() is None and (self.ended is not None or self.errors > 100):
+                    return
+        finally:
+            self.display = display
+            self.runner.keep_stages = keep
+        entry = self.shown_entry()
+        if entry is None or entry.index < index:
+            self.compute()
+
     def advance(self) -> bool:
         """Show the next frame: the next stored one, or a new one when the newest is shown.
         Returns False when a new frame failed (logged; the run goes on)."""
@@ -256,6 +281,7 @@ class Session:
         particles = self._step_mcl(frame, rec) if self.mcl is not None else None
         entry = Entry.make(rec, stages=self.display, encoder=self.encoder, mcl=particles)
         self.shown = self.history.append(entry)
+        self.tally.add(rec)
         self.frames_computed += 1
         self._count_rate()
         self.version += 1
@@ -477,10 +503,19 @@ class Session:
         cfg = self.cfg
         if cmd.seed is not None:
             cfg = replace(cfg, sim=replace(cfg.sim, seed=int(cmd.seed)))
-        self._new_run_files()
-        self._build(cfg)
+        self._new_run(cfg)
         if self.source.restart_on_settings:
             self._replay_from_start("Reset")
+        else:
+            self.compute()
+            self.note(f"Reset: a new run from frame 0 (seed {self.cfg.sim.seed})")
+
+    def _new_run(self, cfg: Config) -> None:
+        """Forget the old run (its notes, frames and files) and build a new one with ``cfg``;
+        the caller shows its frame 0 at once, so nothing of the old run stays on screen."""
+        self.notes.clear()
+        self._new_run_files()
+        self._build(cfg)
 
     def _replay_from_start(self, why: str) -> None:
         """A replay started again: show its frame 0 at once, and say so."""
@@ -492,8 +527,8 @@ class Session:
                         grout_width=min(self.cfg.floor.grout_width, cmd.tile_size / 8))
         camera = replace(self.cfg.camera, ppm=float(cmd.ppm))
         cfg = replace(self.cfg, floor=floor, camera=camera)  # validates (ValueError)
-        self._new_run_files()
-        self._build(cfg)
+        self._new_run(cfg)
+        self.compute()
         self.note(f"new run: tile size {cmd.tile_size:g} m, {cmd.ppm:g} px/m")
 
     def _reconfigure(self, cfg: Config, what: str = "new settings") -> None:
@@ -535,9 +570,13 @@ class Session:
         if self.recording is not None or self._record_pending is not None:
             raise ValueError("already recording; stop the current recording first")
         self._record_pending = output_path(self.options.out_dir, sanitize_name(cmd.name))
-        self.note(f"will record from the next new frame to {self._record_pending}")
+        when = "the next new frame" if self.playing else "the next new frame (press Play or Step)"
+        self.note(f"will record from {when} to {self._record_pending}")
 
     def _stop_recording_cmd(self) -> None:
+        if self._record_pending is not None and self.recording is None:
+            self.note(f"nothing recorded: no new frame was made after Start recording (press "
+                      f"Play or Step while recording); {self._record_pending} was not written")
         self._record_pending = None
         self._stop_recording()
 
