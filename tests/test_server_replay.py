@@ -104,6 +104,20 @@ def test_a_mode_or_extractor_change_replays_from_frame_0_as_the_command_line(
     s.close()
 
 
+def test_start_frame_opens_the_recorded_run_paused_at_that_frame(dataset, frames, tmp_path):
+    s = session(dataset, tmp_path)
+    k = frames // 2
+    s.skip_to(k)
+    entry = s.shown_entry()
+    assert not s.playing and entry.index == k and s.history.last == s.shown
+    assert len(dict(entry.images)) > 2  # the frame shown has its stage images
+    # the sets are those of a replay from frame 0
+    assert shown_rows(s)[-1] == cli_replay(dataset, tmp_path / "r.csv")[k + 1]
+    s.apply(C.Step())
+    assert s.shown_entry().index == k + 1
+    s.close()
+
+
 def test_the_end_of_the_dataset_pauses_and_the_stored_frames_stay(dataset, frames, tmp_path):
     s = session(dataset, tmp_path)
     s.apply(C.Play())

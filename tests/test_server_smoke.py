@@ -217,3 +217,35 @@ def test_the_page_fetches_nothing_from_the_internet():
     page = (Path(viser.__file__).parent / "client" / "build" / "index.html").read_text()
     urls = set(re.findall(r"https?://[^\s\"'`)]+", page))
     assert urls <= {"http://www.w3.org/2000/svg"}, urls
+
+
+def test_frames_runs_n_frames_prints_a_summary_and_exits_0(tmp_path):
+    r = run_cli("--frames", "5", "--port", "0", "--max-speed", "--out-dir", str(tmp_path))
+    assert r.returncode == 0, r.stderr
+    summary = [line for line in r.stdout.splitlines() if "frames/s" in line]
+    assert len(summary) == 1, r.stdout
+    assert summary[0].startswith("tileviz serve: 5 frames in ")
+    assert "statuses: " in summary[0] and "truth inside the set in" in summary[0]
+    assert "Traceback" not in r.stderr
+
+
+def test_a_requested_busy_port_is_one_line_and_the_default_says_where_it_went(tmp_path):
+    import socket
+
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        r = run_cli("--port", str(port), "--frames", "1", "--out-dir", str(tmp_path))
+        assert r.returncode == 2
+        lines = r.stderr.strip().splitlines()
+        assert len(lines) == 1 and f"port {port} on 127.0.0.1 is busy" in lines[0], r.stderr
+        assert "open http" not in r.stdout
+        # without --port the server takes the next free one and says so
+        app = App(preset("default"), SessionOptions(out_dir=tmp_path, interactive=True),
+                  port=port)
+        app.start()
+        try:
+            assert app.port != port
+        finally:
+            app.stop()
