@@ -68,6 +68,15 @@ def test_scene_and_controls_arrive_and_step_advances_one_frame(app):
             frame0 = camera_jpeg()[-1]
             assert frame0[:2] == b"\xff\xd8"  # a JPEG of the camera view
             assert app.session.history.last == 0
+            # the stages are sent once the left panel shows them
+            stages = {m["uuid"] for m in c.of_type("GuiImageMessage")
+                      if m["props"].get("label") == ""}
+            mark = len(c.messages)
+            view = uuid_of(c, "Below", "GuiButtonGroupMessage")
+            await c.send({"type": "GuiUpdateMessage", "uuid": view,
+                          "updates": {"value": "Camera and stages"}})
+            await c.wait_for(lambda m: m.get("uuid") in stages
+                             and "_data" in m.get("updates", {}), start=mark)
 
             mark = len(c.messages)
             await c.click("Step")

@@ -81,14 +81,15 @@ class ImagePanels:
         self.stages = [ImageSlot(gui, blank, visible=False) for _ in range(slots)]
         self._shown: tuple[str, ...] = ()
 
-    def show(self, entry: Entry, display: bool) -> None:
-        """Show ``entry``'s images; stage slots only when ``display`` (and the entry has them)."""
+    def show(self, entry: Entry, display: bool, stages: bool = True) -> None:
+        """Show ``entry``'s images; stage slots only when ``display`` and ``stages`` (and the
+        entry has them)."""
         images = dict(entry.images)
         if "camera" in images:
             self.camera.show(images["camera"])
         # the extractors' "input" stage is the camera view again
-        names = tuple(n for n, _ in entry.images if n not in ("camera", "input")) if display \
-            else ()
+        names = tuple(n for n, _ in entry.images if n not in ("camera", "input")) \
+            if display and stages else ()
         for slot, name in zip(self.stages, names, strict=False):
             title = STAGE_TITLES.get(name, name)
             if slot.handle.label != title:
@@ -97,7 +98,9 @@ class ImagePanels:
             slot.handle.visible = True
         for slot in self.stages[len(names):]:
             slot.handle.visible = False
-        if not display:
+        if not stages:
+            text = "*The image pipeline's stages: choose \"Camera and stages\" above.*"
+        elif not display:
             text = "*Stage images are off (`--no-display` or Layers > Stream stage images).*"
         elif not names:
             text = "*This frame was made with the stage images off: none stored.*"

@@ -33,7 +33,9 @@ import threading
 import time
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
 
 from tileviz.app import commands as C
 from tileviz.app.history import METRIC_NAMES, Entry
@@ -50,9 +52,16 @@ from tileviz.cliutil import (
 )
 from tileviz.config import EXTRACTORS, MODES, PRESETS, Config, preset
 
+if TYPE_CHECKING:
+    from viser import GuiButtonGroupHandle, GuiEvent
+
 __all__ = ["App", "config_from_args", "main", "options_from_args", "parser"]
 
 _COL = {name: i for i, name in enumerate(METRIC_NAMES)}
+VIEW_LABELS = {"camera": "Camera", "stages": "Camera and stages", "plots": "Plots"}
+"""The left panel's choices (``commands.PANEL_VIEWS``) as the button group shows them."""
+FOLLOW_OFFSET = (0.0, -2.2, 2.6)
+"""Where the initial view stands relative to the robot, metres (behind it to the south, up)."""
 DEFAULT_PORT = 8080
 """Where ``serve`` listens unless ``--port`` says otherwise (the next free port if it is busy)."""
 QUEUE_SIZE = 1000
@@ -67,14 +76,17 @@ class App:
     ``strict_port``). ``push_rate``: scene updates per second at most;
     ``image_rate``: image panel updates per second at most while playing (a paused or stepped
     frame always shows its images); ``plot_rate``: plot updates per second at most;
-    ``plot_window``: frames in the plots.
+    ``plot_window``: frames in the plots. ``frames``: pause after that many frames of the run.
     """
 
     def __init__(self, cfg: Config, options: SessionOptions | None = None, *,
                  host: str = "127.0.0.1", port: int = 8080, strict_port: bool = False,
-                 push_rate: float = 40.0, image_rate: float = 10.0, plot_rate: float = 4.0,
-                 plot_window: int = 1000, verbose: bool = False) -> None:
+                 push_rate: float = 20.0, image_rate: float = 10.0, plot_rate: float = 4.0,
+                 plot_window: int = 1000, verbose: bool = False,
+                 frames: int | None = None) -> None:
         self.cfg = cfg
+        self.frames = frames
+        """Pause once the run has made this many frames (None: never)."""
         self.strict_port = strict_port
         self.image_rate = float(image_rate)
         self._next_images = 0.0
@@ -104,6 +116,7 @@ class App:
         import viser
 
         from tileviz.app.gui import Controls
+        from tileviz.app.inset import InsetView
         from tileviz.app.panels import ImagePanels
         from tileviz.app.plots import Plots
         from tileviz.app.scene import SceneView
@@ -124,9 +137,11 @@ class App:
         server.gui.configure_theme(control_width="medium", show_share_button=False,
                                    titlebar_content=None)
         server.scene.set_up_direction("+z")
-        (cx, cy), a = view_of(s.source.path(), s.cfg.sim.initial_pose[:2])
-        server.initial_camera.position = (cx, cy - 1.9 * a, 2.2 * a)
-        server.initial_camera.look_at = (cx, cy, 0.0)
+        # the robot at its start, seen from behind and above (the view follows it while playing)
+        rx, ry = s.robot_start()
+        server.initial_camera.position = (rx + FOLLOW_OFFSET[0], ry + FOLLOW_OFFSET[1],
+                                          FOLLOW_OFFSET[2])
+        server.initial_camera.look_at = (rx, ry, 0.0)
         server.scene.configure_default_lights(enabled=True, cast_shadow=False)
         self.scene = SceneView(server.scene, pool=max(1, self.cfg.localizer.max_boxes),
                                particles=self.options.mcl_particles)
@@ -135,13 +150,24 @@ class App:
                                  max_speed=s.max_speed, mcl=s.mcl is not None,
                                  replay=None if s.source.simulator else s.source.describe())
         panel = server.gui.add_panel()
-        with panel.add_tab("Vision"):
-            self.panels = ImagePanels(server.gui, width=self.cfg.camera.width,
-                                      height=self.cfg.camera.height)
-        with panel.add_tab("Plots"):
-            self.plots = Plots(server.gui)
+        with panel.add_tab("The set, camera and plots"):
+            self.inset = InsetView(server.gui)
+            self.view = server.gui.add_button_group("Below", tuple(VIEW_LABELS.values()))
+            with server.gui.add_folder("Camera and image pipeline") as self.images_folder:
+                self.panels = ImagePanels(server.gui, width=self.cfg.camera.width,
+                                          height=self.cfg.camera.height)
+            with server.gui.add_folder("Plots", visible=False) as self.plots_folder:
+                self.plots = Plots(server.gui)
         panel.dock_left()
         panel.set_width(380)
+        self._panel_view = s.panel
+        view_of_label = {label: view for view, label in VIEW_LABELS.items()}
+
+        @self.view.on_click
+        async def _(event: GuiEvent[GuiButtonGroupHandle]) -> None:
+            if event.client is not None:
+                self.submit(C.ShowPanel(view_of_label[str(event.target.value)]))
+
         self._world_version = -1
         self._contained: dict[str, float] | None = None
         self._pushed_version = -1
@@ -224,6 +250,8 @@ class App:
                     s.advance()  # catches what a frame raises; this guards the rest
                 except Exception as e:  # noqa: BLE001 - the loop must go on
                     s.note(f"loop: {type(e).__name__}: {e}", "error")
+                if self.frames is not None and s.frames_computed >= self.frames:
+                    s.playing = False
                 period = s.frame_period
                 next_frame = max(next_frame + period, now - 0.25) if period > 0 else now
             if s.version != self._pushed_version and now >= next_push:
@@ -287,17 +315,51 @@ class App:
                             trail[:, [_COL["est_x"], _COL["est_y"]]],
                             full=plots or not s.playing, mcl=entry.mcl)
             now = time.perf_counter()
-            if not s.playing or now >= self._next_images:
-                # the browser decodes every image it gets: while playing, images at image_rate
-                self.panels.show(entry, s.display)
+            switched = s.panel != self._panel_view
+            if switched:
+                self._panel_view = s.panel
+                self.images_folder.visible = s.panel != "plots"
+                self.plots_folder.visible = s.panel == "plots"
+            if not s.playing or now >= self._next_images or switched:
+                # the browser decodes every image it gets: while playing, images at image_rate;
+                # only the images the left panel shows
+                self.inset.show(entry.record, s.cfg.floor.tile_size)
+                if s.panel != "plots":
+                    self.panels.show(entry, s.display, stages=s.panel == "stages")
                 self._next_images = max(self._next_images + 1.0 / self.image_rate, now)
-            if plots:
+            if (plots or switched) and s.panel == "plots":
                 self.plots.update(rows)
+            if s.follow and s.playing:
+                self._follow(entry)
         self.controls.refresh(first=s.history.first, last=s.history.last, shown=pos,
                               playing=s.playing, setpoint=s.setpoint_kind,
                               target=tuple(s.cfg.sim.manual_target),  # type: ignore[arg-type]
                               recording=s.recording_active,
                               status=self.status_text(entry, live=s.shown == s.history.last))
+
+    def _follow(self, entry: Entry) -> None:
+        """Move every client's view with the robot (its true pose, else the set's centre),
+        keeping the user's angle and distance."""
+        r = entry.record
+        hull = r.updated.hull()
+        if r.truth is not None:
+            x, y = r.truth.x, r.truth.y
+        elif hull is not None and r.status != "lost":
+            x, y, _ = hull.centre
+        else:
+            return
+        if not (math.isfinite(x) and math.isfinite(y)):
+            return
+        for client in self.server.get_clients().values():
+            cam = client.camera
+            try:
+                look = cam.look_at
+                dx, dy = x - float(look[0]), y - float(look[1])
+                if math.hypot(dx, dy) > 1e-3:
+                    # viser moves look_at with the position: the view is translated
+                    cam.position = np.asarray(cam.position) + (dx, dy, 0.0)
+            except (AssertionError, ValueError):
+                continue  # a client whose camera is not known yet
 
     def status_text(self, entry: Entry | None, *, live: bool) -> str:
         """The readout of ``entry`` as HTML: a box of fixed height (frame, status, widths, error,
@@ -376,7 +438,7 @@ STATUS_WORDS = {
 """The statuses in plain words (``tileviz.types.STATUSES``)."""
 _BOX = ("box-sizing:border-box;overflow-y:auto;font-size:0.8em;line-height:1.35em;"
         "padding:0.2em 0.4em;")
-STATUS_STYLE = _BOX + "height:11.2em;"
+STATUS_STYLE = _BOX + "height:12.4em;"
 """Fixed height: the status block never grows, so the buttons under it never move."""
 NOTES_STYLE = _BOX + "height:5.6em;margin-top:0.2em;border-top:1px solid #8884;opacity:0.85;"
 
@@ -418,8 +480,9 @@ def parser() -> Parser:
     p.add_argument("--seed", type=int, default=None, help="seed of the run's noise")
     p.add_argument("--history", type=positive_int("--history"), default=2000,
                    help="frames kept for stepping back (>= 2, default 2000)")
-    p.add_argument("--push-rate", type=_in_range("--push-rate", 1.0, 60.0), default=40.0,
-                   help="scene updates sent per second at most (default 40)")
+    p.add_argument("--push-rate", type=_in_range("--push-rate", 1.0, 60.0), default=20.0,
+                   help="scene updates sent per second at most (default 20: one per simulated "
+                   "frame at real time)")
     p.add_argument("--image-rate", type=_in_range("--image-rate", 1.0, 60.0), default=10.0,
                    help="camera and stage image updates per second at most while playing "
                    "(default 10; a paused or stepped frame always shows its images)")
@@ -516,17 +579,6 @@ def port_free(host: str, port: int) -> bool:
     return True
 
 
-def view_of(path: list[tuple[float, float]], fallback: tuple[float, ...]) -> tuple[
-        tuple[float, float], float]:
-    """Where the initial camera looks: the centre (x, y) of ``path`` and its half span (at least
-    2 m), metres; around ``fallback`` (x, y) when there is no path."""
-    if not path:
-        return (float(fallback[0]), float(fallback[1])), 4.0
-    xs, ys = [p[0] for p in path], [p[1] for p in path]
-    centre = (0.5 * (min(xs) + max(xs)), 0.5 * (min(ys) + max(ys)))
-    return centre, max(0.5 * (max(xs) - min(xs)), 0.5 * (max(ys) - min(ys)), 2.0)
-
-
 def options_from_args(args: argparse.Namespace) -> SessionOptions:
     """How the session starts, from the command line."""
     return SessionOptions(history=args.history, display=args.display, intervals=args.intervals,
@@ -570,7 +622,7 @@ def main(command: str = "serve", argv: list[str] | None = None) -> int:
         port = DEFAULT_PORT if args.port is None else args.port
         app = App(config_from_args(args), options_from_args(args), host=args.host, port=port,
                   strict_port=args.port is not None, push_rate=args.push_rate,
-                  image_rate=args.image_rate)
+                  image_rate=args.image_rate, frames=args.frames)
         stopping = threading.Event()
 
         def on_term(signum: int, frame: object) -> None:

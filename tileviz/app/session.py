@@ -97,6 +97,10 @@ class Session:
         for name in ("prediction", "boxes", "wedge"):
             self.layers[name] = bool(o.intervals)
         self.notes: deque[Note] = deque(maxlen=8)
+        self.follow = True
+        """The view follows the robot while playing."""
+        self.panel = "camera"
+        """What the left panel shows under the inset (``commands.PANEL_VIEWS``)."""
         self.errors = 0
         """Frames that raised (logged, skipped)."""
         self.degraded = False
@@ -202,6 +206,11 @@ class Session:
         if self.max_speed:
             return 0.0
         return self.cfg.sim.dt / self.speed
+
+    def robot_start(self) -> tuple[float, float]:
+        """Where the robot starts (x, y), metres: the run's initial pose."""
+        x, y = self.cfg.sim.initial_pose[:2]
+        return float(x), float(y)
 
     def shown_entry(self) -> Entry | None:
         """The entry being shown, or None before the first frame."""
@@ -454,6 +463,10 @@ class Session:
                 self._stop_recording_cmd()
             case C.Report(text=text, level=level):
                 self.note(text, level)
+            case C.SetFollow(on=on):
+                self.follow = bool(on)
+            case C.ShowPanel(view=view):
+                self.panel = view
             case _:
                 assert_never(cmd)
         self.version += 1
