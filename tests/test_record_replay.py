@@ -119,7 +119,7 @@ def test_record_cli_writes_a_dataset(tmp_path: Path) -> None:
 
 def _cli(*args: str) -> subprocess.CompletedProcess[str]:
     return subprocess.run([sys.executable, "-m", "tileviz", *args], capture_output=True,
-                          text=True, timeout=120)
+                          text=True, timeout=600)
 
 
 @pytest.mark.parametrize(
@@ -137,7 +137,7 @@ def _cli(*args: str) -> subprocess.CompletedProcess[str]:
 def test_cli_errors_are_one_line(args: list[str], needle: str, tmp_path: Path) -> None:
     (tmp_path / "notes.txt").write_text("a file, not a dataset folder\n")
     r = subprocess.run([sys.executable, "-m", "tileviz", *args], capture_output=True, text=True,
-                       timeout=120, cwd=tmp_path)
+                       timeout=600, cwd=tmp_path)
     assert r.returncode != 0
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and needle in lines[0], r.stderr
