@@ -6,6 +6,7 @@ import math
 import sys
 from dataclasses import replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from tileviz.cliutil import (
     CliError,
@@ -18,6 +19,9 @@ from tileviz.cliutil import (
 )
 from tileviz.config import EXTRACTORS, MODES, PRESETS, SETPOINTS
 from tileviz.core.constants import MAX_PPM, MIN_TILE_PX
+
+if TYPE_CHECKING:
+    from tileviz.pipeline import FrameRecord
 
 MAX_DURATION = 86400.0
 """Longest recording, simulated seconds (a day)."""
@@ -124,22 +128,27 @@ def replay(argv: list[str]) -> int:
 
     def body() -> int:
         from tileviz.pipeline.replay import replay as run_replay
+        from tileviz.summary import RunTally
 
         bar = None
+        tally = RunTally()
 
         def on_total(total: int | None) -> None:
             nonlocal bar
             bar = _progress(total, "replay", not args.quiet)
 
+        def on_frame(rec: FrameRecord) -> None:
+            tally.add(rec)
+            bar.update(1)  # type: ignore[attr-defined]
+
         try:
             n = run_replay(args.dataset, out=args.out, output_file=args.output_file,
                            mode=args.mode, extractor=args.extractor, max_boxes=args.max_boxes,
-                           jobs=args.jobs, on_total=on_total,
-                           on_frame=lambda rec: bar.update(1))  # type: ignore[attr-defined]
+                           jobs=args.jobs, on_total=on_total, on_frame=on_frame)
         finally:
             if bar is not None:
                 bar.close()  # type: ignore[attr-defined]
-        print(f"replayed {n} frames into {args.out}")
+        print("; ".join([f"replayed {n} frames into {args.out}", *tally.parts()]))
         return 0
 
     return run_cli("tileviz replay", body)
