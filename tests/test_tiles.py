@@ -25,7 +25,6 @@ from tileviz.tiles import (
     equivalent_parameters,
     equivalent_pose,
     equivalent_poses,
-    lattice_intersect,
     observe,
     quarter_turn,
     quarter_turns,
@@ -278,8 +277,3 @@ def test_residuals_pick_the_nearest_branch_of_each_family() -> None:
         pose, Observation(y1 + 0.03, y2, y3, 0.0, 0.0), L, (0.0, 0.0)
     )
     assert abs(wrong[0]) == pytest.approx(math.sin(math.pi * 0.03 / L), abs=1e-9)
-
-
-def test_lattice_intersect_is_exported_for_the_contract() -> None:
-    got = lattice_intersect(0.0, 1.0, 0.1, 0.2, 0.5)
-    assert [v for p in got for v in p] == pytest.approx([0.1, 0.2, 0.6, 0.7])

@@ -142,7 +142,7 @@ from tileviz.intervals import (
     mul,
     turn_shift,
 )
-from tileviz.types import Box, BoxSet, Observation, Odometry, Pose, SensorBounds
+from tileviz.types import Box, BoxSet, Observation, Odometry, Pose, SensorBounds, Status
 
 __all__ = [
     "Lever",
@@ -197,7 +197,7 @@ class LocalizerStep:
 
     predicted: BoxSet
     updated: BoxSet
-    status: str
+    status: Status
     passes: int
     hulled: bool = False
     compass_rejected: bool = False
@@ -572,7 +572,7 @@ def _contract_cells(
     x_lo, x_hi, y_lo, y_hi = b[0], b[1], b[2], b[3]
     if lever is None:  # the camera centre is the robot point
         g = (0.0, 0.0, 0.0, 0.0)
-        c = b
+        c: tuple[float, ...] = b
     else:
         rho_lo, rho_hi, phi_lo, phi_hi = lever
         s_lo = _nextafter(a_lo + phi_lo, -_INF)

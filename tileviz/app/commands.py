@@ -12,7 +12,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from tileviz.config import EXTRACTORS, MODES, SETPOINTS, finite_number
+from tileviz.config import EXTRACTORS, MODES, SETPOINTS, Extractor, Mode, finite_number
 
 __all__ = [
     "LAYERS", "PANEL_VIEWS", "SIMULATOR_ONLY", "Command", "Inject", "Kidnap", "Live", "Pause",
@@ -203,7 +203,7 @@ class Restart:
 class SetMode:
     """Localizer mode: autonomous, truth or odometry."""
 
-    mode: str
+    mode: Mode
 
     def __post_init__(self) -> None:
         _choice("mode", self.mode, MODES)
@@ -213,7 +213,7 @@ class SetMode:
 class SetExtractor:
     """Vision extractor: faithful or robust."""
 
-    extractor: str
+    extractor: Extractor
 
     def __post_init__(self) -> None:
         _choice("extractor", self.extractor, EXTRACTORS)

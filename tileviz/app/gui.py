@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from functools import partial
 from typing import TYPE_CHECKING, Any
 
 from tileviz.app import commands as C
@@ -23,6 +24,7 @@ from tileviz.sim.source import ODOMETRY_FAULTS
 if TYPE_CHECKING:
     from viser import (
         GuiButtonHandle,
+        GuiCheckboxHandle,
         GuiEvent,
         GuiFolderHandle,
         GuiInputHandle,
@@ -73,6 +75,11 @@ LAYER_TITLES = {
 }
 
 
+def _set_layer(name: str, box: GuiCheckboxHandle) -> C.Command:
+    """The command that shows or hides layer ``name`` as its checkbox says."""
+    return C.SetLayer(name, bool(box.value))
+
+
 class Controls:
     """Builds the control panel on ``server.gui`` and the target gizmo in ``server.scene``.
 
@@ -84,7 +91,7 @@ class Controls:
     are hidden then and the noise sliders, showing the dataset's declared bounds, are disabled.
     """
 
-    def __init__(self, server: ViserServer, submit: Callable[[object], None], cfg: Config, *,
+    def __init__(self, server: ViserServer, submit: Callable[[C.Command], None], cfg: Config, *,
                  layers: dict[str, bool], display: bool, playing: bool, speed: float = 1.0,
                  max_speed: bool = False, mcl: bool = False, replay: str | None = None) -> None:
         self.server = server
@@ -157,8 +164,8 @@ class Controls:
             self.inflation_t = gui.add_slider("Truth inflation heading (rad)", min=0.0,
                                               max=1.5, step=0.01, initial_value=it)
             self.mcl = gui.add_checkbox("Monte Carlo Localization (orange)", mcl)
-        self._on_change(self.mode, lambda: C.SetMode(str(self.mode.value)))
-        self._on_change(self.extractor, lambda: C.SetExtractor(str(self.extractor.value)))
+        self._on_change(self.mode, lambda: C.SetMode(self.mode.value))
+        self._on_change(self.extractor, lambda: C.SetExtractor(self.extractor.value))
         self._on_change(self.mcl, lambda: C.SetMcl(bool(self.mcl.value)))
         for h in (self.speed_error, self.yaw_error, self.compass_error, self.fraction):
             self._on_change(h, lambda: C.SetNoise(self.speed_error.value, self.yaw_error.value,
@@ -181,8 +188,8 @@ class Controls:
             self.layers = {name: gui.add_checkbox(LAYER_TITLES[name], layers[name])
                            for name in C.LAYERS}
         self._on_change(self.display, lambda: C.SetDisplay(bool(self.display.value)))
-        for name, h in self.layers.items():
-            self._on_change(h, lambda n=name, hh=h: C.SetLayer(n, bool(hh.value)))
+        for name, box in self.layers.items():
+            self._on_change(box, partial(_set_layer, name, box))
 
         with gui.add_folder("Faults", expand_by_default=False) as folders["faults"]:
             self.fault = gui.add_dropdown("Fault", FAULTS, initial_value="slip")
@@ -205,36 +212,38 @@ class Controls:
             depth_test=False, position=(tx, ty, 0.05), visible=cfg.sim.setpoint == "manual")
         self.simulator = replay is None
         if not self.simulator:
-            for h in (self.setpoint, self.pick, self.target, self.waypoints, self.set_waypoints,
-                      self.kidnap, self.seed, *folders.values()):
-                h.visible = False
-            for h in (self.speed_error, self.yaw_error, self.compass_error, self.fraction):
-                h.disabled = True
+            hidden: tuple[Any, ...] = (self.setpoint, self.pick, self.target, self.waypoints,
+                                       self.set_waypoints, self.kidnap, self.seed,
+                                       *folders.values())  # every kind of handle
+            for node in hidden:
+                node.visible = False
+            for slider in (self.speed_error, self.yaw_error, self.compass_error, self.fraction):
+                slider.disabled = True
             self.reset.label = "Replay from frame 0"
             self.gizmo.visible = False
 
         @self.gizmo.on_update
-        async def _(event: TransformControlsEvent) -> None:
+        async def _on_gizmo(event: TransformControlsEvent) -> None:
             if event.client is None or event.phase != "end":
                 return
             x, y = float(event.target.position[0]), float(event.target.position[1])
             self._make(lambda: C.SetManualTarget(x, y))
 
     # ------------------------------------------------------------------ wiring
-    def _make(self, factory: Callable[[], object]) -> None:
+    def _make(self, factory: Callable[[], C.Command]) -> None:
         try:
             cmd = factory()
         except (ValueError, TypeError) as e:
             cmd = C.Report(f"refused: {e}")
         self._submit(cmd)
 
-    def _on_click(self, handle: GuiButtonHandle, factory: Callable[[], object]) -> None:
+    def _on_click(self, handle: GuiButtonHandle, factory: Callable[[], C.Command]) -> None:
         @handle.on_click
         async def _(event: GuiEvent[GuiButtonHandle]) -> None:
             if event.client is not None:
                 self._make(factory)
 
-    def _on_change(self, handle: GuiInputHandle[Any], factory: Callable[[], object]) -> None:
+    def _on_change(self, handle: GuiInputHandle[Any], factory: Callable[[], C.Command]) -> None:
         @handle.on_update
         async def _(event: GuiEvent[GuiInputHandle[Any]]) -> None:
             if event.client is not None:
@@ -244,12 +253,13 @@ class Controls:
         scene = self.server.scene
 
         @self.pick.on_click
-        async def _(event: GuiEvent[GuiButtonHandle]) -> None:
+        async def _on_pick(event: GuiEvent[GuiButtonHandle]) -> None:
             if event.client is None:
                 return
             self.pick.disabled = True
 
-            @scene.on_click()
+            # viser runs async callbacks too; its signature says sync
+            @scene.on_click()  # type: ignore[arg-type]
             async def picked(click: SceneClickEvent) -> None:
                 scene.remove_click_callback(picked)
                 self.pick.disabled = False
@@ -264,6 +274,7 @@ class Controls:
                 target: tuple[float, float], recording: bool, status: str) -> None:
         """Bring the controls the loop changes up to date (values set here are not echoed back
         as commands)."""
+        # (*) a handle's value is settable; mypy sees viser's props field as read-only
         label = "Pause" if playing else "Play"
         if self.play.label != label:
             self.play.label = label
@@ -273,14 +284,14 @@ class Controls:
         if self.timeline.max != hi:
             self.timeline.max = hi
         if shown >= 0 and self.timeline.value != shown:
-            self.timeline.value = shown
+            self.timeline.value = shown  # type: ignore[misc]  # (*)
         if not self.simulator:
             setpoint = "replay"  # no simulator to steer: nothing below applies
         elif self.setpoint.value != setpoint:
-            self.setpoint.value = setpoint
+            self.setpoint.value = setpoint  # type: ignore[misc]  # (*)
         self.gizmo.visible = setpoint == "manual"
         if setpoint == "manual" and tuple(self.target.value) != tuple(target):
-            self.target.value = target
+            self.target.value = target  # type: ignore[misc]  # (*)
             self.gizmo.position = (target[0], target[1], 0.05)
         self._recording = recording
         label = "Stop recording" if recording else "Start recording"

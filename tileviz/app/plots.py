@@ -11,9 +11,10 @@ series that need it rather than sent as NaN.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
+from viser.uplot import Axis, Scale, Series
 
 from tileviz.app.history import METRIC_NAMES
 
@@ -39,16 +40,16 @@ PADDING = (18, 14, 0, 0)
 """Room (top, right, bottom, left px) around each plot so its top tick label is not cut."""
 
 
-def _series(label: str, stroke: str, width: float = 1.5) -> dict[str, Any]:
-    return {"label": label, "stroke": stroke, "width": width}
+def _series(label: str, stroke: str, width: float = 1.5) -> Series:
+    return Series(label=label, stroke=stroke, width=width)
 
 
-def _xscale() -> dict[str, Any]:
-    return {"x": {"time": False}}
+def _xscale() -> dict[str, Scale]:
+    return {"x": Scale(time=False)}
 
 
-def _axes(ylabel: str) -> tuple[dict[str, Any], dict[str, Any]]:
-    return ({"label": "t (s)"}, {"label": ylabel})
+def _axes(ylabel: str) -> tuple[Axis, Axis]:
+    return (Axis(label="t (s)"), Axis(label=ylabel))
 
 
 class Plots:

@@ -117,7 +117,7 @@ def _polyline_segments(points: np.ndarray, n: int, z: float) -> np.ndarray:
     seg = np.zeros((n, 2, 3), np.float32)
     seg[:, :, 2] = z
     pts = np.asarray(points, np.float64).reshape(-1, 2)
-    good = np.isfinite(pts).all(axis=1)
+    good = np.asarray(np.isfinite(pts).all(axis=1))
     if good.any():
         seg[:, :, :2] = pts[good][-1]
     if len(pts) >= 2:
@@ -251,7 +251,8 @@ class SceneView:
             self.floor = s.add_image("/floor", tex, 2 * half, 2 * half, format="jpeg",
                                      jpeg_quality=90, position=(0.0, 0.0, 0.0),
                                      cast_shadow=False, receive_shadow=0.3)
-            g = tuple(int(c) for c in cfg.floor.grout_rgb)
+            r, gr, b = cfg.floor.grout_rgb
+            g = (int(r), int(gr), int(b))
             self.grid = s.add_grid("/grid", width=2 * half, height=2 * half,
                                    cell_size=cfg.floor.tile_size,
                                    section_size=cfg.floor.tile_size, cell_color=g,
@@ -331,8 +332,8 @@ class SceneView:
             self.robot.wxyz = yaw_wxyz(truth.theta)
             self.truth.position = (truth.x, truth.y, Z_TRUTH)
             self.truth.wxyz = yaw_wxyz(truth.theta)
-        elif rec.updated.hull() is not None:  # no true pose (a dataset): the robot at the estimate
-            cx, cy, ct = rec.updated.hull().centre
+        elif (hull := rec.updated.hull()) is not None:  # no true pose (a dataset): the robot
+            cx, cy, ct = hull.centre  # at the estimate
             self.robot.position = (cx, cy, 0.0)
             self.robot.wxyz = yaw_wxyz(ct)
         if self.layers.get("prediction", True):
@@ -354,7 +355,7 @@ class SceneView:
 
     def _show_mcl(self, mcl: ParticleView | None) -> None:
         on = mcl is not None and self.layers.get("particles", True)
-        if on:
+        if mcl is not None and on:
             pts = np.zeros((self.n_particles, 3), np.float32)
             n = min(len(mcl.particles), self.n_particles)
             pts[:n, :2] = mcl.particles[:n, :2]

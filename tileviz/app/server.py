@@ -98,7 +98,7 @@ class App:
         self.plot_rate = float(plot_rate)
         self.plot_window = int(plot_window)
         self.verbose = verbose
-        self.queue: queue.Queue[object] = queue.Queue(maxsize=QUEUE_SIZE)
+        self.queue: queue.Queue[C.Command | None] = queue.Queue(maxsize=QUEUE_SIZE)
         self.dropped = 0
         """Commands refused because the queue was full."""
         self.session: Session | None = None
@@ -213,7 +213,7 @@ class App:
     def running(self) -> bool:
         return self._thread is not None and self._thread.is_alive() and not self._stop.is_set()
 
-    def submit(self, cmd: object) -> None:
+    def submit(self, cmd: C.Command) -> None:
         """Queue a command for the loop (never blocks; dropped when the queue is full)."""
         try:
             self.queue.put_nowait(cmd)

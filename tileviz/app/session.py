@@ -23,7 +23,7 @@ import time
 from collections import deque
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, assert_never
+from typing import TYPE_CHECKING, Any, assert_never, cast
 
 import numpy as np
 
@@ -35,6 +35,9 @@ from tileviz.config import Config, LocalizerConfig, NoiseConfig
 from tileviz.pipeline import FrameLoop, FrameRecord, initial_box
 from tileviz.summary import RunTally
 from tileviz.types import FrameInput
+
+if TYPE_CHECKING:
+    from tileviz.app.sources import LiveSimulator
 
 __all__ = ["MCL", "Session", "SessionOptions"]
 
@@ -456,7 +459,7 @@ class Session:
             case C.SetLayer(layer=layer, visible=visible):
                 self.layers[layer] = bool(visible)
             case C.Inject(kind=kind, frames=frames):
-                self.source.inject(kind, frames=frames)
+                self._simulator.inject(kind, frames=frames)
                 self.note(f"fault {kind} injected")
             case C.StartRecording():
                 self._start_recording(cmd)
@@ -472,16 +475,22 @@ class Session:
                 assert_never(cmd)
         self.version += 1
 
+    @property
+    def _simulator(self) -> LiveSimulator:
+        """The source as the simulator: only for the commands :meth:`apply` let through
+        (``commands.SIMULATOR_ONLY`` are refused on a replay)."""
+        return cast("LiveSimulator", self.source)
+
     def _set_setpoint(self, cmd: C.SetSetpoint) -> None:
-        self.source.set_setpoint(cmd.kind)
+        self._simulator.set_setpoint(cmd.kind)
         self._setpoint_changed(cmd.kind)
 
     def _set_manual_target(self, cmd: C.SetManualTarget) -> None:
-        self.source.set_manual_target(cmd.x, cmd.y)
+        self._simulator.set_manual_target(cmd.x, cmd.y)
         self._setpoint_changed("manual", sim={"manual_target": (cmd.x, cmd.y)})
 
     def _set_waypoints(self, cmd: C.SetWaypoints) -> None:
-        self.source.set_waypoints(cmd.points)
+        self._simulator.set_waypoints(cmd.points)
         self._setpoint_changed("waypoints", sim={"waypoints": tuple(cmd.points)})
 
     def _setpoint_changed(self, kind: str, sim: dict[str, Any] | None = None) -> None:
@@ -496,7 +505,7 @@ class Session:
             theta = self._kidnap_rng.uniform(-math.pi, math.pi)
         else:
             x, y, theta = cmd.pose
-        self.source.kidnap(float(x), float(y), float(theta))
+        self._simulator.kidnap(float(x), float(y), float(theta))
         self.note(f"kidnapped the robot to ({x:.2f}, {y:.2f}, {math.degrees(theta):.0f} deg); "
                   "the localizer was not told")
 
@@ -567,7 +576,7 @@ class Session:
 
     def _set_noise(self, cmd: C.SetNoise) -> None:
         noise = NoiseConfig(cmd.speed_error, cmd.yaw_rate_error, cmd.compass_error, cmd.fraction)
-        self.source.set_noise(noise)
+        self._simulator.set_noise(noise)
         self._reconfigure(replace(self.cfg, noise=noise))
         if self.mcl is not None:
             self.mcl.mcl.bounds = self.runner.bounds  # its motion noise and compass likelihood

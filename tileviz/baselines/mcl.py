@@ -84,12 +84,11 @@ def chi2_2d(level: float) -> float:
 def _number(name: str, v: object, *, nonneg: bool = False) -> float:
     """``v`` as a float; ValueError naming ``name`` when it is not a finite number (or negative,
     with ``nonneg``)."""
-    ok = not isinstance(v, bool) and isinstance(v, (int, float)) and math.isfinite(v)
-    if not ok:
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
         raise ValueError(f"{name} must be a finite number, got {v!r}")
     if nonneg and v < 0:
         raise ValueError(f"{name} must be >= 0, got {v!r}")
-    return float(v)  # type: ignore[arg-type]
+    return float(v)
 
 
 def _wrap(v: np.ndarray, period: float) -> np.ndarray:
@@ -407,8 +406,9 @@ class MCL:
         if p.ndim != 2 or p.shape[1] != 3:
             raise ValueError(f"poses must be an (N, 3) array, got shape {p.shape}")
         o = observation
+        y1, y2, y3 = (_number(f"observation.{k}", getattr(o, k)) for k in ("y1", "y2", "y3"))
         return self._view_loglik(
-            p, *(_number(f"observation.{k}", getattr(o, k)) for k in ("y1", "y2", "y3")),
+            p, y1, y2, y3,
             _number("observation.position_error", o.position_error, nonneg=True),
             _number("observation.heading_error", o.heading_error, nonneg=True))
 

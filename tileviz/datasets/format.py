@@ -20,7 +20,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from tileviz.config import Config
+from tileviz.config import Config, Extractor, Mode
 from tileviz.core.constants import LIMIT, MAX_PPM, MIN_TILE_PX
 
 __all__ = [
@@ -235,8 +235,8 @@ def parse_float(text: str, column: str, where: str) -> float:
     return v
 
 
-def replay_config(meta: DatasetMeta, *, mode: str | None = None,
-                  extractor: str | None = None, base: Config | None = None) -> Config:
+def replay_config(meta: DatasetMeta, *, mode: Mode | None = None,
+                  extractor: Extractor | None = None, base: Config | None = None) -> Config:
     """The configuration ``python -m tileviz replay`` uses for a dataset: the meta's floor,
     camera, bounds and start (over ``base``, or the stored tileviz config), then ``mode`` and
     ``extractor`` when given."""

@@ -428,7 +428,7 @@ class FloorRenderer:
         elif kind == "box":
             d = self._signed_distance(p["angle"], p["offset"])
             cov = np.clip(d + 0.5, 0.0, 1.0)[..., None]
-            img += cov * (np.float32(p["gray"]) * np.float32([1.0, 0.8, 0.55]) - img)
+            img += cov * (np.float32(p["gray"]) * np.array([1.0, 0.8, 0.55], np.float32) - img)
         elif kind == "shadow":
             d = self._signed_distance(p["angle"], p["offset"])
             soft = max(p["softness"], 1e-3)

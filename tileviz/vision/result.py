@@ -36,7 +36,7 @@ REASONS = (
 
 
 def _empty(shape: tuple[int, ...], dtype: type) -> np.ndarray:
-    a = np.zeros(shape, dtype)
+    a: np.ndarray = np.zeros(shape, dtype)
     a.flags.writeable = False
     return a
 

@@ -460,8 +460,8 @@ class _Run:
             edges = np.diff(above.astype(np.int8), prepend=0, append=0)
             starts = np.flatnonzero(edges == 1)
             ends = np.flatnonzero(edges == -1)
-            for a, b in zip(starts, ends, strict=True):
-                peaks.append((k, a + int(np.argmax(dk[a:b]))))
+            for s0, s1 in zip(starts.tolist(), ends.tolist(), strict=True):
+                peaks.append((k, s0 + int(np.argmax(dk[s0:s1]))))
         if not peaks:
             return [[], []]
         fam = np.array([k for k, _ in peaks])
