@@ -79,7 +79,7 @@ def replay_stats(folder: Path, mode: str) -> dict[str, float]:
 
 
 def bare_opencv(rgb: np.ndarray) -> object:
-    """The original pipeline's OpenCV calls with its constants (seed-code-facts.md), only."""
+    """The original pipeline's OpenCV calls with its constants (docs/seed-code.md), only."""
     gray = cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY)
     lap = cv2.Laplacian(gray, cv2.CV_8U, ksize=1, scale=1, delta=0)
     edges = cv2.Canny(lap, 50, 255, apertureSize=3)

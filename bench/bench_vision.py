@@ -8,7 +8,7 @@ OpenCV runs on one thread (importing tileviz.vision sets it, for reproducible ed
 
 Frames are rendered once (default floor, random poses, camera noise on) and reused, so only the
 vision is timed. Each figure is the median over frames of the per-frame time. The bare chain is
-exactly what the original called (report chapter 4, ``shared/seed-code-facts.md``): cvtColor,
+exactly what the original called (report chapter 4, ``docs/seed-code.md``): cvtColor,
 Laplacian(CV_8U, ksize 1), Canny(50, 255, 3), morphologyEx(CLOSE, 1x1), dilate(3x3), and
 HoughLinesP(1, pi/180, 60, 100, 50); ours adds everything around them (input checks, segment
 parameters, medians, bags, offsets, the observation) and skips the 1x1 close (an identity).

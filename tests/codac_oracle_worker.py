@@ -7,7 +7,7 @@ Under upward rounding CPython parses about one decimal float literal in five one
 fast path divides in floats), so the worker reads and parses its whole input *before* importing
 codac, and writes every bound it returns as ``float.hex`` (read back with :func:`decode`).
 
-The constraint, for one rotation branch m of an observation (design.md, corrected Theorem 1),
+The constraint, for one rotation branch m of an observation (docs/method.md, "Contraction"),
 over the 6-box (x, y, theta, y1, y2, y3) where [y1], [y2], [y3] are the observation +- its bounds:
 
     c_x = x + rho cos(theta + phi),   c_y = y + rho sin(theta + phi)   (the camera lever arm)

@@ -1,4 +1,4 @@
-"""The downward camera: conventions of dataset-format.md, sub-pixel line placement, the floor's
+"""The downward camera: conventions of docs/dataset-format.md, sub-pixel line placement, the floor's
 appearance fixed to the floor, camera effects, faults, and no pymunk."""
 
 from __future__ import annotations
@@ -246,7 +246,7 @@ def _repo() -> str:
 
 @pytest.mark.parametrize("m", [1, 2, 3])
 def test_quarter_turned_pose_sees_the_same_floor(m: int) -> None:
-    """design.md's corrected equivalence, checked on rendered images (plain floor, no noise):
+    """docs/method.md's corrected equivalence, checked on rendered images (plain floor, no noise):
     the pose whose camera centre is R(m pi/2) c (plus a lattice shift) with heading
     theta + m pi/2 sees exactly the same image. The original report's Theorem 1 pairs a quarter
     turn with a plain swap (c_y, c_x) and treats a half turn as the identity: those poses see

@@ -4,7 +4,7 @@ Why codac runs elsewhere: ``import codac`` switches the process to upward roundi
 ``tests/codac_oracle_worker.py``, started with ``sys.executable`` and fed JSON; this process never
 imports it (checked below).
 
-The constraint (design.md, corrected Theorem 1), per rotation branch m of an observation
+The constraint (docs/method.md, "Contraction"), per rotation branch m of an observation
 y +- (e, e, e3), over the box (x, y, theta) and the observation box ([y1], [y2], [y3]):
 
     c = (x, y) + rho (cos, sin)(theta + phi)            (camera lever arm, polar form)

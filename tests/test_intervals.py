@@ -107,7 +107,8 @@ def test_add_sub_mul_enclose_the_exact_result(a, b, c, d) -> None:
 
 
 def test_bounds_are_pushed_outward_even_when_exact() -> None:
-    # 0.5 + 0.25 is exact in floats: the bounds still move one ulp out (design.md rounding rule)
+    # 0.5 + 0.25 is exact in floats: the bounds still move one ulp out (docs/method.md,
+    # "Outward rounding")
     lo, hi = add(0.5, 0.5, 0.25, 0.25)
     assert lo < 0.75 < hi
     assert (lo, hi) == (math.nextafter(0.75, -1), math.nextafter(0.75, 1))

@@ -233,9 +233,10 @@ def test_same_seed_same_particles_other_seed_other_particles():
 
 
 def test_view_likelihood_is_the_same_for_every_equivalent_pose():
-    """design.md's corrected equivalence: poses turned by m quarter turns about a crossing (camera
-    centre through the lever arm) or shifted by whole tiles see the same view, so all four rotation
-    branches and every lattice shift score alike; a pose off by half a tile scores far lower."""
+    """The corrected equivalence (docs/method.md): poses turned by m quarter turns about a crossing
+    (camera centre through the lever arm) or shifted by whole tiles see the same view, so all four
+    rotation branches and every lattice shift score alike; a pose off by half a tile scores far
+    lower."""
     truth = Pose(0.37, -1.21, 0.3)
     y1, y2, y3 = observe(truth, L, OFFSET)
     obs = Observation(y1, y2, y3, POS_ERR, HEAD_ERR)

@@ -1,5 +1,5 @@
 """Bounded sensors: the readings keep their declared bounds, and the true poses are consistent with
-the odometry the way the localizer's prediction assumes (design.md, "Prediction")."""
+the odometry the way the localizer's prediction assumes (docs/method.md, "Prediction")."""
 
 from __future__ import annotations
 

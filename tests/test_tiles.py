@@ -1,7 +1,7 @@
-"""The observation model and the corrected equivalence (design.md), shown on rendered views.
+"""The observation model and the corrected equivalence (docs/method.md), shown on rendered views.
 
 The views are made by a small exact rasterizer of the grout-line centres written here from the
-conventions of dataset-format.md (lines on x = kL and y = kL; image up = robot forward, image
+conventions of docs/dataset-format.md (lines on x = kL and y = kL; image up = robot forward, image
 left = robot left; pixel (row, col) sees the floor point c + R(theta) @ (a_forward, a_left) with
 a_left = (cx - col) / ppm, a_forward = (cy - row) / ppm). It returns, for every pixel, the
 distance of that floor point to the nearest line: two poses give the same view iff these maps

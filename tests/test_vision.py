@@ -1,4 +1,4 @@
-"""The vision API shared by both extractors: the design.md convention (checked against the
+"""The vision API shared by both extractors: the docs/method.md convention (checked against the
 exact observation of ``tileviz.tiles``), the result's fields, stage images and bad input."""
 
 from __future__ import annotations

@@ -20,7 +20,7 @@ FAITHFUL = replace(SEED.vision, extractor="faithful")
 
 
 def test_defaults_are_the_original_constants() -> None:
-    """shared/seed-code-facts.md: Laplacian ksize 1, Canny 50/255/3, close 1x1, dilate 3x3 once,
+    """docs/seed-code.md: Laplacian ksize 1, Canny 50/255/3, close 1x1, dilate 3x3 once,
     HoughLinesP(1, pi/180, 60, 100, 50), L1 0.15, bags at 0.2, more than one good segment."""
     v = VisionConfig()
     assert (v.laplacian_ksize, v.canny_low, v.canny_high, v.canny_aperture) == (1, 50, 255, 3)

@@ -108,7 +108,7 @@ def replay_parser() -> Parser:
                "vision and the localizer; write one CSV row per frame.")
     p.add_argument("dataset", help="dataset folder")
     p.add_argument("--mode", choices=MODES, default="autonomous")
-    p.add_argument("--out", required=True, help="replay output CSV (dataset-format.md)")
+    p.add_argument("--out", required=True, help="replay output CSV (docs/dataset-format.md)")
     p.add_argument("--output-file", help="CSV of the six equivalence residuals per frame "
                    "(report table 6.1, corrected signs; needs ground truth)")
     p.add_argument("--extractor", choices=EXTRACTORS, default=None,

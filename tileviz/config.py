@@ -1,11 +1,11 @@
 """Configuration dataclasses shared by the CLI, the GUI, the runner and a dataset's meta.json.
 
-Units: metres, seconds, radians, pixels. Frames: see ``shared/dataset-format.md`` (world x east,
+Units: metres, seconds, radians, pixels. Frames: see ``docs/dataset-format.md`` (world x east,
 y north, heading counter-clockwise from +x; camera offset ``[forward, left]`` in the robot frame).
 
 Every dataclass is frozen: change a configuration with :func:`dataclasses.replace`.
 Two presets exist: ``default`` (1 m tiles, 200 px/m, 320x240) and ``seed`` (the constants of the
-original implementation, ``shared/seed-code-facts.md``).
+original implementation, ``docs/seed-code.md``).
 """
 
 from __future__ import annotations
@@ -348,7 +348,7 @@ def preset(name: str) -> Config:
     if name == "default":
         return Config(vision=PRESET_VISION)
     if name == "seed":
-        # Constants of the original implementation (shared/seed-code-facts.md).
+        # Constants of the original implementation (docs/seed-code.md).
         return Config(
             floor=FloorConfig(tile_size=0.166, grout_width=0.004),
             camera=CameraConfig(ppm=620.48, width=256, height=384, offset=(0.875, 0.0)),

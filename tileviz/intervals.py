@@ -2,10 +2,10 @@
 
 An interval is a pair ``(lo, hi)`` of floats with ``lo <= hi``; the empty set is ``None``. Every
 bound that comes out of a float operation is pushed one ulp outward with :func:`math.nextafter`
-(design.md, "Rounding"): with IEEE round-to-nearest the computed value is within half an ulp of
-the exact one, so the pushed bound encloses the exact real result. Enclosures of cos, sin, acos
-and asin are widened by :data:`TRIG_ULPS` ulps (libm is good to about one ulp), clamped to
-[-1, 1], and include the extrema +-1 whenever the argument interval may contain one.
+(docs/method.md, "Outward rounding"): with IEEE round-to-nearest the computed value is within
+half an ulp of the exact one, so the pushed bound encloses the exact real result. Enclosures of
+cos, sin, acos and asin are widened by :data:`TRIG_ULPS` ulps (libm is good to about one ulp),
+clamped to [-1, 1], and include the extrema +-1 whenever the argument interval may contain one.
 
 The functions take and return bare floats so the localizer's hot path costs no object
 allocation beyond tuples. Units are whatever the caller's are (metres, radians).

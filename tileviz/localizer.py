@@ -1,8 +1,8 @@
 """The guaranteed interval localizer: a set of robot poses kept as a few disjoint boxes.
 
 Each frame: predict the set with the bounded odometry, intersect its heading with the compass,
-then contract it with the tile observation (design.md). Frames and units as in
-``shared/dataset-format.md``: metres, radians, heading continuous (not wrapped).
+then contract it with the tile observation (docs/method.md). Frames and units as in
+``docs/dataset-format.md``: metres, radians, heading continuous (not wrapped).
 
 What is guaranteed, and when
 ----------------------------
@@ -13,13 +13,13 @@ passed only when the robot did not move since the previous step (frame 0, after 
 (H3) every compass reading is within ``compass_error`` of the true heading, modulo 2 pi; (H4) every
 observation that the localizer *uses* is within its declared ``position_error`` /
 ``heading_error`` of the exact observation of the true pose (``tiles.observe``, modulo L and
-modulo the quarter turns of design.md).
+modulo the quarter turns of docs/method.md).
 
 Then, at every frame whose status is not ``lost``, the true pose is inside ``predicted`` and
 inside ``updated`` (heading modulo 2 pi). All bounds are outward rounded, so this holds for the
 real numbers, not only up to rounding.
 
-Statuses (dataset-format.md):
+Statuses (docs/dataset-format.md):
 
 - ``contracted``: an observation was used and the contracted set is non-empty.
 - ``predicted``: no observation (or mode ``odometry``): the prediction is kept.
@@ -90,7 +90,7 @@ inflated boxes once more.
 
 How tight the contraction is
 ----------------------------
-Per rotation branch m (design.md, corrected Theorem 1) the camera-centre interval is cut by the
+Per rotation branch m (docs/method.md, "Contraction") the camera-centre interval is cut by the
 lattice exactly, and every (heading piece, x piece, y piece) cell is kept as its own box
 (``LocalizerConfig.max_boxes`` caps the count: past it, the hull, flagged ``hulled``). With the
 camera on the robot point the cells are the exact solution set. With a lever arm each cell is
@@ -298,7 +298,7 @@ def lever_enclosure(offset: tuple[float, float]) -> Lever | None:
 def predict_box(
     b: Tuple6, v_lo: float, v_hi: float, w_lo: float, w_hi: float, dt: float
 ) -> Tuple6:
-    """Enclosure of every pose reachable from box ``b`` in ``dt`` s (design.md, "Prediction").
+    """Enclosure of every pose reachable from box ``b`` in ``dt`` s (docs/method.md, "Prediction").
 
     The true speed v(s) in [v_lo, v_hi] (m/s) and yaw rate w(s) in [w_lo, w_hi] (rad/s) may vary
     over the step. The heading theta(s) = theta0 + int_0^s w stays in
@@ -347,7 +347,7 @@ def compass_pieces(b: Tuple6, h_lo: float, h_hi: float) -> list[Tuple6]:
 
 
 def observation_windows(obs: Observation) -> tuple[Window, Window, Window, Window]:
-    """The four rotation branches of an observation (design.md, corrected Theorem 1):
+    """The four rotation branches of an observation (docs/method.md, "The corrected equivalence"):
     for m = 0..3, [u] = R(m pi/2) ([y1 +- e], [y2 +- e]) and [h] = [y3 +- e3] + m pi/2, so the pose
     is consistent with branch m iff c in [u] + L Z^2 and theta in [h] + 2 pi Z."""
     w0 = _view_window(obs)
@@ -619,7 +619,7 @@ def contract_branch(
     max_passes: int,
     max_cells: int,
 ) -> tuple[list[Tuple6], int, bool]:
-    """Contract box ``b`` with one rotation branch ``win`` of an observation (design.md).
+    """Contract box ``b`` with one rotation branch ``win`` of an observation (docs/method.md).
 
     The heading is cut to [h] + 2 pi Z, then each heading piece is contracted by
     :func:`_contract_cells`: one box per lattice cell of the camera centre, pushed back through

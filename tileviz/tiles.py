@@ -1,12 +1,12 @@
 """The tile observation model and its (corrected) equivalence.
 
-Frames (``shared/dataset-format.md``): world metres, x east, y north; heading theta
+Frames (``docs/dataset-format.md``): world metres, x east, y north; heading theta
 counter-clockwise from +x (rad); grout line centres on x = kL and y = kL; the camera's optical
 centre is c = (x, y) + R(theta) @ (forward, left).
 
 The floor's line pattern is invariant under the translations L Z^2 and under the quarter turns
 R(m pi/2) about a line crossing, and under nothing else that keeps orientation. So the view
-depends on the camera pose (c, theta) only up to those symmetries, and (design.md):
+depends on the camera pose (c, theta) only up to those symmetries, and (docs/method.md):
 
     y = (y1, y2, y3),  y1, y2 in [0, L),  y3 in [-pi/4, pi/4),
     (c_x, c_y) == R(m pi/2) (y1, y2)  (mod L)  and  theta == y3 + m pi/2  (mod 2 pi)
@@ -58,7 +58,7 @@ def quarter_turns(theta: float) -> int:
 
 def camera_centre(pose: Pose, offset: tuple[float, float]) -> tuple[float, float]:
     """The camera's optical centre on the floor, c = (x, y) + R(theta) @ (forward, left), metres,
-    world frame (dataset-format.md)."""
+    world frame (docs/dataset-format.md)."""
     f, left = offset
     ct = math.cos(pose.theta)
     st = math.sin(pose.theta)
@@ -74,7 +74,7 @@ def _mod(v: float, period: float) -> float:
 def observe(
     pose: Pose, tile_size: float, offset: tuple[float, float]
 ) -> tuple[float, float, float]:
-    """The exact observation (y1, y2, y3) of ``pose`` (design.md).
+    """The exact observation (y1, y2, y3) of ``pose`` (docs/method.md).
 
     y3 = theta - m pi/2 in [-pi/4, pi/4) and (y1, y2) = R(-m pi/2) c mod L in [0, L)^2, where m is
     the number of quarter turns in theta and c the camera centre. Metres, metres, radians.

@@ -1,6 +1,6 @@
 """Small immutable value types shared by every module.
 
-Frames and units (``shared/dataset-format.md``): world metres, x east, y north; heading ``theta``
+Frames and units (``docs/dataset-format.md``): world metres, x east, y north; heading ``theta``
 counter-clockwise from +x, radians, continuous (not wrapped) unless a docstring says otherwise.
 """
 
@@ -17,7 +17,7 @@ from tileviz.intervals import turn_shift
 
 Status = Literal["contracted", "predicted", "rejected", "lost"]
 STATUSES: tuple[Status, ...] = get_args(Status)
-"""Per-frame localizer status (meanings in ``shared/dataset-format.md``)."""
+"""Per-frame localizer status (meanings in ``docs/dataset-format.md``)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -56,7 +56,7 @@ class SensorBounds:
 
 @dataclass(frozen=True, slots=True)
 class Observation:
-    """The tile parameters seen in one image (design.md).
+    """The tile parameters seen in one image (docs/method.md).
 
     ``y1, y2`` in [0, L) metres and ``y3`` in [-pi/4, pi/4) radians, such that for some
     m in {0, 1, 2, 3}: camera centre c == R(m pi/2) (y1, y2) (mod L) and

@@ -1,6 +1,6 @@
 """The 3-D scene of the live server: floor, robot, camera footprint, interval boxes, trails.
 
-World frame (``shared/dataset-format.md``): metres, x east, y north, z up (viser's default up
+World frame (``docs/dataset-format.md``): metres, x east, y north, z up (viser's default up
 direction). Every node is made once, with a fixed name, and then updated in place: a fixed pool
 of box nodes for the interval sets (unused ones hidden), fixed-size line-segment nodes for the
 trails and outlines, a fixed-size mesh for the heading wedge. Nothing is created per frame.
@@ -96,7 +96,7 @@ def floor_texture(floor: FloorConfig, half_size: float,
     ppm = n / (2.0 * half_size)
     cam = CameraConfig(ppm=ppm, width=n, height=n, offset=(0.0, 0.0), noise_sigma=0.0,
                        blur_sigma=0.0, vignetting=0.0, jpeg_quality=0)
-    # A camera at the origin heading north sees north up and east right (dataset-format.md).
+    # A camera at the origin heading north sees north up and east right (docs/dataset-format.md).
     north_up = FloorRenderer(floor, cam).floor_image(Pose(0.0, 0.0, math.pi / 2))
     return np.clip(north_up[::-1], 0, 255).astype(np.uint8)
 

@@ -378,7 +378,8 @@ class Session:
         meta = DatasetMeta.from_config(self.cfg, name=f"tileviz live run ({folder.name})")
         if frame.truth is not None:
             # the run may be under way: the dataset starts at this frame's true pose, known within
-            # the configured initial error (dataset-format.md: initial_pose +- initial_pose_error)
+            # the configured initial error (docs/dataset-format.md: initial_pose +-
+            # initial_pose_error)
             meta = replace(meta, initial_pose=frame.truth.as_tuple())
         try:
             self.recording = DatasetWriter(folder, meta)

@@ -11,7 +11,7 @@ settings (``restart_on_settings``).
   :class:`tileviz.datasets.DatasetSource`, the reader ``python -m tileviz replay`` uses. Its end,
   and a bad row, raise :class:`SourceEnded` (every frame before it was delivered).
 
-Units: metres, radians, seconds; world frame as in ``shared/dataset-format.md``.
+Units: metres, radians, seconds; world frame as in ``docs/dataset-format.md``.
 """
 
 from __future__ import annotations

@@ -2,10 +2,10 @@
 
 The baseline the report's conclusion asks for: the same bounded odometry, the same compass and the
 same tile observation as :class:`tileviz.localizer.Localizer`, but a cloud of weighted pose samples
-instead of a guaranteed set. Frames and units as in ``shared/dataset-format.md``: world metres,
+instead of a guaranteed set. Frames and units as in ``docs/dataset-format.md``: world metres,
 heading theta counter-clockwise from +x in radians; particle headings are continuous (not wrapped).
 
-One :meth:`MCL.step` per frame, in the localizer's order (design.md, "Data flow"):
+One :meth:`MCL.step` per frame, in the localizer's order (:mod:`tileviz.pipeline.frame_loop`):
 
 1. **Motion** (odometry of the step that ended at this frame, held over ``dt``). Each particle draws
    its own speed and yaw rate error. ``MclConfig.motion_noise = "uniform"`` (default) draws them
@@ -13,7 +13,7 @@ One :meth:`MCL.step` per frame, in the localizer's order (design.md, "Data flow"
    so the filter's motion model is the true one; ``"gaussian"`` uses sigma = bound / 2. The particle
    then follows the circular arc of constant (v, w):
    theta' = theta + w dt, (x, y)' = (x, y) + v dt sinc(w dt / 2) (cos, sin)(theta + w dt / 2)
-   (the exact chord of the arc; the interval prediction of design.md encloses it).
+   (the exact chord of the arc; the interval prediction of docs/method.md encloses it).
 2. **Injection** (optional recovery, ``inject_rate`` > 0): that share of the particles, picked at
    random, is replaced by new poses with the mean weight. Each is drawn uniformly in the
    ``region`` box given to the constructor (for example the room, heading in [-pi, pi)); when the
@@ -24,7 +24,8 @@ One :meth:`MCL.step` per frame, in the localizer's order (design.md, "Data flow"
    never land within the view's few millimetres, so they would not recover from a kidnap.
 3. **Compass** likelihood: Gaussian in the heading residual wrapped to [-pi, pi), sigma =
    ``sigma_scale`` x ``compass_error``.
-4. **Tile observation** likelihood, from the lattice residuals of design.md's observation model,
+4. **Tile observation** likelihood, from the lattice residuals of the observation model
+   (docs/method.md, "The observation"),
    over all four rotation branches m = 0..3. With c the particle's camera centre (through the lever
    arm, c = (x, y) + R(theta) @ offset), (u1, u2) = R(m pi/2) (y1, y2) and
    r1 = wrap_L(c_x - u1), r2 = wrap_L(c_y - u2) in [-L/2, L/2), r3 = wrap_2pi(theta - y3 - m pi/2)

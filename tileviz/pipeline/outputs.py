@@ -43,7 +43,7 @@ class CsvOut:
 
 
 def replay_row(rec: FrameRecord) -> list[Any]:
-    """One row of the replay output (dataset-format.md, 'Replay output')."""
+    """One row of the replay output (docs/dataset-format.md, 'Replay output')."""
     hull = rec.updated.hull()
     if hull is None:
         bounds = ["nan"] * 6

@@ -1,6 +1,6 @@
 """The downward camera: renders what it sees of the tiled floor at a robot pose.
 
-Conventions (``shared/dataset-format.md``): orthographic camera with ``ppm`` pixels per metre,
+Conventions (``docs/dataset-format.md``): orthographic camera with ``ppm`` pixels per metre,
 optical centre on the floor ``c = (x, y) + R(theta) @ camera_offset``. A floor point at
 camera-frame coordinates ``(a_forward, a_left)`` metres from ``c`` lands on pixel
 ``col = cx - a_left * ppm``, ``row = cy - a_forward * ppm`` with ``cx = (W - 1) / 2`` and
@@ -88,7 +88,7 @@ class Fault:
 def floor_point(
     col: float, row: float, pose: Pose, camera: CameraConfig
 ) -> tuple[float, float]:
-    """World (x, y) metres of the floor point seen at pixel (col, row) (dataset-format.md)."""
+    """World (x, y) metres of the floor point seen at pixel (col, row) (docs/dataset-format.md)."""
     cx_px = (camera.width - 1) / 2.0
     cy_px = (camera.height - 1) / 2.0
     a_fwd = (cy_px - row) / camera.ppm
@@ -236,7 +236,7 @@ class FloorRenderer:
         ct, st = math.cos(theta), math.sin(theta)
         cxw = x + f * ct - left * st
         cyw = y + f * st + left * ct
-        # World point of pixel (u, v) relative to the image centre (dataset-format.md):
+        # World point of pixel (u, v) relative to the image centre (docs/dataset-format.md):
         # a_fwd = -v/ppm, a_left = -u/ppm, p = c + R(theta) a; in tiles X = p_x / L, Y = p_y / L.
         k = 1.0 / (cam.ppm * lsize)
         x0, y0 = cxw / lsize, cyw / lsize

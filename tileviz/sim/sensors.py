@@ -16,7 +16,7 @@ sideways slide, one sign of speed) then for any readings within the bounds of th
     theta_k + dt [w])),
 
 with [v] = v_meas +- speed_error and [w] = w_meas +- yaw_rate_error: the mean of vectors that all
-lie in the convex box [v](cos, sin)(hull) lies in it (design.md, "Prediction").
+lie in the convex box [v](cos, sin)(hull) lies in it (docs/method.md, "Prediction").
 
 Faults (issue 7) add a deliberate error on top: :class:`OdometryFault` values are added to the
 readings after the bounded noise, so the reading is off by more than the bound.
@@ -119,7 +119,7 @@ def prediction_encloses(start: tuple[float, float, float], end: tuple[float, flo
                         odometry: Odometry, speed_error: float, yaw_rate_error: float,
                         tol: float = 1e-9) -> bool:
     """Whether pose ``end`` lies in the prediction from the single pose ``start`` with
-    ``odometry`` +- the bounds held over ``odometry.dt`` (design.md, "Prediction"):
+    ``odometry`` +- the bounds held over ``odometry.dt`` (docs/method.md, "Prediction"):
     theta_end in theta + dt [w], (x, y)_end in (x, y) + dt [v] (cos, sin)(hull(theta,
     theta + dt [w])). Plain floats with a tolerance ``tol`` (m, rad): a check of the simulator's
     truth against its readings, not the localizer's guaranteed arithmetic.

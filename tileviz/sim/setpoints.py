@@ -1,6 +1,6 @@
 """Where the robot should go: a Lissajous curve, a manual target point, a waypoint loop.
 
-World frame, metres, seconds (``shared/dataset-format.md``). Every setpoint answers
+World frame, metres, seconds (``docs/dataset-format.md``). Every setpoint answers
 ``target(t, pose) -> Target``: the point to reach now, its velocity (for feed-forward, m/s) and
 whether the robot should stop there.
 """
@@ -46,7 +46,7 @@ def _finite_point(name: str, x: float, y: float) -> tuple[float, float]:
 
 
 class Lissajous:
-    """The original's curve: x = A cos(w t + pi/2), y = A sin(2 (w t + pi/2)) (seed-code-facts.md).
+    """The original's curve: x = A cos(w t + pi/2), y = A sin(2 (w t + pi/2)) (docs/seed-code.md).
 
     ``amplitude`` A in metres, ``omega`` w in rad/s, t in seconds. It passes through the origin at
     t = 0 heading atan2(-2, -1); one lap takes 2 pi / w seconds; the path speed is at most

@@ -1,7 +1,7 @@
 """The simulator as a frame source: an endless iterator of :class:`tileviz.types.FrameInput`.
 
 Frame k carries the image rendered at the true pose k, the compass read at frame k, and the
-odometry measured over the motion from pose k to pose k+1 (``shared/dataset-format.md``). So
+odometry measured over the motion from pose k to pose k+1 (``docs/dataset-format.md``). So
 ``next()`` renders pose k, runs the controller on pose k, steps the world to pose k+1 and measures
 that step, then returns frame k; the world is then already at pose k+1.
 
@@ -145,7 +145,8 @@ class SimSource:
         target = self.setpoint.target(t, pose)
         self.world.set_wheel_speeds(*self.controller.command(pose, target, dt))
         # the step lasts t[k+1] - t[k] exactly as a replay computes it from the frame times, so a
-        # replay of a recording reproduces the live run bit for bit (dataset-format.md: t rules)
+        # replay of a recording reproduces the live run bit for bit (docs/dataset-format.md:
+        # t rules)
         step = self.world.step((k + 1) * dt - t)
         odometry = self.sensors.odometry(step, self._odometry_fault(step))
         self.last_step = step

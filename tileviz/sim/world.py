@@ -3,7 +3,7 @@
 Frames and units: world metres, x east, y north, heading ``theta`` counter-clockwise from +x in
 radians, continuous (pymunk's ``Body.angle`` is never wrapped). The robot's body origin and centre
 of gravity is the point between the wheels, so ``Body.position`` / ``Body.angle`` *are* the pose of
-``shared/dataset-format.md``.
+``docs/dataset-format.md``.
 
 Top-down friction, the way pymunk's ``examples/tank.py`` does it: there is no gravity; a kinematic
 *control body* carries the velocity the wheels ask for, and two joints tie the robot to it. A
@@ -21,7 +21,7 @@ the substep's start, and turns by ``h * w_j``. The wheels' speeds are held over 
 (zero-order hold) and slew-limited (:attr:`World.max_wheel_accel`) so the joints never saturate
 in free driving: the motion of a frame is then an exact constant-(speed, yaw rate) Euler polyline
 whose segment directions all lie in the heading range of the frame, which is what the localizer's
-prediction (design.md, "Prediction") encloses. :class:`StepTruth` records the substeps and says
+prediction (docs/method.md, "Prediction") encloses. :class:`StepTruth` records the substeps and says
 whether that held (``model_ok``); it does not when the robot hits something.
 """
 

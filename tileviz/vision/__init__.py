@@ -4,13 +4,13 @@
 ``vision.extractor`` names:
 
 - ``faithful`` (:mod:`tileviz.vision.faithful`): the original pipeline of report chapter 4 with
-  its constants, corrected (signed offsets, circular medians, design.md's convention).
+  its constants, corrected (signed offsets, circular medians, docs/method.md's convention).
 - ``robust`` (:mod:`tileviz.vision.robust`): sub-pixel line positions from gray-level profiles,
   and checks that refuse a frame (``accepted=False``, a ``reason``) rather than return an
   observation outside its declared bound.
 
 Both return a :class:`VisionResult`. Image frame: x = column, y = row; the observation follows
-design.md (see :mod:`tileviz.vision.geometry`). No viser, no pymunk here.
+docs/method.md (see :mod:`tileviz.vision.geometry`). No viser, no pymunk here.
 
 OpenCV's thread count (:func:`set_opencv_threads`): importing this module leaves it alone; every
 entry point sets it to :data:`OPENCV_THREADS` (one) before any image is processed: the commands

@@ -3,7 +3,7 @@
 Options: ``--preset {default,seed}`` (the camera and vision constants; with a preset given the
 image size must be the preset's), ``--ppm P``, ``--tile-size L`` (metres), ``--extractor
 {faithful,robust}``, ``--json`` (one JSON object per image and line: ``image``, ``y1``, ``y2``,
-``y3`` (design.md convention; null when refused), ``accepted``, ``reason``, ``lines``, ...),
+``y3`` (docs/method.md convention; null when refused), ``accepted``, ``reason``, ``lines``, ...),
 ``--stages DIR`` (every stage image as ``DIR/<image stem>_<nn>_<stage>.png``).
 
 An image that cannot be used (unreadable, wrong size) gives a one-line error on stderr and the

@@ -1,4 +1,4 @@
-"""The original pipeline (report chapter 4, constants in ``shared/seed-code-facts.md``), corrected.
+"""The original pipeline (report chapter 4, constants in ``docs/seed-code.md``), corrected.
 
 Stages, each constant from :class:`~tileviz.config.VisionConfig` (defaults = the original's):
 gray -> Laplacian (8-bit, ksize 1) -> Canny (50, 255, aperture 3) -> morphology (close 1x1,
@@ -13,7 +13,7 @@ Corrections (where the original was wrong):
   family_normals`), instead of eq. 4.1's unsigned distance and its ad-hoc ``1 - dd`` flips.
 - Each bag's displacement is a circular median modulo L, so a family whose lines straddle the
   camera centre (offsets near 0 and near L) does not average to L/2.
-- The output follows design.md's convention (:mod:`tileviz.vision.geometry`), and a frame
+- The output follows docs/method.md's convention (:mod:`tileviz.vision.geometry`), and a frame
   without both families is refused (``one family``) instead of producing a NaN.
 
 The chain does no work the bare OpenCV calls skip: a 1x1 close is the identity and is not

@@ -1,8 +1,8 @@
-"""Image-to-tile-parameter geometry shared by the extractors (design.md convention).
+"""Image-to-tile-parameter geometry shared by the extractors (docs/method.md convention).
 
 Pixel frame: x = column, y = row, image centre ``(cx, cy) = ((W - 1) / 2, (H - 1) / 2)``. A
 floor point at camera-frame coordinates ``a = (a_forward, a_left)`` metres from the camera centre
-is at ``col = cx - a_left * ppm``, ``row = cy - a_forward * ppm`` (dataset-format.md).
+is at ``col = cx - a_left * ppm``, ``row = cy - a_forward * ppm`` (docs/dataset-format.md).
 
 With ``b = R(y3) a``, the grout lines seen are ``{a : y1 + b1 in LZ}`` (family 1) and
 ``{a : y2 + b2 in LZ}`` (family 2) (report eq. 3.7, corrected signs). So a line of family k lies

@@ -45,11 +45,11 @@ def _empty(shape: tuple[int, ...], dtype: type) -> np.ndarray:
 class VisionResult:
     """The outcome of one image.
 
-    Pixel coordinates: x = column, y = row (dataset-format.md). Segment angles are
+    Pixel coordinates: x = column, y = row (docs/dataset-format.md). Segment angles are
     ``atan2(y2 - y1, x2 - x1)`` in radians; a grout line of the family giving y1 has angle
     y3 (mod pi), one of the family giving y2 has angle y3 + pi/2 (mod pi).
 
-    - ``observation``: the tile parameters (design.md convention), or None when refused.
+    - ``observation``: the tile parameters (docs/method.md convention), or None when refused.
     - ``accepted``/``reason``: ``reason`` is ``"ok"`` when accepted, else one of :data:`REASONS`.
     - ``segments`` (N, 4) float pixel endpoints x1, y1, x2, y2; ``angles`` (N,) rad;
       ``bags`` (N,) int8 (0 rejected, 1 horizontal/y1, 2 vertical/y2);

@@ -118,7 +118,7 @@ DEFAULT_SETTINGS = RobustSettings()
 
 
 def normalise(y1: float, y2: float, y3: float, tile_size: float) -> tuple[float, float, float]:
-    """The same observation with y3 in [-pi/4, pi/4) and y1, y2 in [0, L) (design.md).
+    """The same observation with y3 in [-pi/4, pi/4) and y1, y2 in [0, L) (docs/method.md).
 
     Turning y3 by -m pi/2 turns (y1, y2) by R(-m pi/2): R((m0 + m) pi/2) (y1', y2') must equal
     R(m0 pi/2) (y1, y2)."""
