@@ -1,122 +1,37 @@
 """The guaranteed interval localizer: a set of robot poses kept as a few disjoint boxes.
 
-Each frame: predict the set with the bounded odometry, intersect its heading with the compass,
-then contract it with the tile observation (docs/method.md). Frames and units as in
+Each :meth:`Localizer.step`: predict the set with the bounded odometry (docs/method.md,
+"Prediction"), intersect its heading with the compass, then contract it with the tile observation
+(docs/method.md, "Contraction"), every bound rounded outward. Frames and units as in
 ``docs/dataset-format.md``: metres, radians, heading continuous (not wrapped).
 
-What is guaranteed, and when
-----------------------------
-Hypotheses: (H1) the initial box (and every box given to :meth:`Localizer.reset`) contains the
-true pose; (H2) over every step the true speed and yaw rate stay within ``speed_error`` and
-``yaw_rate_error`` of the measured ones (they may vary within the bounds); ``odometry=None`` is
-passed only when the robot did not move since the previous step (frame 0, after a reset);
-(H3) every compass reading is within ``compass_error`` of the true heading, modulo 2 pi; (H4) every
-observation that the localizer *uses* is within its declared ``position_error`` /
-``heading_error`` of the exact observation of the true pose (``tiles.observe``, modulo L and
-modulo the quarter turns of docs/method.md).
+Contract: under the hypotheses of ``docs/guarantees.md`` (H1-H4; H5 with recovery on), at every
+frame whose status is not ``lost`` the true pose is inside ``LocalizerStep.predicted`` and
+``LocalizerStep.updated`` (heading modulo 2 pi); the proof is in docs/method.md, "Why the set
+holds the truth". ``odometry=None`` means the robot did not move since the previous step (frame
+0, after a reset). Statuses (``docs/dataset-format.md``, ``docs/method.md``): ``contracted``,
+``predicted`` (no view, or mode ``odometry``), ``rejected`` (the view fits no pose of the set:
+not used, the prediction kept), ``lost`` (``max_rejections`` rejections in a row; frames without
+a view neither count nor reset the streak; the set is then the hull of the prediction, views are
+ignored, until :meth:`Localizer.reset`). A compass reading that misses the predicted set is
+ignored that frame (``LocalizerStep.compass_rejected``).
 
-Then, at every frame whose status is not ``lost``, the true pose is inside ``predicted`` and
-inside ``updated`` (heading modulo 2 pi). All bounds are outward rounded, so this holds for the
-real numbers, not only up to rounding.
+Recovery (``LocalizerConfig.max_slip = (d, a)``, metres and radians; mode ``autonomous``; off
+when both are 0): a rejected view, or a compass that misses the set, keeps the prediction and adds
+the slip candidates, the poses within (d, d, a) of it that the compass and the view allow, one box
+per lattice cell (docs/method.md, "Recovery"); for ``slip_window`` frames after that, every view
+contracts the prediction widened by ``max_slip``.
 
-Statuses (docs/dataset-format.md):
-
-- ``contracted``: an observation was used and the contracted set is non-empty.
-- ``predicted``: no observation (or mode ``odometry``): the prediction is kept.
-- ``rejected``: the contraction with the observation is empty, so the observation cannot satisfy
-  H4 if H1-H3 hold: it is judged an outlier, not used, and the prediction is kept (with recovery
-  on, the slip candidates are kept too: see "Recovery"). A rejected view never weakens the
-  guarantee. (An outlier that happens to be consistent with the set *is* used and can break H4
-  without being noticed: that is the method's residual risk.)
-- ``lost``: ``max_rejections`` consecutive rejections (frames without an observation neither
-  count nor reset the streak; a successful contraction resets it). So many inconsistent views mean
-  H1-H3 probably failed (a kidnap, a wheel slip beyond the bounds): the method no longer vouches for
-  its set. It keeps predicting and outputs the hull of the set as one box, ignores views
-  (with a periodic floor any view fits a wide enough set, so a contraction would only look
-  confident), and stays ``lost`` until :meth:`Localizer.reset`.
-
-Recovery (``LocalizerConfig.max_slip = (d, a)``, metres and radians; off when both are 0)
--------------------------------------------------------------------------------------------
-Mode ``autonomous`` only (mode ``truth`` starts afresh every frame).
-An empty contraction has two explanations: the view is an outlier (H4 broken), or the prediction
-is (H2 broken: a wheel slip beyond the bounds, an odometry outlier, a push). With recovery on, a
-rejected frame keeps *both*: the prediction P, and the slip candidates -- the poses within
-(d, d, a) of P (P inflated by d in x and y and a in heading, before the compass) that the compass
-(unless it misses them all) and the view allow, one box per lattice cell. A compass reading that
-misses P is treated the same way (P is kept, plus the candidates the compass allows). The next
-views then remove whichever explanation was wrong: a contraction of the union is the union of the
-contractions, so the status returns to ``contracted`` as soon as a view fits either.
-
-Hypothesis (H5): at a frame that re-inflates (a rejected view, or a compass that misses P), the
-true pose is within (d, d, a) of P. P is the localizer's own prediction, so H5 reads: the odometry
-error beyond its declared bounds, accumulated since the set last held the truth, moved the pose by
-at most d in x and in y and a in heading. (For scale: an excess speed s held for T seconds moves
-it by s T; an excess heading e held over a path of length D moves it by about e D.)
-
-Guarantee, by induction over the frames: if H1 and H3 hold, the truth is in the set at every frame
-that is not ``lost`` as long as every frame is of one of two kinds:
-
-(a) H2 held for its step, and its view, if it contracted the set, satisfies H4 (a rejected view
-    may be anything) -- the guarantee without recovery;
-(b) it re-inflated, H5 holds, and its view, if any, satisfies H4. Such a frame repairs the set:
-    the truth is back in it whatever happened before.
-
-Not covered, because no method can notice it from these inputs: an odometry error beyond its bound
-that leaves the prediction overlapping the view. The contraction is then non-empty but may exclude
-the truth, and it stays so (status ``contracted``) until the drift makes a view miss the set: a
-frame of kind (b) with recovery on, a step towards ``lost`` without. ``bench/faults.py`` counts
-those frames.
-
-Limits of recovery, by the geometry of a periodic floor:
-
-- Two poses one tile apart (same heading) give the same views and the same odometry forever: a
-  push by a whole tile is never noticed, and slip candidates one tile apart are never told apart
-  by views. The candidates of one re-inflation lie in a single lattice cell when the camera-centre
-  range of the inflated prediction (P's width + 2 d + the lever arm times P's heading width + 2 a)
-  is less than L minus the view's cell width (2 ``position_error``) on each axis; so choose
-  d below about L / 2 minus the tracking set's width. A larger d can leave several boxes a tile
-  apart, all vouched for (the truth is in one of them), for good.
-- A kidnap beyond (d, a) breaks H5. Usually no candidate fits (and the compass removes those
-  whose heading it rules out): the frames are ``rejected`` -- vouching for a set that misses the
-  truth, since H5 is broken -- until ``max_rejections`` makes the status ``lost``, which stays
-  until :meth:`Localizer.reset`. Views cannot recover from ``lost``: every candidate within d of the
-  prediction has just been ruled out, and farther away a periodic floor offers a candidate in
-  every tile. A kidnap that lands within (d, d, a) of a *lattice translate* of P is accepted as a
-  slip of the translate: a wrong set, vouched for, exactly as if the robot had been pushed by
-  whole tiles.
-
-Cost: nothing on frames that contract (the hot path is unchanged); a rejected frame contracts the
-inflated boxes once more.
-
-How tight the contraction is
-----------------------------
-Per rotation branch m (docs/method.md, "Contraction") the camera-centre interval is cut by the
-lattice exactly, and every (heading piece, x piece, y piece) cell is kept as its own box
-(``LocalizerConfig.max_boxes`` caps the count: past it, the hull, flagged ``hulled``). With the
-camera on the robot point the cells are the exact solution set. With a lever arm each cell is
-contracted to the fixpoint of the exact projections of its constraint onto x, y and the heading
-(hull consistency): that is the exact hull of the cell's solutions unless the heading preimage
-of one axis alone has a gap inside the cell (the lever arm swinging past an extremum of cos or
-sin), where the hull of that preimage is kept -- as any forward-backward contractor (codac's
-``CtcInverse`` included) does. The fixpoint is reached after at most 2 passes in tracking (one
-when the lever arm cannot narrow the heading, the usual case; ``bench/bench_localizer.py`` prints
-the distribution), so ``LocalizerConfig.passes = 3`` is enough.
-
-A compass reading that misses the predicted set entirely (H1-H3 cannot all hold) is ignored for
-that frame and flagged in ``LocalizerStep.compass_rejected`` (with recovery on, the slip
-candidates it allows are added: see "Recovery").
-
-Modes (``LocalizerConfig.mode``): ``autonomous``; ``truth`` (report 7.1: every frame the set is
-reset to the true pose inflated by ``truth_inflation``, then the compass and the view contract it;
-never ``lost``); ``odometry`` (prediction and compass only, views ignored, status ``predicted``).
+Modes (``LocalizerConfig.mode``): ``autonomous``; ``truth`` (every frame the set restarts from
+the true pose inflated by ``truth_inflation``, then the compass and the view contract it; never
+``lost``); ``odometry`` (prediction and compass only, status ``predicted``).
 
 The hot path works on plain 6-tuples ``(x_lo, x_hi, y_lo, y_hi, t_lo, t_hi)``; the public API
-speaks :class:`tileviz.types.Box` / :class:`tileviz.types.BoxSet`. It is written for a pure-Python
-step of a few hundred lines: one-box shortcuts, cos and sin ranges in one call, lattice walks that
-reuse their piece bounds, only the rotation branches the heading meets, result objects built
-without the frozen dataclass __init__. Every such shortcut computes the very same floats as the
-general code: ``tests/test_localizer_golden.py`` replays recorded sequences and compares every
-output bit.
+speaks :class:`tileviz.types.Box` / :class:`tileviz.types.BoxSet`. Its shortcuts (one-box cases,
+cos and sin ranges in one call, lattice walks that reuse their piece bounds, only the rotation
+branches the heading meets, result objects built without the frozen dataclass __init__) compute
+the very same floats as the general code: ``tests/test_localizer_golden.py`` compares every
+output bit of recorded sequences.
 """
 
 from __future__ import annotations

@@ -26,10 +26,8 @@ class DatasetWriter:
 
     ``image_format``: ``png`` (lossless, replays bit-exactly) or ``jpg``. ``png_level``: zlib
     compression 0..9 of the PNGs. The default 0 stores the pixels, as a robot log keeps raw
-    camera images: a noisy 320x240 camera image shrinks only 1.8x with OpenCV's default
-    compression (127 vs 226 KB), while level 0 writes 7x faster (0.39 vs 2.75 ms) and decodes
-    25x faster (libspng 0.03 vs 0.91 ms; ``python bench/png_levels.py``), which was most of a
-    replay's decoding time.
+    camera images: noisy camera images compress little, and stored pixels are much faster to
+    write and to decode (``python bench/png_levels.py`` measures both).
     """
 
     def __init__(
