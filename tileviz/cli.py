@@ -59,6 +59,9 @@ def record_parser() -> Parser:
     p.add_argument("--compass-error", type=float_in("--compass-error", 0.0, math.pi,
                                                     lo_open=False), help="rad bound")
     p.add_argument("--no-compass", action="store_true", help="leave the compass column empty")
+    p.add_argument("--lens", choices=("webcam",), default=None,
+                   help="a real camera: 640x480 images through a tilted, distorting webcam "
+                   "lens; meta.json gets its camera_model and replay rectifies them")
     p.add_argument("--jpg", action="store_true", help="write JPEG images instead of PNG")
     p.add_argument("--png-level", type=int, choices=range(10), default=0, metavar="0..9",
                    help="PNG compression (default 0: pixels stored, 7x faster to write and 25x "
@@ -111,11 +114,18 @@ def record(argv: list[str]) -> int:
         frames = int(math.floor(args.duration / cfg.sim.dt + 1e-9)) + 1
         out = Path(args.out)
         meta = DatasetMeta.from_config(cfg, name=f"tileviz {args.preset} seed {args.seed}")
+        renderer = None
+        if args.lens is not None:
+            from tileviz.sim.lens import LensRenderer, webcam_model
+
+            model = webcam_model(cfg.camera)
+            renderer = LensRenderer(cfg.floor, cfg.camera, model)
+            meta = replace(meta, camera_model=model)
         writer = DatasetWriter(out, meta, image_format="jpg" if args.jpg else "png",
                                png_level=args.png_level)
         bar = _progress(frames, "record", not args.quiet)
         try:
-            for i, frame in enumerate(SimSource(cfg)):
+            for i, frame in enumerate(SimSource(cfg, renderer=renderer)):
                 if i >= frames:
                     break
                 if args.no_compass:
