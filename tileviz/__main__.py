@@ -14,6 +14,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "evaluate": ("tileviz.evaluate", "evaluate the localizer and baselines over many runs"),
     "calibrate": ("tileviz.datasets.calibrate", "calibrate a real camera from checkerboard "
                   "images (meta.json's camera_model)"),
+    "import-bag": ("tileviz.datasets.bag_import", "import a ROS 1 or ROS 2 bag as a dataset"),
 }
 
 
