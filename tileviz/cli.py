@@ -162,6 +162,9 @@ def replay_parser() -> Parser:
     p.add_argument("--extractor", choices=EXTRACTORS, default=None,
                    help="vision extractor (default: the dataset's, else robust)")
     p.add_argument("--max-boxes", type=positive_int("--max-boxes"), default=None)
+    p.add_argument("--mcap", default=None, metavar="OUT.mcap",
+                   help="also write the run for Foxglove: camera images, truth, the sets as 3-D "
+                   "cubes, status and box widths (needs the [ros] extra)")
     p.add_argument("--jobs", type=positive_int("--jobs"), default=None,
                    help="processes that decode images and run vision, several frames at once "
                    "(the localizer stays in order in this process; same output whatever the "
@@ -202,13 +205,20 @@ def replay(argv: list[str]) -> int:
         if jobs > 1:
             from tileviz.parallel import vision_ahead
 
-            records = (runner.process(frame, vision)
+            records = ((frame, runner.process(frame, vision))
                        for frame, vision in vision_ahead(source, cfg, jobs))
         else:
-            records = runner.run(source)
+            records = ((frame, runner.process(frame)) for frame in source)
+        mcap = None
+        if args.mcap is not None:
+            from tileviz.datasets.mcap_export import McapExport
+
+            mcap = McapExport(args.mcap, source.folder)
         try:
-            for rec in records:
+            for frame, rec in records:
                 out.row(replay_row(rec))
+                if mcap is not None:
+                    mcap.write(rec, frame.image_name)
                 tally.add(rec)
                 if eq is not None:
                     eq.row(residual_row(rec))
@@ -219,6 +229,8 @@ def replay(argv: list[str]) -> int:
             out.close()
             if eq is not None:
                 eq.close()
+            if mcap is not None:
+                mcap.close()
         print("; ".join([f"replayed {n} frames into {args.out}", *tally.parts()]))
         return 0
 
