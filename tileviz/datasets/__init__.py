@@ -1,6 +1,9 @@
 """tileviz-dataset/1 (``docs/dataset-format.md``): the format (:mod:`~tileviz.datasets.format`),
-the reader (:mod:`~tileviz.datasets.reader`), the writer (:mod:`~tileviz.datasets.writer`) and
-the image files (:mod:`~tileviz.datasets.images`)."""
+the reader (:mod:`~tileviz.datasets.reader`), the writer (:mod:`~tileviz.datasets.writer`), the
+image files (:mod:`~tileviz.datasets.images`), a real camera's model and rectification
+(:mod:`~tileviz.datasets.camera_model`, :mod:`~tileviz.datasets.calibrate`), and conversions from
+ROS bags (:mod:`~tileviz.datasets.bag_import`) and to MCAP (:mod:`~tileviz.datasets.mcap_export`).
+"""
 
 from tileviz.datasets.format import (
     FAULTS_FILE,

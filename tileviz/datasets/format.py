@@ -22,6 +22,7 @@ from typing import Any
 
 from tileviz.config import Config, Extractor, Mode
 from tileviz.core.constants import LIMIT, MAX_PPM, MIN_TILE_PX
+from tileviz.datasets.camera_model import CameraModel, CameraModelError, Rectifier, view_margin
 
 __all__ = [
     "FAULTS_FILE", "FORMAT", "FRAME_COLUMNS", "MAX_MAGNITUDE", "REQUIRED_COLUMNS",
@@ -64,6 +65,8 @@ class DatasetMeta:
     compass_error: float
     extra: dict[str, Any] = field(default_factory=dict)
     """Unknown keys, kept and ignored."""
+    camera_model: CameraModel | None = None
+    """A real camera whose stored images are rectified to the orthographic view, or None."""
 
     @classmethod
     def from_config(cls, cfg: Config, name: str = "tileviz run") -> DatasetMeta:
@@ -100,6 +103,8 @@ class DatasetMeta:
             yaw_rate_error=self.yaw_rate_error,
             compass_error=self.compass_error,
         )
+        if self.camera_model is not None:
+            d["camera_model"] = self.camera_model.to_json()
         return d
 
     @classmethod
@@ -114,9 +119,9 @@ class DatasetMeta:
         known = {
             "format", "name", "tile_size", "ppm", "image_width", "image_height", "camera_offset",
             "dt", "initial_pose", "initial_pose_error", "speed_error", "yaw_rate_error",
-            "compass_error",
+            "compass_error", "camera_model",
         }
-        missing = sorted(k for k in known - {"name"} if k not in d)
+        missing = sorted(k for k in known - {"name", "camera_model"} if k not in d)
         if missing:
             raise DatasetError(f"{where}: missing key(s) {', '.join(missing)}")
 
@@ -156,6 +161,11 @@ class DatasetMeta:
             raise DatasetError(f"{where}: a tile must span at least {MIN_TILE_PX:g} pixels "
                                f"(tile_size * ppm), got {tile_px!r}")
         name = d.get("name", "")
+        try:
+            camera_model = (CameraModel.from_json(d["camera_model"], where)
+                            if d.get("camera_model") is not None else None)
+        except CameraModelError as e:
+            raise DatasetError(str(e)) from None
         return cls(
             name=str(name),
             tile_size=number("tile_size", positive=True),
@@ -170,7 +180,16 @@ class DatasetMeta:
             yaw_rate_error=number("yaw_rate_error", positive=False),
             compass_error=number("compass_error", positive=False),
             extra={k: v for k, v in d.items() if k not in known},
+            camera_model=camera_model,
         )
+
+    def rectifier(self) -> Rectifier | None:
+        """The rectification of this dataset's stored images (maps computed now), or None
+        without a camera_model."""
+        if self.camera_model is None:
+            return None
+        return Rectifier(self.camera_model, ppm=self.ppm, width=self.image_width,
+                         height=self.image_height, camera_offset=self.camera_offset)
 
     def to_config(self, base: Config | None = None) -> Config:
         """A Config for replaying: geometry, bounds and start from the meta, the rest from
@@ -183,8 +202,15 @@ class DatasetMeta:
                     base = Config.from_dict(stored)
                 except (ValueError, TypeError):
                     base = Config()
+        vision = base.vision
+        rectifier = self.rectifier()
+        if rectifier is not None:  # the view bound grows by what the rectification may move
+            px, rad = view_margin(rectifier.model, rectifier)
+            vision = replace(vision, position_error_px=vision.position_error_px + px,
+                             heading_error=vision.heading_error + rad)
         return replace(
             base,
+            vision=vision,
             floor=base.floor.with_tile_size(self.tile_size)
             if base.floor.tile_size != self.tile_size else base.floor,
             camera=replace(

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from tileviz.datasets.camera_model import Rectifier
 from tileviz.datasets.format import (
     FAULTS_FILE,
     REQUIRED_COLUMNS,
@@ -72,6 +73,7 @@ class DatasetSource:
             raise DatasetError(f"{self.frames_path}: missing column(s) {', '.join(missing)}")
         self.columns = header
         self.faults = self._read_faults()
+        self._rectifier: Rectifier | None = None
 
     def _read_faults(self) -> dict[int, tuple[str, ...]]:
         path = self.folder / FAULTS_FILE
@@ -165,9 +167,16 @@ class DatasetSource:
         if image is None:
             raise DatasetError(f"{where}: image {name!r} is not a readable PNG/JPEG")
         h, w = image.shape[:2]
-        if (w, h) != (self.meta.image_width, self.meta.image_height):
+        cm = self.meta.camera_model
+        size = (cm.raw_width, cm.raw_height) if cm else (self.meta.image_width,
+                                                         self.meta.image_height)
+        if (w, h) != size:
             raise DatasetError(f"{where}: image {name!r} is {w}x{h}, meta.json says "
-                               f"{self.meta.image_width}x{self.meta.image_height}")
+                               f"{size[0]}x{size[1]}{' (camera_model raw size)' if cm else ''}")
+        if cm is not None:  # to the orthographic view; the tables are computed once
+            if self._rectifier is None:
+                self._rectifier = self.meta.rectifier()
+            image = self._rectifier(image)  # type: ignore[misc]
         return image
 
     def _jobs(self) -> Iterator[tuple[_Row, Odometry | None, str]]:

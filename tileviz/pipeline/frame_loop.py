@@ -76,6 +76,8 @@ class FrameRecord:
     motion: Odometry | None = None
     estimates: Mapping[str, Any] = field(default_factory=dict)
     dropped: Mapping[str, str] = field(default_factory=dict)
+    image_name: str = ""
+    """The frame's stored image file, relative to its dataset folder ("" when not from one)."""
 
     @property
     def predicted(self) -> BoxSet:
@@ -294,6 +296,7 @@ class FrameLoop:
             motion=inputs.odometry,
             estimates={n: estimates[n] for n in self.estimators if n in estimates},
             dropped=dropped,
+            image_name=frame.image_name,
         )
 
     def run(self, source: Source) -> Iterator[FrameRecord]:

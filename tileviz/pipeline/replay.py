@@ -45,6 +45,7 @@ def replay(
     extractor: Extractor | None = None,
     max_boxes: int | None = None,
     jobs: int | None = None,
+    mcap: str | os.PathLike[str] | None = None,
     on_total: Callable[[int | None], None] | None = None,
     on_frame: Callable[[FrameRecord], None] | None = None,
 ) -> int:
@@ -52,7 +53,9 @@ def replay(
     the equivalence-residual CSV ``output_file``; returns the number of frames replayed. ``mode``,
     ``extractor``, ``max_boxes`` override the dataset's configuration
     (:func:`tileviz.datasets.replay_config`); ``jobs``: vision processes (default
-    :func:`default_jobs`). ``on_total`` gets the frame count when known (None otherwise) before
+    :func:`default_jobs`). ``mcap``: also write the run for Foxglove to this MCAP file
+    (:mod:`tileviz.datasets.mcap_export`; finished even when a bad row stops the replay).
+    ``on_total`` gets the frame count when known (None otherwise) before
     the first frame, ``on_frame`` every record. A bad row or image raises DatasetError (a
     ValueError) after every frame before it was written."""
     # images decode on a background thread while the previous frame's vision runs
@@ -75,9 +78,16 @@ def replay(
                    for frame, vision in vision_ahead(source, cfg, jobs))
     else:
         records = loop.run(source)
+    mcap_out = None
+    if mcap is not None:
+        from tileviz.datasets.mcap_export import McapExport
+
+        mcap_out = McapExport(mcap, source.folder)
     try:
         for rec in records:
             csv_out.row(replay_row(rec))
+            if mcap_out is not None:
+                mcap_out.write(rec, rec.image_name)
             if eq is not None:
                 eq.row(residual_row(rec))
             n += 1
@@ -87,4 +97,6 @@ def replay(
         csv_out.close()
         if eq is not None:
             eq.close()
+        if mcap_out is not None:
+            mcap_out.close()
     return n
