@@ -41,16 +41,15 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from tileviz.config import Config, preset, with_overrides  # noqa: E402
-from tileviz.intervals import TWO_PI  # noqa: E402
-from tileviz.localizer import (  # noqa: E402
-    Localizer,
-    compass_pieces,
+from tileviz.core.contraction import (  # noqa: E402
     contract_box,
     lever_enclosure,
     observation_windows,
-    predict_box,
 )
-from tileviz.tiles import observe  # noqa: E402
+from tileviz.core.intervals import TWO_PI  # noqa: E402
+from tileviz.core.localizer import Localizer  # noqa: E402
+from tileviz.core.prediction import compass_pieces, predict_box  # noqa: E402
+from tileviz.core.tiles import observe  # noqa: E402
 from tileviz.types import Box, Observation, Odometry, Pose, SensorBounds  # noqa: E402
 
 WORKER = Path(__file__).resolve().parents[1] / "tests" / "codac_oracle_worker.py"

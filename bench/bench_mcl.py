@@ -45,7 +45,7 @@ import numpy as np
 
 from tileviz.baselines.mcl import MCL, MclConfig
 from tileviz.config import preset
-from tileviz.localizer import Localizer
+from tileviz.core.localizer import Localizer
 from tileviz.pipeline import initial_box
 from tileviz.sim.source import SimSource
 from tileviz.types import SensorBounds

@@ -38,7 +38,7 @@ Detection and recovery are computed by ``tileviz.evaluation.event_outcomes`` (an
 Recovery setting (``max_slip``, metres and radians, ``tileviz.evaluation.RECOVERY_MAX_SLIP``, the
 ``interval-recovery`` method of the evaluation): ``default`` (0.1, 0.1), ``seed`` (0.04, 0.1) --
 below half a tile minus the tracking set's width, so a re-inflation leaves one lattice cell
-(``tileviz.localizer``, "Recovery").
+(``tileviz.core.localizer``, "Recovery").
 
 The Markdown table goes to stdout and to ``--out`` (default ``docs/faults.md``).
 """

@@ -4,7 +4,7 @@ Poses are carried as mpmath numbers at :data:`PREC` bits (256: some 77 decimal d
 comparison with a float bound is decided by the real numbers, not by float rounding: a float is an
 exact binary rational, mpmath's pi is correct to the working precision, and no float bound is
 within 1e-60 of a transcendental truth unless it is the truth's own float (that case is reported
-by :func:`margin`). Nothing here calls ``tileviz.intervals`` or ``tileviz.localizer``.
+by :func:`margin`). Nothing here calls ``tileviz.core.intervals`` or ``tileviz.core.localizer``.
 
 Units and frames as everywhere: metres, radians, world x east, y north, heading counter-clockwise
 from +x, continuous (a pose is in a box when theta + 2 pi k is, for some integer k).

@@ -28,6 +28,8 @@ import numpy as np
 import pytest
 
 from tileviz.config import LocalizerConfig, preset
+from tileviz.core.constants import LIMIT
+from tileviz.core.localizer import Localizer
 from tileviz.datasets import (
     FORMAT,
     DatasetError,
@@ -36,7 +38,6 @@ from tileviz.datasets import (
     DatasetWriter,
     read_meta,
 )
-from tileviz.localizer import LIMIT, Localizer
 from tileviz.pipeline import FrameLoop
 from tileviz.sim.source import SimSource
 from tileviz.types import Box, FrameInput, Observation, Odometry, Pose, SensorBounds

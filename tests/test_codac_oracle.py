@@ -49,9 +49,9 @@ import pytest
 
 from tests.codac_oracle_worker import decode  # (codac itself is imported only by its main())
 from tileviz.config import LocalizerConfig
-from tileviz.intervals import cos_range, sin_range
-from tileviz.localizer import contract_branch, lever_enclosure, observation_windows
-from tileviz.tiles import observe
+from tileviz.core.contraction import contract_branch, lever_enclosure, observation_windows
+from tileviz.core.intervals import cos_range, sin_range
+from tileviz.core.tiles import observe
 from tileviz.types import Observation, Pose
 
 WORKER = Path(__file__).with_name("codac_oracle_worker.py")

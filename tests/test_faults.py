@@ -1,5 +1,5 @@
 """Faults (issue 7): the localizer never vouches for a set without the truth unless a hypothesis
-of ``tileviz.localizer`` is broken, notices the faults it can, and recovers where it can.
+of ``tileviz.core.localizer`` is broken, notices the faults it can, and recovers where it can.
 
 Two levels: the localizer alone on a synthetic drive (exact motion and views, faults added by
 hand), and the whole loop (SimSource -> robust vision -> Localizer through FrameLoop) with the
@@ -19,10 +19,10 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from tileviz.config import Config, LocalizerConfig, preset
-from tileviz.localizer import Localizer, LocalizerStep
+from tileviz.core.localizer import Localizer, LocalizerStep
+from tileviz.core.tiles import observe
 from tileviz.pipeline import FrameLoop, FrameRecord
 from tileviz.sim.source import SimSource
-from tileviz.tiles import observe
 from tileviz.types import Box, FrameInput, Observation, Odometry, Pose, SensorBounds
 from tileviz.vision import observation_error
 

@@ -12,7 +12,7 @@ import pytest
 from tileviz.baselines import MclConfig, MclEstimate, MclEstimator
 from tileviz.config import preset
 from tileviz.core.estimators import Estimator, IntervalEstimator, StepInputs
-from tileviz.localizer import LocalizerStep
+from tileviz.core.localizer import LocalizerStep
 from tileviz.pipeline import PRIMARY, FrameLoop, initial_box
 from tileviz.sim.source import SimSource
 from tileviz.types import Box

@@ -11,7 +11,7 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from tileviz.intervals import (
+from tileviz.core.intervals import (
     HALF_PI_HI,
     HALF_PI_LO,
     PI_HI,

@@ -13,16 +13,15 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from tileviz.config import LocalizerConfig
-from tileviz.localizer import (
-    Localizer,
-    compass_pieces,
+from tileviz.core.contraction import (
     contract_box,
     contract_branch,
     lever_enclosure,
     observation_windows,
-    predict_box,
 )
-from tileviz.tiles import camera_centre, observe, quarter_turn
+from tileviz.core.localizer import Localizer
+from tileviz.core.prediction import compass_pieces, predict_box
+from tileviz.core.tiles import camera_centre, observe, quarter_turn
 from tileviz.types import Box, BoxSet, Observation, Odometry, Pose, SensorBounds
 
 FAST = settings(max_examples=80, deadline=None)

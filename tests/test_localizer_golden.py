@@ -1,12 +1,12 @@
-"""Bit-exact regression of :class:`tileviz.localizer.Localizer` against stored output.
+"""Bit-exact regression of :class:`tileviz.core.localizer.Localizer` against stored output.
 
 ``tests/data/localizer_golden.npz`` holds, for a few fixed input sequences, the inputs of every
 frame (odometry, compass, observation; the truth in mode truth) and what the localizer returned:
 both box sets (every bound as a float64 bit pattern), the status, passes, rejection streak and
 flags. The test
 replays the stored inputs and requires every output bit to be the same, so an optimisation of the
-hot path (``tileviz/localizer.py``, ``tileviz/intervals.py``) that changes a single rounding shows
-up here with the sequence and the first frame that differs.
+hot path (``tileviz/core/``: localizer, prediction, contraction, boxes, intervals) that changes
+a single rounding shows up here with the sequence and the first frame that differs.
 
 The inputs come from the simulator (``SimSource``, fixed seeds) through the *robust* extractor
 (deterministic), and are stored, so the test depends neither on vision nor on the machine. The
@@ -36,7 +36,7 @@ import numpy as np
 import pytest
 
 from tileviz.config import Config, LocalizerConfig, preset, with_overrides
-from tileviz.localizer import Localizer
+from tileviz.core.localizer import Localizer
 from tileviz.types import STATUSES, Box, BoxSet, Observation, Odometry, Pose, SensorBounds
 
 GOLDEN = Path(__file__).with_name("data") / "localizer_golden.npz"
@@ -314,7 +314,8 @@ if __name__ == "__main__":
 def test_hot_path_builds_the_same_objects() -> None:
     """The localizer builds its Box / BoxSet / LocalizerStep results without the frozen
     dataclass __init__ (it is slow): they must be the very same objects as the __init__ makes."""
-    from tileviz.localizer import LocalizerStep, _to_boxset
+    from tileviz.core.boxes import _to_boxset
+    from tileviz.core.localizer import LocalizerStep
 
     t1 = (0.1, 0.2, -0.3, 0.4, -0.0, 6.5)
     t2 = (1.0, 1.5, 2.0, 2.5, 3.0, 3.5)

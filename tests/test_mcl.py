@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from tileviz.baselines import CHI2_2D_95, MCL, MclConfig
-from tileviz.tiles import equivalent_pose, observe
+from tileviz.core.tiles import equivalent_pose, observe
 from tileviz.types import Box, Observation, Odometry, Pose, SensorBounds
 
 L = 1.0

@@ -19,8 +19,9 @@ from hypothesis import strategies as st
 
 from tests.exact_truth import MP, heading_margin, in_box, in_set, mpf
 from tileviz.config import LocalizerConfig
-from tileviz.intervals import TWO_PI, lattice_cut, lattice_intersect, turn_shift
-from tileviz.localizer import Localizer, contract_branch, lever_enclosure, observation_windows
+from tileviz.core.contraction import contract_branch, lever_enclosure, observation_windows
+from tileviz.core.intervals import TWO_PI, lattice_cut, lattice_intersect, turn_shift
+from tileviz.core.localizer import Localizer
 from tileviz.types import Box, BoxSet, Observation, SensorBounds
 
 FAST = settings(max_examples=200)

@@ -18,8 +18,7 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from tileviz.config import CameraConfig, FloorConfig
-from tileviz.sim.camera import FloorRenderer
-from tileviz.tiles import (
+from tileviz.core.tiles import (
     camera_centre,
     equivalence_residuals,
     equivalent_parameters,
@@ -29,6 +28,7 @@ from tileviz.tiles import (
     quarter_turn,
     quarter_turns,
 )
+from tileviz.sim.camera import FloorRenderer
 from tileviz.types import Observation, Pose
 
 FAST = settings(max_examples=100, deadline=None)

@@ -1,5 +1,5 @@
 """The vision API shared by both extractors: the docs/method.md convention (checked against the
-exact observation of ``tileviz.tiles``), the result's fields, stage images and bad input."""
+exact observation of ``tileviz.core.tiles``), the result's fields, stage images and bad input."""
 
 from __future__ import annotations
 

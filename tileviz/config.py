@@ -206,7 +206,7 @@ class LocalizerConfig:
     max_rejections: int = 20
     """Consecutive rejected observations after which the status becomes ``lost``."""
     max_slip: tuple[float, float] = (0.0, 0.0)
-    """Recovery (``tileviz.localizer``, "Recovery"): the largest pose error (metres, in x and in
+    """Recovery (docs/method.md, "Recovery"): the largest pose error (metres, in x and in
     y; radians, in heading) that an odometry fault (wheel slip beyond the declared bounds, an
     outlier reading, a small push) may have added to the prediction by the frame where the
     localizer notices it. On a rejected view (or a compass that misses the set) the set then also

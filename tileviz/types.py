@@ -13,7 +13,7 @@ from typing import Literal, get_args
 import numpy as np
 
 from tileviz.core.constants import TWO_PI
-from tileviz.intervals import turn_shift
+from tileviz.core.intervals import turn_shift
 
 Status = Literal["contracted", "predicted", "rejected", "lost"]
 STATUSES: tuple[Status, ...] = get_args(Status)
@@ -125,8 +125,8 @@ class BoxSet:
     def hull(self) -> Box | None:
         """The bounding box, or None when the set is empty. Heading intervals are first shifted by
         multiples of 2 pi next to the first box's, so the hull is the tightest continuous one; the
-        shifts are outward rounded (:func:`tileviz.intervals.turn_shift`), so the hull holds every
-        pose of the set for the real 2 pi, not only for the float TWO_PI."""
+        shifts are outward rounded (:func:`tileviz.core.intervals.turn_shift`), so the hull holds
+        every pose of the set for the real 2 pi, not only for the float TWO_PI."""
         if not self.boxes:
             return None
         ref = self.boxes[0].centre[2]

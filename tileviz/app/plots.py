@@ -27,7 +27,7 @@ _COL = {name: i for i, name in enumerate(METRIC_NAMES)}
 _RESIDUAL_COLOURS = ("#e6194b", "#3cb44b", "#4363d8", "#f58231", "#911eb4", "#42d4f4")
 RESIDUAL_LABELS = ("x, upright", "y, upright", "heading, upright", "x, quarter turn",
                    "y, quarter turn", "heading, quarter turn")
-"""Legend of r1..r6 (``tileviz.tiles.equivalence_residuals``): the first three compare the view
+"""Legend of r1..r6 (``tileviz.core.tiles.equivalence_residuals``): the first three compare the view
 with the true pose for the upright and half-turned readings, the last three for the quarter
 turns."""
 TITLES = {

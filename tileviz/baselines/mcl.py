@@ -1,9 +1,10 @@
 """Monte Carlo Localization (a particle filter) on the interval localizer's inputs.
 
 The baseline the report's conclusion asks for: the same bounded odometry, the same compass and the
-same tile observation as :class:`tileviz.localizer.Localizer`, but a cloud of weighted pose samples
-instead of a guaranteed set. Frames and units as in ``docs/dataset-format.md``: world metres,
-heading theta counter-clockwise from +x in radians; particle headings are continuous (not wrapped).
+same tile observation as :class:`tileviz.core.localizer.Localizer`, but a cloud of weighted pose
+samples instead of a guaranteed set. Frames and units as in ``docs/dataset-format.md``: world
+metres, heading theta counter-clockwise from +x in radians; particle headings are continuous (not
+wrapped).
 
 One :meth:`MCL.step` per frame, in the localizer's order (:mod:`tileviz.pipeline.frame_loop`):
 

@@ -8,7 +8,7 @@ __all__ = ["HALF_PI", "LIMIT", "MAX_PPM", "MAX_TILE_PX", "MIN_TILE_PX", "TWO_PI"
 
 TWO_PI = 2.0 * math.pi
 """The float nearest 2 pi, the heading period (radians). Interval code that must enclose the real
-2 pi uses ``tileviz.intervals.TWO_PI_ERROR`` beside it."""
+2 pi uses ``tileviz.core.intervals.TWO_PI_ERROR`` beside it."""
 HALF_PI = 0.5 * math.pi
 """The float nearest pi/2, the period of the tile observation's heading branches (radians)."""
 

@@ -10,7 +10,7 @@ The frame loop (:class:`tileviz.pipeline.FrameLoop`) is the only caller in the p
 every estimator the same inputs and keeps each estimate in the frame's record. The interval
 localizer in each of its modes (``autonomous``, ``truth``, ``odometry``: the odometry-only
 method) is an :class:`IntervalEstimator` whose estimate is a
-:class:`tileviz.localizer.LocalizerStep`; the Monte Carlo baseline is
+:class:`tileviz.core.localizer.LocalizerStep`; the Monte Carlo baseline is
 :class:`tileviz.baselines.estimator.MclEstimator` (estimate:
 :class:`tileviz.baselines.mcl.MclEstimate`).
 """
@@ -21,7 +21,7 @@ from dataclasses import dataclass, replace
 from typing import Protocol, TypeVar, runtime_checkable
 
 from tileviz.config import Config, LocalizerConfig, Mode
-from tileviz.localizer import Localizer, LocalizerStep
+from tileviz.core.localizer import Localizer, LocalizerStep
 from tileviz.types import Box, BoxSet, Observation, Odometry, Pose, SensorBounds
 
 __all__ = ["Estimator", "IntervalEstimator", "StepInputs", "sensor_bounds"]
@@ -65,8 +65,9 @@ def sensor_bounds(cfg: Config) -> SensorBounds:
 
 
 class IntervalEstimator:
-    """The guaranteed interval localizer (:class:`tileviz.localizer.Localizer`) as an
-    :class:`Estimator`; its estimate is the frame's :class:`~tileviz.localizer.LocalizerStep`."""
+    """The guaranteed interval localizer (:class:`tileviz.core.localizer.Localizer`) as an
+    :class:`Estimator`; its estimate is the frame's
+    :class:`~tileviz.core.localizer.LocalizerStep`."""
 
     def __init__(self, localizer: Localizer) -> None:
         self.localizer = localizer

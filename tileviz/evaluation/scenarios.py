@@ -21,8 +21,8 @@ __all__ = [
 RECOVERY_MAX_SLIP: dict[str, tuple[float, float]] = {"default": (0.1, 0.1), "seed": (0.04, 0.1)}
 """``LocalizerConfig.max_slip`` (metres, radians) of the ``interval-recovery`` method per preset
 (and of ``bench/faults.py``'s recovery runs): below half a tile minus the tracking set's width, so
-a re-inflation leaves one lattice cell (``tileviz.localizer``, "Recovery"). ``slip_window`` keeps
-its default."""
+a re-inflation leaves one lattice cell (docs/method.md, "Recovery"). ``slip_window`` keeps its
+default."""
 
 
 @dataclass(frozen=True)

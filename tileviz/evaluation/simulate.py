@@ -14,9 +14,9 @@ import numpy as np
 from tileviz.baselines import MclConfig, MclEstimate, MclEstimator
 from tileviz.config import Mode
 from tileviz.core.estimators import Estimator, IntervalEstimator, sensor_bounds
+from tileviz.core.localizer import LocalizerStep
 from tileviz.evaluation.events import noticed
 from tileviz.evaluation.scenarios import RECOVERY_MAX_SLIP, SCENARIOS, fault_schedule
-from tileviz.localizer import LocalizerStep
 from tileviz.pipeline import FrameLoop, initial_box
 from tileviz.types import STATUSES, Box, BoxSet, FrameInput, Odometry, Pose, SensorBounds
 

@@ -26,8 +26,8 @@ import numpy as np
 
 from tileviz.config import Config
 from tileviz.core.estimators import Estimator, IntervalEstimator, StepInputs, sensor_bounds
-from tileviz.localizer import LocalizerStep
-from tileviz.tiles import equivalence_residuals
+from tileviz.core.localizer import LocalizerStep
+from tileviz.core.tiles import equivalence_residuals
 from tileviz.types import Box, BoxSet, FrameInput, Odometry, Pose, SensorBounds, Status
 from tileviz.vision import VisionResult, extract
 

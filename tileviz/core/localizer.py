@@ -1,0 +1,379 @@
+"""The guaranteed interval localizer: a set of robot poses kept as a few disjoint boxes.
+
+Each :meth:`Localizer.step`: predict the set with the bounded odometry (docs/method.md,
+"Prediction"), intersect its heading with the compass, then contract it with the tile observation
+(docs/method.md, "Contraction"), every bound rounded outward. Frames and units as in
+``docs/dataset-format.md``: metres, radians, heading continuous (not wrapped).
+
+Contract: under the hypotheses of ``docs/guarantees.md`` (H1-H4; H5 with recovery on), at every
+frame whose status is not ``lost`` the true pose is inside ``LocalizerStep.predicted`` and
+``LocalizerStep.updated`` (heading modulo 2 pi); the proof is in docs/method.md, "Why the set
+holds the truth". ``odometry=None`` means the robot did not move since the previous step (frame
+0, after a reset). Statuses (``docs/dataset-format.md``, ``docs/method.md``): ``contracted``,
+``predicted`` (no view, or mode ``odometry``), ``rejected`` (the view fits no pose of the set:
+not used, the prediction kept), ``lost`` (``max_rejections`` rejections in a row; frames without
+a view neither count nor reset the streak; the set is then the hull of the prediction, views are
+ignored, until :meth:`Localizer.reset`). A compass reading that misses the predicted set is
+ignored that frame (``LocalizerStep.compass_rejected``).
+
+Recovery (``LocalizerConfig.max_slip = (d, a)``, metres and radians; mode ``autonomous``; off
+when both are 0): a rejected view, or a compass that misses the set, keeps the prediction and adds
+the slip candidates, the poses within (d, d, a) of it that the compass and the view allow, one box
+per lattice cell (docs/method.md, "Recovery"); for ``slip_window`` frames after that, every view
+contracts the prediction widened by ``max_slip``.
+
+Modes (``LocalizerConfig.mode``): ``autonomous``; ``truth`` (every frame the set restarts from
+the true pose inflated by ``truth_inflation``, then the compass and the view contract it; never
+``lost``); ``odometry`` (prediction and compass only, status ``predicted``).
+
+The hot path works on plain 6-tuples ``(x_lo, x_hi, y_lo, y_hi, t_lo, t_hi)``; the public API
+speaks :class:`tileviz.types.Box` / :class:`tileviz.types.BoxSet`. Its shortcuts (one-box cases,
+cos and sin ranges in one call, lattice walks that reuse their piece bounds, only the rotation
+branches the heading meets, result objects built without the frozen dataclass __init__) compute
+the very same floats as the general code: ``tests/test_localizer_golden.py`` compares every
+output bit of recorded sequences.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from tileviz.config import LocalizerConfig
+from tileviz.core.boxes import (
+    _TURN,
+    MIN_TILE,
+    Tuple6,
+    _check_box,
+    _finite,
+    _hull_all,
+    _in_range,
+    _new,
+    _nonneg,
+    _one_turn,
+    _tidy,
+    _to_boxset,
+    inflate_box,
+)
+from tileviz.core.contraction import Window, _contract_view, _view_window, lever_enclosure
+from tileviz.core.prediction import compass_pieces, predict_box
+from tileviz.types import Box, BoxSet, Observation, Odometry, Pose, SensorBounds, Status
+
+__all__ = ["Localizer", "LocalizerStep"]
+
+_INF = math.inf
+_nextafter = math.nextafter
+
+
+@dataclass(frozen=True)
+class LocalizerStep:
+    """What one :meth:`Localizer.step` did.
+
+    ``predicted``: the set after prediction and compass (before the view). ``updated``: the set
+    after this frame's update. ``status``: see the module docstring. ``passes``: the largest
+    number of contraction passes run on one cell (0 when nothing was contracted). ``hulled``: the
+    box cap (or a lattice split too fine to keep) replaced some set by its hull this frame.
+    ``compass_rejected``: the compass reading missed the predicted set and was ignored.
+    ``rejections``: the current streak of consecutive rejected views. ``reinflated``: recovery
+    added the slip candidates to the set this frame (module docstring, "Recovery").
+    """
+
+    predicted: BoxSet
+    updated: BoxSet
+    status: Status
+    passes: int
+    hulled: bool = False
+    compass_rejected: bool = False
+    rejections: int = 0
+    reinflated: bool = False
+
+
+
+class Localizer:
+    """Guaranteed localization on a tiled floor (see the module docstring for the guarantee).
+
+    ``tile_size``: L, metres. ``camera_offset``: (forward, left) of the camera centre in the robot
+    frame, metres. ``bounds``: odometry and compass error bounds. ``config``: mode, box cap,
+    passes, truth inflation, rejection limit. ``initial``: a box known to contain the true pose.
+    """
+
+    def __init__(
+        self,
+        *,
+        tile_size: float,
+        camera_offset: tuple[float, float],
+        bounds: SensorBounds,
+        config: LocalizerConfig,
+        initial: Box,
+    ) -> None:
+        self._L = _finite("tile_size", tile_size)
+        if self._L < MIN_TILE:
+            raise ValueError(f"tile_size must be >= {MIN_TILE:g} m, got {tile_size!r}")
+        if len(camera_offset) != 2:
+            raise ValueError(f"camera_offset must be (forward, left), got {camera_offset!r}")
+        off = (
+            _finite("camera_offset[0]", camera_offset[0]),
+            _finite("camera_offset[1]", camera_offset[1]),
+        )
+        self._lever = lever_enclosure(off)
+        self._ev = _nonneg("speed_error", bounds.speed_error)
+        self._ew = _nonneg("yaw_rate_error", bounds.yaw_rate_error)
+        self._ec = _nonneg("compass_error", bounds.compass_error)
+        if not isinstance(config, LocalizerConfig):
+            raise ValueError(f"config must be a LocalizerConfig, got {type(config).__name__}")
+        self._cfg = config
+        self._inflation = tuple(
+            _nonneg(f"truth_inflation[{i}]", v) for i, v in enumerate(config.truth_inflation)
+        )
+        if len(self._inflation) != 3:
+            raise ValueError(f"truth_inflation needs 3 values, got {config.truth_inflation!r}")
+        if len(config.max_slip) != 2:
+            raise ValueError(f"max_slip must be (metres, radians), got {config.max_slip!r}")
+        self._slip = (_nonneg("max_slip[0]", config.max_slip[0]),
+                      _nonneg("max_slip[1]", config.max_slip[1]))
+        self._recover = config.mode == "autonomous" and (self._slip[0] > 0 or self._slip[1] > 0)
+        self._boxes: list[Tuple6] = []
+        self._rejections = 0
+        self._lost = False
+        self._window = 0
+        self.reset(initial)
+
+    def reset(self, box: Box) -> None:
+        """Start again from ``box`` (it must contain the true pose): clears the rejection streak
+        and the ``lost`` state."""
+        self._boxes = [_check_box("initial box", box)]
+        self._rejections = 0
+        self._lost = False
+        self._window = 0
+
+    @property
+    def current(self) -> BoxSet:
+        """The set after the last step (or the initial box)."""
+        return _to_boxset(self._boxes)
+
+    @property
+    def lost(self) -> bool:
+        """True once the localizer declared itself lost (until :meth:`reset`)."""
+        return self._lost
+
+    def step(
+        self,
+        odometry: Odometry | None,
+        compass: float | None,
+        observation: Observation | None,
+        truth: Pose | None = None,
+    ) -> LocalizerStep:
+        """One frame: predict with ``odometry`` (the motion since the previous step; None = no
+        motion, e.g. frame 0), intersect with ``compass`` (rad, wrapped to (-pi, pi], or None),
+        contract with ``observation`` (or None). ``truth`` is needed in mode ``truth`` only.
+        Raises ValueError naming the quantity on NaN/inf, negative dt, negative bounds."""
+        cfg = self._cfg
+        mode = cfg.mode
+        cap = cfg.max_boxes
+        hulled = False
+        # validate every input first, so a bad frame changes nothing. The fast test: every value
+        # within +-LIMIT (written as literals; NaN fails, a non-number raises TypeError); on
+        # failure the checks that name the culprit run.
+        if odometry is not None:
+            v, w, dt = odometry.speed, odometry.yaw_rate, odometry.dt
+            try:
+                ok = -1e9 <= v <= 1e9 and -1e9 <= w <= 1e9 and 0 <= dt <= 1e9
+            except TypeError:
+                ok = False
+            if not ok:
+                _finite("odometry.speed", v)
+                _finite("odometry.yaw_rate", w)
+                _nonneg("odometry.dt", dt)
+        if compass is not None:
+            try:
+                ok = -1e9 <= compass <= 1e9
+            except TypeError:
+                ok = False
+            if not ok:
+                _finite("compass", compass)
+        if observation is not None:
+            o = observation
+            e, e3 = o.position_error, o.heading_error
+            try:
+                ok = (-1e9 <= o.y1 <= 1e9 and -1e9 <= o.y2 <= 1e9 and -1e9 <= o.y3 <= 1e9
+                      and 0 <= e <= 1e9 and 0 <= e3 <= 1e9)
+            except TypeError:
+                ok = False
+            if not ok:
+                _finite("observation.y1", o.y1)
+                _finite("observation.y2", o.y2)
+                _finite("observation.y3", o.y3)
+                _nonneg("observation.position_error", e)
+                _nonneg("observation.heading_error", e3)
+        if truth is not None:
+            tx, ty, tt = truth.x, truth.y, truth.theta
+            try:
+                ok = -1e9 <= tx <= 1e9 and -1e9 <= ty <= 1e9 and -1e9 <= tt <= 1e9
+            except TypeError:
+                ok = False
+            if not ok:
+                _finite("truth.x", tx)
+                _finite("truth.y", ty)
+                _finite("truth.theta", tt)
+        elif mode == "truth":
+            raise ValueError("truth: mode 'truth' needs the true pose every frame, got None")
+
+        # prediction
+        if mode == "truth":
+            ix, iy, it = self._inflation
+            n = _nextafter
+            boxes = _in_range([(n(tx - ix, -_INF), n(tx + ix, _INF), n(ty - iy, -_INF),
+                                n(ty + iy, _INF), n(tt - it, -_INF), n(tt + it, _INF))])
+        elif odometry is not None:
+            n = _nextafter
+            v_lo, v_hi = n(v - self._ev, -_INF), n(v + self._ev, _INF)
+            w_lo, w_hi = n(w - self._ew, -_INF), n(w + self._ew, _INF)
+            prior = self._boxes
+            boxes = ([predict_box(prior[0], v_lo, v_hi, w_lo, w_hi, dt)] if len(prior) == 1 else
+                     [predict_box(b, v_lo, v_hi, w_lo, w_hi, dt) for b in prior])
+            for b in boxes:
+                if not (-1e9 <= b[0] and b[1] <= 1e9 and -1e9 <= b[2] and b[3] <= 1e9
+                        and -1e9 <= b[4] and b[5] <= 1e9 and b[5] - b[4] <= _TURN):
+                    boxes = _in_range(boxes)  # raises, or cuts a heading to one turn
+                    break
+            if len(boxes) > 1:  # (one box is tidy: cap >= 1, LocalizerConfig checks it)
+                boxes, hulled = _tidy(boxes, cap)
+        else:
+            boxes = list(self._boxes)
+
+        compass_rejected = False
+        reinflated = False
+        raw = boxes  # the prediction before the compass: what recovery inflates
+        recover = self._recover and not self._lost
+        following = recover and self._window > 0  # a fault noticed lately: follow it
+        if following:
+            self._window -= 1
+        if compass is not None:
+            c_lo = _nextafter(compass - self._ec, -_INF)
+            c_hi = _nextafter(compass + self._ec, _INF)
+            cut = (compass_pieces(boxes[0], c_lo, c_hi) if len(boxes) == 1 else
+                   [p for b in boxes for p in compass_pieces(b, c_lo, c_hi)])
+            if len(cut) == 1:
+                boxes = cut
+            elif cut:
+                boxes, h = _tidy(cut, cap)
+                hulled = hulled or h
+            else:
+                compass_rejected = True
+                if recover:
+                    # the prediction misses the compass: keep it (the compass may be the outlier)
+                    # and add the slip candidates the compass allows (the odometry may be)
+                    self._window = cfg.slip_window
+                    extra, _, h = self._slip_candidates(raw, compass, None)
+                    if extra:
+                        boxes, h2 = _tidy(boxes + extra, cap)
+                        hulled = hulled or h or h2
+                        reinflated = True
+        predicted = _to_boxset(boxes)
+
+        passes = 0
+        if self._lost and mode != "truth":
+            status = "lost"
+            updated_boxes = [_hull_all(boxes)]
+        elif mode == "odometry" or observation is None:
+            status = "predicted"
+            updated_boxes = boxes
+        else:
+            view = _view_window(observation)
+            out: list[Tuple6] = []
+            if following:
+                # within slip_window frames of a noticed fault: the view contracts the prediction
+                # inflated by max_slip (it holds the plain prediction)
+                out, passes, h = self._slip_candidates(raw, compass, view)
+                hulled = hulled or h
+                reinflated = bool(out)
+            else:
+                for b in boxes:
+                    got, p, h = _contract_view(b, view, None, self._L, self._lever, cfg.passes,
+                                               cap)
+                    out.extend(got)
+                    if p > passes:
+                        passes = p
+                    hulled = hulled or h
+            if out:
+                status = "contracted"
+                self._rejections = 0
+                if len(out) == 1:
+                    updated_boxes = out
+                else:
+                    updated_boxes, h = _tidy(out, cap)
+                    hulled = hulled or h
+            else:
+                self._rejections += 1
+                status = "rejected"
+                updated_boxes = boxes
+                if recover:
+                    # the view misses the prediction: either the view is the outlier (keep the
+                    # prediction) or the odometry is (keep what the view allows within max_slip)
+                    self._window = cfg.slip_window
+                    if not following:  # (when following, that set was just found empty)
+                        extra, p, h = self._slip_candidates(raw, compass, view)
+                        passes = max(passes, p)
+                        hulled = hulled or h
+                        if extra:
+                            updated_boxes, h = _tidy(boxes + extra, cap)
+                            hulled = hulled or h
+                            reinflated = True
+                if mode == "autonomous" and self._rejections >= cfg.max_rejections:
+                    status = "lost"
+                    self._lost = True
+                    self._window = 0
+                    updated_boxes = [_hull_all(updated_boxes)]
+        self._boxes = updated_boxes
+        result = _new(LocalizerStep)  # LocalizerStep(...) without its frozen __init__
+        result.__dict__.update(
+            predicted=predicted,
+            updated=predicted if updated_boxes is boxes else _to_boxset(updated_boxes),
+            status=status,
+            passes=passes,
+            hulled=hulled,
+            compass_rejected=compass_rejected,
+            rejections=self._rejections,
+            reinflated=reinflated,
+        )
+        return result
+
+    def _compass_cut(self, boxes: list[Tuple6], compass: float) -> list[Tuple6]:
+        """The boxes' poses whose heading is within ``compass_error`` of ``compass`` (mod 2 pi)."""
+        c_lo = _nextafter(compass - self._ec, -_INF)
+        c_hi = _nextafter(compass + self._ec, _INF)
+        return [p for b in boxes for p in compass_pieces(b, c_lo, c_hi)]
+
+    def _slip_candidates(
+        self,
+        raw: list[Tuple6],
+        compass: float | None,
+        view: Window | None,
+    ) -> tuple[list[Tuple6], int, bool]:
+        """Recovery: the poses within ``max_slip`` of the prediction ``raw`` (before the compass)
+        that the compass and the view allow (``view``: branch 0 of its windows, or None), as
+        disjoint boxes (one per lattice cell).
+        Without a view, only the part the compass meets (none when it misses them all); with a
+        view, a compass that misses every candidate is ignored, as in :meth:`step`.
+        Returns (boxes, largest number of contraction passes, hulled)."""
+        cfg = self._cfg
+        cap = cfg.max_boxes
+        d, dt = self._slip
+        grown, hulled = _tidy([_one_turn(inflate_box(b, d, dt)) for b in raw], cap)
+        if compass is not None:
+            cut = self._compass_cut(grown, compass)
+            if cut:
+                grown, h = _tidy(cut, cap)
+                hulled = hulled or h
+            elif view is None:
+                return [], 0, hulled  # the compass misses the slip candidates too
+        if view is None:
+            return grown, 0, hulled
+        out: list[Tuple6] = []
+        passes = 0
+        for b in grown:
+            got, p, h = _contract_view(b, view, None, self._L, self._lever, cfg.passes, cap)
+            out.extend(got)
+            passes = max(passes, p)
+            hulled = hulled or h
+        return out, passes, hulled
