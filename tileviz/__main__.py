@@ -10,7 +10,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "record": ("tileviz.cli", "simulate a run and write a tileviz-dataset/1 folder"),
     "replay": ("tileviz.cli", "replay a dataset through vision and the localizer"),
     "extract": ("tileviz.vision.cli", "extract tile parameters from images"),
-    "evaluate": ("tileviz.evaluate", "evaluate the localizer and baselines over many runs"),
+    "evaluate": ("tileviz.evaluation.cli", "evaluate the localizer and baselines over many runs"),
 }
 
 
