@@ -10,7 +10,13 @@ from typing import Any
 
 import numpy as np
 
-from tileviz.evaluation.metrics import COLUMNS, aggregate, metrics
+from tileviz.evaluation.metrics import (
+    CALIBRATION_COLUMNS,
+    COLUMNS,
+    aggregate,
+    calibration,
+    metrics,
+)
 from tileviz.evaluation.scenarios import SCENARIOS
 from tileviz.evaluation.simulate import (
     FAULT_METHODS,
@@ -21,7 +27,8 @@ from tileviz.evaluation.simulate import (
 )
 
 __all__ = [
-    "figures", "markdown_table", "plot_coverage", "plot_errors", "write_csv", "write_outputs",
+    "calibration_table", "figures", "markdown_table", "plot_coverage", "plot_errors",
+    "write_csv", "write_outputs",
 ]
 
 def _csv_value(v: Any) -> str:
@@ -128,7 +135,8 @@ def figures(rows: Sequence[dict[str, Any]]) -> list[str]:
     if cpu_i > 0:
         ratio = cpu_m / cpu_i
         verdict = "reached" if ratio >= 20 else "NOT reached"
-        out.append(f"CPU per frame, MCL / interval (autonomous), all frames: {ratio:.1f}x "
+        out.append(f"CPU per frame, MCL (calibrated) / interval (autonomous), all frames: "
+                   f"{ratio:.1f}x "
                    f"(target >= 20x: {verdict}).")
     return out
 
@@ -268,9 +276,22 @@ def _shade(ax: Any, t: np.ndarray, mask: np.ndarray, color: str, label: str) -> 
                    label=label if a == edges[0] else None)
 
 
+def calibration_table(rows: Sequence[dict[str, Any]]) -> str:
+    """The calibration rows (:func:`~tileviz.evaluation.metrics.calibration`) as Markdown."""
+    levels = [c for c in CALIBRATION_COLUMNS if c.startswith("coverage_")]
+    head = "| scenario | method | " + " | ".join(
+        f"{c.split('_')[1]} % ellipse" for c in levels) + " |"
+    lines = [head, "|---|---|" + "---|" * len(levels)]
+    for r in rows:
+        lines.append(f"| {r['scenario']} | {METHOD_LABELS[r['method']]} | "
+                     + " | ".join(_fmt(r[c], digits=1) for c in levels) + " |")
+    return "\n".join(lines)
+
+
 def write_outputs(results: Sequence[RunResult], out: Path, command: str = "",
                   notes: Sequence[str] = ()) -> list[dict]:
-    """Write results.csv, results.md, runs.csv, coverage.png and error_<scenario>.png; ``notes``
+    """Write results.csv, results.md, runs.csv, calibration.csv, coverage.png and
+    error_<scenario>.png; ``notes``
     are extra lines for results.md (e.g. the MCL settings)."""
     out.mkdir(parents=True, exist_ok=True)
     rows = aggregate(results)
@@ -294,6 +315,11 @@ def write_outputs(results: Sequence[RunResult], out: Path, command: str = "",
     text += [f"- Vision (not counted above): {vision_ms:.2f} ms CPU per frame on average."]
     text += [f"- {line}" for line in notes]
     text += [""]
+    cal = calibration(results)
+    write_csv(out / "calibration.csv", cal, CALIBRATION_COLUMNS)
+    text += ["## Calibration of the particle filters", "",
+             "Share of frames (%) whose nominal confidence ellipse holds the true (x, y); a "
+             "calibrated filter matches the nominal level.", "", calibration_table(cal), ""]
     text += ["Columns: see `tileviz/evaluation/metrics.py` (module docstring). Widths and RMSE "
              "over the vouched frames; MCL widths are the box around its 95 % ellipse. False "
              "vouches: frames vouched for (not lost) whose set missed the truth. Detection delay "
