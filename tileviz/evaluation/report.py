@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import math
+import os
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -15,7 +16,6 @@ from tileviz.evaluation.metrics import (
     COLUMNS,
     aggregate,
     calibration,
-    metrics,
 )
 from tileviz.evaluation.scenarios import SCENARIOS
 from tileviz.evaluation.simulate import (
@@ -25,19 +25,12 @@ from tileviz.evaluation.simulate import (
     STATUS_CODES,
     RunResult,
 )
+from tileviz.evaluation.store import RUN_COLUMNS, csv_value, run_rows
 
 __all__ = [
     "calibration_table", "figures", "markdown_table", "plot_coverage", "plot_errors",
     "write_csv", "write_outputs",
 ]
-
-def _csv_value(v: Any) -> str:
-    if v is None:
-        return ""
-    if isinstance(v, float):
-        return "" if math.isnan(v) else repr(v)
-    return str(v)
-
 
 def write_csv(path: Path, rows: Sequence[dict[str, Any]], columns: Sequence[str]) -> None:
     """Write ``rows`` (dicts) with ``columns``; floats with ``repr``, None/NaN as empty cells."""
@@ -45,7 +38,7 @@ def write_csv(path: Path, rows: Sequence[dict[str, Any]], columns: Sequence[str]
         wr = csv.writer(f)
         wr.writerow(columns)
         for r in rows:
-            wr.writerow([_csv_value(r[c]) for c in columns])
+            wr.writerow([csv_value(r[c]) for c in columns])
 
 
 def _fmt(v: Any, scale: float = 1.0, digits: int = 2) -> str:
@@ -296,13 +289,9 @@ def write_outputs(results: Sequence[RunResult], out: Path, command: str = "",
     out.mkdir(parents=True, exist_ok=True)
     rows = aggregate(results)
     write_csv(out / "results.csv", rows, COLUMNS)
-    per_run = []
-    for r in results:
-        for m in METHODS:
-            per_run.append({"scenario": r.scenario, "method": m, "run": r.run, "seed": r.seed,
-                            **metrics([r], m)})
-    run_cols = COLUMNS[:2] + ("run", "seed") + COLUMNS[2:]
-    write_csv(out / "runs.csv", per_run, run_cols)
+    # (written to a temporary file and renamed: a campaign's runs.csv is never half written)
+    write_csv(out / "runs.tmp", [row for r in results for row in run_rows(r)], RUN_COLUMNS)
+    os.replace(out / "runs.tmp", out / "runs.csv")
     vision_ms = 1e3 * sum(r.vision_s for r in results) / max(1, sum(r.t.size for r in results))
     scns = list(dict.fromkeys(r.scenario for r in results))
     text = ["# Evaluation results", ""]
