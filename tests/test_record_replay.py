@@ -112,7 +112,7 @@ def test_record_cli_writes_a_dataset(tmp_path: Path) -> None:
 
 def _cli(*args: str) -> subprocess.CompletedProcess[str]:
     return subprocess.run([sys.executable, "-m", "tileviz", *args], capture_output=True,
-                          text=True, timeout=120)
+                          text=True, timeout=600)
 
 
 @pytest.mark.parametrize(
@@ -128,7 +128,7 @@ def _cli(*args: str) -> subprocess.CompletedProcess[str]:
 )
 def test_cli_errors_are_one_line(args: list[str], needle: str, tmp_path: Path) -> None:
     r = subprocess.run([sys.executable, "-m", "tileviz", *args], capture_output=True, text=True,
-                       timeout=120, cwd=tmp_path)
+                       timeout=600, cwd=tmp_path)
     assert r.returncode != 0
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and needle in lines[0], r.stderr

@@ -293,7 +293,7 @@ def test_serve_dataset_replays_in_the_browser_to_the_end(dataset, frames, tmp_pa
                 await c.wait_for(lambda m: m.get("type") == "ReplayDoneMessage")
                 # the frames advance to the dataset's end, which the readout says
                 await c.wait_for(lambda m: status(m, rf"end of dataset, {frames} frames"),
-                                 timeout=120)
+                                 timeout=600)
                 shown = [int(x) for m in c.messages
                          for x in re.findall(r"\*\*frame (\d+)\*\*", str(m.get("updates", "")))]
                 assert max(shown) == frames - 1 and len(set(shown)) >= 2
