@@ -29,6 +29,12 @@ def main(argv: list[str] | None = None) -> int:
             f"tileviz: error: unknown command {command!r} (choose from {', '.join(COMMANDS)})\n"
         )
         return 2
+    from tileviz.cliutil import missing_dependency
+
+    missing = missing_dependency(f"tileviz {command}")
+    if missing is not None:
+        sys.stderr.write(missing + "\n")
+        return 2
     module = importlib.import_module(COMMANDS[command][0])
     return int(module.main(command, args[1:]))
 
