@@ -59,7 +59,7 @@ def test_local_cluster_gives_the_same_tables_as_one_process(tmp_path, capsys):
 
 def test_a_killed_worker_has_its_runs_made_elsewhere_and_every_run_kept_once(tmp_path):
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  dashboard_address=None, silence_logs=40) as lc, \
+                                  dashboard_address=":0", silence_logs=40) as lc, \
             distributed.Client(lc) as spy:
         pids = spy.run(os.getpid)
         store = RunStore.open(tmp_path, {"k": 1}, resume=False)
@@ -115,7 +115,7 @@ def test_workers_without_this_tileviz_are_refused_in_one_line(preload, message, 
     script = tmp_path / "preload_tileviz.py"
     script.write_text(preload)
     with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
-                                  dashboard_address=None, silence_logs=40,
+                                  dashboard_address=":0", silence_logs=40,
                                   preload=[str(script)]) as lc:
         rc = _cli(["--runs", "1", "--duration", "1", "--scenarios", "clean", "--quiet",
                    "--scheduler", lc.scheduler_address, "--out", str(tmp_path / "out")])
@@ -131,7 +131,7 @@ def test_ctrl_c_keeps_the_finished_runs_and_resume_completes_them(where, tmp_pat
     the kept rows intact; then --resume makes only the others, and the tables equal a campaign
     made in one go."""
     out = tmp_path / "c"
-    args = ["--runs", "6", "--duration", "3", "--scenarios", "clean", "--quiet",
+    args = ["--runs", "4", "--duration", "2.5", "--scenarios", "clean", "--quiet",
             "--particles", "200"]
     proc = subprocess.Popen([sys.executable, "-m", "tileviz", "evaluate", *args, *where,
                              "--out", str(out)], cwd=ROOT,
@@ -163,8 +163,10 @@ def test_ctrl_c_keeps_the_finished_runs_and_resume_completes_them(where, tmp_pat
                           "--resume", str(out)], cwd=ROOT, capture_output=True, text=True,
                          timeout=600)
     assert res.returncode == 0, res.stderr
-    if len(done) < 6:
-        assert f"resuming: {len(done)} of 6 runs" in res.stdout
+    assert f"resuming: {len(done)} of 4 runs" in res.stdout
+    assert len(_rows(out / "runs.csv")) == 4 * len(ev.METHODS)
+    if where[0] == "--jobs":
+        return  # (a resumed campaign's tables do not depend on the backend: checked once)
     assert _cli([*args, "--jobs", "1", "--out", str(tmp_path / "fresh")]) == 0
     for name in ("results.csv", "runs.csv", "calibration.csv"):
         assert _rows(out / name) == _rows(tmp_path / "fresh" / name), name

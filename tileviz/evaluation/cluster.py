@@ -142,7 +142,7 @@ def run_on_cluster(
                 old = signal.signal(signal.SIGINT, signal.SIG_IGN) if main else None
                 try:
                     cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                                           dashboard_address=None, silence_logs=logging.ERROR)
+                                           dashboard_address=":0", silence_logs=logging.ERROR)
                 finally:
                     if main:
                         signal.signal(signal.SIGINT, old)
