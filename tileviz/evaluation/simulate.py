@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from tileviz.baselines import MclConfig, MclEstimate, MclEstimator
+from tileviz.baselines.mcl import calibrated_config, chi2_2d
 from tileviz.config import Mode
 from tileviz.core.estimators import Estimator, IntervalEstimator, sensor_bounds
 from tileviz.core.localizer import LocalizerStep
@@ -21,11 +22,11 @@ from tileviz.pipeline import FrameLoop, initial_box
 from tileviz.types import STATUSES, Box, BoxSet, FrameInput, Odometry, Pose, SensorBounds
 
 __all__ = [
-    "FAULT_METHODS", "INTERVAL_METHODS", "METHODS", "METHOD_LABELS", "STATUS_CODES",
+    "FAULT_METHODS", "INTERVAL_METHODS", "MCL_METHODS", "METHODS", "METHOD_LABELS", "STATUS_CODES",
     "MethodTrace", "RunResult", "Task", "run_one",
 ]
 
-METHODS = ("interval", "interval-recovery", "interval-truth", "odometry", "mcl")
+METHODS = ("interval", "interval-recovery", "interval-truth", "odometry", "mcl", "mcl-untuned")
 """Method names, in table order."""
 INTERVAL_METHODS = METHODS[:4]
 """The methods that report a status (the interval localizer in its modes)."""
@@ -38,8 +39,15 @@ METHOD_LABELS = {
     "interval-recovery": "interval (autonomous, recovery on)",
     "interval-truth": "interval (truth mode)",
     "odometry": "odometry only",
-    "mcl": "MCL",
+    "mcl": "MCL (calibrated)",
+    "mcl-untuned": "MCL (untuned)",
 }
+MCL_METHODS = ("mcl", "mcl-untuned")
+"""The particle filters: ``mcl`` is the calibrated one
+(:func:`tileviz.baselines.mcl.calibrated_config`: measured view likelihood, roughening,
+KLD-sampling up to ``--particles``, AMCL recovery), ``mcl-untuned`` the plain one
+(``MclConfig()``: Gaussians of ``--mcl-sigma-scale`` x the declared bounds, ``--particles``
+particles, ``--mcl-inject``)."""
 STATUS_CODES = {s: i for i, s in enumerate((*STATUSES, "estimate"))}
 """Per-frame status as a small integer in :class:`MethodTrace` (``estimate``: MCL)."""
 
@@ -68,7 +76,9 @@ class MethodTrace:
     mean. ``inside`` (n,): truth inside the set (MCL: inside the 95 % ellipse). ``status`` (n,)
     :data:`STATUS_CODES`. ``boxes`` (n,): number of boxes (MCL: 0). ``alarm`` (n,): the method
     :func:`noticed` something at the frame (:data:`FAULT_METHODS` only; False for the others).
-    ``cpu_s``: total CPU time of the steps, seconds."""
+    ``d2`` (n,): MCL: squared Mahalanobis distance of the true (x, y) from the particle mean in
+    the (x, y) covariance (the truth lies in the level-p ellipse when d2 <= chi2_2(p)); NaN for
+    the interval methods. ``cpu_s``: total CPU time of the steps, seconds."""
 
     lo: np.ndarray
     hi: np.ndarray
@@ -77,6 +87,7 @@ class MethodTrace:
     status: np.ndarray
     boxes: np.ndarray
     alarm: np.ndarray
+    d2: np.ndarray
     cpu_s: float = 0.0
 
     @classmethod
@@ -85,7 +96,7 @@ class MethodTrace:
         return cls(lo=np.full((n, 3), np.nan), hi=np.full((n, 3), np.nan),
                    centre=np.full((n, 3), np.nan), inside=np.zeros(n, bool),
                    status=np.zeros(n, np.int8), boxes=np.zeros(n, np.int32),
-                   alarm=np.zeros(n, bool))
+                   alarm=np.zeros(n, bool), d2=np.full(n, np.nan))
 
 
 @dataclass
@@ -132,7 +143,7 @@ def _odometry_ok(odo: Odometry | None, step: Any, bounds: SensorBounds) -> bool:
 
 def run_one(task: Task) -> RunResult:
     """Simulate one run of ``task`` and step every method on it: one :class:`FrameLoop` (vision
-    once per frame) drives the five estimators; this function only reads its records."""
+    once per frame) drives every method's estimator; this function only reads its records."""
     from tileviz.sim.source import SimSource  # pymunk: only here, not at import
     from tileviz.vision import observation_error
 
@@ -152,16 +163,20 @@ def run_one(task: Task) -> RunResult:
         return IntervalEstimator.from_config(cfg, initial=box0, bounds=bounds, mode=mode,
                                              max_slip=max_slip)
 
-    mcl_seed = int(np.random.SeedSequence([task.seed, key, 2]).generate_state(1)[0])
+    def mcl_seed(i: int) -> int:
+        return int(np.random.SeedSequence([task.seed, key, i]).generate_state(1)[0])
+
+    def mcl(config: MclConfig) -> MclEstimator:
+        return MclEstimator.from_config(cfg, initial=box0, bounds=bounds, config=config)
+
     estimators: dict[str, Estimator[Any]] = {
         "interval": interval("autonomous"),
         "interval-recovery": interval("autonomous", RECOVERY_MAX_SLIP[scn.preset]),
         "interval-truth": interval("truth"),
         "odometry": interval("odometry"),
-        "mcl": MclEstimator.from_config(
-            cfg, initial=box0, bounds=bounds,
-            config=MclConfig(particles=task.particles, inject_rate=task.mcl_inject,
-                             sigma_scale=task.mcl_sigma_scale, seed=mcl_seed)),
+        "mcl": mcl(calibrated_config(particles=task.particles, seed=mcl_seed(3))),
+        "mcl-untuned": mcl(MclConfig(particles=task.particles, inject_rate=task.mcl_inject,
+                                     sigma_scale=task.mcl_sigma_scale, seed=mcl_seed(2))),
     }
     assert tuple(estimators) == METHODS
     # this thread's CPU time: OpenCV's worker threads, still busy after vision returns, are
@@ -212,7 +227,7 @@ def run_one(task: Task) -> RunResult:
         for name in METHODS:
             tr = res.methods[name]
             tr.cpu_s += rec.timings[f"{name}_ms"] / 1e3
-            if name == "mcl":
+            if name in MCL_METHODS:
                 est: MclEstimate = rec.estimates[name]
                 hw = np.array(est.half_widths())
                 mean = est.mean.copy()
@@ -220,7 +235,8 @@ def run_one(task: Task) -> RunResult:
                 tr.lo[k] = mean - hw
                 tr.hi[k] = mean + hw
                 tr.centre[k] = mean
-                tr.inside[k] = est.ellipse_contains(tt[0], tt[1])
+                tr.d2[k] = est.mahalanobis2(tt[0], tt[1])
+                tr.inside[k] = tr.d2[k] <= chi2_2d(0.95)
                 tr.status[k] = STATUS_CODES["estimate"]
                 continue
             st: LocalizerStep = rec.estimates[name]
