@@ -13,8 +13,8 @@ import cv2
 import numpy as np
 import pytest
 
-from tileviz import tiles
 from tileviz.config import preset
+from tileviz.core import tiles
 from tileviz.sim.camera import FloorRenderer
 from tileviz.types import Pose
 from tileviz.vision.cli import main

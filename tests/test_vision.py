@@ -11,8 +11,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from tileviz import tiles
 from tileviz.config import CameraConfig, VisionConfig, preset
+from tileviz.core import tiles
 from tileviz.sim.camera import FloorRenderer
 from tileviz.types import Pose
 from tileviz.vision import REASONS, VisionResult, extract, observation_error
