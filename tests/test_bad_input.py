@@ -122,7 +122,7 @@ def test_replay_options_out_of_range(args: list[str], needle: str, recorded: Pat
 @pytest.mark.parametrize(
     ("args", "needle"),
     [
-        (["--dataset", "no/such/folder"], "no/such/folder: not a dataset folder"),
+        (["--dataset", "no/such/folder"], "no/such/folder: no such directory"),
         (["--dataset", "{bad_meta}"], "meta.json: format must be 'tileviz-dataset/1'"),
         (["--dataset", "{recorded}", "--tile-size", "0.5"],
          "--tile-size cannot be used with --dataset"),

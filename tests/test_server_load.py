@@ -16,9 +16,9 @@ from pathlib import Path
 
 import pytest
 
+from tests.wsclient import ViserClient
 from tileviz.app.server import App
 from tileviz.app.session import SessionOptions
-from tileviz.app.wsclient import ViserClient
 from tileviz.config import preset
 
 REPO = Path(__file__).resolve().parents[1]
@@ -33,7 +33,7 @@ HANG_S = 1800.0
 # Each connection waits until the server has sent it the whole scene (ReplayDoneMessage).
 LOAD = """
 import asyncio, sys, time
-from tileviz.app.wsclient import ViserClient
+from tests.wsclient import ViserClient
 
 async def churn(url, until, cycles):
     n = 0

@@ -59,6 +59,9 @@ def record_parser() -> Parser:
     p.add_argument("--compass-error", type=float_in("--compass-error", 0.0, math.pi,
                                                     lo_open=False), help="rad bound")
     p.add_argument("--no-compass", action="store_true", help="leave the compass column empty")
+    p.add_argument("--lens", choices=("webcam",), default=None,
+                   help="a real camera: 640x480 images through a tilted, distorting webcam "
+                   "lens; meta.json gets its camera_model and replay rectifies them")
     p.add_argument("--jpg", action="store_true", help="write JPEG images instead of PNG")
     p.add_argument("--png-level", type=int, choices=range(10), default=0, metavar="0..9",
                    help="PNG compression (default 0: pixels stored, 7x faster to write and 25x "
@@ -111,11 +114,18 @@ def record(argv: list[str]) -> int:
         frames = int(math.floor(args.duration / cfg.sim.dt + 1e-9)) + 1
         out = Path(args.out)
         meta = DatasetMeta.from_config(cfg, name=f"tileviz {args.preset} seed {args.seed}")
+        renderer = None
+        if args.lens is not None:
+            from tileviz.sim.lens import LensRenderer, webcam_model
+
+            model = webcam_model(cfg.camera)
+            renderer = LensRenderer(cfg.floor, cfg.camera, model)
+            meta = replace(meta, camera_model=model)
         writer = DatasetWriter(out, meta, image_format="jpg" if args.jpg else "png",
                                png_level=args.png_level)
         bar = _progress(frames, "record", not args.quiet)
         try:
-            for i, frame in enumerate(SimSource(cfg)):
+            for i, frame in enumerate(SimSource(cfg, renderer=renderer)):
                 if i >= frames:
                     break
                 if args.no_compass:
@@ -152,6 +162,9 @@ def replay_parser() -> Parser:
     p.add_argument("--extractor", choices=EXTRACTORS, default=None,
                    help="vision extractor (default: the dataset's, else robust)")
     p.add_argument("--max-boxes", type=positive_int("--max-boxes"), default=None)
+    p.add_argument("--mcap", default=None, metavar="OUT.mcap",
+                   help="also write the run for Foxglove: camera images, truth, the sets as 3-D "
+                   "cubes, status and box widths (needs the [ros] extra)")
     p.add_argument("--jobs", type=positive_int("--jobs"), default=None,
                    help="processes that decode images and run vision, several frames at once "
                    "(the localizer stays in order in this process; same output whatever the "
@@ -175,6 +188,7 @@ def replay(argv: list[str]) -> int:
             residual_row,
         )
         from tileviz.runner import Runner
+        from tileviz.summary import RunTally
 
         # images decode on a background thread while the previous frame's vision runs
         source = DatasetSource(args.dataset, prefetch=8)
@@ -186,17 +200,26 @@ def replay(argv: list[str]) -> int:
         runner = Runner(cfg)
         bar = _progress(source.row_count() or None, "replay", not args.quiet)
         n = 0
+        tally = RunTally()
         jobs = args.jobs if args.jobs is not None else default_jobs()
         if jobs > 1:
             from tileviz.parallel import vision_ahead
 
-            records = (runner.process(frame, vision)
+            records = ((frame, runner.process(frame, vision))
                        for frame, vision in vision_ahead(source, cfg, jobs))
         else:
-            records = runner.run(source)
+            records = ((frame, runner.process(frame)) for frame in source)
+        mcap = None
+        if args.mcap is not None:
+            from tileviz.datasets.mcap_export import McapExport
+
+            mcap = McapExport(args.mcap, source.folder)
         try:
-            for rec in records:
+            for frame, rec in records:
                 out.row(replay_row(rec))
+                if mcap is not None:
+                    mcap.write(rec, frame.image_name)
+                tally.add(rec)
                 if eq is not None:
                     eq.row(residual_row(rec))
                 n += 1
@@ -206,7 +229,9 @@ def replay(argv: list[str]) -> int:
             out.close()
             if eq is not None:
                 eq.close()
-        print(f"replayed {n} frames into {args.out}")
+            if mcap is not None:
+                mcap.close()
+        print("; ".join([f"replayed {n} frames into {args.out}", *tally.parts()]))
         return 0
 
     return run_cli("tileviz replay", body)
