@@ -144,3 +144,15 @@ def test_replay_refuses_a_bad_fault_model_in_one_line(tmp_path: Path, capsys) ->
         assert err.value.code == 2
         lines = [ln for ln in capsys.readouterr().err.splitlines() if "--fault-model" in ln]
         assert len(lines) == 1
+
+
+def test_serve_passes_the_fault_model_to_the_localizer(tmp_path: Path) -> None:
+    """``tileviz serve --fault-model`` (simulation or a dataset) sets the localizer's model."""
+    from tileviz.app.server import config_from_args, parser
+
+    cfg = config_from_args(parser().parse_args(["--fault-model", "0.2,0.1"]))
+    assert (cfg.localizer.fault_speed, cfg.localizer.fault_yaw_rate) == (0.2, 0.1)
+    ds = make_fault_dataset(tmp_path / "ds", FaultPlan(frames=2))
+    cfg = config_from_args(parser().parse_args(["--dataset", str(ds), "--fault-model", "0.3,0"]))
+    assert (cfg.localizer.fault_speed, cfg.localizer.fault_yaw_rate) == (0.3, 0.0)
+    assert config_from_args(parser().parse_args([])).localizer.fault_speed == 0.0
