@@ -50,6 +50,7 @@ def test_page_shows_the_scene_steps_and_has_the_controls(tmp_path):
         with sync_playwright() as p:
             browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS)
             page = browser.new_page(viewport={"width": 1400, "height": 900})
+            page.set_default_timeout(HANG_S * 1000)  # clicks too (Playwright's default: 30 s)
             requests: list[str] = []
             page.on("request", lambda r: requests.append(r.url))
             page.goto(app.url)
