@@ -12,6 +12,7 @@ from tileviz.cliutil import (
     CliError,
     Parser,
     config_from_args,
+    fault_model,
     float_in,
     int_in,
     positive_int,
@@ -132,6 +133,11 @@ def replay_parser() -> Parser:
     p.add_argument("--extractor", choices=EXTRACTORS, default=None,
                    help="vision extractor (default: the dataset's, else robust)")
     p.add_argument("--max-boxes", type=positive_int("--max-boxes"), default=None)
+    p.add_argument("--fault-model", type=fault_model("--fault-model"), default=None,
+                   metavar="SPEED,YAW_RATE",
+                   help="how much faster than the odometry bounds a fault (wheel slip, push) may "
+                   "move the robot, m/s and rad/s: the localizer then tracks through such a fault "
+                   "and says lost beyond it (docs/faults.md); default off (0,0)")
     p.add_argument("--mcap", default=None, metavar="OUT.mcap",
                    help="also write the run for Foxglove: camera images, truth, the sets as 3-D "
                    "cubes, status and box widths (needs the [ros] extra)")
@@ -165,8 +171,8 @@ def replay(argv: list[str]) -> int:
         try:
             n = run_replay(args.dataset, out=args.out, output_file=args.output_file,
                            mode=args.mode, extractor=args.extractor, max_boxes=args.max_boxes,
-                           jobs=args.jobs, mcap=args.mcap, on_total=on_total,
-                           on_frame=on_frame)
+                           jobs=args.jobs, mcap=args.mcap, fault_model=args.fault_model,
+                           on_total=on_total, on_frame=on_frame)
         finally:
             if bar is not None:
                 bar.close()  # type: ignore[attr-defined]

@@ -46,6 +46,7 @@ def replay(
     max_boxes: int | None = None,
     jobs: int | None = None,
     mcap: str | os.PathLike[str] | None = None,
+    fault_model: tuple[float, float] | None = None,
     on_total: Callable[[int | None], None] | None = None,
     on_frame: Callable[[FrameRecord], None] | None = None,
 ) -> int:
@@ -55,6 +56,8 @@ def replay(
     (:func:`tileviz.datasets.replay_config`); ``jobs``: vision processes (default
     :func:`default_jobs`). ``mcap``: also write the run for Foxglove to this MCAP file
     (:mod:`tileviz.datasets.mcap_export`; finished even when a bad row stops the replay).
+    ``fault_model``: the localizer's fault model (m/s, rad/s; ``LocalizerConfig.fault_speed``,
+    ``fault_yaw_rate``).
     ``on_total`` gets the frame count when known (None otherwise) before
     the first frame, ``on_frame`` every record. A bad row or image raises DatasetError (a
     ValueError) after every frame before it was written."""
@@ -63,6 +66,9 @@ def replay(
     cfg = replay_config(source.meta, mode=mode, extractor=extractor)
     if max_boxes:
         cfg = replace(cfg, localizer=replace(cfg.localizer, max_boxes=max_boxes))
+    if fault_model is not None:
+        cfg = replace(cfg, localizer=replace(cfg.localizer, fault_speed=fault_model[0],
+                                             fault_yaw_rate=fault_model[1]))
     csv_out = CsvOut(out, REPLAY_COLUMNS)
     eq = CsvOut(output_file, RESIDUAL_COLUMNS) if output_file else None
     loop = FrameLoop(cfg)
