@@ -148,14 +148,14 @@ def test_replay_refuses_a_bad_fault_model_in_one_line(tmp_path: Path, capsys) ->
 
 def test_serve_passes_the_fault_model_to_the_localizer(tmp_path: Path) -> None:
     """``tileviz serve --fault-model`` (simulation or a dataset) sets the localizer's model."""
-    from tileviz.app.server import config_from_args, parser
+    from tileviz.app.server import parser, serve_config
 
-    cfg = config_from_args(parser().parse_args(["--fault-model", "0.2,0.1"]))
+    cfg = serve_config(parser().parse_args(["--fault-model", "0.2,0.1"]))
     assert (cfg.localizer.fault_speed, cfg.localizer.fault_yaw_rate) == (0.2, 0.1)
     ds = make_fault_dataset(tmp_path / "ds", FaultPlan(frames=2))
-    cfg = config_from_args(parser().parse_args(["--dataset", str(ds), "--fault-model", "0.3,0"]))
+    cfg = serve_config(parser().parse_args(["--dataset", str(ds), "--fault-model", "0.3,0"]))
     assert (cfg.localizer.fault_speed, cfg.localizer.fault_yaw_rate) == (0.3, 0.0)
-    assert config_from_args(parser().parse_args([])).localizer.fault_speed == 0.0
+    assert serve_config(parser().parse_args([])).localizer.fault_speed == 0.0
 
 
 def test_a_fault_set_wider_than_the_view_can_cut_is_never_called_contracted() -> None:
