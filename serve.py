@@ -6,7 +6,13 @@ http://127.0.0.1:8080 by default; ``python serve.py --help`` lists the options. 
 
 import sys
 
-from tileviz.app.server import main
+from tileviz.cliutil import missing_dependency
 
 if __name__ == "__main__":
+    missing = missing_dependency("serve.py")
+    if missing is not None:
+        sys.stderr.write(missing + "\n")
+        raise SystemExit(2)
+    from tileviz.app.server import main
+
     raise SystemExit(main("serve", sys.argv[1:]))

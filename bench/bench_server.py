@@ -32,7 +32,7 @@ from typing import Any
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from tileviz.app.wsclient import ViserClient, decode_window, start_serve  # noqa: E402
+from tests.wsclient import ViserClient, decode_window, start_serve  # noqa: E402
 
 ARGS = ["--headless", "--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
         "--disable-background-networking", "--disable-component-update", "--no-first-run"]

@@ -22,8 +22,8 @@ Measures, per run:
 - recovery time: frames from E to the first later frame that is vouched for (not ``lost``) and
   contains the truth; "never" when there is none (e.g. ``lost``).
 
-Detection and recovery are computed by ``tileviz.evaluate.event_outcomes`` (and
-``tileviz.evaluate.noticed``), the code behind the same columns of ``python -m tileviz evaluate``.
+Detection and recovery are computed by ``tileviz.evaluation.event_outcomes`` (and
+``tileviz.evaluation.noticed``), the code behind the same columns of ``python -m tileviz evaluate``.
 - containment: over the frames from F to the end whose status vouches for the set (every status
   but ``lost``), the share whose set contains the true pose.
 - wrong vouched frames are then explained or not: each must belong to a run of consecutive
@@ -35,7 +35,7 @@ Detection and recovery are computed by ``tileviz.evaluate.event_outcomes`` (and
 - views that vision accepted on a faulty frame although they were outside their declared bounds
   are listed with seed, frame and true pose (they would be the vision's fault).
 
-Recovery setting (``max_slip``, metres and radians, ``tileviz.evaluate.RECOVERY_MAX_SLIP``, the
+Recovery setting (``max_slip``, metres and radians, ``tileviz.evaluation.RECOVERY_MAX_SLIP``, the
 ``interval-recovery`` method of the evaluation): ``default`` (0.1, 0.1), ``seed`` (0.04, 0.1) --
 below half a tile minus the tracking set's width, so a re-inflation leaves one lattice cell
 (``tileviz.localizer``, "Recovery").
@@ -60,7 +60,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import numpy as np  # noqa: E402
 
 from tileviz.config import Config, preset  # noqa: E402
-from tileviz.evaluate import RECOVERY_MAX_SLIP, event_outcomes, noticed  # noqa: E402
+from tileviz.evaluation import RECOVERY_MAX_SLIP, event_outcomes, noticed  # noqa: E402
 from tileviz.runner import FrameRecord, Runner  # noqa: E402
 from tileviz.sim.sensors import prediction_encloses  # noqa: E402
 from tileviz.sim.source import SimSource  # noqa: E402
@@ -186,7 +186,7 @@ def run_one(name: str, seed: int, spec: FaultSpec, recovery: bool, before: int,
     src = SimSource(cfg)
     runner = Runner(cfg)
     res = RunResult(name, spec.label, recovery, seed)
-    # per frame, for tileviz.evaluate.event_outcomes
+    # per frame, for tileviz.evaluation.event_outcomes
     faults: list[bool] = []
     alarms: list[bool] = []
     vouches: list[bool] = []
@@ -386,7 +386,7 @@ def main() -> int:
         f"Measured by `{cmd}` ({len(results)} runs, {elapsed:.0f} s). Definitions in "
         "`bench/faults.py`; the guarantee and its hypotheses in `docs/guarantees.md`.",
         "Detection delay and recovery time are computed by the code behind the same columns of "
-        "the evaluation table (`tileviz.evaluate.event_outcomes`): there, per scenario, over "
+        "the evaluation table (`tileviz.evaluation.event_outcomes`): there, per scenario, over "
         "long runs with several faults, for the autonomous localizer with recovery off "
         "(`interval`) and on (`interval-recovery`, the `max_slip` below) "
         "([evaluation.md](evaluation.md), [eval/results.md](eval/results.md)). This page adds "

@@ -3,6 +3,9 @@
 ``import codac`` switches the whole process to upward rounding, so this script is never imported
 by tileviz or by the pytest process: ``tests/test_codac_oracle.py`` and
 ``bench/bench_localizer.py`` start it with ``sys.executable`` and talk JSON over stdin/stdout.
+Under upward rounding CPython parses about one decimal float literal in five one ulp off (its
+fast path divides in floats), so the worker reads and parses its whole input *before* importing
+codac, and writes every bound it returns as ``float.hex`` (read back with :func:`decode`).
 
 The constraint, for one rotation branch m of an observation (design.md, corrected Theorem 1),
 over the 6-box (x, y, theta, y1, y2, y3) where [y1], [y2], [y3] are the observation +- its bounds:
@@ -22,11 +25,15 @@ Input (JSON on stdin)::
                                    "box": [[lo, hi] x 6], "cell": null | [kx, ky, j]}, ...]}
     {"task": "bench", "L", "rho", "phi", "boxes": [[[lo, hi] x 6], ...], "repeats": int}
 
+``echo``: {"task": "echo", "values": [float, ...]} returns {"values": [hex, ...]}, the floats as
+parsed, to check that the input reaches codac's process exactly.
+
 ``contract``: CtcInverse of the three sin constraints (codac's default, with the centered form),
 iterated to a fixpoint (until no bound moves). With ``cell``, the contractor is intersected with a
 second CtcInverse that pins the lattice cell: c_x - u1 = kx L, c_y - u2 = ky L,
 theta - y3 - m pi/2 = 2 pi j. With ``"m": "union"``: CtcUnion of the four branch contractors,
-each wrapped in CtcFixpoint(ratio 0). Output: {"results": [[[lo, hi] x 6] | null, ...]}.
+each wrapped in CtcFixpoint(ratio 0). Output: {"results": [[[lo, hi] x 6] | null, ...]}, every
+bound as ``float.hex``.
 
 ``bench``: the time of one contraction of each box by the union over m = 0..3 (CtcUnion) of the
 branch contractors, single pass and to a fixpoint (CtcFixpoint), with and without the centered
@@ -39,8 +46,17 @@ import json
 import math
 import sys
 import time
+from typing import Any
 
-import codac as cd
+cd: Any = None
+"""The codac module, imported by :func:`main` once the input is parsed (see the docstring)."""
+
+
+def decode(results: list) -> list:
+    """``results`` of a ``contract`` answer with every ``float.hex`` bound read back as a float
+    (for the caller, in its own round-to-nearest process)."""
+    return [None if r is None else [[float.fromhex(lo), float.fromhex(hi)] for lo, hi in r]
+            for r in results]
 
 
 def _branch_function(L: float, rho: float, phi: float, m: int) -> tuple[object, object]:
@@ -69,7 +85,7 @@ def _box(b: list[list[float]]) -> object:
 def _out(b: object) -> list[list[float]] | None:
     if b.is_empty():
         return None
-    return [[b[i].lb(), b[i].ub()] for i in range(6)]
+    return [[b[i].lb().hex(), b[i].ub().hex()] for i in range(6)]
 
 
 def _fixpoint(ctc: object, b: object, limit: int = 200) -> object:
@@ -78,7 +94,7 @@ def _fixpoint(ctc: object, b: object, limit: int = 200) -> object:
         b = ctc.contract(b)
         if b.is_empty():
             return b
-        cur = [(b[i].lb(), b[i].ub()) for i in range(6)]
+        cur = [(b[i].lb(), b[i].ub()) for i in range(6)]  # compared, never parsed: exact
         if cur == prev:
             break
         prev = cur
@@ -150,9 +166,15 @@ def bench(spec: dict) -> dict:
 
 
 def main() -> int:
-    spec = json.load(sys.stdin)
+    global cd
+    spec = json.loads(sys.stdin.read())  # parsed in round-to-nearest, before codac is imported
+    import codac
+
+    cd = codac
     task = spec.get("task")
-    if task == "contract":
+    if task == "echo":
+        out: dict = {"values": [float(v).hex() for v in spec["values"]]}
+    elif task == "contract":
         out = contract(spec["jobs"])
     elif task == "bench":
         out = bench(spec)

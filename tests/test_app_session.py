@@ -184,9 +184,47 @@ def test_commands_change_the_run(cfg, tmp_path):
     s.apply(C.SetWaypoints(((1.0, 1.0), (2.0, 2.0))))
     assert s.setpoint_kind == "waypoints"
     s.apply(C.Restart(0.5, 150.0))
-    assert len(s.history) == 0 and s.cfg.floor.tile_size == 0.5 and s.cfg.camera.ppm == 150.0
+    # the new run's frame 0 is shown at once, paused: nothing of the old run stays
+    assert s.cfg.floor.tile_size == 0.5 and s.cfg.camera.ppm == 150.0 and not s.playing
+    assert len(s.history) == 1 and s.shown_entry().record.index == 0
+    assert [n.text for n in s.notes] == ["new run: tile size 0.5 m, 150 px/m"]
     s.apply(C.Step())
-    assert s.shown_entry().record.index == 0
+    assert s.shown_entry().record.index == 1
+    s.close()
+
+
+def test_reset_while_paused_shows_the_new_run_at_once(cfg, tmp_path):
+    s = make(cfg, tmp_path)
+    s.apply(C.Step())
+    first = s.shown_entry().record.truth
+    for _ in range(4):
+        s.apply(C.Step())
+    s.apply(C.Kidnap((1.0, 1.0, 0.0)))
+    s.apply(C.Step())
+    assert s.tally.frames == 6 and any("kidnapped" in n.text for n in s.notes)
+    s.apply(C.Reset())
+    assert not s.playing and len(s.history) == 1 and s.shown == 0
+    rec = s.shown_entry().record
+    assert rec.index == 0 and rec.truth == first
+    # the old run's notes and counts are gone; one note says what happened
+    assert len(s.notes) == 1 and s.notes[0].text.startswith("Reset: a new run from frame 0")
+    assert s.tally.frames == 1
+    s.close()
+
+
+def test_recording_while_paused_says_what_happened(cfg, tmp_path):
+    s = make(cfg, tmp_path)
+    s.apply(C.StartRecording("nothing"))
+    assert "press Play or Step" in s.notes[-1].text
+    s.apply(C.StopRecording())
+    assert s.notes[-1].text.startswith("nothing recorded: no new frame")
+    assert not (tmp_path / "out" / "nothing").exists() and not s.recording_active
+    s.apply(C.StartRecording("two"))
+    s.apply(C.Step())
+    s.apply(C.Step())
+    s.apply(C.StopRecording())
+    assert s.notes[-1].text.startswith("recorded 2 frames to")
+    assert len((tmp_path / "out" / "two" / "frames.csv").read_text().splitlines()) == 3
     s.close()
 
 

@@ -39,8 +39,8 @@ def test_page_shows_the_scene_steps_and_has_the_controls(tmp_path):
             requests: list[str] = []
             page.on("request", lambda r: requests.append(r.url))
             page.goto(app.url)
-            page.wait_for_selector("canvas", timeout=60_000)
-            expect(page.get_by_text("frame 0,")).to_be_visible(timeout=60_000)
+            page.wait_for_selector("canvas", timeout=300_000)
+            expect(page.get_by_text("frame 0,")).to_be_visible(timeout=300_000)
             for name in CONTROLS:
                 expect(page.get_by_role("button", name=name, exact=True)).to_be_visible()
             for label in ("Timeline", "Setpoint", "Mode", "Extractor", "Speed bound (m/s)"):
@@ -48,7 +48,7 @@ def test_page_shows_the_scene_steps_and_has_the_controls(tmp_path):
             expect(page.get_by_text("camera view", exact=True)).to_be_visible()
 
             page.get_by_role("button", name="Step", exact=True).click()
-            expect(page.get_by_text("frame 1,")).to_be_visible(timeout=60_000)
+            expect(page.get_by_text("frame 1,")).to_be_visible(timeout=300_000)
             assert (app.session.history.last, app.session.shown) == (1, 1)
 
             page.wait_for_timeout(1500)  # let the renderer draw the frame

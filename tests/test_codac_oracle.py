@@ -47,6 +47,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tests.codac_oracle_worker import decode  # (codac itself is imported only by its main())
 from tileviz.config import LocalizerConfig
 from tileviz.intervals import cos_range, sin_range
 from tileviz.localizer import contract_branch, lever_enclosure, observation_windows
@@ -70,7 +71,10 @@ def run_worker(spec: dict) -> dict:
         timeout=900,
     )
     assert r.returncode == 0, r.stderr
-    return json.loads(r.stdout)
+    out = json.loads(r.stdout)
+    if "results" in out:
+        out["results"] = decode(out["results"])
+    return out
 
 
 def _cases(n: int, seed: int = 2024) -> list[tuple]:
@@ -253,3 +257,54 @@ def test_union_over_branches_matches_codac_ctcunion(oracle) -> None:
         out, wider = _compare(_hull(boxes), theirs)
         assert out <= ROUNDING_TOL and wider <= WIDER_TOL
     assert nonempty >= 500
+
+
+def _wide_cases(n: int, seed: int = 77) -> list[tuple]:
+    """Boxes 9 to 15 tiles wide in x (and often in y) with a lever arm: more lattice pieces than
+    the 16 cells the localizer keeps, so its cells are hulls of pieces (``hulled``)."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for _ in range(n):
+        L = float(rng.choice([0.1, 0.166, 0.5]))
+        off = (float(rng.uniform(-3 * L, 3 * L)), float(rng.uniform(-3 * L, 3 * L)))
+        truth = Pose(float(rng.uniform(-3, 3)), float(rng.uniform(-3, 3)),
+                     float(rng.uniform(-3, 3)))
+        e = float(rng.uniform(0.01, 0.3)) * L
+        e3 = float(rng.uniform(0.05, 0.78))
+        y0 = observe(truth, L, off)
+        obs = Observation(y0[0], y0[1], y0[2], e, e3)
+        hw = (float(rng.uniform(18, 30)) * L / 2,
+              float(rng.choice([rng.uniform(0.1, 0.5), rng.uniform(9, 15)])) * L,
+              float(rng.uniform(0.05, 1.5)))
+        box = (truth.x - hw[0], truth.x + hw[0], truth.y - hw[1], truth.y + hw[1],
+               truth.theta - hw[2], truth.theta + hw[2])
+        out.append((L, off, box, obs))
+    return out
+
+
+def test_hulled_cells_are_flagged_and_as_tight_as_codac() -> None:
+    """Where the lattice split is too fine to keep (more pieces than the 16-cell cap) the result
+    says ``hulled`` and is still no wider than codac's forward-backward contraction (which
+    cuts the lattice again at every pass; before the fix ours kept the first pass's pieces and
+    was up to 0.12 m wider here, and the flag was never set)."""
+    cfg = LocalizerConfig()
+    jobs, ours = [], []
+    for L, off, box, obs in _wide_cases(150):
+        win = observation_windows(obs)
+        lever = lever_enclosure(off)
+        for m in range(4):
+            ours.append(contract_branch(box, win[m], L, lever, cfg.passes, cfg.max_boxes))
+            jobs.append({"L": L, "rho": math.hypot(*off), "phi": math.atan2(off[1], off[0]),
+                         "m": m, "box": _box6(box, win[0]), "cell": None})
+    theirs = run_worker({"task": "contract", "jobs": jobs})["results"]
+    compared = worst = 0.0
+    for (boxes, _p, hulled), th in zip(ours, theirs, strict=True):
+        if not boxes or th is None:
+            continue
+        assert hulled  # every non-empty branch here has more than 16 x pieces
+        compared += 1
+        worst = max(worst, _compare(_hull(boxes), th)[1])
+    print(f"\ncodac oracle: {int(compared)} hulled branch contractions, ours wider by <= "
+          f"{worst:.3g}")
+    assert compared >= 200
+    assert worst <= WIDER_TOL

@@ -123,7 +123,7 @@ def test_meta_not_json(tmp_path: Path) -> None:
 
 
 def test_missing_folder_and_frames(tmp_path: Path) -> None:
-    with pytest.raises(DatasetError, match="not a dataset folder"):
+    with pytest.raises(DatasetError, match="no such directory"):
         DatasetSource(tmp_path / "nowhere")
     folder = _foreign_dataset(tmp_path)
     (folder / "frames.csv").unlink()

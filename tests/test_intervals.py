@@ -22,6 +22,7 @@ from tileviz.intervals import (
     add,
     asin_preimage,
     cos_range,
+    lattice_cut,
     lattice_hull,
     lattice_intersect,
     mul,
@@ -247,7 +248,8 @@ def test_lattice_intersect_known_answers() -> None:
     # nothing
     assert lattice_intersect(0.6, 0.9, 0.4, 0.5, 1.0) == []
     # max_pieces: too many pieces become their hull
-    (only,) = lattice_intersect(0.0, 100.0, 0.4, 0.5, 1.0, max_pieces=16)
+    (only,), hulled = lattice_cut(0.0, 100.0, 0.4, 0.5, 1.0, max_pieces=16)
+    assert hulled
     assert only[0] == pytest.approx(0.4) and only[1] == pytest.approx(99.5)
 
 

@@ -64,14 +64,21 @@ def test_replay_reproduces_live_sets(live_run: tuple[Path, list[list[str]]],
     code = tileviz_main(["replay", str(folder), "--mode", "autonomous", "--out", str(out),
                          "--output-file", str(eq), *flags])
     assert code == 0
+    printed = capsys.readouterr()
     if jobs == "default":
-        assert f"{FRAMES}/{FRAMES}" in capsys.readouterr().err
+        assert f"{FRAMES}/{FRAMES}" in printed.err
     rows = _read_csv(out)
     assert tuple(rows[0]) == REPLAY_COLUMNS
     assert rows[1:] == live_rows
     # the localizer localized: most frames contracted, and the truth is inside every vouched set
     statuses = [r[2] for r in rows[1:]]
     assert statuses.count("contracted") > FRAMES // 2
+    # one summary line: frames, statuses as written, median set, containment (the truth is known)
+    summary = printed.out.strip().splitlines()[-1]
+    assert f"replayed {FRAMES} frames" in summary
+    assert f"{statuses.count('contracted')} contracted" in summary and "median set" in summary
+    vouched = sum(1 for r in rows[1:] if r[2] != "lost")
+    assert f"truth inside the set in 100.0 % of the {vouched} frames" in summary
     eq_rows = _read_csv(eq)
     assert tuple(eq_rows[0]) == RESIDUAL_COLUMNS and len(eq_rows) == FRAMES + 1
 
@@ -112,13 +119,14 @@ def test_record_cli_writes_a_dataset(tmp_path: Path) -> None:
 
 def _cli(*args: str) -> subprocess.CompletedProcess[str]:
     return subprocess.run([sys.executable, "-m", "tileviz", *args], capture_output=True,
-                          text=True, timeout=120)
+                          text=True, timeout=600)
 
 
 @pytest.mark.parametrize(
     ("args", "needle"),
     [
-        (["replay", "nowhere", "--out", "x.csv"], "not a dataset folder"),
+        (["replay", "nowhere", "--out", "x.csv"], "nowhere: no such directory"),
+        (["replay", "notes.txt", "--out", "x.csv"], "notes.txt: not a directory"),
         (["replay", "nowhere", "--mode", "fly", "--out", "x.csv"], "invalid choice"),
         (["record", "x", "--duration", "-1"], "--duration must be a finite number > 0"),
         (["record", "x", "--duration", "1", "--ppm", "nan"], "--ppm must be a finite number"),
@@ -127,8 +135,9 @@ def _cli(*args: str) -> subprocess.CompletedProcess[str]:
     ],
 )
 def test_cli_errors_are_one_line(args: list[str], needle: str, tmp_path: Path) -> None:
+    (tmp_path / "notes.txt").write_text("a file, not a dataset folder\n")
     r = subprocess.run([sys.executable, "-m", "tileviz", *args], capture_output=True, text=True,
-                       timeout=120, cwd=tmp_path)
+                       timeout=600, cwd=tmp_path)
     assert r.returncode != 0
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and needle in lines[0], r.stderr

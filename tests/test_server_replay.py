@@ -14,10 +14,11 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from tests.wsclient import ViserClient, serving, stop_serve
 from tileviz.app import commands as C
+from tileviz.app.commands import SIMULATOR_ONLY
 from tileviz.app.scene import SceneView
-from tileviz.app.session import SIMULATOR_ONLY, Session, SessionOptions
-from tileviz.app.wsclient import ViserClient, serving, stop_serve
+from tileviz.app.session import Session, SessionOptions
 from tileviz.cli import main as cli
 from tileviz.dataset import DatasetSource, read_meta, replay_config, replay_row
 from tileviz.runner import Runner
@@ -100,6 +101,20 @@ def test_a_mode_or_extractor_change_replays_from_frame_0_as_the_command_line(
     assert "from frame 0" in s.notes[-1].text
     play_to_end(s)
     assert shown_rows(s) == cli_replay(dataset, tmp_path / "r.csv", *args)[1:]
+    s.close()
+
+
+def test_start_frame_opens_the_recorded_run_paused_at_that_frame(dataset, frames, tmp_path):
+    s = session(dataset, tmp_path)
+    k = frames // 2
+    s.skip_to(k)
+    entry = s.shown_entry()
+    assert not s.playing and entry.index == k and s.history.last == s.shown
+    assert len(dict(entry.images)) > 2  # the frame shown has its stage images
+    # the sets are those of a replay from frame 0
+    assert shown_rows(s)[-1] == cli_replay(dataset, tmp_path / "r.csv")[k + 1]
+    s.apply(C.Step())
+    assert s.shown_entry().index == k + 1
     s.close()
 
 
@@ -189,7 +204,7 @@ def test_simulator_commands_leave_a_note_and_change_nothing(dataset, tmp_path):
                 C.SetWaypoints(((1.0, 1.0),)), C.Kidnap(), C.Kidnap((1.0, 1.0, 0.0)),
                 C.SetNoise(0.05, 0.05, 0.05, 2.0), C.Inject("slip"), C.Restart(0.5, 150.0),
                 C.StartRecording("x"), C.StopRecording()]
-    assert {type(c).__name__ for c in commands} == set(SIMULATOR_ONLY)
+    assert {type(c) for c in commands} == set(SIMULATOR_ONLY)
     for cmd in commands:
         s.apply(cmd)
         assert type(cmd).__name__ in s.notes[-1].text and "nothing changed" in s.notes[-1].text
@@ -285,7 +300,7 @@ def test_serve_dataset_replays_in_the_browser_to_the_end(dataset, frames, tmp_pa
         assert re.fullmatch(r"http://127\.0\.0\.1:\d+/", url), url
 
         def status(m: dict, pattern: str) -> bool:
-            return (m.get("type") in ("GuiUpdateMessage", "GuiMarkdownMessage")
+            return (m.get("type") in ("GuiUpdateMessage", "GuiHtmlMessage")
                     and re.search(pattern, str(m.get("updates", m.get("props", {})))) is not None)
 
         async def scenario() -> None:
@@ -293,9 +308,9 @@ def test_serve_dataset_replays_in_the_browser_to_the_end(dataset, frames, tmp_pa
                 await c.wait_for(lambda m: m.get("type") == "ReplayDoneMessage")
                 # the frames advance to the dataset's end, which the readout says
                 await c.wait_for(lambda m: status(m, rf"end of dataset, {frames} frames"),
-                                 timeout=120)
+                                 timeout=600)
                 shown = [int(x) for m in c.messages
-                         for x in re.findall(r"\*\*frame (\d+)\*\*", str(m.get("updates", "")))]
+                         for x in re.findall(r"<b>frame (\d+)</b>", str(m.get("updates", "")))]
                 assert max(shown) == frames - 1 and len(set(shown)) >= 2
                 # the simulator's controls are not shown
                 for label in ("Kidnap (teleport the robot)", "Setpoint", "Faults", "Record",
@@ -304,7 +319,7 @@ def test_serve_dataset_replays_in_the_browser_to_the_end(dataset, frames, tmp_pa
                 assert visible(c, "Step back") and visible(c, "Mode")
                 mark = len(c.messages)
                 await c.click("Step back")
-                await c.wait_for(lambda m: status(m, rf"\*\*frame {frames - 2}\*\*"),
+                await c.wait_for(lambda m: status(m, rf"<b>frame {frames - 2}</b>"),
                                  start=mark)
 
         asyncio.run(scenario())

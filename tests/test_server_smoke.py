@@ -13,9 +13,9 @@ from pathlib import Path
 
 import pytest
 
+from tests.wsclient import ViserClient, serving, stop_serve
 from tileviz.app.server import App
 from tileviz.app.session import Session, SessionOptions
-from tileviz.app.wsclient import ViserClient, serving, stop_serve
 from tileviz.config import preset
 
 REPO = Path(__file__).resolve().parents[1]
@@ -68,6 +68,15 @@ def test_scene_and_controls_arrive_and_step_advances_one_frame(app):
             frame0 = camera_jpeg()[-1]
             assert frame0[:2] == b"\xff\xd8"  # a JPEG of the camera view
             assert app.session.history.last == 0
+            # the stages are sent once the left panel shows them
+            stages = {m["uuid"] for m in c.of_type("GuiImageMessage")
+                      if m["props"].get("label") == ""}
+            mark = len(c.messages)
+            view = uuid_of(c, "Below", "GuiButtonGroupMessage")
+            await c.send({"type": "GuiUpdateMessage", "uuid": view,
+                          "updates": {"value": "Camera and stages"}})
+            await c.wait_for(lambda m: m.get("uuid") in stages
+                             and "_data" in m.get("updates", {}), start=mark)
 
             mark = len(c.messages)
             await c.click("Step")
@@ -112,10 +121,10 @@ def test_a_refused_gui_value_becomes_a_note_and_the_loop_goes_on(app):
                           "updates": {"value": "1, 2; banana"}})
             await c.click("Drive the waypoints")
             await c.wait_for(lambda m: m.get("type") == "GuiUpdateMessage"
-                             and "waypoint 1" in str(m["updates"].get("_markdown", "")))
+                             and "waypoint 1" in str(m["updates"].get("content", "")))
             await c.click("Step")
             await c.wait_for(lambda m: m.get("type") == "GuiUpdateMessage"
-                             and "frame 1" in str(m["updates"].get("_markdown", "")))
+                             and "frame 1" in str(m["updates"].get("content", "")))
             assert app.running
 
     asyncio.run(scenario())
@@ -151,7 +160,7 @@ def test_the_target_follows_a_click_on_the_floor_and_the_gizmo(app):
             assert app.session.cfg.sim.manual_target == pytest.approx((-0.5, 2.5))
             await c.click("Step")
             await c.wait_for(lambda m: m.get("type") == "GuiUpdateMessage"
-                             and "frame 1" in str(m["updates"].get("_markdown", "")))
+                             and "frame 1" in str(m["updates"].get("content", "")))
             assert app.session.shown_entry().record.setpoint == pytest.approx((-0.5, 2.5))
 
     asyncio.run(scenario())
@@ -160,7 +169,7 @@ def test_the_target_follows_a_click_on_the_floor_and_the_gizmo(app):
 def run_cli(*args: str) -> subprocess.CompletedProcess[str]:
     env = dict(os.environ, PYTHONPATH=str(REPO))
     return subprocess.run([sys.executable, "-m", "tileviz", "serve", *args], cwd=REPO, env=env,
-                          capture_output=True, text=True, timeout=120)
+                          capture_output=True, text=True, timeout=600)
 
 
 @pytest.mark.parametrize("args, word", [
@@ -202,7 +211,7 @@ def test_serve_prints_the_url_serves_the_page_and_stops_on_ctrl_c(tmp_path):
     with serving(["--port", "0", "--out-dir", str(tmp_path), "--output-file", "res.csv"],
                  cwd=tmp_path) as (proc, url):
         assert re.fullmatch(r"http://127\.0\.0\.1:\d+/", url), url  # loopback by default
-        page = urllib.request.urlopen(url, timeout=30).read().decode()
+        page = urllib.request.urlopen(url, timeout=300).read().decode()
         assert "<html" in page.lower()
         out, err = stop_serve(proc)
     assert proc.returncode == 0, err
@@ -217,3 +226,35 @@ def test_the_page_fetches_nothing_from_the_internet():
     page = (Path(viser.__file__).parent / "client" / "build" / "index.html").read_text()
     urls = set(re.findall(r"https?://[^\s\"'`)]+", page))
     assert urls <= {"http://www.w3.org/2000/svg"}, urls
+
+
+def test_frames_runs_n_frames_prints_a_summary_and_exits_0(tmp_path):
+    r = run_cli("--frames", "5", "--port", "0", "--max-speed", "--out-dir", str(tmp_path))
+    assert r.returncode == 0, r.stderr
+    summary = [line for line in r.stdout.splitlines() if "frames/s" in line]
+    assert len(summary) == 1, r.stdout
+    assert summary[0].startswith("tileviz serve: 5 frames in ")
+    assert "statuses: " in summary[0] and "truth inside the set in" in summary[0]
+    assert "Traceback" not in r.stderr
+
+
+def test_a_requested_busy_port_is_one_line_and_the_default_says_where_it_went(tmp_path):
+    import socket
+
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        r = run_cli("--port", str(port), "--frames", "1", "--out-dir", str(tmp_path))
+        assert r.returncode == 2
+        lines = r.stderr.strip().splitlines()
+        assert len(lines) == 1 and f"port {port} on 127.0.0.1 is busy" in lines[0], r.stderr
+        assert "open http" not in r.stdout
+        # without --port the server takes the next free one and says so
+        app = App(preset("default"), SessionOptions(out_dir=tmp_path, interactive=True),
+                  port=port)
+        app.start()
+        try:
+            assert app.port != port
+        finally:
+            app.stop()

@@ -52,7 +52,7 @@ def test_importing_vision_puts_opencv_on_one_thread() -> None:
 def test_observation_is_the_same_in_a_process_that_had_two_threads() -> None:
     env = dict(os.environ, OPENCV_FOR_THREADS_NUM="2")
     out = subprocess.run([sys.executable, "-c", _CHILD, str(FRAME)], capture_output=True,
-                         text=True, env=env, timeout=120, check=True)
+                         text=True, env=env, timeout=600, check=True)
     child = json.loads(out.stdout.strip().splitlines()[-1])
     assert child["threads"] == 1
     here = _here()

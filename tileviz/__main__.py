@@ -10,7 +10,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "record": ("tileviz.cli", "simulate a run and write a tileviz-dataset/1 folder"),
     "replay": ("tileviz.cli", "replay a dataset through vision and the localizer"),
     "extract": ("tileviz.vision.cli", "extract tile parameters from images"),
-    "evaluate": ("tileviz.evaluate", "evaluate the localizer and baselines over many runs"),
+    "evaluate": ("tileviz.evaluation.cli", "evaluate the localizer and baselines over many runs"),
 }
 
 
@@ -28,6 +28,12 @@ def main(argv: list[str] | None = None) -> int:
         sys.stderr.write(
             f"tileviz: error: unknown command {command!r} (choose from {', '.join(COMMANDS)})\n"
         )
+        return 2
+    from tileviz.cliutil import missing_dependency
+
+    missing = missing_dependency(f"tileviz {command}")
+    if missing is not None:
+        sys.stderr.write(missing + "\n")
         return 2
     module = importlib.import_module(COMMANDS[command][0])
     return int(module.main(command, args[1:]))

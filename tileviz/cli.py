@@ -175,6 +175,7 @@ def replay(argv: list[str]) -> int:
             residual_row,
         )
         from tileviz.runner import Runner
+        from tileviz.summary import RunTally
 
         # images decode on a background thread while the previous frame's vision runs
         source = DatasetSource(args.dataset, prefetch=8)
@@ -186,6 +187,7 @@ def replay(argv: list[str]) -> int:
         runner = Runner(cfg)
         bar = _progress(source.row_count() or None, "replay", not args.quiet)
         n = 0
+        tally = RunTally()
         jobs = args.jobs if args.jobs is not None else default_jobs()
         if jobs > 1:
             from tileviz.parallel import vision_ahead
@@ -197,6 +199,7 @@ def replay(argv: list[str]) -> int:
         try:
             for rec in records:
                 out.row(replay_row(rec))
+                tally.add(rec)
                 if eq is not None:
                     eq.row(residual_row(rec))
                 n += 1
@@ -206,7 +209,7 @@ def replay(argv: list[str]) -> int:
             out.close()
             if eq is not None:
                 eq.close()
-        print(f"replayed {n} frames into {args.out}")
+        print("; ".join([f"replayed {n} frames into {args.out}", *tally.parts()]))
         return 0
 
     return run_cli("tileviz replay", body)

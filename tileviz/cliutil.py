@@ -104,3 +104,23 @@ def run_cli(prog: str, body: Callable[[], int]) -> int:
     except (CliError, ValueError, OSError) as e:
         sys.stderr.write(f"{prog}: error: {e}\n")
         return 2
+
+
+REQUIRED: dict[str, str] = {
+    "numpy": "numpy", "cv2": "opencv-python-headless", "pymunk": "pymunk", "viser": "viser",
+    "tqdm": "tqdm", "matplotlib": "matplotlib", "pyspng": "pyspng",
+}
+"""Modules tileviz imports -> the package that provides them (``pyproject.toml``)."""
+
+
+def missing_dependency(prog: str) -> str | None:
+    """One line naming the first module of :data:`REQUIRED` this Python cannot import and the
+    fix (the project's venv, or installing tileviz), or None when all are there."""
+    from importlib.util import find_spec
+
+    for module, package in REQUIRED.items():
+        if find_spec(module) is None:
+            return (f"{prog}: error: this Python ({sys.executable}) has no module {module!r} "
+                    f"(package {package}): activate the project's venv (source .venv/bin/activate)"
+                    f" or install tileviz into this Python (pip install -e .)")
+    return None

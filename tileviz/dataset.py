@@ -226,7 +226,9 @@ def read_meta(folder: str | os.PathLike[str]) -> DatasetMeta:
     """Read and validate ``folder/meta.json``."""
     path = Path(folder) / "meta.json"
     if not Path(folder).is_dir():
-        raise DatasetError(f"{folder}: not a dataset folder (no such directory)")
+        what = "not a directory" if Path(folder).exists() else "no such directory"
+        raise DatasetError(f"{folder}: {what} (a dataset is a folder with meta.json, frames.csv "
+                           "and images)")
     try:
         text = path.read_text(encoding="utf-8")
     except OSError as e:

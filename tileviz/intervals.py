@@ -35,6 +35,7 @@ __all__ = [
     "down",
     "hull",
     "intersect",
+    "lattice_cut",
     "lattice_hull",
     "lattice_intersect",
     "lattice_pieces_indexed",
@@ -42,6 +43,7 @@ __all__ = [
     "scale",
     "sin_range",
     "sub",
+    "turn_shift",
     "up",
 ]
 
@@ -229,6 +231,29 @@ def cos_sin_range(lo: float, hi: float) -> tuple[float, float, float, float]:
     return (c_lo, c_hi, s_lo if s_lo > -1.0 else -1.0, s_hi if s_hi < 1.0 else 1.0)
 
 
+def turn_shift(lo: float, hi: float, k: int) -> Interval:
+    """[lo, hi] + 2 pi k, outward rounded: encloses [lo, hi] + k * (the true 2 pi). The float
+    TWO_PI is 2.45e-16 below 2 pi, so a shift in round-to-nearest alone can miss the true bound
+    by |k| times that; the enclosure adds |k| * TWO_PI_ERROR on each side. k = 0 is exact."""
+    if k == 0:
+        return (lo, hi)
+    s = k * TWO_PI
+    s_lo = s_hi = s
+    if not -_EXACT_TURNS <= k <= _EXACT_TURNS:  # k * TWO_PI was rounded: bound it outward
+        s_lo = _nextafter(s, -_INF)
+        s_hi = _nextafter(s, _INF)
+    err = abs(k) * TWO_PI_ERROR
+    return (
+        _nextafter(_nextafter(lo + s_lo, -_INF) - err, -_INF),
+        _nextafter(_nextafter(hi + s_hi, _INF) + err, _INF),
+    )
+
+
+_EXACT_TURNS = 7
+"""k * TWO_PI is exact for |k| <= 7: TWO_PI's significand has 50 significant bits (its last three
+are zero), so k of at most 3 bits fits float64's 53 (tests/test_intervals.py checks it)."""
+
+
 # --- lattices ---------------------------------------------------------------------------------
 
 
@@ -314,16 +339,31 @@ def lattice_intersect(
     period: float,
     *,
     period_error: float = 0.0,
-    max_pieces: int | None = None,
 ) -> list[Interval]:
     """[lo, hi] ∩ ([c_lo, c_hi] + period * Z) as a sorted list of disjoint intervals.
 
     Exact up to outward rounding: piece k is [c_lo + k P, c_hi + k P] with both bounds pushed
     outward, widened by |k| * period_error when the true period P is only known to within
     ``period_error`` of ``period`` (2 pi). Pieces that overlap or touch are merged, so when
-    c_hi - c_lo >= period the answer is [[lo, hi]]. With ``max_pieces``, more pieces than that
-    are replaced by their hull (one interval). Empty list when nothing is left.
+    c_hi - c_lo >= period the answer is [[lo, hi]]. Empty list when nothing is left. (To cap the
+    number of pieces, :func:`lattice_cut` says when it replaced them by their hull.)
     """
+    return lattice_cut(lo, hi, c_lo, c_hi, period, period_error=period_error)[0]
+
+
+def lattice_cut(
+    lo: float,
+    hi: float,
+    c_lo: float,
+    c_hi: float,
+    period: float,
+    *,
+    period_error: float = 0.0,
+    max_pieces: int | None = None,
+) -> tuple[list[Interval], bool]:
+    """(:func:`lattice_intersect`, hulled): with ``max_pieces``, more disjoint pieces than that are
+    replaced by their hull (one interval, a superset) and ``hulled`` is True; it is False whenever
+    the list is the exact (outward-rounded) intersection."""
     if not lo <= hi or not c_lo <= c_hi or not period > 0.0:
         raise ValueError(
             f"lattice_intersect needs lo <= hi, c_lo <= c_hi and period > 0, got "
@@ -332,19 +372,21 @@ def lattice_intersect(
     k1, k2, b1, a2 = _index_range(lo, hi, c_lo, c_hi, period, period_error)
     if k1 >= k2:
         if k1 > k2:
-            return []
-        return [(a2 if a2 > lo else lo, b1 if b1 < hi else hi)]  # the one piece, k1 = k2
-    if c_hi - c_lo >= period or (max_pieces is not None and k2 - k1 + 1 > max_pieces):
+            return [], False
+        return [(a2 if a2 > lo else lo, b1 if b1 < hi else hi)], False  # the one piece, k1 = k2
+    capped = max_pieces is not None and k2 - k1 + 1 > max_pieces
+    if c_hi - c_lo >= period or capped:
         a = _piece_lo(k1, c_lo, period, period_error)
         b = _piece_hi(k2, c_hi, period, period_error)
-        return [(a if a > lo else lo, b if b < hi else hi)]
+        # (pieces this wide touch or overlap: their union is this interval, nothing was added)
+        return [(a if a > lo else lo, b if b < hi else hi)], capped and c_hi - c_lo < period
     out: list[Interval] = []
     for _, a, b in _clipped_pieces(k1, k2, lo, hi, c_lo, c_hi, period, period_error):
         if out and a <= out[-1][1]:
             out[-1] = (out[-1][0], b)
         else:
             out.append((a, b))
-    return out
+    return out, False
 
 
 def _clipped_pieces(

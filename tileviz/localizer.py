@@ -135,10 +135,12 @@ from tileviz.intervals import (
     acos_preimage,
     asin_preimage,
     cos_sin_range,
+    lattice_cut,
     lattice_hull,
     lattice_intersect,
     lattice_pieces_indexed,
     mul,
+    turn_shift,
 )
 from tileviz.types import Box, BoxSet, Observation, Odometry, Pose, SensorBounds
 
@@ -272,7 +274,11 @@ def _in_range(boxes: list[Tuple6]) -> list[Tuple6]:
 
 def lever_enclosure(offset: tuple[float, float]) -> Lever | None:
     """Rigorous (rho, phi) enclosures of the camera lever arm (forward, left), or None when the
-    camera sits on the robot point. rho = hypot(f, l) (< 1 ulp), phi = atan2(l, f) (a few ulp)."""
+    camera sits on the robot point. rho = hypot(f, l) (< 1 ulp), phi = atan2(l, f) (a few ulp).
+
+    rho_lo > 0 whenever the arm is not zero, for every float offset, subnormals included: a
+    relative margin of a few ulps is no margin at all where an ulp is the number itself (5e-324),
+    so rho_lo is also at least max(|f|, |l|), which hypot(f, l) can never be below."""
     f, left = offset
     if f == 0.0 and left == 0.0:
         return None
@@ -281,6 +287,9 @@ def lever_enclosure(offset: tuple[float, float]) -> Lever | None:
     rho = math.hypot(f, left)
     phi = math.atan2(left, f)
     rho_lo = _nextafter(_nextafter(rho, -_INF), -_INF)
+    leg = max(abs(f), abs(left))
+    if rho_lo < leg:
+        rho_lo = leg
     rho_hi = _nextafter(_nextafter(rho, _INF), _INF)
     dphi = 4.0 * math.ulp(phi)
     return (rho_lo, rho_hi, _nextafter(phi - dphi, -_INF), _nextafter(phi + dphi, _INF))
@@ -434,6 +443,30 @@ def _lever_axis(
     )
 
 
+def _recut(
+    v_lo: float,
+    v_hi: float,
+    g_lo: float,
+    g_hi: float,
+    p_lo: float,
+    p_hi: float,
+    u_lo: float,
+    u_hi: float,
+    tile_size: float,
+) -> tuple[float, float] | None:
+    """The hull of the lattice pieces [u] + L Z within [p] that the camera range [v] + [g] meets
+    (outward), or None when none does: one axis of a hulled cell, cut again."""
+    c_lo = _nextafter(v_lo + g_lo, -_INF)
+    c_hi = _nextafter(v_hi + g_hi, _INF)
+    if c_lo < p_lo:
+        c_lo = p_lo
+    if c_hi > p_hi:
+        c_hi = p_hi
+    if c_lo > c_hi:
+        return None
+    return lattice_hull(c_lo, c_hi, u_lo, u_hi, tile_size)
+
+
 def _refine_cell(
     x_lo: float,
     x_hi: float,
@@ -450,14 +483,18 @@ def _refine_cell(
     s_lo: float,
     s_hi: float,
     g: tuple[float, float, float, float],
+    recut: Window | None = None,
 ) -> tuple[Tuple6 | None, int]:
     """Contract one cell: the camera centre c = (x, y) + rho (cos, sin)(t + phi) must lie in the
     lattice piece [px] x [py]. Alternates the exact projections of that constraint onto x, y and
     the heading (the latter the hull of the arccos / arcsin preimage) until the heading stops
     moving (FIXPOINT_TOL) or ``max_passes`` passes. ``s_lo, s_hi``: [t] + phi (outward) and ``g``
     the lever-arm ranges (gx_lo, gx_hi, gy_lo, gy_hi) over it, as the caller computed them for
-    the first pass (:func:`_contract_cells`: the same for every cell). Returns (box or None
-    when empty, passes)."""
+    the first pass (:func:`_contract_cells`: the same for every cell). ``recut``: when the cell
+    is the hull of several lattice pieces (the cap fired), ``(u1_lo, u1_hi, u2_lo, u2_hi, L, _)``:
+    every pass then cuts the camera-centre range by the lattice again (its hull), as a
+    forward-backward contractor would, instead of keeping the hull of the first pass's pieces.
+    Returns (box or None when empty, passes)."""
     n = _nextafter
     rho_lo, rho_hi, phi_lo, phi_hi = lever
     gx_lo, gx_hi, gy_lo, gy_hi = g
@@ -468,6 +505,15 @@ def _refine_cell(
             s_lo = n(t_lo + phi_lo, -_INF)
             s_hi = n(t_hi + phi_hi, _INF)
             gx_lo, gx_hi, gy_lo, gy_hi = _lever_ranges(s_lo, s_hi, rho_lo, rho_hi)
+        if recut is not None:  # a hulled cell: its pieces that the camera range still meets
+            r = _recut(x_lo, x_hi, gx_lo, gx_hi, px_lo, px_hi, recut[0], recut[1], recut[4])
+            if r is None:
+                return None, p
+            px_lo, px_hi = r
+            r = _recut(y_lo, y_hi, gy_lo, gy_hi, py_lo, py_hi, recut[2], recut[3], recut[4])
+            if r is None:
+                return None, p
+            py_lo, py_hi = r
         # x and y through the lever arm, then the heading: rho cos(t + phi) in ([c] - [x]) etc.
         rx = _lever_axis(x_lo, x_hi, gx_lo, gx_hi, px_lo, px_hi, rho_lo, rho_hi)
         if rx is None:
@@ -534,13 +580,13 @@ def _contract_cells(
         g = _lever_ranges(s_lo, s_hi, rho_lo, rho_hi)
         c = (_nextafter(x_lo + g[0], -_INF), _nextafter(x_hi + g[1], _INF),
              _nextafter(y_lo + g[2], -_INF), _nextafter(y_hi + g[3], _INF))
-    xs = lattice_intersect(c[0], c[1], win[0], win[1], tile_size, max_pieces=max_cells)
+    xs, hx = lattice_cut(c[0], c[1], win[0], win[1], tile_size, max_pieces=max_cells)
     if not xs:
         return 1, False
-    ys = lattice_intersect(c[2], c[3], win[2], win[3], tile_size, max_pieces=max_cells)
+    ys, hy = lattice_cut(c[2], c[3], win[2], win[3], tile_size, max_pieces=max_cells)
     if not ys:
         return 1, False
-    hulled = False
+    hulled = hx or hy
     if len(xs) * len(ys) > max_cells:
         xs = [(xs[0][0], xs[-1][1])]
         ys = [(ys[0][0], ys[-1][1])]
@@ -556,6 +602,7 @@ def _contract_cells(
             box, p = _refine_cell(
                 x_lo, x_hi, y_lo, y_hi, a_lo, a_hi,
                 px_lo, px_hi, py_lo, py_hi, lever, max_passes, s_lo, s_hi, g,
+                (win[0], win[1], win[2], win[3], tile_size, 0.0) if hulled else None,
             )
             if p > passes:
                 passes = p
@@ -646,17 +693,12 @@ def _contract_view(
 
 def _shift_heading(b: Tuple6, ref: float) -> Tuple6:
     """``b`` with its heading moved by the multiple of 2 pi that brings its centre nearest
-    ``ref`` (outward rounded)."""
+    ``ref`` (outward rounded: :func:`tileviz.intervals.turn_shift`)."""
     k = round((ref - 0.5 * (b[4] + b[5])) / TWO_PI)
     if k == 0:
         return b
-    s = k * TWO_PI
-    err = abs(k) * TWO_PI_ERROR
-    return (
-        b[0], b[1], b[2], b[3],
-        _nextafter(_nextafter(b[4] + s, -_INF) - err, -_INF),
-        _nextafter(_nextafter(b[5] + s, _INF) + err, _INF),
-    )
+    t_lo, t_hi = turn_shift(b[4], b[5], k)
+    return (b[0], b[1], b[2], b[3], t_lo, t_hi)
 
 
 def _hull_all(boxes: list[Tuple6]) -> Tuple6:

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-TWO_PI = 2.0 * math.pi
+from tileviz.intervals import TWO_PI, turn_shift
 
 STATUSES = ("contracted", "predicted", "rejected", "lost")
 """Per-frame localizer status (meanings in ``shared/dataset-format.md``)."""
@@ -121,7 +121,9 @@ class BoxSet:
 
     def hull(self) -> Box | None:
         """The bounding box, or None when the set is empty. Heading intervals are first shifted by
-        multiples of 2 pi next to the first box's, so the hull is the tightest continuous one."""
+        multiples of 2 pi next to the first box's, so the hull is the tightest continuous one; the
+        shifts are outward rounded (:func:`tileviz.intervals.turn_shift`), so the hull holds every
+        pose of the set for the real 2 pi, not only for the float TWO_PI."""
         if not self.boxes:
             return None
         ref = self.boxes[0].centre[2]
@@ -132,9 +134,9 @@ class BoxSet:
         t_lo = math.inf
         t_hi = -math.inf
         for b in self.boxes:
-            shift = TWO_PI * round((b.centre[2] - ref) / TWO_PI)
-            t_lo = min(t_lo, b.t_lo - shift)
-            t_hi = max(t_hi, b.t_hi - shift)
+            lo, hi = turn_shift(b.t_lo, b.t_hi, round((ref - b.centre[2]) / TWO_PI))
+            t_lo = min(t_lo, lo)
+            t_hi = max(t_hi, hi)
         return Box(x_lo, x_hi, y_lo, y_hi, t_lo, t_hi)
 
     def contains(self, x: float, y: float, theta: float) -> bool:

@@ -15,7 +15,8 @@ from dataclasses import dataclass
 from tileviz.config import EXTRACTORS, MODES, SETPOINTS, finite_number
 
 __all__ = [
-    "LAYERS", "Command", "Inject", "Kidnap", "Live", "Pause", "Play", "Relocalize", "Report",
+    "LAYERS", "PANEL_VIEWS", "SIMULATOR_ONLY", "Command", "Inject", "Kidnap", "Live", "Pause",
+    "Play", "Relocalize", "Report", "SetFollow", "ShowPanel",
     "Reset", "Restart", "Seek", "SetDisplay", "SetExtractor", "SetInflation", "SetLayer",
     "SetManualTarget", "SetMaxSpeed", "SetMcl", "SetMode", "SetNoise", "SetSetpoint", "SetSpeed",
     "SetWaypoints", "StartRecording", "Step", "StepBack", "StopRecording", "TogglePlay",
@@ -255,6 +256,28 @@ class SetDisplay:
 
 
 @dataclass(frozen=True)
+class SetFollow:
+    """Move the view with the robot while playing (``on``), or leave it where the user put it."""
+
+    on: bool
+
+
+PANEL_VIEWS = ("camera", "stages", "plots")
+"""What the left panel shows under the inset: the camera view, the camera view and every
+pipeline stage, or the plots (only what is shown is sent to the browser)."""
+
+
+@dataclass(frozen=True)
+class ShowPanel:
+    """Show ``view`` (:data:`PANEL_VIEWS`) in the left panel."""
+
+    view: str
+
+    def __post_init__(self) -> None:
+        _choice("panel view", self.view, PANEL_VIEWS)
+
+
+@dataclass(frozen=True)
 class SetMcl:
     """Run the Monte Carlo Localization baseline beside the interval localizer (``on``); it starts
     from the initial box of the run (or, switched on mid-run, from the interval set's hull)."""
@@ -318,6 +341,13 @@ Command = (
     Play | Pause | TogglePlay | Step | StepBack | Seek | Live | SetSpeed | SetMaxSpeed
     | SetSetpoint | SetManualTarget | SetWaypoints | Kidnap | Relocalize | Reset | Restart
     | SetMode | SetExtractor | SetNoise | SetInflation | SetDisplay | SetMcl | SetLayer | Inject
-    | StartRecording | StopRecording | Report
+    | StartRecording | StopRecording | Report | SetFollow | ShowPanel
 )
 """Any command the loop understands."""
+
+SIMULATOR_ONLY: dict[type[Command], str] = {
+    SetSetpoint: "the setpoint", SetManualTarget: "the setpoint", SetWaypoints: "the setpoint",
+    Kidnap: "kidnap", SetNoise: "the sensor noise", Inject: "fault injection",
+    Restart: "a new floor or camera", StartRecording: "recording", StopRecording: "recording",
+}
+"""Commands that steer the simulator, and what they change: a replay refuses them with a note."""

@@ -13,15 +13,57 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from tileviz.app import commands as C
 from tileviz.config import EXTRACTORS, MODES, SETPOINTS, Config
+from tileviz.sim.camera import FAULT_KINDS
+from tileviz.sim.source import ODOMETRY_FAULTS
+
+if TYPE_CHECKING:
+    from viser import (
+        GuiButtonHandle,
+        GuiEvent,
+        GuiFolderHandle,
+        GuiInputHandle,
+        SceneClickEvent,
+        TransformControlsEvent,
+        ViserServer,
+    )
 
 __all__ = ["Controls"]
 
-FAULTS = ("slip", "odometry_outlier", "cable", "box", "shadow", "glare", "motion_blur", "dropout")
-"""Faults the simulator can inject (``SimSource.inject``)."""
+FAULTS = ODOMETRY_FAULTS + FAULT_KINDS
+"""Faults the simulator can inject (``SimSource.inject``): its odometry faults, then the
+camera's."""
+
+HELP = """
+**The scene.** The tiled floor, the robot (grey) and its camera's footprint (yellow). The **pink
+arrow** is the true pose: only the simulator (or a dataset's ground truth) knows it.
+
+**The boxes.** **Green**: the *prediction*, every pose the odometry and the compass allow before
+the camera is looked at. **Blue**: the *set* after the camera's view cut it down (the
+*contraction*); several blue boxes are candidate places the view cannot tell apart. The **blue
+wedge** is the heading interval. Unless the status is `lost`, the true pose is inside the blue
+set whenever the sensors respect their declared bounds. The boxes are about a centimetre wide:
+the **magnified inset** (left panel) draws them around the truth, with a scale bar.
+
+**Statuses.** `contracted`: the view shrank the set. `predicted`: no usable view this frame
+(odometry and compass only, the set grows). `rejected`: the view disagrees with the set (an
+outlier) and was ignored. `lost`: the method has no set it can vouch for (after a kidnap or a
+wheel slip beyond the bounds; Relocalize or Reset).
+
+**Playback.** *Step* pauses and advances exactly one frame (the next stored one, or a new one
+at the end). *Step back* and the *timeline* show stored frames as they were; nothing is
+recomputed. *Go live* jumps to the newest frame.
+
+**The left panel.** The camera view and each stage of the image pipeline (report Fig 4.2 and
+4.3), or the plots: *Does the view agree with the true pose?* draws the six equivalence
+residuals of report table 6.1 (Fig 6.3; zero when the view fits the true pose), *Size of the
+set* the widths of the blue set, *Distance from the set's centre to the truth* its error.
+Orange: the Monte Carlo Localization baseline (particles and 95 % ellipse), when switched on.
+"""
+"""The page's "How to read this page" text (markdown)."""
 
 LAYER_TITLES = {
     "floor": "Floor", "grid": "Tile grid", "robot": "Robot", "footprint": "Camera footprint",
@@ -42,13 +84,15 @@ class Controls:
     are hidden then and the noise sliders, showing the dataset's declared bounds, are disabled.
     """
 
-    def __init__(self, server: Any, submit: Callable[[object], None], cfg: Config, *,
+    def __init__(self, server: ViserServer, submit: Callable[[object], None], cfg: Config, *,
                  layers: dict[str, bool], display: bool, playing: bool, speed: float = 1.0,
                  max_speed: bool = False, mcl: bool = False, replay: str | None = None) -> None:
         self.server = server
         self._submit = submit
         gui = server.gui
-        self.status = gui.add_markdown("starting...")
+        self.status = gui.add_html("starting...")
+        with gui.add_folder("How to read this page", expand_by_default=False):
+            gui.add_markdown(HELP)
         if replay is not None:
             gui.add_markdown(f"Replaying `{replay}`: setpoint, kidnap, noise, faults, floor and "
                              "recording belong to the simulator. Mode and extractor replay from "
@@ -63,6 +107,8 @@ class Controls:
             self.speed = gui.add_slider("Speed (x real time)", min=0.1, max=10.0, step=0.1,
                                         initial_value=min(max(speed, 0.1), 10.0))
             self.max_speed = gui.add_checkbox("As fast as possible", max_speed)
+            self.follow = gui.add_checkbox("Follow the robot", True,
+                                           hint="while playing, the view moves with the robot")
         self._on_click(self.play, C.TogglePlay)
         self._on_click(self.step, C.Step)
         self._on_click(self.step_back, C.StepBack)
@@ -70,6 +116,7 @@ class Controls:
         self._on_change(self.timeline, lambda: C.Seek(int(self.timeline.value)))
         self._on_change(self.speed, lambda: C.SetSpeed(float(self.speed.value)))
         self._on_change(self.max_speed, lambda: C.SetMaxSpeed(bool(self.max_speed.value)))
+        self._on_change(self.follow, lambda: C.SetFollow(bool(self.follow.value)))
 
         with gui.add_folder("Robot"):
             self.setpoint = gui.add_dropdown("Setpoint", SETPOINTS, initial_value=cfg.sim.setpoint)
@@ -120,7 +167,7 @@ class Controls:
             self._on_change(h, lambda: C.SetInflation(self.inflation_xy.value,
                                                       self.inflation_t.value))
 
-        folders: dict[str, Any] = {}
+        folders: dict[str, GuiFolderHandle] = {}
         with gui.add_folder("Floor and camera", expand_by_default=False) as folders["floor"]:
             self.tile_size = gui.add_number("Tile size L (m)", cfg.floor.tile_size, min=0.05,
                                             max=5.0, step=0.001)
@@ -167,7 +214,7 @@ class Controls:
             self.gizmo.visible = False
 
         @self.gizmo.on_update
-        async def _(event: Any) -> None:
+        async def _(event: TransformControlsEvent) -> None:
             if event.client is None or event.phase != "end":
                 return
             x, y = float(event.target.position[0]), float(event.target.position[1])
@@ -181,15 +228,15 @@ class Controls:
             cmd = C.Report(f"refused: {e}")
         self._submit(cmd)
 
-    def _on_click(self, handle: Any, factory: Callable[[], object]) -> None:
+    def _on_click(self, handle: GuiButtonHandle, factory: Callable[[], object]) -> None:
         @handle.on_click
-        async def _(event: Any) -> None:
+        async def _(event: GuiEvent[GuiButtonHandle]) -> None:
             if event.client is not None:
                 self._make(factory)
 
-    def _on_change(self, handle: Any, factory: Callable[[], object]) -> None:
+    def _on_change(self, handle: GuiInputHandle[Any], factory: Callable[[], object]) -> None:
         @handle.on_update
-        async def _(event: Any) -> None:
+        async def _(event: GuiEvent[GuiInputHandle[Any]]) -> None:
             if event.client is not None:
                 self._make(factory)
 
@@ -197,13 +244,13 @@ class Controls:
         scene = self.server.scene
 
         @self.pick.on_click
-        async def _(event: Any) -> None:
+        async def _(event: GuiEvent[GuiButtonHandle]) -> None:
             if event.client is None:
                 return
             self.pick.disabled = True
 
             @scene.on_click()
-            async def picked(click: Any) -> None:
+            async def picked(click: SceneClickEvent) -> None:
                 scene.remove_click_callback(picked)
                 self.pick.disabled = False
                 point = floor_point(click.ray_origin, click.ray_direction)

@@ -1,20 +1,24 @@
 """Image panels: the camera view and every pipeline stage (report Fig 4.2), including the
 (cos 4a, sin 4a) scatter with the segment bags (Fig 4.3), for the frame being shown.
 
-The images were JPEG-encoded once when the frame was made (:class:`tileviz.app.history.Entry`);
-the panels hand those bytes to viser as they are, so a frame from the history shows exactly what
-was shown live, and showing a frame costs no encoding.
+The history keeps each frame's images as JPEG bytes (:class:`tileviz.app.history.Entry`); a panel
+decodes them and hands viser the pixels through its public ``GuiImageHandle.image`` setter, which
+JPEG-encodes them again for the browser. Showing a frame that is already shown sends nothing.
 """
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING
 
+import cv2
 import numpy as np
 
-from tileviz.app.history import Entry
+from tileviz.app.history import JPEG_QUALITY, Entry
 
-__all__ = ["ImagePanels", "set_jpeg"]
+if TYPE_CHECKING:
+    from viser import GuiApi, GuiImageHandle, GuiMarkdownHandle
+
+__all__ = ["ImagePanels", "ImageSlot", "decode_jpeg"]
 
 STAGE_TITLES: dict[str, str] = {
     "camera": "camera view",
@@ -35,14 +39,32 @@ STAGE_TITLES: dict[str, str] = {
 """Panel titles of the stage names the extractors use (other names are shown as they are)."""
 
 
-def set_jpeg(handle: Any, data: bytes) -> None:
-    """Show already JPEG-encoded ``data`` in a viser GUI image ``handle``.
+def decode_jpeg(data: bytes) -> np.ndarray:
+    """HxWx3 uint8 RGB pixels of JPEG ``data``; ValueError when they do not decode."""
+    bgr = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
+    if bgr is None:
+        raise ValueError(f"not a decodable JPEG image ({len(data)} bytes)")
+    return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
 
-    viser's ``GuiImageHandle.image`` setter would decode nothing and re-encode an array; its
-    ``_data``/``_format`` props carry the encoded bytes to the browser, so they are set directly
-    (viser skips the update when the bytes are unchanged)."""
-    handle._format = "jpeg"
-    handle._data = data
+
+class ImageSlot:
+    """One GUI image element showing JPEG bytes (``gui``: a viser ``GuiApi``)."""
+
+    def __init__(self, gui: GuiApi, blank: np.ndarray, *, label: str = "",
+                 visible: bool = True) -> None:
+        self.handle: GuiImageHandle = gui.add_image(blank, label=label, format="jpeg",
+                                                    jpeg_quality=JPEG_QUALITY, visible=visible)
+        self._data = b""
+
+    def show(self, data: bytes) -> None:
+        """Show the image ``data`` (JPEG bytes); nothing is sent when it is already shown."""
+        if data != self._data:
+            self.handle.image = decode_jpeg(data)
+            self._data = data
+
+    def forget(self) -> None:
+        """The next :meth:`show` sends its image even if the bytes are the same."""
+        self._data = b""
 
 
 class ImagePanels:
@@ -51,33 +73,37 @@ class ImagePanels:
     ``gui``: a viser ``GuiApi``; ``slots``: image elements for the stages (the camera has its
     own). Unused slots are hidden; labels follow the extractor's stage names."""
 
-    def __init__(self, gui: Any, *, slots: int = 12, width: int = 320, height: int = 240) -> None:
+    def __init__(self, gui: GuiApi, *, slots: int = 12, width: int = 320,
+                 height: int = 240) -> None:
         blank = np.zeros((max(2, height), max(2, width), 3), np.uint8)
-        self.camera = gui.add_image(blank, label=STAGE_TITLES["camera"], format="jpeg")
-        self.note = gui.add_markdown("")
-        self.stages = [gui.add_image(blank, label="", format="jpeg", visible=False)
-                       for _ in range(slots)]
+        self.camera = ImageSlot(gui, blank, label=STAGE_TITLES["camera"])
+        self.note: GuiMarkdownHandle = gui.add_markdown("")
+        self.stages = [ImageSlot(gui, blank, visible=False) for _ in range(slots)]
         self._shown: tuple[str, ...] = ()
 
-    def show(self, entry: Entry, display: bool) -> None:
-        """Show ``entry``'s images; stage slots only when ``display`` (and the entry has them)."""
+    def show(self, entry: Entry, display: bool, stages: bool = True) -> None:
+        """Show ``entry``'s images; stage slots only when ``display`` and ``stages`` (and the
+        entry has them)."""
         images = dict(entry.images)
         if "camera" in images:
-            set_jpeg(self.camera, images["camera"])
+            self.camera.show(images["camera"])
         # the extractors' "input" stage is the camera view again
-        names = tuple(n for n, _ in entry.images if n not in ("camera", "input")) if display \
-            else ()
+        names = tuple(n for n, _ in entry.images if n not in ("camera", "input")) \
+            if display and stages else ()
         for slot, name in zip(self.stages, names, strict=False):
-            if slot.label != STAGE_TITLES.get(name, name):
-                slot.label = STAGE_TITLES.get(name, name)
-            set_jpeg(slot, images[name])
-            slot.visible = True
+            title = STAGE_TITLES.get(name, name)
+            if slot.handle.label != title:
+                slot.handle.label = title
+            slot.show(images[name])
+            slot.handle.visible = True
         for slot in self.stages[len(names):]:
-            slot.visible = False
-        if not display:
-            text = "*Stage images are off (`--no-display` or the Display checkbox).*"
+            slot.handle.visible = False
+        if not stages:
+            text = "*The image pipeline's stages: choose \"Camera and stages\" above.*"
+        elif not display:
+            text = "*Stage images are off (`--no-display` or Layers > Stream stage images).*"
         elif not names:
-            text = "*This frame was made with the display off: no stage images stored.*"
+            text = "*This frame was made with the stage images off: none stored.*"
         else:
             text = ""
         if self.note.content != text:

@@ -15,12 +15,25 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from tileviz.config import CameraConfig, Config, FloorConfig
 from tileviz.types import Box, BoxSet, Pose
+
+if TYPE_CHECKING:
+    from viser import (
+        BoxHandle,
+        GridHandle,
+        ImageHandle,
+        LineSegmentsHandle,
+        SceneApi,
+        SceneNodeHandle,
+    )
+
+    from tileviz.app.history import ParticleView
+    from tileviz.runner import FrameRecord
 
 __all__ = ["COLOURS", "SceneView", "floor_texture", "texture_pixels_per_tile", "yaw_wxyz"]
 
@@ -123,18 +136,18 @@ class SceneView:
     ``particles``: points of the MCL baseline's cloud.
     """
 
-    def __init__(self, scene: Any, *, pool: int = 16, particles: int = 1000) -> None:
+    def __init__(self, scene: SceneApi, *, pool: int = 16, particles: int = 1000) -> None:
         self.scene = scene
         self.pool = int(pool)
         self.n_particles = int(particles)
         self.layers: dict[str, bool] = {}
         self._world_key: object = None
         self._floor_key: object = None
-        self._nodes: dict[str, list[Any]] = {}
+        self._nodes: dict[str, list[SceneNodeHandle]] = {}
         self._build_dynamic()
 
     # ------------------------------------------------------------------ building
-    def _layer(self, name: str, *handles: Any) -> None:
+    def _layer(self, name: str, *handles: SceneNodeHandle) -> None:
         self._nodes.setdefault(name, []).extend(handles)
 
     def _build_dynamic(self) -> None:
@@ -171,7 +184,7 @@ class SceneView:
         self._layer("truth", self.truth)
 
         # interval sets: a fixed pool of translucent boxes + one outline node per set
-        self.sets: dict[str, tuple[list[Any], Any]] = {}
+        self.sets: dict[str, tuple[list[BoxHandle], LineSegmentsHandle]] = {}
         for name, opacity in (("prediction", 0.18), ("boxes", 0.4)):
             boxes = [
                 s.add_box(f"/intervals/{name}/{i}", color=COLOURS[name],
@@ -197,7 +210,7 @@ class SceneView:
                                         position=(0.0, 0.0, 0.07))
         self._layer("setpoint", self.setpoint)
 
-        def trail(name: str, n: int, colour: str) -> Any:
+        def trail(name: str, n: int, colour: str) -> LineSegmentsHandle:
             return s.add_line_segments(name, np.zeros((n, 2, 3), np.float32), COLOURS[colour],
                                        thickness=2.0, thickness_units="screen")
 
@@ -215,10 +228,10 @@ class SceneView:
                                            COLOURS["particles"], thickness=2.0,
                                            thickness_units="screen", visible=False)
         self._mcl_nodes = (self.particles, self.ellipse)
-        self.floor: Any = None
-        self.grid: Any = None
-        self.path: Any = None
-        self.waypoints: Any = None
+        self.floor: ImageHandle | None = None
+        self.grid: GridHandle | None = None
+        self.path: LineSegmentsHandle | None = None
+        self.waypoints: LineSegmentsHandle | None = None
         self._setpoint_kind = "lissajous"
         self._unknown: set[str] = set()
         """Layers hidden on the shown frame because it does not know their value (a dataset
@@ -303,8 +316,8 @@ class SceneView:
             h.visible = known and self.layers.get(name, True)
 
     # ------------------------------------------------------------------ per frame
-    def show(self, rec: Any, trail_truth: np.ndarray, trail_est: np.ndarray, *,
-             full: bool = True, mcl: Any = None) -> None:
+    def show(self, rec: FrameRecord, trail_truth: np.ndarray, trail_est: np.ndarray, *,
+             full: bool = True, mcl: ParticleView | None = None) -> None:
         """Update every dynamic node from the record ``rec`` (a FrameRecord) and the trails:
         (K, 2) arrays of past (x, y) up to this frame, NaN where unknown. The long trails are
         re-sent only when ``full`` (their newest part is always drawn by the trail heads).
@@ -339,7 +352,7 @@ class SceneView:
             self.head_est.points = _polyline_segments(trail_est[-TRAIL_HEAD - 1:], TRAIL_HEAD,
                                                       0.007)
 
-    def _show_mcl(self, mcl: Any) -> None:
+    def _show_mcl(self, mcl: ParticleView | None) -> None:
         on = mcl is not None and self.layers.get("particles", True)
         if on:
             pts = np.zeros((self.n_particles, 3), np.float32)

@@ -22,28 +22,48 @@ folder instead of simulating (its meta.json sets the floor and the camera; the b
 from __future__ import annotations
 
 import argparse
+import html
 import math
 import os
 import queue
 import signal
+import socket
 import sys
 import threading
 import time
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
 
 from tileviz.app import commands as C
 from tileviz.app.history import METRIC_NAMES, Entry
 from tileviz.app.plots import summary
 from tileviz.app.scene import TRAIL_SEGMENTS
 from tileviz.app.session import Session, SessionOptions
-from tileviz.cliutil import CliError, Parser, positive_float, positive_int, run_cli
+from tileviz.cliutil import (
+    CliError,
+    Parser,
+    nonneg_int,
+    positive_float,
+    positive_int,
+    run_cli,
+)
 from tileviz.config import EXTRACTORS, MODES, PRESETS, Config, preset
+
+if TYPE_CHECKING:
+    from viser import GuiButtonGroupHandle, GuiEvent
 
 __all__ = ["App", "config_from_args", "main", "options_from_args", "parser"]
 
 _COL = {name: i for i, name in enumerate(METRIC_NAMES)}
+VIEW_LABELS = {"camera": "Camera", "stages": "Camera and stages", "plots": "Plots"}
+"""The left panel's choices (``commands.PANEL_VIEWS``) as the button group shows them."""
+FOLLOW_OFFSET = (0.0, -2.2, 2.6)
+"""Where the initial view stands relative to the robot, metres (behind it to the south, up)."""
+DEFAULT_PORT = 8080
+"""Where ``serve`` listens unless ``--port`` says otherwise (the next free port if it is busy)."""
 QUEUE_SIZE = 1000
 """Commands waiting at most; a flood beyond it is dropped (and counted)."""
 
@@ -52,17 +72,22 @@ class App:
     """The live demo: a viser server + the loop thread (see the module docstring).
 
     ``cfg``: the run's configuration. ``options``: how the session starts. ``host``/``port``: where
-    to listen (port 0: any free port). ``push_rate``: scene updates per second at most;
+    to listen (port 0: any free port; a busy port: the next free one, or CliError when
+    ``strict_port``). ``push_rate``: scene updates per second at most;
     ``image_rate``: image panel updates per second at most while playing (a paused or stepped
     frame always shows its images); ``plot_rate``: plot updates per second at most;
-    ``plot_window``: frames in the plots.
+    ``plot_window``: frames in the plots. ``frames``: pause after that many frames of the run.
     """
 
     def __init__(self, cfg: Config, options: SessionOptions | None = None, *,
-                 host: str = "127.0.0.1", port: int = 8080, push_rate: float = 40.0,
-                 image_rate: float = 20.0, plot_rate: float = 4.0, plot_window: int = 1000,
-                 verbose: bool = False) -> None:
+                 host: str = "127.0.0.1", port: int = 8080, strict_port: bool = False,
+                 push_rate: float = 20.0, image_rate: float = 10.0, plot_rate: float = 4.0,
+                 plot_window: int = 1000, verbose: bool = False,
+                 frames: int | None = None) -> None:
         self.cfg = cfg
+        self.frames = frames
+        """Pause once the run has made this many frames (None: never)."""
+        self.strict_port = strict_port
         self.image_rate = float(image_rate)
         self._next_images = 0.0
         self.options = options or SessionOptions()
@@ -91,21 +116,32 @@ class App:
         import viser
 
         from tileviz.app.gui import Controls
+        from tileviz.app.inset import InsetView
         from tileviz.app.panels import ImagePanels
         from tileviz.app.plots import Plots
         from tileviz.app.scene import SceneView
 
+        if self.strict_port and self.requested_port != 0 and not port_free(self.host,
+                                                                            self.requested_port):
+            raise CliError(f"port {self.requested_port} on {self.host} is busy (another tileviz "
+                           "serve?): stop it or choose another --port")
         self.session = Session(self.cfg, self.options)
         s = self.session
         self.server = viser.ViserServer(host=self.host, port=self.requested_port,
                                         verbose=self.verbose)
         server = self.server
+        if self.strict_port and self.requested_port not in (0, self.port):
+            self.stop()
+            raise CliError(f"port {self.requested_port} on {self.host} is busy (another tileviz "
+                           "serve?): stop it or choose another --port")
         server.gui.configure_theme(control_width="medium", show_share_button=False,
                                    titlebar_content=None)
         server.scene.set_up_direction("+z")
-        (cx, cy), a = view_of(s.source.path(), s.cfg.sim.initial_pose[:2])
-        server.initial_camera.position = (cx, cy - 1.9 * a, 2.2 * a)
-        server.initial_camera.look_at = (cx, cy, 0.0)
+        # the robot at its start, seen from behind and above (the view follows it while playing)
+        rx, ry = s.robot_start()
+        server.initial_camera.position = (rx + FOLLOW_OFFSET[0], ry + FOLLOW_OFFSET[1],
+                                          FOLLOW_OFFSET[2])
+        server.initial_camera.look_at = (rx, ry, 0.0)
         server.scene.configure_default_lights(enabled=True, cast_shadow=False)
         self.scene = SceneView(server.scene, pool=max(1, self.cfg.localizer.max_boxes),
                                particles=self.options.mcl_particles)
@@ -114,13 +150,24 @@ class App:
                                  max_speed=s.max_speed, mcl=s.mcl is not None,
                                  replay=None if s.source.simulator else s.source.describe())
         panel = server.gui.add_panel()
-        with panel.add_tab("Vision"):
-            self.panels = ImagePanels(server.gui, width=self.cfg.camera.width,
-                                      height=self.cfg.camera.height)
-        with panel.add_tab("Plots"):
-            self.plots = Plots(server.gui)
+        with panel.add_tab("The set, camera and plots"):
+            self.inset = InsetView(server.gui)
+            self.view = server.gui.add_button_group("Below", tuple(VIEW_LABELS.values()))
+            with server.gui.add_folder("Camera and image pipeline") as self.images_folder:
+                self.panels = ImagePanels(server.gui, width=self.cfg.camera.width,
+                                          height=self.cfg.camera.height)
+            with server.gui.add_folder("Plots", visible=False) as self.plots_folder:
+                self.plots = Plots(server.gui)
         panel.dock_left()
         panel.set_width(380)
+        self._panel_view = s.panel
+        view_of_label = {label: view for view, label in VIEW_LABELS.items()}
+
+        @self.view.on_click
+        async def _(event: GuiEvent[GuiButtonGroupHandle]) -> None:
+            if event.client is not None:
+                self.submit(C.ShowPanel(view_of_label[str(event.target.value)]))
+
         self._world_version = -1
         self._contained: dict[str, float] | None = None
         self._pushed_version = -1
@@ -178,7 +225,7 @@ class App:
         assert s is not None
         try:
             if len(s.history) == 0:
-                s.compute()
+                s.skip_to(self.options.start_frame)
             self._push(force=True)
         except BaseException as e:  # noqa: BLE001 - reported by start()
             self._failure = e
@@ -203,6 +250,8 @@ class App:
                     s.advance()  # catches what a frame raises; this guards the rest
                 except Exception as e:  # noqa: BLE001 - the loop must go on
                     s.note(f"loop: {type(e).__name__}: {e}", "error")
+                if self.frames is not None and s.frames_computed >= self.frames:
+                    s.playing = False
                 period = s.frame_period
                 next_frame = max(next_frame + period, now - 0.25) if period > 0 else now
             if s.version != self._pushed_version and now >= next_push:
@@ -266,73 +315,132 @@ class App:
                             trail[:, [_COL["est_x"], _COL["est_y"]]],
                             full=plots or not s.playing, mcl=entry.mcl)
             now = time.perf_counter()
-            if not s.playing or now >= self._next_images:
-                # the browser decodes every image it gets: while playing, images at image_rate
-                self.panels.show(entry, s.display)
+            switched = s.panel != self._panel_view
+            if switched:
+                self._panel_view = s.panel
+                self.images_folder.visible = s.panel != "plots"
+                self.plots_folder.visible = s.panel == "plots"
+            if not s.playing or now >= self._next_images or switched:
+                # the browser decodes every image it gets: while playing, images at image_rate;
+                # only the images the left panel shows
+                self.inset.show(entry.record, s.cfg.floor.tile_size)
+                if s.panel != "plots":
+                    self.panels.show(entry, s.display, stages=s.panel == "stages")
                 self._next_images = max(self._next_images + 1.0 / self.image_rate, now)
-            if plots:
+            if (plots or switched) and s.panel == "plots":
                 self.plots.update(rows)
+            if s.follow and s.playing:
+                self._follow(entry)
         self.controls.refresh(first=s.history.first, last=s.history.last, shown=pos,
                               playing=s.playing, setpoint=s.setpoint_kind,
                               target=tuple(s.cfg.sim.manual_target),  # type: ignore[arg-type]
                               recording=s.recording_active,
                               status=self.status_text(entry, live=s.shown == s.history.last))
 
+    def _follow(self, entry: Entry) -> None:
+        """Move every client's view with the robot (its true pose, else the set's centre),
+        keeping the user's angle and distance."""
+        r = entry.record
+        hull = r.updated.hull()
+        if r.truth is not None:
+            x, y = r.truth.x, r.truth.y
+        elif hull is not None and r.status != "lost":
+            x, y, _ = hull.centre
+        else:
+            return
+        if not (math.isfinite(x) and math.isfinite(y)):
+            return
+        for client in self.server.get_clients().values():
+            cam = client.camera
+            try:
+                look = cam.look_at
+                dx, dy = x - float(look[0]), y - float(look[1])
+                if math.hypot(dx, dy) > 1e-3:
+                    # viser moves look_at with the position: the view is translated
+                    cam.position = np.asarray(cam.position) + (dx, dy, 0.0)
+            except (AssertionError, ValueError):
+                continue  # a client whose camera is not known yet
+
     def status_text(self, entry: Entry | None, *, live: bool) -> str:
-        """The readout markdown of ``entry``: frame, status, widths, error, rates, notes."""
+        """The readout of ``entry`` as HTML: a box of fixed height (frame, status, widths, error,
+        rates; it scrolls if it must, so the controls under it never move), then the newest notes
+        in a second box of fixed height."""
         s = self.session
         assert s is not None
         lines: list[str] = []
         state = "playing" if s.playing else "paused"
         if entry is None:
-            lines.append(f"**no frame yet** ({state})")
+            lines.append(f"<b>no frame yet</b> ({state})")
         else:
             r = entry.record
             hull = r.updated.hull()
-            lines.append(f"**frame {r.index}**, t = {r.t:.2f} s, {state}"
-                         f"{'' if live else ' (history)'}")
-            lines.append(f"status **{r.status}**, {len(r.updated)} box(es), "
-                         f"vision: {r.vision.reason}")
+            lines.append(f"<b>frame {r.index}</b>, t = {r.t:.2f} s, {state}"
+                         f"{'' if live else ' (from the history)'}")
+            lines.append(f"status <b>{r.status}</b>: {html.escape(STATUS_WORDS.get(r.status, ''))}"
+                         f", {len(r.updated)} box(es)")
+            reason = r.vision.reason
+            lines.append("camera view used" if r.vision.observation is not None
+                         else f"camera view not used: {html.escape(reason)}")
             if hull is not None:
                 wx, wy, wt = hull.widths
-                lines.append(f"widths {100 * wx:.1f} x {100 * wy:.1f} cm, "
-                             f"{math.degrees(wt):.2f} deg")
+                lines.append(f"set {100 * wx:.1f} x {100 * wy:.1f} cm, heading "
+                             f"{math.degrees(wt):.2f} deg wide")
                 if r.truth is not None:
                     cx, cy, ct = hull.centre
                     err = math.hypot(r.truth.x - cx, r.truth.y - cy)
                     inside = r.truth_inside()
-                    mark = {True: "inside", False: "**OUTSIDE**", None: "not vouched"}[inside]
+                    mark = {True: "inside", False: "<b>OUTSIDE</b>",
+                            None: "not vouched for"}[inside]
                     et = abs(math.degrees(math.remainder(r.truth.theta - ct, 2 * math.pi)))
-                    lines.append(f"centre error {100 * err:.1f} cm, {et:.2f} deg; truth {mark}")
+                    lines.append(f"centre {100 * err:.1f} cm, {et:.2f} deg from the truth; truth "
+                                 f"{mark}")
             if entry.mcl is not None and r.truth is not None:
                 m = entry.mcl
                 err = math.hypot(r.truth.x - m.mean[0], r.truth.y - m.mean[1])
-                where = "inside" if m.covered else "**outside**"
-                lines.append(f"MCL ({len(m.particles)} particles): mean error {100 * err:.1f} cm,"
+                where = "inside" if m.covered else "<b>outside</b>"
+                lines.append(f"MCL ({len(m.particles)} particles): mean {100 * err:.1f} cm off,"
                              f" truth {where} its 95 % ellipse")
             ms = r.timings.get("vision_ms", 0.0) + r.timings.get("localizer_ms", 0.0)
             lines.append(f"frame time {ms:.1f} ms (vision {r.timings.get('vision_ms', 0.0):.1f},"
                          f" localizer {r.timings.get('localizer_ms', 0.0):.2f})")
         c = self._contained
-        if c is not None and c["frames"] > 0:
+        if entry is not None and c is not None and c["frames"] > 0:
             lines.append(f"truth inside the set in {100 * c['contained']:.1f} % of the last "
                          f"{c['frames']:.0f} frames it vouched for")
         rate = f"{s.rate:.0f} frames/s" if s.playing else "-"
         lines.append(f"loop {rate}, history {len(s.history)}/{s.history.capacity}, "
                      f"mode {s.cfg.localizer.mode}, extractor {s.cfg.vision.extractor}")
-        notes = list(s.notes)[-3:]
+        notes: list[str] = []
+        recent = list(s.notes)[-3:]
         if not s.source.simulator:
             # its end stays in view after newer notes pushed the note about it out
-            said = s.ended is not None and any(n.text.startswith(s.ended) for n in notes)
-            lines.append(f"replaying `{s.source.describe()}`"
-                         + (f": **{s.ended}**" if s.ended and not said else ""))
+            said = s.ended is not None and any(n.text.startswith(s.ended) for n in recent)
+            notes.append(f"replaying <code>{html.escape(s.source.describe())}</code>"
+                         + (f": <b>{html.escape(s.ended)}</b>" if s.ended and not said else ""))
         if s.recording is not None:
-            lines.append(f"recording to `{s.recording_path}` ({s.recording.count} frames)")
+            notes.append(f"recording to <code>{html.escape(str(s.recording_path))}</code> "
+                         f"({s.recording.count} frames)")
         if s.degraded:
-            lines.append("**a frame failed: the set may miss the truth (Relocalize or Reset)**")
-        for n in notes:
-            lines.append(("**error:** " if n.level == "error" else "") + n.text)
-        return "  \n".join(lines)
+            notes.append("<b>a frame failed: the set may miss the truth (Relocalize or "
+                         "Reset)</b>")
+        for n in reversed(recent):  # newest first
+            notes.append(("<b>error:</b> " if n.level == "error" else "") + html.escape(n.text))
+        return (f'<div class="tileviz-status" style="{STATUS_STYLE}">{"<br>".join(lines)}</div>'
+                f'<div class="tileviz-notes" style="{NOTES_STYLE}">{"<br>".join(notes)}</div>')
+
+
+STATUS_WORDS = {
+    "contracted": "the camera's view shrank the set",
+    "predicted": "no usable view: odometry and compass only",
+    "rejected": "the view disagrees with the set (an outlier), ignored",
+    "lost": "no set the method can vouch for",
+}
+"""The statuses in plain words (``tileviz.types.STATUSES``)."""
+_BOX = ("box-sizing:border-box;overflow-y:auto;font-size:0.8em;line-height:1.35em;"
+        "padding:0.2em 0.4em;")
+STATUS_STYLE = _BOX + "height:12.4em;"
+"""Fixed height: the status block never grows, so the buttons under it never move."""
+NOTES_STYLE = _BOX + "height:5.6em;margin-top:0.2em;border-top:1px solid #8884;opacity:0.85;"
 
 
 # ---------------------------------------------------------------------------------- command line
@@ -341,8 +449,8 @@ def parser() -> Parser:
                "dataset, --dataset), vision and the interval localizer in the browser (viser).")
     p.add_argument("--host", default="127.0.0.1",
                    help="address to listen on (default 127.0.0.1: this machine only)")
-    p.add_argument("--port", type=_port, default=8080, help="port (default 8080; the next free "
-                   "one if taken)")
+    p.add_argument("--port", type=_port, default=None, help=f"port (default {DEFAULT_PORT}, or "
+                   "the next free one, said on start; a port given here must be free)")
     p.add_argument("--preset", choices=PRESETS, default=None,
                    help="simulator preset (default: default)")
     p.add_argument("--dataset", metavar="DIR", help="replay this tileviz-dataset/1 folder "
@@ -353,6 +461,12 @@ def parser() -> Parser:
                    help="vision extractor (default: the preset's or the dataset's)")
     p.add_argument("--interactive", action="store_true",
                    help="start paused; each Step advances one frame")
+    p.add_argument("--start-frame", type=nonneg_int("--start-frame"), default=0, metavar="K",
+                   help="show frame K first (the frames before it are computed without stage "
+                   "images); with --dataset and --interactive: debug a recorded run from K")
+    p.add_argument("--frames", type=positive_int("--frames"), default=None, metavar="N",
+                   help="run N frames (the page is served meanwhile), print a one-line summary "
+                   "and exit (0, or 1 if a frame failed): a smoke test without a browser")
     p.add_argument("--intervals", action=argparse.BooleanOptionalAction, default=True,
                    help="draw the interval boxes (default on)")
     p.add_argument("--display", action=argparse.BooleanOptionalAction, default=True,
@@ -366,11 +480,12 @@ def parser() -> Parser:
     p.add_argument("--seed", type=int, default=None, help="seed of the run's noise")
     p.add_argument("--history", type=positive_int("--history"), default=2000,
                    help="frames kept for stepping back (>= 2, default 2000)")
-    p.add_argument("--push-rate", type=_in_range("--push-rate", 1.0, 60.0), default=40.0,
-                   help="scene updates sent per second at most (default 40)")
-    p.add_argument("--image-rate", type=_in_range("--image-rate", 1.0, 60.0), default=20.0,
+    p.add_argument("--push-rate", type=_in_range("--push-rate", 1.0, 60.0), default=20.0,
+                   help="scene updates sent per second at most (default 20: one per simulated "
+                   "frame at real time)")
+    p.add_argument("--image-rate", type=_in_range("--image-rate", 1.0, 60.0), default=10.0,
                    help="camera and stage image updates per second at most while playing "
-                   "(default 20; a paused or stepped frame always shows its images)")
+                   "(default 10; a paused or stepped frame always shows its images)")
     p.add_argument("--speed", type=_in_range("--speed", 0.01, C.MAX_SPEED_FACTOR), default=1.0,
                    help="playback speed, x real time (default 1)")
     p.add_argument("--max-speed", action="store_true", help="run as fast as possible")
@@ -450,24 +565,44 @@ def _with_seed(cfg: Config, seed: int | None) -> Config:
     return replace(cfg, sim=replace(cfg.sim, seed=seed))
 
 
-def view_of(path: list[tuple[float, float]], fallback: tuple[float, ...]) -> tuple[
-        tuple[float, float], float]:
-    """Where the initial camera looks: the centre (x, y) of ``path`` and its half span (at least
-    2 m), metres; around ``fallback`` (x, y) when there is no path."""
-    if not path:
-        return (float(fallback[0]), float(fallback[1])), 4.0
-    xs, ys = [p[0] for p in path], [p[1] for p in path]
-    centre = (0.5 * (min(xs) + max(xs)), 0.5 * (min(ys) + max(ys)))
-    return centre, max(0.5 * (max(xs) - min(xs)), 0.5 * (max(ys) - min(ys)), 2.0)
+def port_free(host: str, port: int) -> bool:
+    """True when a TCP server could listen on ``host``:``port`` now (as asyncio's servers do, with
+    SO_REUSEADDR); False when it is taken (or the address is not this machine's)."""
+    try:
+        family, kind, proto, _, addr = socket.getaddrinfo(host or None, port,
+                                                          type=socket.SOCK_STREAM)[0]
+        with socket.socket(family, kind, proto) as sock:
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+            sock.bind(addr)
+    except OSError:
+        return False
+    return True
 
 
 def options_from_args(args: argparse.Namespace) -> SessionOptions:
     """How the session starts, from the command line."""
     return SessionOptions(history=args.history, display=args.display, intervals=args.intervals,
-                          interactive=args.interactive, out_dir=Path(args.out_dir),
+                          interactive=args.interactive and args.frames is None,
+                          out_dir=Path(args.out_dir),
                           output_file=args.output_file, speed=args.speed,
                           max_speed=args.max_speed, mcl=args.mcl, mcl_particles=args.particles,
+                          start_frame=args.start_frame,
                           dataset=Path(args.dataset) if args.dataset is not None else None)
+
+
+def _summary(s: Session, wanted: int, frames: int, seconds: float) -> int:
+    """Print the one-line summary of a ``--frames`` run; its exit status: 1 when a frame failed or
+    the dataset stopped at a bad row, else 0."""
+    parts = [f"{frames} frames in {seconds:.1f} s ({frames / max(seconds, 1e-9):.1f} frames/s)",
+             *s.tally.parts()]
+    failed = s.errors > 0 or (s.ended is not None and any(
+        n.level == "error" and n.text.startswith(s.ended) for n in s.notes))
+    if frames < wanted and s.ended is not None:
+        parts.append(f"stopped early: {s.ended}")
+    if s.errors:
+        parts.append(f"{s.errors} frame(s) failed")
+    print("tileviz serve: " + "; ".join(parts), flush=True)
+    return 1 if failed else 0
 
 
 def _force_exit() -> None:
@@ -484,8 +619,10 @@ def main(command: str = "serve", argv: list[str] | None = None) -> int:
         return 2
 
     def body() -> int:
-        app = App(config_from_args(args), options_from_args(args), host=args.host,
-                  port=args.port, push_rate=args.push_rate, image_rate=args.image_rate)
+        port = DEFAULT_PORT if args.port is None else args.port
+        app = App(config_from_args(args), options_from_args(args), host=args.host, port=port,
+                  strict_port=args.port is not None, push_rate=args.push_rate,
+                  image_rate=args.image_rate, frames=args.frames)
         stopping = threading.Event()
 
         def on_term(signum: int, frame: object) -> None:
@@ -495,11 +632,24 @@ def main(command: str = "serve", argv: list[str] | None = None) -> int:
         # Ctrl-C by the same path: a process started with SIGINT ignored (a background job)
         # would otherwise never see KeyboardInterrupt
         previous_int = signal.signal(signal.SIGINT, on_term)
+        status = 0
         try:
             app.start()
+            if port != 0 and app.port != port:
+                print(f"tileviz serve: port {port} is busy; serving on port {app.port} instead",
+                      flush=True)
             print(f"tileviz serve: open {app.url}  (Ctrl-C stops)", flush=True)
+            started = time.perf_counter()
+            done = 0  # frames of the run, frame 0 (made on start) included
             while app.running and not stopping.is_set():
-                time.sleep(0.2)
+                if args.frames is not None and app.session is not None and (
+                        app.session.frames_computed - done >= args.frames
+                        or app.session.ended is not None):
+                    status = _summary(app.session, args.frames,
+                                      app.session.frames_computed - done,
+                                      time.perf_counter() - started)
+                    break
+                time.sleep(0.05 if args.frames is not None else 0.2)
         except KeyboardInterrupt:
             pass
         finally:
@@ -513,7 +663,7 @@ def main(command: str = "serve", argv: list[str] | None = None) -> int:
             app.stop()
             watchdog.cancel()
         print("tileviz serve: stopped", flush=True)
-        return 0
+        return status
 
     return run_cli("tileviz serve", body)
 

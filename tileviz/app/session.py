@@ -8,8 +8,8 @@ on the simulation. Tests drive it directly.
 The source (:mod:`tileviz.app.sources`) is the simulator, or a recorded dataset replayed with the
 same reader and Runner as ``python -m tileviz replay`` (``SessionOptions.dataset``). A replay
 pauses at its last frame (or at a bad row, with a note naming it); commands only a simulator
-understands (:data:`SIMULATOR_ONLY`) leave a note and change nothing; a new localizer mode,
-extractor or inflation replays from frame 0.
+understands (:data:`tileviz.app.commands.SIMULATOR_ONLY`) leave a note and change nothing; a new
+localizer mode, extractor or inflation replays from frame 0.
 
 Positions: the history numbers its entries 0, 1, 2, ... (a *position*); an entry's record keeps
 the source's frame index. They differ only after a frame failed (a gap in frame indices).
@@ -23,7 +23,7 @@ import time
 from collections import deque
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, assert_never
 
 import numpy as np
 
@@ -33,18 +33,10 @@ from tileviz.app.outputs import output_path, sanitize_name
 from tileviz.app.scene import texture_pixels_per_tile
 from tileviz.config import Config, LocalizerConfig, NoiseConfig
 from tileviz.runner import Runner, initial_box
+from tileviz.summary import RunTally
 from tileviz.types import FrameInput
 
-__all__ = ["SIMULATOR_ONLY", "Session", "SessionOptions"]
-
-SIMULATOR_ONLY: dict[str, str] = {
-    "SetSetpoint": "the setpoint", "SetManualTarget": "the setpoint",
-    "SetWaypoints": "the setpoint", "Kidnap": "kidnap", "SetNoise": "the sensor noise",
-    "Inject": "fault injection", "Restart": "a new floor or camera",
-    "StartRecording": "recording", "StopRecording": "recording",
-}
-"""Commands that steer the simulator (by name), and what they change: a replay refuses them with a
-note."""
+__all__ = ["Session", "SessionOptions"]
 
 
 @dataclass(frozen=True)
@@ -72,6 +64,9 @@ class SessionOptions:
     """Its particle count."""
     renderer: Any = None
     """A renderer for the simulator (tests); None = the real floor renderer."""
+    start_frame: int = 0
+    """The frame shown first (frame index): the frames before it are computed on start, without
+    stage images."""
     dataset: Path | None = None
     """Replay this tileviz-dataset/1 folder instead of simulating (the Config passed to the
     session should be :func:`tileviz.dataset.replay_config` of its meta)."""
@@ -102,6 +97,10 @@ class Session:
         for name in ("prediction", "boxes", "wedge"):
             self.layers[name] = bool(o.intervals)
         self.notes: deque[Note] = deque(maxlen=8)
+        self.follow = True
+        """The view follows the robot while playing."""
+        self.panel = "camera"
+        """What the left panel shows under the inset (``commands.PANEL_VIEWS``)."""
         self.errors = 0
         """Frames that raised (logged, skipped)."""
         self.degraded = False
@@ -157,6 +156,7 @@ class Session:
         if self._mcl_wanted:
             self._start_mcl(initial_box(cfg))
         self.history.clear()
+        self.tally = RunTally()
         self.shown = -1
         self.degraded = False
         self.world_version += 1
@@ -207,6 +207,11 @@ class Session:
             return 0.0
         return self.cfg.sim.dt / self.speed
 
+    def robot_start(self) -> tuple[float, float]:
+        """Where the robot starts (x, y), metres: the run's initial pose."""
+        x, y = self.cfg.sim.initial_pose[:2]
+        return float(x), float(y)
+
     def shown_entry(self) -> Entry | None:
         """The entry being shown, or None before the first frame."""
         if self.shown < 0 or self.shown not in self.history:
@@ -223,6 +228,26 @@ class Session:
                 if self.history.get(p).ready:
                     return p
         return pos
+
+    def skip_to(self, index: int) -> None:
+        """Compute frames until the shown one has frame index ``index`` or more (the frames on the
+        way keep no stage images), or the source ends (then the note says so)."""
+        keep = self.runner.keep_stages
+        display, self.display = self.display, False
+        self.runner.keep_stages = False
+        try:
+            while index > 0:
+                entry = self.shown_entry()
+                if entry is not None and entry.index >= index - 1:
+                    break
+                if self.compute() is None and (self.ended is not None or self.errors > 100):
+                    return
+        finally:
+            self.display = display
+            self.runner.keep_stages = keep
+        entry = self.shown_entry()
+        if entry is None or entry.index < index:
+            self.compute()
 
     def advance(self) -> bool:
         """Show the next frame: the next stored one, or a new one when the newest is shown.
@@ -265,6 +290,7 @@ class Session:
         particles = self._step_mcl(frame, rec) if self.mcl is not None else None
         entry = Entry.make(rec, stages=self.display, encoder=self.encoder, mcl=particles)
         self.shown = self.history.append(entry)
+        self.tally.add(rec)
         self.frames_computed += 1
         self._count_rate()
         self.version += 1
@@ -295,7 +321,7 @@ class Session:
         self._mcl_odometry = frame.odometry
         return ParticleView.of(est, frame.truth)
 
-    def _on_SetMcl(self, cmd: C.SetMcl) -> None:
+    def _set_mcl(self, cmd: C.SetMcl) -> None:
         self._mcl_wanted = bool(cmd.on)
         if not cmd.on:
             self.mcl = None
@@ -367,61 +393,93 @@ class Session:
         self.note(f"recorded {w.count} frames to {self.recording_path}{tail}", level)
 
     # ------------------------------------------------------------------ commands
-    def apply(self, cmd: object) -> None:
+    def apply(self, cmd: C.Command) -> None:
         """Apply one command (:mod:`tileviz.app.commands`). Bad values raise ValueError naming
         them; nothing is changed then."""
-        name = type(cmd).__name__
-        handler = getattr(self, f"_on_{name}", None)
-        if handler is None:
-            raise ValueError(f"unknown command {name}")
-        if name in SIMULATOR_ONLY and not self.source.simulator:
-            self.note(f"{name}: {SIMULATOR_ONLY[name]} belongs to the simulator; "
+        what = C.SIMULATOR_ONLY.get(type(cmd))
+        if what is not None and not self.source.simulator:
+            self.note(f"{type(cmd).__name__}: {what} belongs to the simulator; "
                       f"replaying {self.source.describe()} (nothing changed)")
             return
-        handler(cmd)
+        match cmd:
+            case C.Play():
+                self.playing = True
+            case C.Pause():
+                self.playing = False
+            case C.TogglePlay():
+                self.playing = not self.playing
+            case C.Step():
+                self.playing = False
+                self.advance()
+            case C.StepBack():
+                self.playing = False
+                if self.shown > self.history.first:
+                    self.shown -= 1
+            case C.Seek(index=index):
+                self.playing = False
+                if len(self.history):
+                    self.shown = min(max(index, self.history.first), self.history.last)
+            case C.Live():
+                self.shown = self.history.last
+            case C.SetSpeed(factor=factor):
+                self.speed = float(factor)
+            case C.SetMaxSpeed(on=on):
+                self.max_speed = bool(on)
+            case C.SetSetpoint():
+                self._set_setpoint(cmd)
+            case C.SetManualTarget():
+                self._set_manual_target(cmd)
+            case C.SetWaypoints():
+                self._set_waypoints(cmd)
+            case C.Kidnap():
+                self._kidnap(cmd)
+            case C.Relocalize():
+                self._relocalize()
+            case C.Reset():
+                self._reset(cmd)
+            case C.Restart():
+                self._restart(cmd)
+            case C.SetMode():
+                self._set_mode(cmd)
+            case C.SetExtractor():
+                self._set_extractor(cmd)
+            case C.SetNoise():
+                self._set_noise(cmd)
+            case C.SetInflation():
+                self._set_inflation(cmd)
+            case C.SetDisplay(on=on):
+                self.display = bool(on)
+                self.runner.keep_stages = self.display
+            case C.SetMcl():
+                self._set_mcl(cmd)
+            case C.SetLayer(layer=layer, visible=visible):
+                self.layers[layer] = bool(visible)
+            case C.Inject(kind=kind, frames=frames):
+                self.source.inject(kind, frames=frames)
+                self.note(f"fault {kind} injected")
+            case C.StartRecording():
+                self._start_recording(cmd)
+            case C.StopRecording():
+                self._stop_recording_cmd()
+            case C.Report(text=text, level=level):
+                self.note(text, level)
+            case C.SetFollow(on=on):
+                self.follow = bool(on)
+            case C.ShowPanel(view=view):
+                self.panel = view
+            case _:
+                assert_never(cmd)
         self.version += 1
 
-    def _on_Play(self, cmd: C.Play) -> None:
-        self.playing = True
-
-    def _on_Pause(self, cmd: C.Pause) -> None:
-        self.playing = False
-
-    def _on_TogglePlay(self, cmd: C.TogglePlay) -> None:
-        self.playing = not self.playing
-
-    def _on_Step(self, cmd: C.Step) -> None:
-        self.playing = False
-        self.advance()
-
-    def _on_StepBack(self, cmd: C.StepBack) -> None:
-        self.playing = False
-        if self.shown > self.history.first:
-            self.shown -= 1
-
-    def _on_Seek(self, cmd: C.Seek) -> None:
-        self.playing = False
-        if len(self.history):
-            self.shown = min(max(cmd.index, self.history.first), self.history.last)
-
-    def _on_Live(self, cmd: C.Live) -> None:
-        self.shown = self.history.last
-
-    def _on_SetSpeed(self, cmd: C.SetSpeed) -> None:
-        self.speed = float(cmd.factor)
-
-    def _on_SetMaxSpeed(self, cmd: C.SetMaxSpeed) -> None:
-        self.max_speed = bool(cmd.on)
-
-    def _on_SetSetpoint(self, cmd: C.SetSetpoint) -> None:
+    def _set_setpoint(self, cmd: C.SetSetpoint) -> None:
         self.source.set_setpoint(cmd.kind)
         self._setpoint_changed(cmd.kind)
 
-    def _on_SetManualTarget(self, cmd: C.SetManualTarget) -> None:
+    def _set_manual_target(self, cmd: C.SetManualTarget) -> None:
         self.source.set_manual_target(cmd.x, cmd.y)
         self._setpoint_changed("manual", sim={"manual_target": (cmd.x, cmd.y)})
 
-    def _on_SetWaypoints(self, cmd: C.SetWaypoints) -> None:
+    def _set_waypoints(self, cmd: C.SetWaypoints) -> None:
         self.source.set_waypoints(cmd.points)
         self._setpoint_changed("waypoints", sim={"waypoints": tuple(cmd.points)})
 
@@ -430,7 +488,7 @@ class Session:
         self.cfg = replace(self.cfg, sim=replace(self.cfg.sim, setpoint=kind, **(sim or {})))
         self.world_version += 1
 
-    def _on_Kidnap(self, cmd: C.Kidnap) -> None:
+    def _kidnap(self, cmd: C.Kidnap) -> None:
         if cmd.pose is None:
             a = 0.8 * self.cfg.sim.lissajous_amplitude
             x, y = self._kidnap_rng.uniform(-a, a, 2)
@@ -441,7 +499,7 @@ class Session:
         self.note(f"kidnapped the robot to ({x:.2f}, {y:.2f}, {math.degrees(theta):.0f} deg); "
                   "the localizer was not told")
 
-    def _on_Relocalize(self, cmd: C.Relocalize) -> None:
+    def _relocalize(self) -> None:
         pose = self.source.pose
         if pose is None:
             self.note("Relocalize: the true pose of the next frame is not known (a dataset "
@@ -454,27 +512,36 @@ class Session:
         self.degraded = False
         self.note("localizer restarted at the true pose (within the initial pose error)")
 
-    def _on_Reset(self, cmd: C.Reset) -> None:
+    def _reset(self, cmd: C.Reset) -> None:
         cfg = self.cfg
         if cmd.seed is not None:
             cfg = replace(cfg, sim=replace(cfg.sim, seed=int(cmd.seed)))
-        self._new_run_files()
-        self._build(cfg)
+        self._new_run(cfg)
         if self.source.restart_on_settings:
             self._replay_from_start("Reset")
+        else:
+            self.compute()
+            self.note(f"Reset: a new run from frame 0 (seed {self.cfg.sim.seed})")
+
+    def _new_run(self, cfg: Config) -> None:
+        """Forget the old run (its notes, frames and files) and build a new one with ``cfg``;
+        the caller shows its frame 0 at once, so nothing of the old run stays on screen."""
+        self.notes.clear()
+        self._new_run_files()
+        self._build(cfg)
 
     def _replay_from_start(self, why: str) -> None:
         """A replay started again: show its frame 0 at once, and say so."""
         self.compute()
         self.note(f"{why}: replaying {self.source.describe()} from frame 0")
 
-    def _on_Restart(self, cmd: C.Restart) -> None:
+    def _restart(self, cmd: C.Restart) -> None:
         floor = replace(self.cfg.floor, tile_size=float(cmd.tile_size),
                         grout_width=min(self.cfg.floor.grout_width, cmd.tile_size / 8))
         camera = replace(self.cfg.camera, ppm=float(cmd.ppm))
         cfg = replace(self.cfg, floor=floor, camera=camera)  # validates (ValueError)
-        self._new_run_files()
-        self._build(cfg)
+        self._new_run(cfg)
+        self.compute()
         self.note(f"new run: tile size {cmd.tile_size:g} m, {cmd.ppm:g} px/m")
 
     def _reconfigure(self, cfg: Config, what: str = "new settings") -> None:
@@ -490,15 +557,15 @@ class Session:
         self.runner.reconfigure(cfg)
         self.cfg = cfg
 
-    def _on_SetMode(self, cmd: C.SetMode) -> None:
+    def _set_mode(self, cmd: C.SetMode) -> None:
         self._reconfigure(replace(self.cfg, localizer=replace(self.cfg.localizer, mode=cmd.mode)),
                           f"mode {cmd.mode}")
 
-    def _on_SetExtractor(self, cmd: C.SetExtractor) -> None:
+    def _set_extractor(self, cmd: C.SetExtractor) -> None:
         vision = replace(self.cfg.vision, extractor=cmd.extractor)
         self._reconfigure(replace(self.cfg, vision=vision), f"extractor {cmd.extractor}")
 
-    def _on_SetNoise(self, cmd: C.SetNoise) -> None:
+    def _set_noise(self, cmd: C.SetNoise) -> None:
         noise = NoiseConfig(cmd.speed_error, cmd.yaw_rate_error, cmd.compass_error, cmd.fraction)
         self.source.set_noise(noise)
         self._reconfigure(replace(self.cfg, noise=noise))
@@ -507,31 +574,22 @@ class Session:
         if self.recording is not None:
             self._stop_recording("the declared bounds changed; its meta.json would be wrong")
 
-    def _on_SetInflation(self, cmd: C.SetInflation) -> None:
+    def _set_inflation(self, cmd: C.SetInflation) -> None:
         loc: LocalizerConfig = replace(self.cfg.localizer,
                                        truth_inflation=(cmd.xy, cmd.xy, cmd.theta))
         self._reconfigure(replace(self.cfg, localizer=loc), "truth inflation")
 
-    def _on_SetDisplay(self, cmd: C.SetDisplay) -> None:
-        self.display = bool(cmd.on)
-        self.runner.keep_stages = self.display
-
-    def _on_SetLayer(self, cmd: C.SetLayer) -> None:
-        self.layers[cmd.layer] = bool(cmd.visible)
-
-    def _on_Inject(self, cmd: C.Inject) -> None:
-        self.source.inject(cmd.kind, frames=cmd.frames)
-        self.note(f"fault {cmd.kind} injected")
-
-    def _on_StartRecording(self, cmd: C.StartRecording) -> None:
+    def _start_recording(self, cmd: C.StartRecording) -> None:
         if self.recording is not None or self._record_pending is not None:
             raise ValueError("already recording; stop the current recording first")
         self._record_pending = output_path(self.options.out_dir, sanitize_name(cmd.name))
-        self.note(f"will record from the next new frame to {self._record_pending}")
+        when = "the next new frame" if self.playing else "the next new frame (press Play or Step)"
+        self.note(f"will record from {when} to {self._record_pending}")
 
-    def _on_StopRecording(self, cmd: C.StopRecording) -> None:
+    def _stop_recording_cmd(self) -> None:
+        if self._record_pending is not None and self.recording is None:
+            self.note(f"nothing recorded: no new frame was made after Start recording (press "
+                      f"Play or Step while recording); {self._record_pending} was not written")
         self._record_pending = None
         self._stop_recording()
 
-    def _on_Report(self, cmd: C.Report) -> None:
-        self.note(cmd.text, cmd.level)

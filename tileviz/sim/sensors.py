@@ -44,17 +44,21 @@ class OdometryFault:
 
 
 def within(measured: float, true: float, bound: float) -> float:
-    """``measured`` moved toward ``true`` by whole ulps until |measured - true| <= bound (floats).
+    """``measured`` moved toward ``true`` until |measured - true| <= bound (floats).
 
-    Only ever moves a value that rounding pushed a hair past the bound; ``measured`` values further
-    out are a caller's bug and raise.
+    Only ever moves a value that rounding pushed a hair past the bound (a few ulps of the values:
+    with a bound below an ulp, e.g. 1e-31 rad, that can be the whole reading, and the answer is
+    then ``true`` itself); ``measured`` values further out are a caller's bug and raise.
     """
-    steps = 0
-    while abs(measured - true) > bound:
+    d = measured - true
+    if abs(d) <= bound:
+        return measured
+    slack = 16.0 * math.ulp(max(abs(measured), abs(true), 1.0))
+    if abs(d) > bound + slack:
+        raise ValueError(f"reading {measured!r} is not within {bound!r} of {true!r}")
+    measured = true + math.copysign(bound, d)
+    while abs(measured - true) > bound:  # ends at ``true`` at the latest
         measured = math.nextafter(measured, true)
-        steps += 1
-        if steps > 4:
-            raise ValueError(f"reading {measured!r} is not within {bound!r} of {true!r}")
     return measured
 
 

@@ -1,4 +1,5 @@
-"""A minimal viser websocket client, for the smoke test and the server benchmark.
+"""A minimal viser websocket client for the server tests and bench/bench_server.py (a test
+helper: it needs the test extras and this checkout's serve.py).
 
 viser's wire format (``viser/infra/_infra.py``, version 1.1): the client asks for the subprotocol
 ``viser-v<version>``. Each server->client websocket message is one *window* of messages:
@@ -58,7 +59,7 @@ def start_serve(args: Sequence[str], *, cwd: str | os.PathLike[str] | None = Non
     """Start ``serve.py`` of this checkout with ``args`` in its own process and return it with
     the URL it prints once it serves (e.g. ``http://127.0.0.1:PORT/``). If it exits before
     printing one, raises RuntimeError with its stderr. The caller stops the process."""
-    repo = Path(__file__).resolve().parents[2]
+    repo = Path(__file__).resolve().parents[1]
     env = dict(os.environ, PYTHONPATH=str(repo))
     proc = subprocess.Popen([sys.executable, str(repo / "serve.py"), *args], cwd=cwd, env=env,
                             stdout=subprocess.PIPE, stderr=stderr, text=True)

@@ -1,0 +1,83 @@
+"""How many frames a second headless Chromium paints the live page, with software WebGL
+(SwiftShader, no GPU), at the server's default settings.
+
+    python bench/bench_page.py [--seconds 10] [--warmup 8] [--bare] [-- serve options...]
+
+``serve.py`` runs in its own process (default preset, playing in real time, default options or
+the ones after ``--``); Debian's chromium (1400x900) opens the page, waits ``--warmup`` seconds,
+then counts ``requestAnimationFrame`` callbacks over ``--seconds`` (the browser calls one per
+frame it paints; a page busy decoding messages or rendering paints fewer). ``--bare``: the same
+count on an empty viser page (a grid only), for comparison. The figure depends on the machine and
+its load: run it on an idle machine, read it as a rough number.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+from tests.wsclient import start_serve, stop_serve  # noqa: E402
+
+ARGS = ["--headless", "--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
+        "--disable-background-networking", "--disable-component-update", "--no-first-run"]
+
+COUNT = """(ms) => new Promise((done) => {
+    let n = 0; const t0 = performance.now();
+    function tick(t) { n += 1; if (t - t0 < ms) requestAnimationFrame(tick);
+                       else done([n, (performance.now() - t0) / 1000]); }
+    requestAnimationFrame(tick);
+})"""
+
+
+def paint_rate(url: str, seconds: float, warmup: float) -> float:
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path="/usr/bin/chromium", args=ARGS)
+        page = browser.new_page(viewport={"width": 1400, "height": 900})
+        page.goto(url)
+        page.wait_for_selector("canvas", timeout=120_000)
+        page.wait_for_timeout(warmup * 1000)
+        n, span = page.evaluate(COUNT, seconds * 1000)
+        browser.close()
+    return n / span
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seconds", type=float, default=10.0)
+    ap.add_argument("--warmup", type=float, default=8.0)
+    ap.add_argument("--bare", action="store_true", help="an empty viser page instead")
+    ap.add_argument("serve", nargs="*", help="serve.py options (after --)")
+    args = ap.parse_args()
+    if args.bare:
+        import viser
+
+        server = viser.ViserServer(port=0, verbose=False)
+        server.scene.add_grid("/grid")
+        try:
+            rate = paint_rate(f"http://127.0.0.1:{server.get_port()}/", args.seconds,
+                              args.warmup)
+        finally:
+            server.stop()
+        print(f"bare viser page: {rate:.1f} frames painted a second")
+        return
+    proc, url = start_serve(["--port", "0", *args.serve])
+    try:
+        t0 = time.perf_counter()
+        rate = paint_rate(url, args.seconds, args.warmup)
+        wall = time.perf_counter() - t0
+    finally:
+        stop_serve(proc)
+    print(f"tileviz page ({' '.join(args.serve) or 'default options'}): {rate:.1f} frames "
+          f"painted a second (over {args.seconds:g} s after {args.warmup:g} s; {wall:.0f} s "
+          "in all)")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,85 @@
+"""``python -m tileviz evaluate``: its options and its entry point (:func:`main`)."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from tileviz.cliutil import CliError, Parser, nonneg_float, positive_float, positive_int, run_cli
+from tileviz.evaluation.campaign import evaluate
+from tileviz.evaluation.report import figures, write_outputs
+from tileviz.evaluation.scenarios import DEFAULT_SCENARIOS, SCENARIOS
+
+__all__ = ["main"]
+
+
+def _parser() -> Parser:
+    p = Parser(prog="tileviz evaluate", description="Evaluate the interval localizer "
+               "(recovery off and on), its truth and odometry modes and an MCL baseline over "
+               "simulated runs.")
+    p.add_argument("--runs", type=positive_int("--runs"), default=2,
+                   help="runs (seeds) per scenario (default 2)")
+    p.add_argument("--scenarios", default=",".join(DEFAULT_SCENARIOS),
+                   help=f"comma-separated, from {', '.join(SCENARIOS)} or 'all' "
+                   f"(default {','.join(DEFAULT_SCENARIOS)})")
+    p.add_argument("--jobs", type=positive_int("--jobs"), default=min(2, os.cpu_count() or 1),
+                   help="worker processes (default min(2, cores))")
+    p.add_argument("--duration", type=positive_float("--duration"), default=60.0,
+                   help="simulated seconds per run (default 60)")
+    p.add_argument("--seed", type=int, default=0, help="simulator seed of run 0 (default 0)")
+    p.add_argument("--particles", type=positive_int("--particles"), default=1000,
+                   help="MCL particles (default 1000)")
+    p.add_argument("--mcl-inject", type=nonneg_float("--mcl-inject"), default=0.0,
+                   help="MCL particle injection rate per frame, 0..1, in the room (default 0)")
+    p.add_argument("--mcl-sigma-scale", type=positive_float("--mcl-sigma-scale"), default=0.5,
+                   help="MCL likelihood sigmas as a multiple of the declared bounds (default 0.5)")
+    p.add_argument("--out", default="out/eval", help="output folder (default out/eval)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    return p
+
+
+def _scenario_list(text: str) -> list[str]:
+    if text.strip() == "all":
+        return list(SCENARIOS)
+    names = [s.strip() for s in text.split(",") if s.strip()]
+    if not names:
+        raise CliError("--scenarios is empty")
+    for s in names:
+        if s not in SCENARIOS:
+            raise CliError(f"--scenarios: unknown scenario {s!r} "
+                           f"(choose from {', '.join(SCENARIOS)} or all)")
+    if len(set(names)) != len(names):
+        raise CliError("--scenarios: a scenario is listed twice")
+    return names
+
+
+def main(command: str, argv: list[str]) -> int:
+    """``python -m tileviz evaluate [options]``; returns the exit status."""
+    args = _parser().parse_args(argv)
+
+    def body() -> int:
+        scenarios = _scenario_list(args.scenarios)
+        if args.seed < 0:
+            raise CliError(f"--seed must be >= 0, got {args.seed}")
+        if args.mcl_inject > 1:
+            raise CliError(f"--mcl-inject must be in [0, 1], got {args.mcl_inject}")
+        if args.duration > 24 * 3600:
+            raise CliError(f"--duration must be at most 86400 s, got {args.duration}")
+        out = Path(args.out)
+        if out.exists() and not out.is_dir():
+            raise CliError(f"--out {out} exists and is not a folder")
+        results = evaluate(scenarios, runs=args.runs, duration=args.duration, jobs=args.jobs,
+                           seed=args.seed, particles=args.particles, mcl_inject=args.mcl_inject,
+                           mcl_sigma_scale=args.mcl_sigma_scale, progress=not args.quiet)
+        cmd = "python -m tileviz evaluate " + " ".join(argv)
+        notes = [f"MCL: {args.particles} particles, likelihood sigma = {args.mcl_sigma_scale} x "
+                 f"the declared bounds, injection rate {args.mcl_inject}; "
+                 f"{args.runs} run(s) of {args.duration:g} s per scenario, seeds {args.seed}.."
+                 f"{args.seed + args.runs - 1}."]
+        rows = write_outputs(results, out, cmd.strip(), notes)
+        for line in figures(rows):
+            print(line)
+        print(f"wrote {out / 'results.md'}, {out / 'results.csv'}, {out / 'runs.csv'} and plots")
+        return 0
+
+    return run_cli(f"tileviz {command}", body)

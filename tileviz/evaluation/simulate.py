@@ -1,0 +1,235 @@
+"""One simulated evaluation run: the simulator with its faults, vision once per frame, and every
+method of :data:`METHODS` stepped on the same inputs (:func:`run_one`)."""
+
+from __future__ import annotations
+
+import math
+import time
+import zlib
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from tileviz.baselines.mcl import MCL, MclConfig
+from tileviz.evaluation.events import noticed
+from tileviz.evaluation.scenarios import RECOVERY_MAX_SLIP, SCENARIOS, fault_schedule
+from tileviz.localizer import Localizer
+from tileviz.runner import initial_box
+from tileviz.types import STATUSES, Box, BoxSet, FrameInput, Odometry, Pose, SensorBounds
+
+__all__ = [
+    "FAULT_METHODS", "INTERVAL_METHODS", "METHODS", "METHOD_LABELS", "STATUS_CODES",
+    "MethodTrace", "RunResult", "Task", "run_one",
+]
+
+METHODS = ("interval", "interval-recovery", "interval-truth", "odometry", "mcl")
+"""Method names, in table order."""
+INTERVAL_METHODS = METHODS[:4]
+"""The methods that report a status (the interval localizer in its modes)."""
+FAULT_METHODS = ("interval", "interval-recovery")
+"""The methods with detection and recovery figures: the autonomous localizer. Truth mode starts
+afresh from the truth every frame and odometry mode never uses a view: neither has a fault to
+notice or to recover from in the same sense."""
+METHOD_LABELS = {
+    "interval": "interval (autonomous)",
+    "interval-recovery": "interval (autonomous, recovery on)",
+    "interval-truth": "interval (truth mode)",
+    "odometry": "odometry only",
+    "mcl": "MCL",
+}
+STATUS_CODES = {s: i for i, s in enumerate((*STATUSES, "estimate"))}
+"""Per-frame status as a small integer in :class:`MethodTrace` (``estimate``: MCL)."""
+
+# --------------------------------------------------------------------------------- one run
+
+
+@dataclass(frozen=True)
+class Task:
+    """One run to make: scenario name, run index, simulator seed, duration (s), MCL options."""
+
+    scenario: str
+    run: int
+    seed: int
+    duration: float
+    particles: int = 1000
+    mcl_inject: float = 0.0
+    mcl_sigma_scale: float = 0.5
+
+
+@dataclass
+class MethodTrace:
+    """Per-frame outputs of one method over one run (n frames).
+
+    ``lo``/``hi`` (n, 3): bounds of the reported region (hull of the set; MCL: mean -+ the 95 %
+    half-widths) in x, y (m) and theta (rad, continuous). ``centre`` (n, 3): hull centre / particle
+    mean. ``inside`` (n,): truth inside the set (MCL: inside the 95 % ellipse). ``status`` (n,)
+    :data:`STATUS_CODES`. ``boxes`` (n,): number of boxes (MCL: 0). ``alarm`` (n,): the method
+    :func:`noticed` something at the frame (:data:`FAULT_METHODS` only; False for the others).
+    ``cpu_s``: total CPU time of the steps, seconds."""
+
+    lo: np.ndarray
+    hi: np.ndarray
+    centre: np.ndarray
+    inside: np.ndarray
+    status: np.ndarray
+    boxes: np.ndarray
+    alarm: np.ndarray
+    cpu_s: float = 0.0
+
+    @classmethod
+    def empty(cls, n: int) -> MethodTrace:
+        """A trace of ``n`` frames with nothing recorded (NaN bounds, status 0, no alarm)."""
+        return cls(lo=np.full((n, 3), np.nan), hi=np.full((n, 3), np.nan),
+                   centre=np.full((n, 3), np.nan), inside=np.zeros(n, bool),
+                   status=np.zeros(n, np.int8), boxes=np.zeros(n, np.int32),
+                   alarm=np.zeros(n, bool))
+
+
+@dataclass
+class RunResult:
+    """One run: the truth, what the inputs were like, and a :class:`MethodTrace` per method."""
+
+    scenario: str
+    run: int
+    seed: int
+    t: np.ndarray
+    truth: np.ndarray
+    fault: np.ndarray
+    """(n,) bool: a fault was active at the frame (simulator labels)."""
+    in_bounds: np.ndarray
+    """(n,) bool: every input used at the frame respected its declared bound."""
+    accepted: np.ndarray
+    """(n,) bool: vision returned an observation."""
+    vision_s: float
+    methods: dict[str, MethodTrace] = field(default_factory=dict)
+
+
+def _record_set(tr: MethodTrace, k: int, s: BoxSet, status: str,
+                truth: tuple[float, float, float]) -> None:
+    hull: Box | None = s.hull()
+    tr.status[k] = STATUS_CODES[status]
+    tr.boxes[k] = len(s)
+    if hull is None:
+        return
+    # the hull's heading interval, shifted by 2 pi k next to the true heading
+    shift = 2.0 * math.pi * round((truth[2] - 0.5 * (hull.t_lo + hull.t_hi)) / (2.0 * math.pi))
+    tr.lo[k] = (hull.x_lo, hull.y_lo, hull.t_lo + shift)
+    tr.hi[k] = (hull.x_hi, hull.y_hi, hull.t_hi + shift)
+    tr.centre[k] = 0.5 * (tr.lo[k] + tr.hi[k])
+    tr.inside[k] = s.contains(*truth)
+
+
+def _odometry_ok(odo: Odometry | None, step: Any, bounds: SensorBounds) -> bool:
+    if odo is None or step is None:
+        return True
+    return bool(step.model_ok
+                and abs(odo.speed - step.speed) <= bounds.speed_error
+                and abs(odo.yaw_rate - step.yaw_rate) <= bounds.yaw_rate_error)
+
+
+def run_one(task: Task) -> RunResult:
+    """Simulate one run of ``task`` and step every method on it (vision once per frame)."""
+    from tileviz.sim.source import SimSource  # pymunk: only here, not at import
+    from tileviz.vision import extract, observation_error
+
+    scn = SCENARIOS[task.scenario]
+    cfg = scn.config(task.seed)
+    dt = cfg.sim.dt
+    n = max(1, int(round(task.duration / dt)))
+    L = cfg.floor.tile_size
+    offset = cfg.camera.offset
+    bounds = SensorBounds(cfg.noise.speed_error, cfg.noise.yaw_rate_error,
+                          cfg.noise.compass_error)
+    box0 = initial_box(cfg)
+    key = zlib.crc32(task.scenario.encode())
+    fault_rng = np.random.default_rng(np.random.SeedSequence([task.seed, key, 1]))
+    plan = fault_schedule(scn, n, dt, fault_rng)
+
+    def localizer(mode: str, max_slip: tuple[float, float] = (0.0, 0.0)) -> Localizer:
+        return Localizer(tile_size=L, camera_offset=offset, bounds=bounds,
+                         config=replace(cfg.localizer, mode=mode, max_slip=max_slip),
+                         initial=box0)
+
+    intervals = {"interval": localizer("autonomous"),
+                 "interval-recovery": localizer("autonomous", RECOVERY_MAX_SLIP[scn.preset]),
+                 "interval-truth": localizer("truth"), "odometry": localizer("odometry")}
+    room = cfg.sim.room_half_size
+    mcl = MCL(tile_size=L, camera_offset=offset, bounds=bounds, initial=box0,
+              config=MclConfig(particles=task.particles, inject_rate=task.mcl_inject,
+                               sigma_scale=task.mcl_sigma_scale,
+                               seed=int(np.random.SeedSequence([task.seed, key, 2])
+                                        .generate_state(1)[0])),
+              region=Box(-room, room, -room, room, -math.pi, math.pi))
+
+    res = RunResult(scenario=task.scenario, run=task.run, seed=task.seed,
+                    t=np.zeros(n), truth=np.zeros((n, 3)), fault=np.zeros(n, bool),
+                    in_bounds=np.ones(n, bool), accepted=np.zeros(n, bool), vision_s=0.0,
+                    methods={m: MethodTrace.empty(n) for m in METHODS})
+    src = SimSource(cfg)
+    pending: Odometry | None = None
+    pending_step: Any = None
+    # this thread's CPU time: OpenCV's worker threads, still busy after vision returns, are
+    # not charged to the method stepped next
+    clock = time.thread_time
+    for k in range(n):
+        far_view = False
+        for kind, frames, params in plan.get(k, []):
+            if kind == "kidnap":
+                p = src.pose
+                src.kidnap(p.x + params["dx"], p.y + params["dy"], p.theta + params["dtheta"])
+            elif kind == "far_view":
+                far_view = True
+            else:
+                src.inject(kind, frames=frames, **params)
+        frame: FrameInput = next(src)
+        if far_view:
+            x, y = fault_rng.uniform(-room, room, 2)
+            pose = Pose(float(x), float(y), float(fault_rng.uniform(-math.pi, math.pi)))
+            frame = replace(frame, image=src.renderer.render(pose, rng=fault_rng),
+                            faults=(*frame.faults, "far_view"))
+        step_k = src.last_step
+        truth = frame.truth
+        assert truth is not None  # the simulator always knows it
+        tt = truth.as_tuple()
+        res.t[k] = frame.t
+        res.truth[k] = tt
+        res.fault[k] = bool(frame.faults)
+        c0 = clock()
+        vision = extract(frame.image, camera=cfg.camera, tile_size=L, vision=cfg.vision)
+        res.vision_s += clock() - c0
+        obs = vision.observation
+        ok = _odometry_ok(pending, pending_step, bounds) and "kidnap" not in frame.faults
+        if obs is not None:
+            res.accepted[k] = True
+            e1, e2, e3 = observation_error(obs, truth, L, offset)
+            ok = ok and max(abs(e1), abs(e2)) <= obs.position_error \
+                and abs(e3) <= obs.heading_error
+        res.in_bounds[k] = ok
+        # the methods take turns at being stepped first after vision (which leaves the caches
+        # cold for whoever comes next), so none of them pays that alone
+        r = k % len(METHODS)
+        for name in METHODS[r:] + METHODS[:r]:
+            tr = res.methods[name]
+            if name == "mcl":
+                c0 = clock()
+                est = mcl.step(pending, frame.compass, obs)
+                tr.cpu_s += clock() - c0
+                hw = np.array(est.half_widths())
+                mean = est.mean.copy()
+                mean[2] += 2.0 * math.pi * round((tt[2] - mean[2]) / (2.0 * math.pi))
+                tr.lo[k] = mean - hw
+                tr.hi[k] = mean + hw
+                tr.centre[k] = mean
+                tr.inside[k] = est.ellipse_contains(tt[0], tt[1])
+                tr.status[k] = STATUS_CODES["estimate"]
+                continue
+            loc = intervals[name]
+            c0 = clock()
+            st = loc.step(pending, frame.compass, obs, truth)
+            tr.cpu_s += clock() - c0
+            _record_set(tr, k, st.updated, st.status, tt)
+            if name in FAULT_METHODS:
+                tr.alarm[k] = noticed(st.status, st.compass_rejected, obs is not None)
+        pending, pending_step = frame.odometry, step_k
+    return res
