@@ -12,7 +12,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from tileviz.config import EXTRACTORS, MODES, SETPOINTS, finite_number
+from tileviz.config import EXTRACTORS, FLOOR_STYLES, MODES, SETPOINTS, finite_number
 
 __all__ = [
     "LAYERS", "PANEL_VIEWS", "SIMULATOR_ONLY", "Command", "Inject", "Kidnap", "Live", "Pause",
@@ -189,14 +189,17 @@ class Reset:
 
 @dataclass(frozen=True)
 class Restart:
-    """Start a new run with another floor or camera: tile size L (m) and ppm (pixels/m)."""
+    """Start a new run with another floor or camera: tile size L (m), ppm (pixels/m) and the
+    floor style (a key of ``tileviz.config.FLOOR_STYLES``)."""
 
     tile_size: float
     ppm: float
+    style: str = "default"
 
     def __post_init__(self) -> None:
         _in_range("tile size", self.tile_size, 0.05, 5.0)
         _in_range("ppm", self.ppm, 20.0, 2000.0)
+        _choice("floor style", self.style, tuple(FLOOR_STYLES))
 
 
 @dataclass(frozen=True)

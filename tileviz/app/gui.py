@@ -16,7 +16,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from tileviz.app import commands as C
-from tileviz.config import EXTRACTORS, MODES, SETPOINTS, Config
+from tileviz.config import EXTRACTORS, FLOOR_STYLES, MODES, SETPOINTS, Config
 from tileviz.sim.camera import FAULT_KINDS
 from tileviz.sim.source import ODOMETRY_FAULTS
 
@@ -173,8 +173,11 @@ class Controls:
                                             max=5.0, step=0.001)
             self.ppm = gui.add_number("Pixels per metre", cfg.camera.ppm, min=20.0, max=2000.0,
                                       step=0.01)
+            self.floor_style = gui.add_dropdown("Floor style", tuple(FLOOR_STYLES),
+                                                initial_value="default")
             self.restart = gui.add_button("Restart with this floor and camera")
-        self._on_click(self.restart, lambda: C.Restart(self.tile_size.value, self.ppm.value))
+        self._on_click(self.restart, lambda: C.Restart(self.tile_size.value, self.ppm.value,
+                                                       self.floor_style.value))
 
         with gui.add_folder("Layers", expand_by_default=False):
             self.display = gui.add_checkbox("Stream stage images", display)
