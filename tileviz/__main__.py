@@ -1,4 +1,5 @@
-"""``python -m tileviz COMMAND ...``: serve, record, replay, extract, evaluate."""
+"""``python -m tileviz COMMAND ...``: serve, record, replay, extract, evaluate, calibrate,
+import-bag."""
 
 from __future__ import annotations
 
@@ -11,6 +12,9 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "replay": ("tileviz.cli", "replay a dataset through vision and the localizer"),
     "extract": ("tileviz.vision.cli", "extract tile parameters from images"),
     "evaluate": ("tileviz.evaluation.cli", "evaluate the localizer and baselines over many runs"),
+    "calibrate": ("tileviz.datasets.calibrate", "calibrate a real camera from checkerboard "
+                  "images (meta.json's camera_model)"),
+    "import-bag": ("tileviz.datasets.bag_import", "import a ROS 1 or ROS 2 bag as a dataset"),
 }
 
 
@@ -19,7 +23,7 @@ def main(argv: list[str] | None = None) -> int:
     args = list(sys.argv[1:] if argv is None else argv)
     if not args or args[0] in ("-h", "--help"):
         lines = ["usage: python -m tileviz COMMAND [options]", "", "commands:"]
-        lines += [f"  {name:<9} {text}" for name, (_, text) in COMMANDS.items()]
+        lines += [f"  {name:<11} {text}" for name, (_, text) in COMMANDS.items()]
         lines += ["", "python -m tileviz COMMAND --help shows a command's options."]
         print("\n".join(lines))
         return 0 if args else 2

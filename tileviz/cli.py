@@ -12,7 +12,7 @@ from tileviz.cliutil import (
     CliError,
     Parser,
     float_in,
-    nonneg_int,
+    int_in,
     positive_int,
     run_cli,
 )
@@ -20,8 +20,11 @@ from tileviz.config import (
     EXTRACTORS,
     FLOOR_STYLES,
     MODES,
+    PPM_RANGE,
     PRESETS,
+    SEED_RANGE,
     SETPOINTS,
+    TILE_SIZE_RANGE,
     Config,
     preset,
     with_floor_style,
@@ -29,10 +32,6 @@ from tileviz.config import (
 
 MAX_DURATION = 86400.0
 """Longest recording, simulated seconds (a day)."""
-MAX_TILE = 1000.0
-"""Largest tile size, metres."""
-MAX_PPM = 1e5
-"""Largest ppm (``tileviz.dataset.MAX_PPM``)."""
 MAX_DT = 1.0
 """Longest frame period, seconds."""
 MIN_TILE_PX = 4.0
@@ -53,10 +52,12 @@ def record_parser() -> Parser:
     p.add_argument("--duration", type=float_in("--duration", 0.0, MAX_DURATION), required=True,
                    help="simulated seconds")
     p.add_argument("--preset", choices=PRESETS, default="default")
-    p.add_argument("--seed", type=nonneg_int("--seed"), default=0,
+    p.add_argument("--seed", type=int_in("--seed", *SEED_RANGE), default=0,
                    help="seed of the run (noise, floor)")
-    p.add_argument("--tile-size", type=float_in("--tile-size", 0.0, MAX_TILE), help="L, metres")
-    p.add_argument("--ppm", type=float_in("--ppm", 0.0, MAX_PPM), help="pixels per metre")
+    p.add_argument("--tile-size", type=float_in("--tile-size", *TILE_SIZE_RANGE, lo_open=False),
+                   help="L, metres")
+    p.add_argument("--ppm", type=float_in("--ppm", *PPM_RANGE, lo_open=False),
+                   help="pixels per metre")
     p.add_argument("--width", type=positive_int("--width"), help="image width, px")
     p.add_argument("--height", type=positive_int("--height"), help="image height, px")
     p.add_argument("--dt", type=float_in("--dt", 0.0, MAX_DT), help="frame period, s")
@@ -68,6 +69,9 @@ def record_parser() -> Parser:
     p.add_argument("--compass-error", type=float_in("--compass-error", 0.0, math.pi,
                                                     lo_open=False), help="rad bound")
     p.add_argument("--no-compass", action="store_true", help="leave the compass column empty")
+    p.add_argument("--lens", choices=("webcam",), default=None,
+                   help="a real camera: 640x480 images through a tilted, distorting webcam "
+                   "lens; meta.json gets its camera_model and replay rectifies them")
     p.add_argument("--jpg", action="store_true", help="write JPEG images instead of PNG")
     p.add_argument("--png-level", type=int, choices=range(10), default=0, metavar="0..9",
                    help="PNG compression (default 0: pixels stored, 7x faster to write and 25x "
@@ -125,11 +129,18 @@ def record(argv: list[str]) -> int:
         frames = int(math.floor(args.duration / cfg.sim.dt + 1e-9)) + 1
         out = Path(args.out)
         meta = DatasetMeta.from_config(cfg, name=f"tileviz {args.preset} seed {args.seed}")
+        renderer = None
+        if args.lens is not None:
+            from tileviz.sim.lens import LensRenderer, webcam_model
+
+            model = webcam_model(cfg.camera)
+            renderer = LensRenderer(cfg.floor, cfg.camera, model)
+            meta = replace(meta, camera_model=model)
         writer = DatasetWriter(out, meta, image_format="jpg" if args.jpg else "png",
                                png_level=args.png_level)
         bar = _progress(frames, "record", not args.quiet)
         try:
-            for i, frame in enumerate(SimSource(cfg)):
+            for i, frame in enumerate(SimSource(cfg, renderer=renderer)):
                 if i >= frames:
                     break
                 if args.no_compass:
@@ -166,6 +177,9 @@ def replay_parser() -> Parser:
     p.add_argument("--extractor", choices=EXTRACTORS, default=None,
                    help="vision extractor (default: the dataset's, else robust)")
     p.add_argument("--max-boxes", type=positive_int("--max-boxes"), default=None)
+    p.add_argument("--mcap", default=None, metavar="OUT.mcap",
+                   help="also write the run for Foxglove: camera images, truth, the sets as 3-D "
+                   "cubes, status and box widths (needs the [ros] extra)")
     p.add_argument("--jobs", type=positive_int("--jobs"), default=None,
                    help="processes that decode images and run vision, several frames at once "
                    "(the localizer stays in order in this process; same output whatever the "
@@ -206,13 +220,20 @@ def replay(argv: list[str]) -> int:
         if jobs > 1:
             from tileviz.parallel import vision_ahead
 
-            records = (runner.process(frame, vision)
+            records = ((frame, runner.process(frame, vision))
                        for frame, vision in vision_ahead(source, cfg, jobs))
         else:
-            records = runner.run(source)
+            records = ((frame, runner.process(frame)) for frame in source)
+        mcap = None
+        if args.mcap is not None:
+            from tileviz.datasets.mcap_export import McapExport
+
+            mcap = McapExport(args.mcap, source.folder)
         try:
-            for rec in records:
+            for frame, rec in records:
                 out.row(replay_row(rec))
+                if mcap is not None:
+                    mcap.write(rec, frame.image_name)
                 tally.add(rec)
                 if eq is not None:
                     eq.row(residual_row(rec))
@@ -223,6 +244,8 @@ def replay(argv: list[str]) -> int:
             out.close()
             if eq is not None:
                 eq.close()
+            if mcap is not None:
+                mcap.close()
         print("; ".join([f"replayed {n} frames into {args.out}", *tally.parts()]))
         return 0
 

@@ -29,6 +29,7 @@ import numpy as np
 import pyspng
 
 from tileviz.config import Config
+from tileviz.datasets.camera_model import CameraModel, CameraModelError, Rectifier, view_margin
 from tileviz.types import FrameInput, Odometry, Pose
 
 if TYPE_CHECKING:
@@ -83,6 +84,8 @@ class DatasetMeta:
     compass_error: float
     extra: dict[str, Any] = field(default_factory=dict)
     """Unknown keys, kept and ignored."""
+    camera_model: CameraModel | None = None
+    """A real camera whose stored images are rectified to the orthographic view, or None."""
 
     @classmethod
     def from_config(cls, cfg: Config, name: str = "tileviz run") -> DatasetMeta:
@@ -119,6 +122,8 @@ class DatasetMeta:
             yaw_rate_error=self.yaw_rate_error,
             compass_error=self.compass_error,
         )
+        if self.camera_model is not None:
+            d["camera_model"] = self.camera_model.to_json()
         return d
 
     @classmethod
@@ -133,9 +138,9 @@ class DatasetMeta:
         known = {
             "format", "name", "tile_size", "ppm", "image_width", "image_height", "camera_offset",
             "dt", "initial_pose", "initial_pose_error", "speed_error", "yaw_rate_error",
-            "compass_error",
+            "compass_error", "camera_model",
         }
-        missing = sorted(k for k in known - {"name"} if k not in d)
+        missing = sorted(k for k in known - {"name", "camera_model"} if k not in d)
         if missing:
             raise DatasetError(f"{where}: missing key(s) {', '.join(missing)}")
 
@@ -175,6 +180,11 @@ class DatasetMeta:
             raise DatasetError(f"{where}: a tile must span at least {MIN_TILE_PX:g} pixels "
                                f"(tile_size * ppm), got {tile_px!r}")
         name = d.get("name", "")
+        try:
+            camera_model = (CameraModel.from_json(d["camera_model"], where)
+                            if d.get("camera_model") is not None else None)
+        except CameraModelError as e:
+            raise DatasetError(str(e)) from None
         return cls(
             name=str(name),
             tile_size=number("tile_size", positive=True),
@@ -189,7 +199,16 @@ class DatasetMeta:
             yaw_rate_error=number("yaw_rate_error", positive=False),
             compass_error=number("compass_error", positive=False),
             extra={k: v for k, v in d.items() if k not in known},
+            camera_model=camera_model,
         )
+
+    def rectifier(self) -> Rectifier | None:
+        """The rectification of this dataset's stored images (maps computed now), or None
+        without a camera_model."""
+        if self.camera_model is None:
+            return None
+        return Rectifier(self.camera_model, ppm=self.ppm, width=self.image_width,
+                         height=self.image_height, camera_offset=self.camera_offset)
 
     def to_config(self, base: Config | None = None) -> Config:
         """A Config for replaying: geometry, bounds and start from the meta, the rest from
@@ -203,8 +222,15 @@ class DatasetMeta:
                 except (ValueError, TypeError):
                     base = Config()
         floor_grout = min(base.floor.grout_width, self.tile_size / 4)
+        vision = base.vision
+        rectifier = self.rectifier()
+        if rectifier is not None:  # the view bound grows by what the rectification may move
+            px, rad = view_margin(rectifier.model, rectifier)
+            vision = replace(vision, position_error_px=vision.position_error_px + px,
+                             heading_error=vision.heading_error + rad)
         return replace(
             base,
+            vision=vision,
             floor=replace(base.floor, tile_size=self.tile_size, grout_width=floor_grout)
             if base.floor.tile_size != self.tile_size else base.floor,
             camera=replace(
@@ -503,6 +529,7 @@ class DatasetSource:
             raise DatasetError(f"{self.frames_path}: missing column(s) {', '.join(missing)}")
         self.columns = header
         self.faults = self._read_faults()
+        self._rectifier: Rectifier | None = None
 
     def _read_faults(self) -> dict[int, tuple[str, ...]]:
         path = self.folder / FAULTS_FILE
@@ -596,9 +623,16 @@ class DatasetSource:
         if image is None:
             raise DatasetError(f"{where}: image {name!r} is not a readable PNG/JPEG")
         h, w = image.shape[:2]
-        if (w, h) != (self.meta.image_width, self.meta.image_height):
+        cm = self.meta.camera_model
+        size = (cm.raw_width, cm.raw_height) if cm else (self.meta.image_width,
+                                                         self.meta.image_height)
+        if (w, h) != size:
             raise DatasetError(f"{where}: image {name!r} is {w}x{h}, meta.json says "
-                               f"{self.meta.image_width}x{self.meta.image_height}")
+                               f"{size[0]}x{size[1]}{' (camera_model raw size)' if cm else ''}")
+        if cm is not None:  # to the orthographic view; the tables are computed once
+            if self._rectifier is None:
+                self._rectifier = self.meta.rectifier()
+            image = self._rectifier(image)  # type: ignore[misc]
         return image
 
     def _jobs(self) -> Iterator[tuple[_Row, Odometry | None, str]]:

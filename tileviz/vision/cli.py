@@ -4,7 +4,9 @@ Options: ``--preset {default,seed}`` (the camera and vision constants; with a pr
 image size must be the preset's), ``--ppm P``, ``--tile-size L`` (metres), ``--extractor
 {faithful,robust}``, ``--json`` (one JSON object per image and line: ``image``, ``y1``, ``y2``,
 ``y3`` (design.md convention; null when refused), ``accepted``, ``reason``, ``lines``, ...),
-``--stages DIR`` (every stage image as ``DIR/<image stem>_<nn>_<stage>.png``).
+``--stages DIR`` (every stage image as ``DIR/<image stem>_<nn>_<stage>.png``), ``--camera-model
+META`` (a dataset's meta.json with a ``camera_model`` block: each image is a raw camera image,
+rectified first; the meta's ppm, view size, tile size and widened view bound are used).
 
 An image that cannot be used (unreadable, wrong size) gives a one-line error on stderr and the
 others are still processed; the exit status is then 2. A frame the extractor refuses (e.g. a
@@ -17,6 +19,7 @@ import argparse
 import json
 import os
 import sys
+from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 
@@ -42,7 +45,27 @@ def _parser(prog: str) -> Parser:
     p.add_argument("--extractor", choices=EXTRACTORS, default=None)
     p.add_argument("--json", action="store_true", help="one JSON object per image")
     p.add_argument("--stages", metavar="DIR", default=None, help="write every stage image here")
+    p.add_argument("--camera-model", metavar="META", default=None,
+                   help="meta.json with a camera_model block: rectify each raw image first")
     return p
+
+
+def _camera_model(path: str, base: Config) -> tuple[Config, Callable[[np.ndarray], np.ndarray]]:
+    """The configuration (over ``base``) and the rectification of a meta.json's camera model;
+    CliError naming the file when it has none or is not valid."""
+    from tileviz.dataset import DatasetMeta
+
+    try:
+        meta = DatasetMeta.from_json(json.loads(Path(path).read_text(encoding="utf-8")),
+                                     where=path)
+    except OSError as e:
+        raise CliError(f"--camera-model: cannot read {path} ({e.strerror or e})") from None
+    except (json.JSONDecodeError, UnicodeDecodeError):
+        raise CliError(f"--camera-model: {path} is not valid JSON") from None
+    rectifier = meta.rectifier()
+    if rectifier is None:
+        raise CliError(f"--camera-model: {path} has no camera_model block")
+    return meta.to_config(base), rectifier
 
 
 def read_image(path: str) -> np.ndarray:
@@ -55,11 +78,11 @@ def read_image(path: str) -> np.ndarray:
     return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
 
 
-def _config(args: argparse.Namespace, image: np.ndarray) -> Config:
-    cfg = preset(args.preset or "default")
+def _config(args: argparse.Namespace, image: np.ndarray, base: Config | None = None) -> Config:
+    cfg = base or preset(args.preset or "default")
     h, w = image.shape[:2]
     cam = cfg.camera
-    if args.preset is None:
+    if args.preset is None and base is None:
         cam = replace(cam, width=w, height=h)
     if args.ppm is not None:
         cam = replace(cam, ppm=args.ppm)
@@ -106,10 +129,15 @@ def main(command: str, argv: list[str]) -> int:
             except OSError as e:
                 raise CliError(f"--stages: cannot create {folder}: {e.strerror}") from None
         status = 0
+        base, rectify = None, None
+        if args.camera_model is not None:
+            base, rectify = _camera_model(args.camera_model, preset(args.preset or "default"))
         for path in args.images:
             try:
                 image = read_image(path)
-                cfg = _config(args, image)
+                if rectify is not None:
+                    image = rectify(image)
+                cfg = _config(args, image, base)
                 h, w = image.shape[:2]
                 if (w, h) != (cfg.camera.width, cfg.camera.height):
                     raise CliError(

@@ -1,0 +1,37 @@
+"""Without the [ros] extra: the CLI's help works, and the commands that need it say so in one
+line naming the fix."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+BLOCK = ("import sys\n"
+         "for m in ('rosbags', 'mcap', 'mcap_protobuf', 'foxglove_schemas_protobuf'):\n"
+         "    sys.modules[m] = None  # as if not installed\n"
+         "from tileviz.__main__ import main\n"
+         "raise SystemExit(main(sys.argv[1:]))\n")
+
+
+def _run(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-c", BLOCK, *args], capture_output=True, text=True,
+                          timeout=120, cwd=cwd)
+
+
+def test_help_and_one_line_errors_without_the_ros_extra(tmp_path: Path) -> None:
+    r = _run("--help")
+    assert r.returncode == 0 and "import-bag" in r.stdout and "calibrate" in r.stdout
+    assert _run("import-bag", "--help").returncode == 0
+    r = _run("import-bag", str(tmp_path), str(tmp_path / "o"), "--image-topic", "/c",
+             "--odom-topic", "/o", "--tile-size", "1", "--ppm", "200", "--camera-offset", "0,0",
+             "--speed-error", "0", "--yaw-rate-error", "0", "--compass-error", "0")
+    lines = r.stderr.strip().splitlines()
+    assert r.returncode == 2 and len(lines) == 1
+    assert "needs the rosbags package: pip install -e '.[ros]'" in lines[0]
+    ds = tmp_path / "ds"
+    assert _run("record", str(ds), "--duration", "0.2", "--quiet").returncode == 0
+    r = _run("replay", str(ds), "--out", str(tmp_path / "r.csv"), "--mcap",
+             str(tmp_path / "r.mcap"), "--quiet", "--jobs", "1")
+    lines = r.stderr.strip().splitlines()
+    assert r.returncode == 2 and len(lines) == 1 and "pip install -e '.[ros]'" in lines[0]

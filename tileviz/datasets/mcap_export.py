@@ -1,0 +1,162 @@
+"""A replayed run as an MCAP file that Foxglove opens (``replay DATASET --mcap OUT.mcap``).
+
+Topics (log time = the frame's ``t`` in nanoseconds; Foxglove's published protobuf schemas,
+``foxglove-schemas-protobuf``, unless said otherwise):
+
+- ``/camera/image`` (``foxglove.CompressedImage``): each frame's stored image file as it is
+  (PNG or JPEG bytes: nothing decoded or encoded again; the raw camera image when the dataset
+  has a camera model).
+- ``/truth`` (``foxglove.PoseInFrame``, frame ``world``): the true pose, when the dataset has it.
+- ``/set/prediction`` and ``/set/contraction`` (``foxglove.SceneUpdate``): the robot-pose set
+  after the prediction and after this frame's update, one cube per box in (x, y, theta) space:
+  x and y in metres, the heading drawn as height (1 rad a metre, the box's theta interval shifted
+  by whole turns so that its lower end is in [-pi, pi)); in the demo's colours, translucent.
+- ``/status`` (JSON, schema ``tileviz.Status``): ``status`` (text), ``code`` (0 contracted,
+  1 predicted, 2 rejected, 3 lost), ``boxes``, and the widths ``x_width``, ``y_width`` (m) and
+  ``theta_width`` (rad) of the set's hull: plottable series.
+
+Frames: world metres (x east, y north), heading counter-clockwise from +x (``docs/
+dataset-format.md``). Needs the ``[ros]`` extra (``mcap``, ``mcap-protobuf-support``,
+``foxglove-schemas-protobuf``).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from pathlib import Path
+from typing import IO, TYPE_CHECKING, Any
+
+from tileviz.cliutil import CliError
+from tileviz.types import BoxSet
+
+if TYPE_CHECKING:
+    from tileviz.runner import FrameRecord
+
+__all__ = ["CONTRACTION_RGB", "PREDICTION_RGB", "STATUS_CODES", "McapExport"]
+
+PREDICTION_RGB = (40, 190, 70)
+"""The demo's colour of the predicted set (green, ``tileviz.app.scene.COLOURS``)."""
+CONTRACTION_RGB = (30, 100, 240)
+"""The demo's colour of the updated set's boxes (blue)."""
+ALPHA = 0.35
+STATUS_CODES = {"contracted": 0, "predicted": 1, "rejected": 2, "lost": 3}
+STATUS_SCHEMA = {
+    "type": "object",
+    "properties": {
+        "status": {"type": "string"}, "code": {"type": "integer"},
+        "boxes": {"type": "integer"}, "x_width": {"type": "number"},
+        "y_width": {"type": "number"}, "theta_width": {"type": "number"},
+    },
+}
+
+
+def _modules() -> tuple[Any, ...]:
+    try:
+        from foxglove_schemas_protobuf.Color_pb2 import Color
+        from foxglove_schemas_protobuf.CompressedImage_pb2 import CompressedImage
+        from foxglove_schemas_protobuf.CubePrimitive_pb2 import CubePrimitive
+        from foxglove_schemas_protobuf.PoseInFrame_pb2 import PoseInFrame
+        from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
+        from mcap.writer import Writer
+        from mcap_protobuf.schema import register_schema
+    except ImportError:
+        raise CliError("--mcap needs the mcap and foxglove packages: pip install -e "
+                       "'.[ros]'") from None
+    return Writer, register_schema, CompressedImage, PoseInFrame, SceneUpdate, CubePrimitive, Color
+
+
+class McapExport:
+    """Writes one frame's messages at a time (:meth:`write`); :meth:`close` finishes the file
+    (its summary and index: a file not closed is readable only by a streaming reader)."""
+
+    def __init__(self, path: str | os.PathLike[str], dataset: str | os.PathLike[str]) -> None:
+        (self._writer_cls, register, self._image, self._pose, self._scene, self._cube,
+         self._color) = _modules()
+        p = Path(path)
+        if not p.parent.is_dir():
+            raise OSError(f"{p.parent}: output directory does not exist")
+        self.dataset = Path(dataset)
+        self._file: IO[bytes] = open(p, "wb")  # noqa: SIM115 - closed in close()
+        self._w = self._writer_cls(self._file)
+        self._w.start(profile="", library="tileviz")
+        ch = self._w.register_channel
+
+        def proto(topic: str, cls: type) -> int:
+            return ch(topic=topic, message_encoding="protobuf", schema_id=register(self._w, cls))
+
+        self._ch = {
+            "image": proto("/camera/image", self._image),
+            "truth": proto("/truth", self._pose),
+            "prediction": proto("/set/prediction", self._scene),
+            "contraction": proto("/set/contraction", self._scene),
+        }
+        status_schema = self._w.register_schema(
+            name="tileviz.Status", encoding="jsonschema",
+            data=json.dumps(STATUS_SCHEMA).encode())
+        self._ch["status"] = ch(topic="/status", message_encoding="json",
+                                schema_id=status_schema)
+        self.count = 0
+
+    def _add(self, key: str, ns: int, data: bytes, seq: int) -> None:
+        self._w.add_message(channel_id=self._ch[key], log_time=ns, publish_time=ns, data=data,
+                            sequence=seq)
+
+    def _stamp(self, msg: Any, ns: int) -> None:
+        msg.timestamp.seconds, msg.timestamp.nanos = divmod(ns, 1_000_000_000)
+
+    def _set(self, boxes: BoxSet, rgb: tuple[int, int, int], name: str, ns: int) -> bytes:
+        update = self._scene()
+        ent = update.entities.add()
+        self._stamp(ent, ns)
+        ent.frame_id = "world"
+        ent.id = name
+        for box in boxes.boxes:
+            lo = box.t_lo - 2 * math.pi * math.floor((box.t_lo + math.pi) / (2 * math.pi))
+            wx, wy, wt = box.widths
+            cube = ent.cubes.add()
+            cube.pose.position.x, cube.pose.position.y = box.centre[:2]
+            cube.pose.position.z = lo + 0.5 * wt
+            cube.pose.orientation.w = 1.0
+            cube.size.x, cube.size.y, cube.size.z = wx, wy, wt
+            cube.color.r, cube.color.g, cube.color.b = (c / 255.0 for c in rgb)
+            cube.color.a = ALPHA
+        return update.SerializeToString()
+
+    def write(self, rec: FrameRecord, image_name: str | None) -> None:
+        """The messages of one replayed frame (``image_name``: its stored image file, relative
+        to the dataset folder, or None)."""
+        ns = round(rec.t * 1e9)
+        seq = self.count
+        if image_name:
+            img = self._image()
+            self._stamp(img, ns)
+            img.frame_id = "camera"
+            img.data = (self.dataset / image_name).read_bytes()
+            img.format = "jpeg" if Path(image_name).suffix.lower() in (".jpg", ".jpeg") else "png"
+            self._add("image", ns, img.SerializeToString(), seq)
+        if rec.truth is not None:
+            pose = self._pose()
+            self._stamp(pose, ns)
+            pose.frame_id = "world"
+            pose.pose.position.x, pose.pose.position.y = rec.truth.x, rec.truth.y
+            pose.pose.orientation.w = math.cos(rec.truth.theta / 2)
+            pose.pose.orientation.z = math.sin(rec.truth.theta / 2)
+            self._add("truth", ns, pose.SerializeToString(), seq)
+        self._add("prediction", ns, self._set(rec.predicted, PREDICTION_RGB, "prediction", ns),
+                  seq)
+        self._add("contraction", ns, self._set(rec.updated, CONTRACTION_RGB, "contraction", ns),
+                  seq)
+        hull = rec.updated.hull()
+        widths = list(hull.widths) if hull is not None else [None, None, None]
+        status = {"status": rec.status, "code": STATUS_CODES.get(rec.status, -1),
+                  "boxes": len(rec.updated), "x_width": widths[0], "y_width": widths[1],
+                  "theta_width": widths[2]}
+        self._add("status", ns, json.dumps(status).encode(), seq)
+        self.count += 1
+
+    def close(self) -> None:
+        if not self._file.closed:
+            self._w.finish()
+            self._file.close()
