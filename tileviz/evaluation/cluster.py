@@ -130,7 +130,10 @@ def run_on_cluster(
         raise ClusterError("--scheduler needs dask.distributed: pip install -e '.[cluster]' "
                            "(or pip install 'dask[distributed]')") from None
     target, n = parse_scheduler(scheduler)
-    with dask.config.set({"distributed.scheduler.allowed-failures": ALLOWED_FAILURES}):
+    # (a local cluster's workers get this configuration: no statistical profiler sampling the
+    # runs' stacks every 10 ms)
+    with dask.config.set({"distributed.scheduler.allowed-failures": ALLOWED_FAILURES,
+                          "distributed.worker.profile.enabled": False}):
         cluster = None
         client = None
         futures: list[Any] = []
