@@ -156,3 +156,17 @@ def test_serve_passes_the_fault_model_to_the_localizer(tmp_path: Path) -> None:
     cfg = config_from_args(parser().parse_args(["--dataset", str(ds), "--fault-model", "0.3,0"]))
     assert (cfg.localizer.fault_speed, cfg.localizer.fault_yaw_rate) == (0.3, 0.0)
     assert config_from_args(parser().parse_args([])).localizer.fault_speed == 0.0
+
+
+def test_a_fault_set_wider_than_the_view_can_cut_is_never_called_contracted() -> None:
+    """A fault model so loose (100 m/s) that the fault set spans many tiles: when the view
+    rejects the set, the fault set's contraction has more cells than max_boxes would keep, so
+    it is not taken (its hull would be a box metres wide called ``contracted``): the frame is a
+    rejection and the run ends ``lost`` instead."""
+    drive = Drive(LocalizerConfig(fault_speed=100.0, fault_yaw_rate=0.1, max_boxes=4))
+    steps = [drive.step(excess=(-0.15, 0.0) if k >= 20 else (0.0, 0.0)) for k in range(80)]
+    for step in steps:
+        if step.status == "contracted":
+            assert max(step.updated.hull().widths[:2]) < 0.5
+    assert not any(s.reinflated for s in steps)  # the fault set was never taken
+    assert steps[-1].status == "lost"

@@ -1037,6 +1037,7 @@ class Localizer:
         else:
             view = _view_window(observation)
             out: list[Tuple6] = []
+            view_hulled = False
             if following:
                 # within slip_window frames of a noticed fault: the view contracts the prediction
                 # inflated by max_slip (it holds the plain prediction)
@@ -1050,21 +1051,30 @@ class Localizer:
                     out.extend(got)
                     if p > passes:
                         passes = p
-                    hulled = hulled or h
+                    view_hulled = view_hulled or h
+                hulled = hulled or view_hulled
             if fault is not None:
+                # the set is taken from the fault set only when the view cuts it to a few
+                # disjoint boxes: a hull (more cells than max_boxes) would be a wide box called
+                # contracted, so such a frame counts as a rejection instead
                 if reinflated:  # (boxes is the fault set already: contracted above)
                     if out:
                         fault = out
+                    if view_hulled or len(out) > cap:
+                        out = []
                 else:
                     got_f: list[Tuple6] = []
+                    f_hulled = False
                     for b in fault:
                         got, p, h = _contract_view(b, view, None, self._L, self._lever,
                                                    cfg.passes, cap)
                         got_f.extend(got)
-                        hulled = hulled or h
+                        f_hulled = f_hulled or h
+                    hulled = hulled or f_hulled
                     if got_f:
                         fault = got_f
-                        if not out:  # the view rejects the prediction, not the fault set
+                        if not out and not f_hulled and len(got_f) <= cap:
+                            # the view rejects the prediction, not the fault set
                             out = got_f
                             reinflated = True
             if out:
