@@ -20,6 +20,7 @@ from tileviz.cliutil import (
 )
 from tileviz.config import (
     EXTRACTORS,
+    FLOOR_STYLES,
     MODES,
     PPM_RANGE,
     PRESETS,
@@ -76,6 +77,9 @@ def record_parser() -> Parser:
     p.add_argument("--png-level", type=int, choices=range(10), default=0, metavar="0..9",
                    help="PNG compression (default 0: pixels stored, 7x faster to write and 25x "
                    "to decode; 1 to 9: about 0.45x the disk)")
+    p.add_argument("--floor-style", choices=tuple(FLOOR_STYLES), default="default",
+                   help="the floor's look: light grout, wide grout, a photograph on the tiles, "
+                   "uneven lighting (default: the preset's floor)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     return p
 

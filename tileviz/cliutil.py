@@ -152,9 +152,10 @@ def config_from_args(args: argparse.Namespace, *, floor_seed: bool = True) -> Co
     ``tile_size`` (metres; the grout follows, :meth:`tileviz.config.FloorConfig.with_tile_size`),
     ``ppm``, ``width``, ``height`` (pixels), ``speed_error``, ``yaw_rate_error``,
     ``compass_error``, ``dt``, ``setpoint``, ``seed`` (the simulator's; with ``floor_seed`` the
-    floor's appearance seed becomes ``seed + 1``, as ``record`` does), ``extractor`` and
-    ``mode``. The configuration validates itself: a bad value raises ValueError naming it."""
-    from tileviz.config import preset
+    floor's appearance seed becomes ``seed + 1``, as ``record`` does), ``floor_style``
+    (:func:`tileviz.config.with_floor_style`), ``extractor`` and ``mode``. The
+    configuration validates itself: a bad value raises ValueError naming it."""
+    from tileviz.config import preset, with_floor_style
 
     a: dict[str, Any] = {k: v for k, v in vars(args).items() if v is not None}
     cfg = preset(a.get("preset", "default"))
@@ -168,6 +169,8 @@ def config_from_args(args: argparse.Namespace, *, floor_seed: bool = True) -> Co
     if "seed" in a and floor_seed:
         floor = replace(floor, seed=a["seed"] + 1)
     out = replace(cfg, floor=floor, camera=camera, noise=noise, sim=sim)
+    if a.get("floor_style", "default") != "default":
+        out = with_floor_style(out, a["floor_style"])
     if "extractor" in a:
         out = replace(out, vision=replace(out.vision, extractor=a["extractor"]))
     if "mode" in a:

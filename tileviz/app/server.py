@@ -156,6 +156,9 @@ class App:
                                           FOLLOW_OFFSET[2])
         server.initial_camera.look_at = (rx, ry, 0.0)
         server.scene.configure_default_lights(enabled=True, cast_shadow=False)
+        # no image-based lighting: with software WebGL (no GPU) the environment map made every lit
+        # mesh cost seconds a frame (bench/bench_page.py); the default lights light the scene
+        server.scene.configure_environment_map(None)
         self.scene = SceneView(server.scene, pool=max(1, self.cfg.localizer.max_boxes),
                                particles=self.options.mcl_particles)
         self.controls = Controls(server, self.submit, self.cfg, layers=s.layers,

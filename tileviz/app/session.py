@@ -31,7 +31,7 @@ from tileviz.app import commands as C
 from tileviz.app.history import Encoder, Entry, History, ParticleView
 from tileviz.app.outputs import output_path, sanitize_name
 from tileviz.app.scene import texture_pixels_per_tile
-from tileviz.config import Config, LocalizerConfig, NoiseConfig
+from tileviz.config import Config, LocalizerConfig, NoiseConfig, with_floor_style
 from tileviz.pipeline import FrameLoop, FrameRecord, initial_box
 from tileviz.summary import RunTally
 from tileviz.types import FrameInput
@@ -130,6 +130,8 @@ class Session:
         self._rate_t = time.perf_counter()
         self._rate_n = 0
         self.cfg = cfg
+        self._unstyled = cfg
+        """The configuration before any floor style (``Restart.style`` "default" goes back)."""
         self.setpoint_kind = cfg.sim.setpoint
         self._mcl_wanted = bool(o.mcl)
         self.ended: str | None = None
@@ -547,9 +549,11 @@ class Session:
         self.note(f"{why}: replaying {self.source.describe()} from frame 0")
 
     def _restart(self, cmd: C.Restart) -> None:
-        floor = self.cfg.floor.with_tile_size(float(cmd.tile_size))
+        floor = self._unstyled.floor.with_tile_size(float(cmd.tile_size))
         camera = replace(self.cfg.camera, ppm=float(cmd.ppm))
-        cfg = replace(self.cfg, floor=floor, camera=camera)  # validates (ValueError)
+        vision = replace(self._unstyled.vision, extractor=self.cfg.vision.extractor)
+        cfg = replace(self.cfg, floor=floor, camera=camera, vision=vision)  # validates
+        cfg = with_floor_style(cfg, cmd.style)
         self._new_run(cfg)
         self.compute()
         self.note(f"new run: tile size {cmd.tile_size:g} m, {cmd.ppm:g} px/m")
