@@ -146,6 +146,29 @@ class BagImportOptions:
     start_error: tuple[float, float, float] | None = None
 
 
+def camera_model_file(path: str) -> tuple[Any, tuple[int, int] | None]:
+    """The camera model of a JSON file with a ``camera_model`` block (a dataset's meta.json, or
+    what ``calibrate`` prints) and the rectified view size it gives (``image_width``,
+    ``image_height``), or None (then the raw size). CliError naming the file."""
+    from tileviz.datasets.camera_model import CameraModel, CameraModelError
+
+    try:
+        doc = json.loads(Path(path).read_text(encoding="utf-8"))
+    except OSError as e:
+        raise CliError(f"--camera-model: cannot read {path} ({e.strerror or e})") from None
+    except (json.JSONDecodeError, UnicodeDecodeError):
+        raise CliError(f"--camera-model: {path} is not valid JSON") from None
+    if not isinstance(doc, dict) or doc.get("camera_model") is None:
+        raise CliError(f"--camera-model: {path} has no camera_model block")
+    try:
+        model = CameraModel.from_json(doc["camera_model"], path)
+    except CameraModelError as e:
+        raise CliError(str(e)) from None
+    w, h = doc.get("image_width"), doc.get("image_height")
+    ok = all(isinstance(v, int) and not isinstance(v, bool) and v > 0 for v in (w, h))
+    return model, ((w, h) if ok else None)
+
+
 def _topics(reader: Any) -> dict[str, str]:
     return {c.topic: c.msgtype for c in reader.connections}
 
@@ -205,7 +228,7 @@ def _series(reader: Any, topic: str, bag: str, pick: Any) -> tuple[_Series, str 
 def import_bag(bag: str, out: str, opt: BagImportOptions) -> tuple[int, dict[str, float]]:
     """Write the dataset; returns (frames written, the widenings). CliError (one line) for bad
     input, after writing the frames before the problem."""
-    from tileviz.dataset import DatasetMeta, DatasetWriter, read_meta
+    from tileviz.dataset import DatasetMeta, DatasetWriter
     from tileviz.types import FrameInput, Odometry
 
     any_reader = _rosbags()
@@ -214,12 +237,7 @@ def import_bag(bag: str, out: str, opt: BagImportOptions) -> tuple[int, dict[str
         raise CliError(f"{bag}: no such bag file or folder")
     model = view = None
     if opt.camera_model_meta is not None:
-        cm_meta = read_meta(Path(opt.camera_model_meta).parent) if Path(
-            opt.camera_model_meta).name == "meta.json" else None
-        if cm_meta is None or cm_meta.camera_model is None:
-            raise CliError(f"--camera-model: {opt.camera_model_meta} is not a meta.json with a "
-                           "camera_model block")
-        model, view = cm_meta.camera_model, (cm_meta.image_width, cm_meta.image_height)
+        model, view = camera_model_file(opt.camera_model_meta)
     try:
         reader = any_reader([path])
         reader.open()
@@ -366,8 +384,9 @@ def _parser(prog: str) -> Parser:
                    help="rad/s bound")
     p.add_argument("--compass-error", required=True, type=nonneg_float("--compass-error"),
                    help="rad bound")
-    p.add_argument("--camera-model", default=None, metavar="META",
-                   help="a meta.json with the camera's camera_model block (and view size)")
+    p.add_argument("--camera-model", default=None, metavar="JSON",
+                   help="a JSON file with the camera's camera_model block (a dataset's "
+                   "meta.json, whose image_width/height are the view, or calibrate's output)")
     p.add_argument("--start-pose", default=None, metavar="X,Y,TH",
                    help="known start pose (default 0,0,0: the grout crossing nearest the start)")
     p.add_argument("--start-error", default=None, metavar="EX,EY,ETH",
