@@ -7,13 +7,15 @@
 the ones after ``--``); Debian's chromium (1400x900) opens the page, waits ``--warmup`` seconds,
 then counts ``requestAnimationFrame`` callbacks over ``--seconds`` (the browser calls one per
 frame it paints; a page busy decoding messages or rendering paints fewer). ``--bare``: the same
-count on an empty viser page (a grid only), for comparison. The figure depends on the machine and
-its load: run it on an idle machine, read it as a rough number.
+count on an empty viser page (a grid only), for comparison. Also the CPU time all chromium
+processes used per painted frame (a figure less sensitive to other load than the rate). The
+rate depends on the machine and its load: run it on an idle machine, read it as a rough number.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from pathlib import Path
@@ -34,7 +36,39 @@ COUNT = """(ms) => new Promise((done) => {
 })"""
 
 
-def paint_rate(url: str, seconds: float, warmup: float) -> float:
+def _descendants(root: int) -> list[int]:
+    """Pids of the processes below ``root`` (Linux /proc)."""
+    parent: dict[int, int] = {}
+    for d in Path("/proc").iterdir():
+        if d.name.isdigit():
+            try:
+                parent[int(d.name)] = int((d / "stat").read_text().rsplit(")", 1)[1].split()[1])
+            except (OSError, IndexError, ValueError):
+                continue
+    out, todo = [], [root]
+    while todo:
+        p = todo.pop()
+        kids = [c for c, pp in parent.items() if pp == p]
+        out += kids
+        todo += kids
+    return out
+
+
+def _cpu(pids: list[int]) -> float:
+    """User + system CPU seconds of ``pids`` so far."""
+    total = 0.0
+    for pid in pids:
+        try:
+            f = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        total += (int(f[11]) + int(f[12])) / os.sysconf("SC_CLK_TCK")
+    return total
+
+
+def paint_rate(url: str, seconds: float, warmup: float) -> tuple[float, float]:
+    """Frames painted a second, and the browser's CPU seconds (every chromium process) per
+    painted frame, over ``seconds`` after ``warmup``."""
     from playwright.sync_api import sync_playwright
 
     with sync_playwright() as p:
@@ -43,9 +77,13 @@ def paint_rate(url: str, seconds: float, warmup: float) -> float:
         page.goto(url)
         page.wait_for_selector("canvas", timeout=120_000)
         page.wait_for_timeout(warmup * 1000)
+        pids = [q for q in _descendants(os.getpid())
+                if b"chrom" in Path(f"/proc/{q}/cmdline").read_bytes()[:200]]
+        c0 = _cpu(pids)
         n, span = page.evaluate(COUNT, seconds * 1000)
+        cpu = _cpu(pids) - c0
         browser.close()
-    return n / span
+    return n / span, cpu / max(n, 1)
 
 
 def main() -> None:
@@ -61,22 +99,23 @@ def main() -> None:
         server = viser.ViserServer(port=0, verbose=False)
         server.scene.add_grid("/grid")
         try:
-            rate = paint_rate(f"http://127.0.0.1:{server.get_port()}/", args.seconds,
-                              args.warmup)
+            rate, cpu = paint_rate(f"http://127.0.0.1:{server.get_port()}/", args.seconds,
+                                   args.warmup)
         finally:
             server.stop()
-        print(f"bare viser page: {rate:.1f} frames painted a second")
+        print(f"bare viser page: {rate:.1f} frames painted a second, browser CPU "
+              f"{1e3 * cpu:.0f} ms a painted frame")
         return
     proc, url = start_serve(["--port", "0", *args.serve])
     try:
         t0 = time.perf_counter()
-        rate = paint_rate(url, args.seconds, args.warmup)
+        rate, cpu = paint_rate(url, args.seconds, args.warmup)
         wall = time.perf_counter() - t0
     finally:
         stop_serve(proc)
     print(f"tileviz page ({' '.join(args.serve) or 'default options'}): {rate:.1f} frames "
-          f"painted a second (over {args.seconds:g} s after {args.warmup:g} s; {wall:.0f} s "
-          "in all)")
+          f"painted a second, browser CPU {1e3 * cpu:.0f} ms a painted frame (over "
+          f"{args.seconds:g} s after {args.warmup:g} s; {wall:.0f} s in all)")
 
 
 if __name__ == "__main__":

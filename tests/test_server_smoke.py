@@ -177,6 +177,9 @@ def run_cli(*args: str) -> subprocess.CompletedProcess[str]:
     (["--port", "70000"], "--port"),
     (["--tile-size", "-1"], "--tile-size"),
     (["--ppm", "nan"], "--ppm"),
+    (["--ppm", "0"], "--ppm must be a finite number >= 20 and <= 2000"),
+    (["--ppm", "5"], "--ppm must be a finite number >= 20 and <= 2000"),
+    (["--seed", "-1"], "--seed must be >= 0 and <= 4294967295"),
     (["--preset", "mars"], "--preset"),
     (["--history", "0"], "--history"),
 ])

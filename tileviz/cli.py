@@ -12,18 +12,24 @@ from tileviz.cliutil import (
     CliError,
     Parser,
     float_in,
-    nonneg_int,
+    int_in,
     positive_int,
     run_cli,
 )
-from tileviz.config import EXTRACTORS, MODES, PRESETS, SETPOINTS, Config, preset
+from tileviz.config import (
+    EXTRACTORS,
+    MODES,
+    PPM_RANGE,
+    PRESETS,
+    SEED_RANGE,
+    SETPOINTS,
+    TILE_SIZE_RANGE,
+    Config,
+    preset,
+)
 
 MAX_DURATION = 86400.0
 """Longest recording, simulated seconds (a day)."""
-MAX_TILE = 1000.0
-"""Largest tile size, metres."""
-MAX_PPM = 1e5
-"""Largest ppm (``tileviz.dataset.MAX_PPM``)."""
 MAX_DT = 1.0
 """Longest frame period, seconds."""
 MIN_TILE_PX = 4.0
@@ -44,10 +50,12 @@ def record_parser() -> Parser:
     p.add_argument("--duration", type=float_in("--duration", 0.0, MAX_DURATION), required=True,
                    help="simulated seconds")
     p.add_argument("--preset", choices=PRESETS, default="default")
-    p.add_argument("--seed", type=nonneg_int("--seed"), default=0,
+    p.add_argument("--seed", type=int_in("--seed", *SEED_RANGE), default=0,
                    help="seed of the run (noise, floor)")
-    p.add_argument("--tile-size", type=float_in("--tile-size", 0.0, MAX_TILE), help="L, metres")
-    p.add_argument("--ppm", type=float_in("--ppm", 0.0, MAX_PPM), help="pixels per metre")
+    p.add_argument("--tile-size", type=float_in("--tile-size", *TILE_SIZE_RANGE, lo_open=False),
+                   help="L, metres")
+    p.add_argument("--ppm", type=float_in("--ppm", *PPM_RANGE, lo_open=False),
+                   help="pixels per metre")
     p.add_argument("--width", type=positive_int("--width"), help="image width, px")
     p.add_argument("--height", type=positive_int("--height"), help="image height, px")
     p.add_argument("--dt", type=float_in("--dt", 0.0, MAX_DT), help="frame period, s")

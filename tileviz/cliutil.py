@@ -84,6 +84,21 @@ def int_at_least(name: str, lo: int) -> Callable[[str], int]:
     return parse
 
 
+def int_in(name: str, lo: int, hi: int) -> Callable[[str], int]:
+    """argparse type: an integer in [lo, hi], the error naming the option and the range."""
+
+    def parse(text: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name} must be an integer, got {text!r}") from None
+        if not lo <= v <= hi:
+            raise argparse.ArgumentTypeError(f"{name} must be >= {lo} and <= {hi}, got {text!r}")
+        return v
+
+    return parse
+
+
 def nonneg_int(name: str) -> Callable[[str], int]:
     """argparse type: an integer >= 0, the error naming the option."""
     return int_at_least(name, 0)

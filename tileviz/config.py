@@ -17,6 +17,12 @@ from typing import Any
 EXTRACTORS = ("faithful", "robust")
 MODES = ("autonomous", "truth", "odometry")
 SETPOINTS = ("lissajous", "manual", "waypoints")
+TILE_SIZE_RANGE = (0.05, 5.0)
+"""Tile sizes L a simulated floor may have, metres (``serve``, ``record`` and the GUI alike)."""
+PPM_RANGE = (20.0, 2000.0)
+"""Resolutions a simulated camera may have, pixels per metre (``serve``, ``record``, the GUI)."""
+SEED_RANGE = (0, 2**32 - 1)
+"""Seeds of a simulated run (``serve``, ``record``, the GUI)."""
 
 
 def finite_number(name: str, value: object) -> float:

@@ -12,7 +12,15 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from tileviz.config import EXTRACTORS, MODES, SETPOINTS, finite_number
+from tileviz.config import (
+    EXTRACTORS,
+    MODES,
+    PPM_RANGE,
+    SEED_RANGE,
+    SETPOINTS,
+    TILE_SIZE_RANGE,
+    finite_number,
+)
 
 __all__ = [
     "LAYERS", "PANEL_VIEWS", "SIMULATOR_ONLY", "Command", "Inject", "Kidnap", "Live", "Pause",
@@ -183,8 +191,9 @@ class Reset:
     seed: int | None = None
 
     def __post_init__(self) -> None:
-        if self.seed is not None and (int(self.seed) != self.seed or not 0 <= self.seed < 2**32):
-            raise ValueError(f"seed must be an integer in [0, 2^32), got {self.seed!r}")
+        lo, hi = SEED_RANGE
+        if self.seed is not None and (int(self.seed) != self.seed or not lo <= self.seed <= hi):
+            raise ValueError(f"seed must be an integer in [{lo}, {hi}], got {self.seed!r}")
 
 
 @dataclass(frozen=True)
@@ -195,8 +204,8 @@ class Restart:
     ppm: float
 
     def __post_init__(self) -> None:
-        _in_range("tile size", self.tile_size, 0.05, 5.0)
-        _in_range("ppm", self.ppm, 20.0, 2000.0)
+        _in_range("tile size", self.tile_size, *TILE_SIZE_RANGE)
+        _in_range("ppm", self.ppm, *PPM_RANGE)
 
 
 @dataclass(frozen=True)

@@ -16,7 +16,15 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from tileviz.app import commands as C
-from tileviz.config import EXTRACTORS, MODES, SETPOINTS, Config
+from tileviz.config import (
+    EXTRACTORS,
+    MODES,
+    PPM_RANGE,
+    SEED_RANGE,
+    SETPOINTS,
+    TILE_SIZE_RANGE,
+    Config,
+)
 from tileviz.sim.camera import FAULT_KINDS
 from tileviz.sim.source import ODOMETRY_FAULTS
 
@@ -127,7 +135,8 @@ class Controls:
             self.set_waypoints = gui.add_button("Drive the waypoints")
             self.kidnap = gui.add_button("Kidnap (teleport the robot)")
             self.relocalize = gui.add_button("Relocalize (tell the true pose)")
-            self.seed = gui.add_number("Seed", cfg.sim.seed, min=0, max=2**31 - 1, step=1)
+            self.seed = gui.add_number("Seed", cfg.sim.seed, min=SEED_RANGE[0], max=SEED_RANGE[1],
+                                      step=1)
             self.reset = gui.add_button("Reset the run")
         self._on_change(self.setpoint, lambda: C.SetSetpoint(str(self.setpoint.value)))
         self._on_change(self.target, lambda: C.SetManualTarget(*self.target.value))
@@ -169,10 +178,11 @@ class Controls:
 
         folders: dict[str, GuiFolderHandle] = {}
         with gui.add_folder("Floor and camera", expand_by_default=False) as folders["floor"]:
-            self.tile_size = gui.add_number("Tile size L (m)", cfg.floor.tile_size, min=0.05,
-                                            max=5.0, step=0.001)
-            self.ppm = gui.add_number("Pixels per metre", cfg.camera.ppm, min=20.0, max=2000.0,
-                                      step=0.01)
+            self.tile_size = gui.add_number("Tile size L (m)", cfg.floor.tile_size,
+                                            min=TILE_SIZE_RANGE[0], max=TILE_SIZE_RANGE[1],
+                                            step=0.001)
+            self.ppm = gui.add_number("Pixels per metre", cfg.camera.ppm, min=PPM_RANGE[0],
+                                      max=PPM_RANGE[1], step=0.01)
             self.restart = gui.add_button("Restart with this floor and camera")
         self._on_click(self.restart, lambda: C.Restart(self.tile_size.value, self.ppm.value))
 

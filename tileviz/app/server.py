@@ -45,12 +45,23 @@ from tileviz.app.session import Session, SessionOptions
 from tileviz.cliutil import (
     CliError,
     Parser,
+    float_in,
+    int_in,
     nonneg_int,
     positive_float,
     positive_int,
     run_cli,
 )
-from tileviz.config import EXTRACTORS, MODES, PRESETS, Config, preset
+from tileviz.config import (
+    EXTRACTORS,
+    MODES,
+    PPM_RANGE,
+    PRESETS,
+    SEED_RANGE,
+    TILE_SIZE_RANGE,
+    Config,
+    preset,
+)
 
 if TYPE_CHECKING:
     from viser import GuiButtonGroupHandle, GuiEvent
@@ -471,13 +482,16 @@ def parser() -> Parser:
                    help="draw the interval boxes (default on)")
     p.add_argument("--display", action=argparse.BooleanOptionalAction, default=True,
                    help="stream the pipeline stage images (default on)")
-    p.add_argument("--ppm", type=_in_range("--ppm", 20.0, 2000.0), help="pixels per metre")
-    p.add_argument("--tile-size", type=_in_range("--tile-size", 0.05, 5.0), help="L, metres")
+    p.add_argument("--ppm", type=float_in("--ppm", *PPM_RANGE, lo_open=False),
+                   help="pixels per metre")
+    p.add_argument("--tile-size", type=float_in("--tile-size", *TILE_SIZE_RANGE, lo_open=False),
+                   help="L, metres")
     p.add_argument("--output-file", help="CSV of the six equivalence residuals per frame "
                    "(written under --out-dir, name sanitized)")
     p.add_argument("--out-dir", default="runs", help="the only folder the server writes to "
                    "(recordings, CSV); default ./runs")
-    p.add_argument("--seed", type=int, default=None, help="seed of the run's noise")
+    p.add_argument("--seed", type=int_in("--seed", *SEED_RANGE), default=None,
+                   help="seed of the run's noise")
     p.add_argument("--history", type=positive_int("--history"), default=2000,
                    help="frames kept for stepping back (>= 2, default 2000)")
     p.add_argument("--push-rate", type=_in_range("--push-rate", 1.0, 60.0), default=20.0,

@@ -1,0 +1,190 @@
+"""The demo as a newcomer meets it, in a real browser (Debian chromium driven by Playwright):
+a reset while paused leaves nothing of the old run on screen, the default port's page is the
+server's own, the inset shows the boxes, the buttons stay put when notes arrive, and recording
+while paused says what happened. Waits are for conditions (generous, for a loaded machine),
+never for a time."""
+
+from __future__ import annotations
+
+import re
+import socket
+from collections.abc import Iterator
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from tileviz.app.server import App
+from tileviz.app.session import SessionOptions
+from tileviz.config import preset
+
+pytestmark = [pytest.mark.browser, pytest.mark.slow]
+
+CHROMIUM = "/usr/bin/chromium"
+ARGS = ["--headless", "--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
+        "--disable-background-networking", "--disable-component-update", "--no-first-run"]
+WAIT = 300_000
+"""Milliseconds a condition may take to come true on a loaded machine (a hang guard only)."""
+
+
+@pytest.fixture(scope="module")
+def browser() -> Iterator[object]:
+    if not Path(CHROMIUM).exists():
+        pytest.fail(f"Debian chromium is needed at {CHROMIUM} (apt-get install chromium; "
+                    ".ci/run does it)")
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as p:
+        b = p.chromium.launch(executable_path=CHROMIUM, args=ARGS)
+        yield b
+        b.close()
+
+
+@pytest.fixture()
+def app(tmp_path: Path) -> Iterator[App]:
+    a = App(preset("default"), SessionOptions(out_dir=tmp_path, interactive=True), port=0)
+    a.start()
+    yield a
+    a.stop()
+
+
+def open_page(browser: object, url: str) -> object:
+    from playwright.sync_api import expect
+
+    page = browser.new_page(viewport={"width": 1400, "height": 900})  # type: ignore[attr-defined]
+    page.set_default_timeout(WAIT)  # clicks too may wait long on a loaded machine
+    page.goto(url)
+    page.wait_for_selector("canvas", timeout=WAIT)
+    expect(page.get_by_text("frame 0,")).to_be_visible(timeout=WAIT)
+    return page
+
+
+def button(page: object, name: str) -> object:
+    return page.get_by_role("button", name=name, exact=True)  # type: ignore[attr-defined]
+
+
+def status(page: object) -> str:
+    return page.locator(".tileviz-status").inner_text()  # type: ignore[attr-defined]
+
+
+def notes(page: object) -> str:
+    return page.locator(".tileviz-notes").inner_text()  # type: ignore[attr-defined]
+
+
+def test_reset_while_paused_clears_the_old_run_at_once(browser, app):
+    from playwright.sync_api import expect
+
+    page = open_page(browser, app.url)
+    for k in range(1, 6):
+        button(page, "Step").click()
+        expect(page.get_by_text(f"frame {k},")).to_be_visible(timeout=WAIT)
+    button(page, "Kidnap (teleport the robot)").click()
+    expect(page.locator(".tileviz-notes")).to_contain_text("kidnapped", timeout=WAIT)
+    expect(page.locator(".tileviz-status")).to_contain_text("of the last 6 frames",
+                                                           timeout=WAIT)
+    button(page, "Reset the run").click()
+    # at once, still paused: frame 0 of the new run, its counts, its timeline; no old note
+    expect(page.locator(".tileviz-notes")).to_contain_text("Reset: a new run from frame 0",
+                                                          timeout=WAIT)
+    text = status(page)
+    assert re.search(r"frame 0, t = [0-9.]+ s, paused", text), text
+    assert "of the last 1 frames" in text and "history 1/" in text
+    assert "kidnapped" not in notes(page)
+    assert app.session.shown == 0 and len(app.session.history) == 1
+    page.close()
+
+
+def test_the_default_port_serves_its_own_page_when_taken(browser, tmp_path):
+    from playwright.sync_api import expect
+
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        a = App(preset("default"), SessionOptions(out_dir=tmp_path, interactive=True),
+                port=port)
+        a.start()
+        try:
+            assert a.port != port and a.url.endswith(f":{a.port}/")
+            page = open_page(browser, a.url)
+            button(page, "Step").click()
+            expect(page.get_by_text("frame 1,")).to_be_visible(timeout=WAIT)
+            assert a.session.shown == 1  # the page is this server's
+            page.close()
+        finally:
+            a.stop()
+
+
+def _inset_pixels(page: object) -> np.ndarray:
+    img = page.locator("img").first  # type: ignore[attr-defined]
+    png = img.screenshot()
+    return cv2.cvtColor(cv2.imdecode(np.frombuffer(png, np.uint8), cv2.IMREAD_COLOR),
+                        cv2.COLOR_BGR2RGB)
+
+
+def test_the_inset_shows_the_boxes_and_follows_each_step(browser, app):
+    from playwright.sync_api import expect
+
+    page = open_page(browser, app.url)
+    expect(page.get_by_text("the set around the truth, magnified")).to_be_visible(timeout=WAIT)
+    src0 = page.locator("img").first.get_attribute("src")
+    shot = _inset_pixels(page)
+    r, g, b = (shot[..., i].astype(int) for i in range(3))
+    blue = (b > r + 40) & (b > g + 15)
+    green = (g > r + 25) & (g > b + 25)
+    pink = (r > 200) & (b > 100) & (g < 140)
+    # the centimetre-wide set fills a good part of the inset, with the prediction and the truth
+    assert blue.mean() > 0.05 and green.any() and pink.any()
+    button(page, "Step").click()
+    expect(page.get_by_text("frame 1,")).to_be_visible(timeout=WAIT)
+    page.wait_for_function("(src) => document.querySelector('img').src !== src", arg=src0,
+                           timeout=WAIT)
+    page.close()
+
+
+def place(page: object, name: str) -> tuple[float, float, float, float]:
+    """Where button ``name`` is in the control panel: its box relative to the panel's top (the
+    status block's), so that scrolling the panel (a click scrolls its button into view) does not
+    count as moving."""
+    top = page.locator(".tileviz-status").bounding_box()  # type: ignore[attr-defined]
+    b = button(page, name).bounding_box()  # type: ignore[attr-defined]
+    return (b["x"] - top["x"], b["y"] - top["y"], b["width"], b["height"])
+
+
+def test_a_button_stays_put_after_kidnap_and_reset(browser, app):
+    from playwright.sync_api import expect
+
+    page = open_page(browser, app.url)
+    play, step = place(page, "Play"), place(page, "Step")
+    status = page.locator(".tileviz-status").bounding_box()
+    button(page, "Kidnap (teleport the robot)").click()
+    expect(page.locator(".tileviz-notes")).to_contain_text("kidnapped", timeout=WAIT)
+    button(page, "Step").click()
+    expect(page.get_by_text("frame 1,")).to_be_visible(timeout=WAIT)
+    assert place(page, "Play") == play
+    button(page, "Reset the run").click()
+    expect(page.locator(".tileviz-notes")).to_contain_text("Reset: a new run", timeout=WAIT)
+    assert place(page, "Play") == play and place(page, "Step") == step
+    # the status block itself keeps its size
+    after = page.locator(".tileviz-status").bounding_box()
+    assert (after["width"], after["height"]) == (status["width"], status["height"])
+    page.close()
+
+
+def test_recording_while_paused_says_what_happened(browser, app):
+    from playwright.sync_api import expect
+
+    page = open_page(browser, app.url)
+    button(page, "Start recording").click()
+    expect(page.locator(".tileviz-notes")).to_contain_text("press Play or Step", timeout=WAIT)
+    button(page, "Stop recording").click()
+    expect(page.locator(".tileviz-notes")).to_contain_text("nothing recorded", timeout=WAIT)
+    # with a Step in between, the frame is written and the note says how many
+    button(page, "Start recording").click()
+    expect(button(page, "Stop recording")).to_be_visible(timeout=WAIT)
+    button(page, "Step").click()
+    expect(page.get_by_text("frame 1,")).to_be_visible(timeout=WAIT)
+    button(page, "Stop recording").click()
+    expect(page.locator(".tileviz-notes")).to_contain_text("recorded 1 frames to", timeout=WAIT)
+    page.close()
