@@ -157,14 +157,30 @@ def test_bad_bags_are_one_line(original: tuple[Path, list[list[str]]], tmp_path:
 
 def test_a_truncated_bag_keeps_the_frames_before_it(original: tuple[Path, list[list[str]]],
                                                     tmp_path: Path) -> None:
+    """A ROS 2 MCAP recording cut short: the frames before the cut are imported and replay; a
+    ROS 1 bag without its index: one line."""
     ds, _ = original
-    bag = write_bag(ds, tmp_path / "b", ros1=True)
-    raw = bag.read_bytes()
-    cut = tmp_path / "cut.bag"
-    cut.write_bytes(raw[: len(raw) * 2 // 3])
+    bag = write_bag(ds, tmp_path / "b", storage="mcap")
+    (mcap,) = bag.glob("*.mcap")
+    raw = mcap.read_bytes()
+    mcap.write_bytes(raw[: len(raw) * 2 // 3])
     out = tmp_path / "o"
-    r = _cli(*_import_args(ds, cut, out))
-    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    r = _cli(*_import_args(ds, bag, out))
+    lines = r.stderr.strip().splitlines()
+    assert r.returncode == 2 and len(lines) == 1, r.stderr
+    assert "truncated or damaged after" in lines[0] and "frame(s) before it were written" \
+        in lines[0]
+    n = len(_rows(out / "frames.csv"))
+    assert 10 < n < 61
+    assert tileviz_main(["replay", str(out), "--out", str(tmp_path / "r.csv"), "--quiet"]) == 0
+    assert len(_rows(tmp_path / "r.csv")) == n
+    bag1 = write_bag(ds, tmp_path / "b1", ros1=True)
+    cut = tmp_path / "cut.bag"
+    raw = bag1.read_bytes()
+    cut.write_bytes(raw[: len(raw) * 2 // 3])
+    r = _cli(*_import_args(ds, cut, tmp_path / "o1"))
+    lines = r.stderr.strip().splitlines()
+    assert r.returncode == 2 and len(lines) == 1 and "not a readable ROS bag" in lines[0]
     assert "Traceback" not in r.stderr
 
 
