@@ -100,14 +100,32 @@ def _hand_made(n: int = 4) -> ev.RunResult:
         tr.centre[:] = [[0.01, 0.0, 0.0]] * n
         tr.inside[:] = [True, False, True, False]
         codes = ev.STATUS_CODES
-        if m == "mcl":
+        if m in ev.MCL_METHODS:
             tr.status[:] = codes["estimate"]
+            tr.d2[:] = [0.5, 3.0, 5.0, 10.0]
         else:
             tr.status[:] = [codes["contracted"], codes["rejected"], codes["predicted"],
                             codes["lost"]]
         tr.cpu_s = 4e-4
         res.methods[m] = tr
     return res
+
+
+def test_calibration_counts_the_frames_inside_each_nominal_ellipse(tmp_path):
+    """d2 = 0.5, 3, 5, 10 against chi2_2(p) = 1.39 (50 %), 4.61 (90 %), 5.99 (95 %), 9.21 (99 %):
+    one, two, three and three frames of four inside."""
+    rows = ev.calibration([_hand_made()])
+    assert [r["method"] for r in rows] == list(ev.MCL_METHODS)
+    for r in rows:
+        assert (r["coverage_50_pct"], r["coverage_90_pct"], r["coverage_95_pct"],
+                r["coverage_99_pct"]) == (25.0, 50.0, 75.0, 75.0)
+    ev.write_outputs([_hand_made()], tmp_path)
+    text = (tmp_path / "results.md").read_text()
+    assert "| clean | MCL (calibrated) | 25.0 | 50.0 | 75.0 | 75.0 |" in text
+    assert "| clean | MCL (untuned) | 25.0 | 50.0 | 75.0 | 75.0 |" in text
+    lines = (tmp_path / "calibration.csv").read_text().splitlines()
+    assert lines[0] == ",".join(ev.CALIBRATION_COLUMNS)
+    assert lines[1] == "clean,mcl,1,4,25.0,50.0,75.0,75.0"
 
 
 def test_metric_definitions():
@@ -329,7 +347,7 @@ def test_clean_scenario_has_no_fault_figures():
     for r in rows:
         for col in ev.FAULT_COLUMNS:
             assert r[col] is None
-        if r["method"] != "mcl":
+        if r["method"] not in ev.MCL_METHODS:
             assert r["false_vouches"] == 0
     table = ev.markdown_table(rows)
     line = next(t for t in table.splitlines() if "| interval (autonomous) |" in t)

@@ -11,6 +11,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from tileviz.baselines import CHI2_2D_95, MCL, MclConfig
+from tileviz.baselines.errormodel import StudentT, ViewErrorModel
+from tileviz.baselines.mcl import calibrated_config
 from tileviz.tiles import equivalent_pose, observe
 from tileviz.types import Box, Observation, Odometry, Pose, SensorBounds
 
@@ -160,7 +162,7 @@ def test_low_variance_resampling_draws_each_particle_its_share(raw, n):
     float rounding of the cumulative sum)."""
     w = np.array(raw) / sum(raw)
     mcl = make(Box(0, 1, 0, 1, 0, 1), particles=n, seed=0)
-    idx = mcl._systematic(w)
+    idx = mcl._systematic(w, n)
     assert idx.shape == (n,)
     counts = np.bincount(idx, minlength=w.size)
     assert np.all(np.abs(counts - n * w) <= 1.0 + 1e-9)
@@ -248,9 +250,14 @@ def test_view_likelihood_is_the_same_for_every_equivalent_pose():
     ll = mcl.view_log_likelihood(arr, obs)
     assert np.allclose(ll[: len(poses)], ll[0], atol=1e-6)
     assert ll[-2] < ll[0] - 10 and ll[-1] < ll[0] - 10
+    # relative to the peak: the exact pose scores 0
+    assert ll[0] == pytest.approx(0.0, abs=1e-9)
     # the outlier mixture bounds how low a view can push a particle: the uniform density over a
-    # cell and a heading branch, weighted by the outlier probability
-    floor = math.log(0.05 / (L * L * math.pi / 2))
+    # cell and a heading branch, weighted by the outlier probability, relative to the peak
+    sp, sh = 0.5 * POS_ERR, 0.5 * HEAD_ERR
+    peak = math.exp(-1.5 * math.log(2 * math.pi)) / (sp * sp * sh)
+    uniform = 0.05 / (L * L * math.pi / 2)
+    floor = math.log(uniform / (0.95 * peak + uniform))
     assert ll[-2] == pytest.approx(floor, abs=1e-9) and ll[-1] == pytest.approx(floor, abs=1e-9)
     no_outliers = make(start_box(truth), outlier_probability=0.0)
     assert no_outliers.view_log_likelihood(arr, obs)[-2] < ll[0] - 1000
@@ -344,3 +351,95 @@ def test_bad_inputs_name_the_quantity_and_change_nothing():
             initial=Box(0, 1, 0, 1, 0, 1))
     with pytest.raises(ValueError, match="poses"):
         mcl.view_log_likelihood(np.zeros((3, 2)), obs)
+
+
+SYNTH_MODEL = ViewErrorModel(StudentT(math.inf, 1 / math.sqrt(3)),
+                             StudentT(math.inf, 1 / math.sqrt(3)), 0.01)
+"""The synthetic runs' view errors: uniform within the bound (standard deviation bound / sqrt 3),
+independent from frame to frame."""
+
+
+def calibrated(**changes) -> dict:
+    """calibrated_config() on the synthetic model, with ``changes``, as make() keywords."""
+    cfg = {k: getattr(calibrated_config(view_model=SYNTH_MODEL), k)
+           for k in MclConfig.__dataclass_fields__ if k != "seed"}
+    return {**cfg, **changes}
+
+
+def test_kld_sampling_shrinks_the_cloud_once_it_tracks_and_grows_it_when_unsure():
+    run = synthetic_run(200, seed=4)
+    mcl = make(start_box(run[0][3], ex=0.2, et=0.3), seed=3,
+               **calibrated(particles=3000, alpha_slow=0.0, alpha_fast=0.0))
+    counts = []
+    for odo, comp, obs, _ in run:
+        counts.append(mcl.step(odo, comp, obs).particles.shape[0])
+    # the first resamplings still see a cloud over many bins; tracking needs far fewer
+    assert all(100 <= c <= 3000 for c in counts)
+    assert counts[0] > 2 * max(counts[100:])
+    assert min(counts[100:]) < 300
+    # a cloud over a whole tile with nothing to weight it: every one of the 3000 is needed
+    wide = make(Box(0, 1, 0, 1, -3, 3), seed=3, **calibrated(particles=3000, alpha_slow=0.0,
+                                                              alpha_fast=0.0))
+    assert wide.step(None, None, None).particles.shape[0] == 3000
+
+
+def test_calibrated_ellipse_holds_the_truth_about_as_often_as_it_says():
+    d2 = []
+    for seed in range(4):
+        run = synthetic_run(250, seed=seed)
+        mcl = make(start_box(run[0][3], ex=0.02, et=0.02), seed=100 + seed,
+                   region=Box(-5, 5, -5, 5, -math.pi, math.pi), **calibrated())
+        for k, (odo, comp, obs, truth) in enumerate(run):
+            est = mcl.step(odo, comp, obs)
+            if k >= 50:
+                d2.append(est.mahalanobis2(truth.x, truth.y))
+    cover = np.mean(np.array(d2) <= CHI2_2D_95)
+    assert 0.88 < cover < 0.995
+
+
+def test_amcl_recovery_injects_only_when_the_views_stop_fitting():
+    """AMCL recovery: while tracking, the short- and long-term averages of the view likelihood
+    agree and nothing is injected; after a kidnap the short-term one drops, particles are
+    injected onto the view and the cloud follows; with recovery off it stays put."""
+    run = synthetic_run(160, seed=6, speed=0.05)
+    kid = 60
+    shift = (0.25, -0.2, 0.3)
+    kidnapped = []
+    for k, (odo, comp, obs, truth) in enumerate(run):
+        if k >= kid:
+            t = Pose(truth.x + shift[0], truth.y + shift[1], truth.theta + shift[2])
+            y1, y2, y3 = observe(t, L, OFFSET)
+            obs = Observation(y1, y2, y3, POS_ERR, HEAD_ERR)
+            comp = math.remainder(t.theta, 2 * math.pi)
+            truth = t
+        kidnapped.append((odo, comp, obs, truth))
+    t_k = kidnapped[kid][3]
+    region = Box(t_k.x - 0.15, t_k.x + 0.15, t_k.y - 0.15, t_k.y + 0.15, t_k.theta - 0.3,
+                 t_k.theta + 0.3)
+    after, injected = {}, {}
+    for recovery in (False, True):
+        cfg = calibrated() if recovery else calibrated(alpha_slow=0.0, alpha_fast=0.0)
+        mcl = make(start_box(run[0][3]), region=region, seed=9, **cfg)
+        errs, inj = [], []
+        for k, (odo, comp, obs, truth) in enumerate(kidnapped):
+            est = mcl.step(odo, comp, obs)
+            inj.append(est.injected)
+            # the short-term average needs about 25 frames (alpha_fast = 0.1) to fall below the
+            # long-term one; after the kidnap the synthetic truth no longer follows the odometry
+            # exactly (its heading turned), so look soon after
+            if kid + 35 <= k <= kid + 60:
+                errs.append(math.hypot(est.mean[0] - truth.x, est.mean[1] - truth.y))
+        after[recovery], injected[recovery] = errs, inj
+    assert max(after[True]) < 0.03
+    assert min(after[False]) > 0.15
+    assert sum(injected[True][20:kid]) == 0 and sum(injected[True][kid:]) > 0
+    assert sum(injected[False]) == 0
+
+
+def test_recovery_needs_a_region_and_ordered_rates():
+    with pytest.raises(ValueError, match="alpha_slow > 0 needs a region"):
+        make(Box(0, 1, 0, 1, 0, 1), alpha_slow=0.001, alpha_fast=0.1)
+    with pytest.raises(ValueError, match="alpha_slow and alpha_fast"):
+        MclConfig(alpha_slow=0.1, alpha_fast=0.01)
+    with pytest.raises(ValueError, match="likelihood must be one of"):
+        MclConfig(likelihood="magic")

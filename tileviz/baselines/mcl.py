@@ -23,7 +23,7 @@ One :meth:`MCL.step` per frame, in the localizer's order (design.md, "Data flow"
    view's Gaussian noise, robot point behind it through the lever arm. Uniform draws alone almost
    never land within the view's few millimetres, so they would not recover from a kidnap.
 3. **Compass** likelihood: Gaussian in the heading residual wrapped to [-pi, pi), sigma =
-   ``sigma_scale`` x ``compass_error``.
+   ``sigma_scale`` x ``compass_error`` (``likelihood = "measured"``: ``compass_error`` / sqrt 3).
 4. **Tile observation** likelihood, from the lattice residuals of design.md's observation model,
    over all four rotation branches m = 0..3. With c the particle's camera centre (through the lever
    arm, c = (x, y) + R(theta) @ offset), (u1, u2) = R(m pi/2) (y1, y2) and
@@ -34,12 +34,36 @@ One :meth:`MCL.step` per frame, in the localizer's order (design.md, "Data flow"
    ``outlier_probability`` the view is unrelated to the pose and uniform over one lattice cell and
    one heading branch (density 1 / (L^2 pi/2)). The branches are pi/2 apart in heading, so the sum
    is in practice the best branch; the mixture keeps one outlier view from wiping out the cloud.
+   With ``likelihood = "measured"`` the three Gaussians are the measured model's Student-t
+   densities (see "Calibration" below) and its outlier weight replaces ``outlier_probability``.
+   The log-likelihood is taken relative to its peak (an exactly matching pose scores 0).
 5. **Estimate**: the weighted mean (circular mean for the heading, unwrapped next to the previous
    estimate) and the weighted covariance (heading deviations wrapped about the mean).
 6. **Resampling**: low-variance (systematic) resampling when the effective sample size
    1 / sum(w^2) falls below ``resample_threshold`` x N (default 0.5; 1.0 resamples every frame).
-   The particle count never changes. Optional roughening (``roughening`` = K > 0, default off):
-   Gaussian jitter after resampling against sample impoverishment (Gordon et al. 1993).
+   The particle count stays ``particles`` unless KLD-sampling is on (``kld_epsilon`` > 0, Fox
+   2003): then particles are drawn independently from the weights until their count n satisfies
+   the KLD bound of the k histogram bins (``kld_bin``) they occupy, n in [``min_particles``,
+   ``particles``]. Optional roughening (``roughening`` = K > 0, default off): Gaussian jitter
+   after resampling against sample impoverishment (Gordon et al. 1993). Optional AMCL recovery
+   (``alpha_slow`` < ``alpha_fast``, default off): on every frame with a view, w_avg, the view
+   likelihood (relative to its peak) averaged over the particles' prior weights, updates the
+   averages w_slow += alpha_slow (w_avg - w_slow) and w_fast += alpha_fast (w_avg - w_fast);
+   after resampling, each particle is replaced with probability max(0, 1 - w_fast / w_slow) by a
+   pose drawn as in step 2 (Thrun, Burgard and Fox, Probabilistic Robotics, table 8.3).
+
+Calibration (:func:`calibrated_config`, what ``tileviz evaluate`` calls ``mcl``; ``MclConfig()``
+is the untuned filter, ``mcl-untuned``): the view likelihood of step 4 uses the *measured* error
+distribution of the extractor (``likelihood = "measured"``, :mod:`tileviz.baselines.errormodel`:
+a Student-t per coordinate fitted to views of simulated runs, scales in units of the declared
+bounds, widened by the variance factor (1 + rho) / (1 - rho) of the lag-1 correlation rho of
+consecutive views' errors, since the same tile edges give nearly the same error frame after
+frame; its outlier weight is the measured share of views outside their bound, at least 1 %), the
+compass likelihood the standard deviation bound / sqrt(3) of its uniform error, resampling every
+frame with roughening K = 0.2, KLD-sampling (epsilon 0.05, delta 0.01, bins 5 mm x 5 mm x
+0.005 rad, 100 to ``particles`` particles) and AMCL recovery (alpha_slow 0.001, alpha_fast 0.1,
+AMCL's recommended values). ``bench/view_errors.py --write`` refits the model after a change of
+the extractor; ``bench/mcl_calibration.py`` prints the calibration table.
 
 Coverage (how the evaluation scores it): a frame is *covered* when the true (x, y) lies inside the
 95 % confidence ellipse of the particle mean and covariance in (x, y): the squared Mahalanobis
@@ -59,15 +83,29 @@ from statistics import NormalDist
 
 import numpy as np
 
+from tileviz.baselines.errormodel import (
+    ViewErrorModel,
+    load_view_error_model,
+    student_t_logpdf,
+)
 from tileviz.types import Box, Observation, Odometry, SensorBounds
 
-__all__ = ["CHI2_2D_95", "MCL", "MOTION_NOISES", "MclConfig", "MclEstimate", "chi2_2d"]
+__all__ = ["CALIBRATION_LEVELS", "CHI2_2D_95", "LIKELIHOODS", "MCL", "MOTION_NOISES", "MclConfig",
+           "MclEstimate", "calibrated_config", "chi2_2d"]
 
 TWO_PI = 2.0 * math.pi
 HALF_PI = 0.5 * math.pi
 CHI2_2D_95 = -2.0 * math.log(0.05)
 """The 95 % quantile of the chi-square distribution with 2 degrees of freedom (5.991)."""
 MOTION_NOISES = ("uniform", "gaussian")
+LIKELIHOODS = ("declared", "measured")
+CALIBRATION_LEVELS = (0.5, 0.9, 0.95, 0.99)
+"""Nominal levels of the calibration table (the share of frames whose level ellipse holds the
+truth should match each)."""
+KLD_CHUNK = 256
+"""KLD-sampling draws particles in chunks of at least this many (then doubling)."""
+CAL_ROUGHENING = 0.2
+"""Roughening K of :func:`calibrated_config`."""
 MIN_POSITION_SIGMA = 1e-4
 """Floor on the position likelihood sigma, metres (a declared bound of 0 would divide by 0)."""
 MIN_HEADING_SIGMA = 1e-4
@@ -117,6 +155,31 @@ class MclConfig:
     """K of the roughening jitter after resampling (0 = none; Gordon et al. suggest 0.2)."""
     inject_rate: float = 0.0
     """Share of the particles replaced each frame by random poses in the region, in [0, 1]."""
+    likelihood: str = "declared"
+    """``declared``: Gaussians of ``sigma_scale`` x the declared bounds (the untuned filter);
+    ``measured``: the view's measured error model (``view_model``, Student-t per coordinate,
+    inflated for the correlation of consecutive views) and a compass Gaussian of the uniform
+    error's standard deviation, bound / sqrt(3)."""
+    view_model: ViewErrorModel | None = None
+    """The measured view error model for ``likelihood = "measured"``; None: the fitted one
+    shipped with tileviz (:func:`~tileviz.baselines.errormodel.load_view_error_model`)."""
+    kld_epsilon: float = 0.0
+    """KLD-sampling (Fox 2003): after resampling keep as many particles as the histogram of the
+    resampled cloud needs for a KL error below this (0 = a fixed count of ``particles``); the
+    count then lies in [``min_particles``, ``particles``]."""
+    kld_delta: float = 0.01
+    """KLD-sampling: probability that the KL error exceeds ``kld_epsilon``, in (0, 1)."""
+    kld_bin: tuple[float, float, float] = (0.005, 0.005, 0.005)
+    """KLD-sampling histogram bin (x m, y m, theta rad)."""
+    min_particles: int = 100
+    """KLD-sampling: the fewest particles kept (at most ``particles``)."""
+    alpha_slow: float = 0.0
+    """AMCL recovery (Thrun et al., Probabilistic Robotics, table 8.3): smoothing rate of the
+    long-term average of the view likelihood (0 = no recovery); with ``alpha_fast``, each
+    resampled particle is replaced by a random one (sensor resetting onto the view, as for
+    ``inject_rate``; needs a region) with probability max(0, 1 - w_fast / w_slow)."""
+    alpha_fast: float = 0.0
+    """AMCL recovery: smoothing rate of the short-term average, > ``alpha_slow``."""
     seed: int = 0
     """Seed of the filter's random generator."""
 
@@ -141,6 +204,40 @@ class MclConfig:
             raise ValueError(f"inject_rate must be in [0, 1], got {self.inject_rate!r}")
         if isinstance(self.seed, bool) or int(self.seed) != self.seed or self.seed < 0:
             raise ValueError(f"seed must be an integer >= 0, got {self.seed!r}")
+        if self.likelihood not in LIKELIHOODS:
+            raise ValueError(f"likelihood must be one of {LIKELIHOODS}, got {self.likelihood!r}")
+        if self.view_model is not None and not isinstance(self.view_model, ViewErrorModel):
+            raise ValueError("view_model must be a ViewErrorModel")
+        if not 0.0 <= _number("kld_epsilon", self.kld_epsilon) < 1.0:
+            raise ValueError(f"kld_epsilon must be in [0, 1), got {self.kld_epsilon!r}")
+        if not 0.0 < _number("kld_delta", self.kld_delta) < 1.0:
+            raise ValueError(f"kld_delta must be in (0, 1), got {self.kld_delta!r}")
+        if len(self.kld_bin) != 3 or any(_number("kld_bin", b) <= 0 for b in self.kld_bin):
+            raise ValueError(f"kld_bin must be three numbers > 0, got {self.kld_bin!r}")
+        if isinstance(self.min_particles, bool) or int(self.min_particles) != self.min_particles \
+                or self.min_particles < 1:
+            raise ValueError(f"min_particles must be an integer >= 1, got {self.min_particles!r}")
+        a_s = _number("alpha_slow", self.alpha_slow)
+        a_f = _number("alpha_fast", self.alpha_fast)
+        if not (0.0 <= a_s <= 1.0 and 0.0 <= a_f <= 1.0) or (a_s > 0) != (a_f > 0) \
+                or (a_s > 0 and a_f <= a_s):
+            raise ValueError(f"alpha_slow and alpha_fast must both be 0, or 0 < alpha_slow < "
+                             f"alpha_fast <= 1; got {self.alpha_slow!r}, {self.alpha_fast!r}")
+
+    @property
+    def recovery(self) -> bool:
+        """AMCL recovery is on (``alpha_slow`` > 0)."""
+        return self.alpha_slow > 0
+
+
+def calibrated_config(particles: int = 2000, seed: int = 0,
+                      view_model: ViewErrorModel | None = None) -> MclConfig:
+    """The calibrated MCL (module docstring, "Calibration"): the measured view likelihood,
+    roughening, KLD-sampling between 100 and ``particles`` particles and AMCL recovery."""
+    return MclConfig(particles=particles, likelihood="measured", view_model=view_model,
+                     resample_threshold=1.0, roughening=CAL_ROUGHENING,
+                     kld_epsilon=0.05, kld_delta=0.01, min_particles=100,
+                     alpha_slow=0.001, alpha_fast=0.1, seed=seed)
 
 
 @dataclass(frozen=True)
@@ -240,20 +337,35 @@ class MCL:
         self.region = _box_array("region", region) if region is not None else None
         if self.config.inject_rate > 0 and self.region is None:
             raise ValueError("inject_rate > 0 needs a region box to draw injected particles in")
-        self.n = int(self.config.particles)
-        self.rng = np.random.default_rng(self.config.seed)
-        self._log_uniform = math.log(self.config.outlier_probability / (self.L ** 2 * HALF_PI)) \
-            if self.config.outlier_probability > 0 else -math.inf
-        self._log_inlier = math.log1p(-self.config.outlier_probability)
+        cfg = self.config
+        if cfg.recovery and self.region is None:
+            raise ValueError("alpha_slow > 0 needs a region box to draw injected particles in")
+        self.rng = np.random.default_rng(cfg.seed)
+        self.view_model: ViewErrorModel | None = None
+        if cfg.likelihood == "measured":
+            self.view_model = cfg.view_model if cfg.view_model is not None \
+                else load_view_error_model()
+            vm = self.view_model
+            outlier = vm.outlier_probability
+            # Student-t scales in declared bounds, widened for correlated consecutive views
+            self._t_pos = (vm.position.nu, vm.position.scale * math.sqrt(vm.inflation("position")))
+            self._t_head = (vm.heading.nu, vm.heading.scale * math.sqrt(vm.inflation("heading")))
+        else:
+            outlier = cfg.outlier_probability
+        self._log_uniform = math.log(outlier / (self.L ** 2 * HALF_PI)) if outlier > 0 \
+            else -math.inf
+        self._log_inlier = math.log1p(-outlier)
         self.reset(initial)
 
     # ------------------------------------------------------------------ state
     def reset(self, box: Box) -> None:
         """Draw N particles uniformly in ``box`` (x, y metres, theta rad), equal weights."""
         b = _box_array("initial box", box)
+        self.n = int(self.config.particles)
         self._particles = self._uniform(b, self.n)
         self._logw = np.full(self.n, -math.log(self.n))
         self._ref_heading = 0.5 * (b[4] + b[5])
+        self._w_slow = self._w_fast = 0.0
 
     @property
     def particles(self) -> np.ndarray:
@@ -302,21 +414,27 @@ class MCL:
         logw = self._logw
         injected = 0
         cfg = self.config
+        view = (y1, y2, y3, ep, eh) if observation is not None else None
         if cfg.inject_rate > 0 and self.region is not None:
             injected = int(self.rng.binomial(self.n, cfg.inject_rate))
             if injected:
                 idx = self.rng.choice(self.n, size=injected, replace=False)
                 p = p.copy()
-                view = (y1, y2, y3, ep, eh) if observation is not None else None
                 p[idx] = self._injected(injected, view, compass)
                 logw = logw.copy()
                 logw[idx] = -math.log(self.n)  # the mean weight (weights are normalised)
         if compass is not None:
-            sc = max(cfg.sigma_scale * self.bounds.compass_error, MIN_HEADING_SIGMA)
+            bound = self.bounds.compass_error
+            sc = max(bound / math.sqrt(3.0) if cfg.likelihood == "measured"
+                     else cfg.sigma_scale * bound, MIN_HEADING_SIGMA)
             r = _wrap(p[:, 2] - compass, TWO_PI)
             logw = logw - 0.5 * (r / sc) ** 2
         if observation is not None:
-            logw = logw + self._view_loglik(p, y1, y2, y3, ep, eh)
+            ll = self._view_loglik(p, y1, y2, y3, ep, eh)
+            if cfg.recovery:
+                # the view likelihood's average over the prior weights, relative to its peak
+                self._average_likelihood(float(_logsumexp(self._logw + ll)))
+            logw = logw + ll
 
         # normalise (log-sum-exp), estimate, resample
         top = float(np.max(logw))
@@ -325,13 +443,12 @@ class MCL:
         w_ /= total
         mean, cov = self._estimate(p, w_)
         ess = 1.0 / float(np.dot(w_, w_))
-        resampled = ess < cfg.resample_threshold * self.n
+        # (1 resamples every frame, even when all weights are equal)
+        resampled = cfg.resample_threshold >= 1.0 or ess < cfg.resample_threshold * self.n
         if resampled:
-            p = p[self._systematic(w_)]
-            if cfg.roughening > 0:
-                p = self._roughen(p)
-            self._logw = np.full(self.n, -math.log(self.n))
+            p, injected = self._resample(p, w_, view, compass, injected)
             w_ = np.full(self.n, 1.0 / self.n)
+            self._logw = np.full(self.n, -math.log(self.n))
         else:
             self._logw = logw - (top + math.log(total))
         p.flags.writeable = False
@@ -341,6 +458,84 @@ class MCL:
         cov.flags.writeable = False
         return MclEstimate(mean=mean, cov=cov, particles=p, weights=w_, ess=ess,
                            resampled=bool(resampled), injected=injected)
+
+    def _average_likelihood(self, log_avg: float) -> None:
+        """AMCL's short- and long-term averages of the view likelihood (``log_avg``: log of this
+        frame's average over the particles, relative to the likelihood's peak, so <= ~0)."""
+        w_avg = math.exp(log_avg)
+        cfg = self.config
+        if self._w_slow == 0.0:
+            self._w_slow = self._w_fast = w_avg
+        else:
+            self._w_slow += cfg.alpha_slow * (w_avg - self._w_slow)
+            self._w_fast += cfg.alpha_fast * (w_avg - self._w_fast)
+
+    @property
+    def injection_probability(self) -> float:
+        """AMCL recovery's share of random particles at the next resampling,
+        max(0, 1 - w_fast / w_slow) (0 without recovery or before the first view)."""
+        if not self.config.recovery or self._w_slow <= 0.0:
+            return 0.0
+        return max(0.0, 1.0 - self._w_fast / self._w_slow)
+
+    def _resample(self, p: np.ndarray, w: np.ndarray,
+                  view: tuple[float, float, float, float, float] | None,
+                  compass: float | None, injected: int) -> tuple[np.ndarray, int]:
+        """Resampling (module docstring, step 6): systematic, KLD-sampling of the count,
+        roughening, AMCL recovery injection. Sets ``self.n``; returns the new particles and the
+        number injected this step."""
+        cfg = self.config
+        if cfg.kld_epsilon > 0:
+            # independent draws, in chunks, until the KLD bound of the bins seen so far is met
+            c = np.cumsum(w)
+            c[-1] = 1.0
+            top = int(cfg.particles)
+            idx = np.empty(0, np.int64)
+            while True:
+                more = min(max(KLD_CHUNK, idx.size), top - idx.size)
+                draw = np.searchsorted(c, self.rng.random(more), side="right").clip(0, w.size - 1)
+                idx = np.concatenate([idx, draw])
+                n = self._kld_count(p[idx])
+                if n < idx.size or idx.size >= top:
+                    break
+            idx = idx[:n]
+        else:
+            n = int(cfg.particles)
+            idx = self._systematic(w, n)
+        self.n = n
+        q = p[idx]
+        if cfg.roughening > 0:
+            q = self._roughen(q)
+        prob = self.injection_probability
+        if prob > 0:
+            k = int(self.rng.binomial(n, prob))
+            if k:
+                q = q.copy() if not q.flags.writeable else q
+                q[self.rng.choice(n, size=k, replace=False)] = self._injected(k, view, compass)
+                injected += k
+        return q, injected
+
+    def _kld_count(self, q: np.ndarray) -> int:
+        """KLD-sampling (Fox 2003): the smallest n >= ``min_particles`` such that the first n of
+        the resampled particles ``q`` (independent draws) occupy k histogram bins with
+        n >= (k - 1) / (2 eps) (1 - 2 / (9 (k - 1)) + sqrt(2 / (9 (k - 1))) z_(1 - delta))^3;
+        all of ``q`` when no prefix satisfies it."""
+        cfg = self.config
+        b = np.floor(np.column_stack([q[:, 0], q[:, 1], _wrap(q[:, 2], TWO_PI)])
+                     / np.asarray(cfg.kld_bin)).astype(np.int64)
+        key = (b[:, 0] * 73856093) ^ (b[:, 1] * 19349663) ^ (b[:, 2] * 83492791)
+        _, first = np.unique(key, return_index=True)
+        new = np.zeros(q.shape[0], np.int64)
+        new[first] = 1
+        k = np.cumsum(new).astype(float)
+        z = NormalDist().inv_cdf(1.0 - cfg.kld_delta)
+        km1 = np.maximum(k - 1.0, 1.0)
+        a = 2.0 / (9.0 * km1)
+        need = km1 / (2.0 * cfg.kld_epsilon) * (1.0 - a + np.sqrt(a) * z) ** 3
+        need[k <= 1.0] = 0.0
+        count = np.arange(1, q.shape[0] + 1)
+        ok = np.flatnonzero((count >= need) & (count >= min(cfg.min_particles, q.shape[0])))
+        return int(ok[0]) + 1 if ok.size else int(q.shape[0])
 
     def _injected(self, k: int, view: tuple[float, float, float, float, float] | None,
                   compass: float | None) -> np.ndarray:
@@ -384,7 +579,7 @@ class MCL:
 
     def _move(self, p: np.ndarray, v: float, w: float, dt: float) -> np.ndarray:
         """Motion update with per-particle odometry errors (module docstring, step 1)."""
-        n = self.n
+        n = p.shape[0]
         ev, ew = self.bounds.speed_error, self.bounds.yaw_rate_error
         if self.config.motion_noise == "uniform":
             e = self.rng.random((2, n)) * 2.0 - 1.0
@@ -415,11 +610,9 @@ class MCL:
 
     def _view_loglik(self, p: np.ndarray, y1: float, y2: float, y3: float, ep: float,
                      eh: float) -> np.ndarray:
-        """Log of the view density at each particle, up to a constant (module docstring, step 4).
-        """
+        """Log of the view density at each particle relative to its peak (the density of a pose
+        that matches the view exactly), so at most about 0 (module docstring, step 4)."""
         cfg = self.config
-        sp = max(cfg.sigma_scale * ep, MIN_POSITION_SIGMA)
-        sh = max(cfg.sigma_scale * eh, MIN_HEADING_SIGMA)
         f, left = self.offset
         ct = np.cos(p[:, 2])
         st = np.sin(p[:, 2])
@@ -433,11 +626,25 @@ class MCL:
         r1 = _wrap(cx[:, None] - u1, L)
         r2 = _wrap(cy[:, None] - u2, L)
         r3 = _wrap(p[:, 2, None] - h, TWO_PI)
-        q = -0.5 * ((r1 * r1 + r2 * r2) * (1.0 / (sp * sp)) + (r3 * r3) * (1.0 / (sh * sh)))
+        if self.view_model is None:
+            sp = max(cfg.sigma_scale * ep, MIN_POSITION_SIGMA)
+            sh = max(cfg.sigma_scale * eh, MIN_HEADING_SIGMA)
+            q = -0.5 * ((r1 * r1 + r2 * r2) * (1.0 / (sp * sp)) + (r3 * r3) * (1.0 / (sh * sh)))
+            peak = -1.5 * math.log(TWO_PI) - 2.0 * math.log(sp) - math.log(sh)
+        else:
+            (nu_p, s_p), (nu_h, s_h) = self._t_pos, self._t_head
+            sp = max(s_p * ep, MIN_POSITION_SIGMA)
+            sh = max(s_h * eh, MIN_HEADING_SIGMA)
+            q = (student_t_logpdf(r1, nu_p, sp) + student_t_logpdf(r2, nu_p, sp)
+                 + student_t_logpdf(r3, nu_h, sh))
+            zero = np.zeros(1)
+            peak = float(2.0 * student_t_logpdf(zero, nu_p, sp)[0]
+                         + student_t_logpdf(zero, nu_h, sh)[0])
+            q = q - peak
         qmax = q.max(axis=1)
-        log_gauss = qmax + np.log(np.exp(q - qmax[:, None]).sum(axis=1)) \
-            - 1.5 * math.log(TWO_PI) - 2.0 * math.log(sp) - math.log(sh)
-        return np.logaddexp(self._log_inlier + log_gauss, self._log_uniform)
+        log_inlier = qmax + np.log(np.exp(q - qmax[:, None]).sum(axis=1)) + peak
+        top = np.logaddexp(self._log_inlier + peak, self._log_uniform)
+        return np.logaddexp(self._log_inlier + log_inlier, self._log_uniform) - top
 
     def _estimate(self, p: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Weighted mean (circular heading, unwrapped next to the last estimate) and covariance."""
@@ -453,14 +660,20 @@ class MCL:
         cov = (d.T * w) @ d
         return np.array([mx, my, a]), cov
 
-    def _systematic(self, w: np.ndarray) -> np.ndarray:
-        """Low-variance (systematic) resampling: N indices into ``w`` (normalised weights), one
-        uniform draw (Thrun et al., Probabilistic Robotics, table 4.4)."""
-        n = self.n
+    def _systematic(self, w: np.ndarray, n: int) -> np.ndarray:
+        """Low-variance (systematic) resampling: ``n`` indices into ``w`` (normalised weights),
+        one uniform draw (Thrun et al., Probabilistic Robotics, table 4.4)."""
         c = np.cumsum(w)
         c[-1] = 1.0
         u = (self.rng.random() + np.arange(n)) / n
         return np.searchsorted(c, u, side="right").clip(0, w.size - 1)
+
+
+def _logsumexp(a: np.ndarray) -> float:
+    top = float(np.max(a))
+    if not math.isfinite(top):
+        return top
+    return top + math.log(float(np.exp(a - top).sum()))
 
 
 def _box_array(name: str, box: Box) -> np.ndarray:

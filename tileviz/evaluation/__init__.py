@@ -12,12 +12,20 @@ from tileviz.evaluation.campaign import evaluate
 from tileviz.evaluation.cli import main
 from tileviz.evaluation.events import EventOutcome, event_outcomes, fault_events, noticed
 from tileviz.evaluation.metrics import (
+    CALIBRATION_COLUMNS,
     COLUMNS,
     FAULT_COLUMNS,
     aggregate,
+    calibration,
     metrics,
 )
-from tileviz.evaluation.report import figures, markdown_table, write_csv, write_outputs
+from tileviz.evaluation.report import (
+    calibration_table,
+    figures,
+    markdown_table,
+    write_csv,
+    write_outputs,
+)
 from tileviz.evaluation.scenarios import (
     DEFAULT_SCENARIOS,
     RECOVERY_MAX_SLIP,
@@ -29,6 +37,7 @@ from tileviz.evaluation.scenarios import (
 from tileviz.evaluation.simulate import (
     FAULT_METHODS,
     INTERVAL_METHODS,
+    MCL_METHODS,
     METHOD_LABELS,
     METHODS,
     STATUS_CODES,
@@ -39,9 +48,10 @@ from tileviz.evaluation.simulate import (
 )
 
 __all__ = [
-    "COLUMNS", "DEFAULT_SCENARIOS", "FAULT_COLUMNS", "FAULT_METHODS", "INTERVAL_METHODS",
-    "METHODS", "METHOD_LABELS", "RECOVERY_MAX_SLIP", "SCENARIOS", "STATUS_CODES", "EventOutcome",
-    "FaultEvent", "MethodTrace", "RunResult", "Scenario", "Task", "aggregate", "evaluate",
+    "CALIBRATION_COLUMNS", "COLUMNS", "DEFAULT_SCENARIOS", "FAULT_COLUMNS", "FAULT_METHODS",
+    "INTERVAL_METHODS", "MCL_METHODS", "METHODS", "METHOD_LABELS", "RECOVERY_MAX_SLIP",
+    "SCENARIOS", "STATUS_CODES", "EventOutcome", "FaultEvent", "MethodTrace", "RunResult",
+    "Scenario", "Task", "aggregate", "calibration", "calibration_table", "evaluate",
     "event_outcomes", "fault_events", "fault_schedule", "figures", "main", "markdown_table",
     "metrics", "noticed", "run_one", "write_csv", "write_outputs",
 ]

@@ -1,16 +1,23 @@
-"""Many evaluation runs, in this process or in a pool of worker processes (:func:`evaluate`)."""
+"""Many evaluation runs, in this process, in a pool of worker processes or on a Dask cluster
+(:func:`evaluate`)."""
 
 from __future__ import annotations
 
 import math
+import signal
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Collection, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 
 from tileviz.evaluation.scenarios import SCENARIOS
 from tileviz.evaluation.simulate import RunResult, Task, run_one
 
 __all__ = ["evaluate"]
+
+
+def _ignore_sigint() -> None:
+    """Pool workers leave Ctrl-C to the main process (which stops the campaign)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def evaluate(
@@ -25,9 +32,15 @@ def evaluate(
     mcl_sigma_scale: float = 0.5,
     progress: bool = True,
     on_result: Callable[[RunResult], None] | None = None,
+    scheduler: str | None = None,
+    skip: Collection[tuple[str, int, int]] = (),
 ) -> list[RunResult]:
-    """Make every (scenario, run) in ``jobs`` processes (1 = in this process); results sorted by
-    scenario (in the given order) then run. Run r uses simulator seed ``seed + r``."""
+    """Make every (scenario, run) but those in ``skip`` ((scenario, run, seed) keys) in this
+    process (``jobs`` 1), a pool of ``jobs`` processes, or on the Dask cluster ``scheduler``
+    (:mod:`tileviz.evaluation.cluster`; ``jobs`` is then unused); ``on_result`` gets each result
+    as its run finishes. Returns the results made, sorted by scenario (in the given order) then
+    run. Run r uses simulator seed ``seed + r``. Ctrl-C (KeyboardInterrupt) stops the runs not
+    finished and propagates; ``on_result`` has seen every finished one."""
     for s in scenarios:
         if s not in SCENARIOS:
             raise ValueError(f"unknown scenario {s!r} (choose from {', '.join(SCENARIOS)})")
@@ -37,32 +50,57 @@ def evaluate(
         raise ValueError(f"jobs must be an integer >= 1, got {jobs!r}")
     if not math.isfinite(duration) or duration <= 0:
         raise ValueError(f"duration must be a finite number > 0, got {duration!r}")
+    skipped = set(skip)
     tasks = [Task(s, r, seed + r, duration, particles, mcl_inject, mcl_sigma_scale)
-             for s in scenarios for r in range(runs)]
+             for s in scenarios for r in range(runs) if (s, r, seed + r) not in skipped]
     from tqdm import tqdm
 
     bar = tqdm(total=len(tasks), desc="evaluate", unit="run", disable=not progress,
                file=sys.stderr, dynamic_ncols=True)
     results: list[RunResult] = []
+
+    def done(res: RunResult) -> None:
+        results.append(res)
+        if on_result:
+            on_result(res)
+        bar.update(1)
+
     try:
-        if jobs <= 1:
+        if not tasks:
+            pass
+        elif scheduler is not None:
+            from tileviz.evaluation.cluster import run_on_cluster
+
+            def workers(n: int) -> None:
+                bar.set_postfix(workers=n, refresh=False)
+
+            run_on_cluster(tasks, scheduler, done, workers)
+        elif jobs <= 1:
             for task in tasks:
-                results.append(run_one(task))
-                if on_result:
-                    on_result(results[-1])
-                bar.update(1)
+                done(run_one(task))
         else:
             import multiprocessing
 
             ctx = multiprocessing.get_context("spawn")
             # (OpenCV runs on one thread in each worker: importing tileviz.vision sets it)
-            with ProcessPoolExecutor(max_workers=jobs, mp_context=ctx) as pool:
+            pool = ProcessPoolExecutor(max_workers=jobs, mp_context=ctx,
+                                       initializer=_ignore_sigint)
+            bar.set_postfix(workers=jobs, refresh=False)
+            interrupted = False
+            try:
                 futures = [pool.submit(run_one, t) for t in tasks]
                 for fut in as_completed(futures):
-                    results.append(fut.result())
-                    if on_result:
-                        on_result(results[-1])
-                    bar.update(1)
+                    done(fut.result())
+            except KeyboardInterrupt:
+                interrupted = True
+                raise
+            finally:
+                # the runs in progress when interrupted are not waited for
+                procs = list((getattr(pool, "_processes", None) or {}).values()) \
+                    if interrupted else []
+                pool.shutdown(wait=not interrupted, cancel_futures=True)
+                for proc in procs:
+                    proc.terminate()
     finally:
         bar.close()
     rank = {s: i for i, s in enumerate(scenarios)}

@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 import os
+import sys
 from pathlib import Path
 
 from tileviz.cliutil import CliError, Parser, nonneg_float, positive_float, positive_int, run_cli
 from tileviz.evaluation.campaign import evaluate
+from tileviz.evaluation.cluster import parse_scheduler
 from tileviz.evaluation.report import figures, write_outputs
 from tileviz.evaluation.scenarios import DEFAULT_SCENARIOS, SCENARIOS
+from tileviz.evaluation.store import RunStore
 
 __all__ = ["main"]
 
@@ -33,7 +36,14 @@ def _parser() -> Parser:
                    help="MCL particle injection rate per frame, 0..1, in the room (default 0)")
     p.add_argument("--mcl-sigma-scale", type=positive_float("--mcl-sigma-scale"), default=0.5,
                    help="MCL likelihood sigmas as a multiple of the declared bounds (default 0.5)")
-    p.add_argument("--out", default="out/eval", help="output folder (default out/eval)")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="run on a Dask cluster: tcp://host:8786 (a running scheduler) or "
+                   "local:N (a local cluster of N worker processes); needs "
+                   "pip install -e '.[cluster]'; --jobs is then unused")
+    p.add_argument("--out", default=None, help="output folder (default out/eval)")
+    p.add_argument("--resume", default=None, metavar="OUT",
+                   help="continue the campaign in folder OUT: the runs already in OUT/runs.csv "
+                   "are not made again (same settings needed); writes to OUT")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     return p
 
@@ -65,15 +75,41 @@ def main(command: str, argv: list[str]) -> int:
             raise CliError(f"--mcl-inject must be in [0, 1], got {args.mcl_inject}")
         if args.duration > 24 * 3600:
             raise CliError(f"--duration must be at most 86400 s, got {args.duration}")
-        out = Path(args.out)
+        if args.resume and args.out and Path(args.out) != Path(args.resume):
+            raise CliError(f"--resume {args.resume} writes to {args.resume}; drop --out "
+                           f"{args.out}")
+        out = Path(args.resume or args.out or "out/eval")
         if out.exists() and not out.is_dir():
             raise CliError(f"--out {out} exists and is not a folder")
-        results = evaluate(scenarios, runs=args.runs, duration=args.duration, jobs=args.jobs,
-                           seed=args.seed, particles=args.particles, mcl_inject=args.mcl_inject,
-                           mcl_sigma_scale=args.mcl_sigma_scale, progress=not args.quiet)
+        if args.scheduler is not None:
+            parse_scheduler(args.scheduler)
+        settings = {"duration": args.duration, "particles": args.particles,
+                    "mcl_inject": args.mcl_inject, "mcl_sigma_scale": args.mcl_sigma_scale}
+        store = RunStore.open(out, settings, resume=args.resume is not None)
+        wanted = {(s, r, args.seed + r) for s in scenarios for r in range(args.runs)}
+        kept = store.done & wanted
+        if kept:
+            print(f"resuming: {len(kept)} of {len(wanted)} runs already in {out / 'runs.csv'}")
+        try:
+            made = evaluate(scenarios, runs=args.runs, duration=args.duration, jobs=args.jobs,
+                            seed=args.seed, particles=args.particles,
+                            mcl_inject=args.mcl_inject, mcl_sigma_scale=args.mcl_sigma_scale,
+                            progress=not args.quiet, on_result=store.add,
+                            scheduler=args.scheduler, skip=kept)
+        except KeyboardInterrupt:
+            n = len(store.done & wanted)
+            sys.stderr.write(f"tileviz {command}: interrupted; {n} of {len(wanted)} finished "
+                             f"runs kept in {out / 'runs.csv'} (continue with --resume {out})\n")
+            return 130
+        rank = {s: i for i, s in enumerate(scenarios)}
+        earlier = store.results(kept)
+        results = sorted(made + earlier, key=lambda r: (rank[r.scenario], r.run))
         cmd = "python -m tileviz evaluate " + " ".join(argv)
-        notes = [f"MCL: {args.particles} particles, likelihood sigma = {args.mcl_sigma_scale} x "
-                 f"the declared bounds, injection rate {args.mcl_inject}; "
+        notes = [f"MCL (untuned): {args.particles} particles, likelihood sigma = "
+                 f"{args.mcl_sigma_scale} x the declared bounds, injection rate "
+                 f"{args.mcl_inject}; MCL (calibrated): the measured view error model, "
+                 f"roughening, KLD-sampling of 100 to {args.particles} particles, AMCL recovery "
+                 f"(tileviz/baselines/mcl.py); "
                  f"{args.runs} run(s) of {args.duration:g} s per scenario, seeds {args.seed}.."
                  f"{args.seed + args.runs - 1}."]
         rows = write_outputs(results, out, cmd.strip(), notes)

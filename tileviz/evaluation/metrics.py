@@ -3,7 +3,7 @@
 For every scenario (:data:`SCENARIOS`) and every run r (simulator seed ``--seed`` + r), one
 simulated run of ``--duration`` seconds is made: the simulator
 (:class:`tileviz.sim.source.SimSource`, faults injected through its ``inject``/``kidnap`` commands),
-then vision *once* per frame, then the same inputs go to five methods (:data:`METHODS`):
+then vision *once* per frame, then the same inputs go to six methods (:data:`METHODS`):
 
 - ``interval``: the interval localizer, mode ``autonomous`` (only the initial box is known),
   recovery off (``LocalizerConfig.max_slip = (0, 0)``, the default);
@@ -11,7 +11,9 @@ then vision *once* per frame, then the same inputs go to five methods (:data:`ME
   for the scenario's preset (as ``bench/faults.py``), ``slip_window`` at its default;
 - ``interval-truth``: mode ``truth`` (report 7.1: reset every frame to the inflated truth);
 - ``odometry``: mode ``odometry`` (prediction and compass only, report Fig 7.1);
-- ``mcl``: Monte Carlo Localization (:mod:`tileviz.baselines.mcl`), ``--particles`` particles.
+- ``mcl``: Monte Carlo Localization (:mod:`tileviz.baselines.mcl`), calibrated
+  (:func:`~tileviz.baselines.mcl.calibrated_config`, at most ``--particles`` particles);
+- ``mcl-untuned``: the same filter untuned (``MclConfig()``, ``--particles`` particles).
 
 Frame alignment as in :class:`tileviz.runner.Runner`: frame k predicts with the odometry of frame
 k-1 (the motion into frame k), then uses the compass and the image of frame k.
@@ -52,6 +54,10 @@ degrees):
   the truth (1 = the frame after the fault), same search limit; ``unrecovered_events``: events
   with none (e.g. ``lost``, which lasts until a reset). Definitions in :func:`event_outcomes`,
   shared with ``bench/faults.py``.
+- Calibration of the particle filters (``calibration.csv``, :func:`calibration`): for the
+  nominal levels 50, 90, 95 and 99 %, the share of frames whose level ellipse (squared
+  Mahalanobis distance of the true (x, y) <= chi2_2(level)) holds the truth; a calibrated filter
+  matches each level.
 - ``cpu_us_per_frame``: CPU time of the evaluating thread (``time.thread_time``) in the method's
   step alone, per frame, excluding vision and simulation. The methods take turns at being
   stepped first after vision (frame k starts with method k mod 5), since the first one pays for
@@ -72,17 +78,20 @@ from typing import Any
 
 import numpy as np
 
+from tileviz.baselines.mcl import CALIBRATION_LEVELS, chi2_2d
 from tileviz.evaluation.events import EventOutcome, event_outcomes
 from tileviz.evaluation.scenarios import SCENARIOS
 from tileviz.evaluation.simulate import (
     FAULT_METHODS,
     INTERVAL_METHODS,
+    MCL_METHODS,
     METHODS,
     STATUS_CODES,
     RunResult,
 )
 
-__all__ = ["COLUMNS", "FAULT_COLUMNS", "aggregate", "metrics"]
+__all__ = ["CALIBRATION_COLUMNS", "COLUMNS", "FAULT_COLUMNS", "aggregate", "calibration",
+           "metrics"]
 
 COLUMNS = (
     "scenario", "method", "runs", "frames", "inputs_in_bounds_pct", "vision_accepted_pct",
@@ -179,4 +188,30 @@ def aggregate(results: Sequence[RunResult]) -> list[dict[str, Any]]:
         group = sorted((r for r in results if r.scenario == scn), key=lambda r: r.run)
         for m in METHODS:
             rows.append({"scenario": scn, "method": m, **metrics(group, m)})
+    return rows
+
+
+CALIBRATION_COLUMNS = ("scenario", "method", "runs", "frames",
+                       *(f"coverage_{round(100 * lv)}_pct" for lv in CALIBRATION_LEVELS))
+"""Columns of ``calibration.csv``: for each particle filter, the share of frames whose nominal
+p ellipse (p in :data:`~tileviz.baselines.mcl.CALIBRATION_LEVELS`) holds the true (x, y)."""
+
+
+def calibration(results: Sequence[RunResult]) -> list[dict[str, Any]]:
+    """One row of :data:`CALIBRATION_COLUMNS` per scenario and particle filter
+    (:data:`MCL_METHODS`), frames pooled over the runs, then one row ``all`` per filter over
+    every run: the share of frames with d2 <= chi2_2(p) (``MethodTrace.d2``), in %."""
+    rows = []
+    order = list(dict.fromkeys(r.scenario for r in results))
+    groups = [(s, [r for r in results if r.scenario == s]) for s in order]
+    if len(order) > 1:
+        groups.append(("all", list(results)))
+    for scn, group in groups:
+        for m in MCL_METHODS:
+            d2 = np.concatenate([r.methods[m].d2 for r in group])
+            row: dict[str, Any] = {"scenario": scn, "method": m, "runs": len(group),
+                                   "frames": int(d2.size)}
+            for lv, col in zip(CALIBRATION_LEVELS, CALIBRATION_COLUMNS[4:], strict=True):
+                row[col] = 100.0 * float(np.mean(d2 <= chi2_2d(lv))) if d2.size else math.nan
+            rows.append(row)
     return rows

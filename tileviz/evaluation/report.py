@@ -4,13 +4,19 @@ from __future__ import annotations
 
 import csv
 import math
+import os
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from tileviz.evaluation.metrics import COLUMNS, aggregate, metrics
+from tileviz.evaluation.metrics import (
+    CALIBRATION_COLUMNS,
+    COLUMNS,
+    aggregate,
+    calibration,
+)
 from tileviz.evaluation.scenarios import SCENARIOS
 from tileviz.evaluation.simulate import (
     FAULT_METHODS,
@@ -19,18 +25,12 @@ from tileviz.evaluation.simulate import (
     STATUS_CODES,
     RunResult,
 )
+from tileviz.evaluation.store import RUN_COLUMNS, csv_value, run_rows
 
 __all__ = [
-    "figures", "markdown_table", "plot_coverage", "plot_errors", "write_csv", "write_outputs",
+    "calibration_table", "figures", "markdown_table", "plot_coverage", "plot_errors",
+    "write_csv", "write_outputs",
 ]
-
-def _csv_value(v: Any) -> str:
-    if v is None:
-        return ""
-    if isinstance(v, float):
-        return "" if math.isnan(v) else repr(v)
-    return str(v)
-
 
 def write_csv(path: Path, rows: Sequence[dict[str, Any]], columns: Sequence[str]) -> None:
     """Write ``rows`` (dicts) with ``columns``; floats with ``repr``, None/NaN as empty cells."""
@@ -38,7 +38,7 @@ def write_csv(path: Path, rows: Sequence[dict[str, Any]], columns: Sequence[str]
         wr = csv.writer(f)
         wr.writerow(columns)
         for r in rows:
-            wr.writerow([_csv_value(r[c]) for c in columns])
+            wr.writerow([csv_value(r[c]) for c in columns])
 
 
 def _fmt(v: Any, scale: float = 1.0, digits: int = 2) -> str:
@@ -125,7 +125,8 @@ def figures(rows: Sequence[dict[str, Any]]) -> list[str]:
     cpu_m = sum(by[(s, "mcl")]["cpu_us_per_frame"] * by[(s, "mcl")]["frames"] for s in scns)
     if cpu_i > 0:
         ratio = cpu_m / cpu_i
-        out.append(f"CPU per frame, MCL / interval (autonomous), all frames: {ratio:.1f}x.")
+        out.append(f"CPU per frame, MCL (calibrated) / interval (autonomous), all frames: "
+                   f"{ratio:.1f}x.")
     return out
 
 
@@ -264,20 +265,29 @@ def _shade(ax: Any, t: np.ndarray, mask: np.ndarray, color: str, label: str) -> 
                    label=label if a == edges[0] else None)
 
 
+def calibration_table(rows: Sequence[dict[str, Any]]) -> str:
+    """The calibration rows (:func:`~tileviz.evaluation.metrics.calibration`) as Markdown."""
+    levels = [c for c in CALIBRATION_COLUMNS if c.startswith("coverage_")]
+    head = "| scenario | method | " + " | ".join(
+        f"{c.split('_')[1]} % ellipse" for c in levels) + " |"
+    lines = [head, "|---|---|" + "---|" * len(levels)]
+    for r in rows:
+        lines.append(f"| {r['scenario']} | {METHOD_LABELS[r['method']]} | "
+                     + " | ".join(_fmt(r[c], digits=1) for c in levels) + " |")
+    return "\n".join(lines)
+
+
 def write_outputs(results: Sequence[RunResult], out: Path, command: str = "",
                   notes: Sequence[str] = ()) -> list[dict]:
-    """Write results.csv, results.md, runs.csv, coverage.png and error_<scenario>.png; ``notes``
+    """Write results.csv, results.md, runs.csv, calibration.csv, coverage.png and
+    error_<scenario>.png; ``notes``
     are extra lines for results.md (e.g. the MCL settings)."""
     out.mkdir(parents=True, exist_ok=True)
     rows = aggregate(results)
     write_csv(out / "results.csv", rows, COLUMNS)
-    per_run = []
-    for r in results:
-        for m in METHODS:
-            per_run.append({"scenario": r.scenario, "method": m, "run": r.run, "seed": r.seed,
-                            **metrics([r], m)})
-    run_cols = COLUMNS[:2] + ("run", "seed") + COLUMNS[2:]
-    write_csv(out / "runs.csv", per_run, run_cols)
+    # (written to a temporary file and renamed: a campaign's runs.csv is never half written)
+    write_csv(out / "runs.tmp", [row for r in results for row in run_rows(r)], RUN_COLUMNS)
+    os.replace(out / "runs.tmp", out / "runs.csv")
     vision_ms = 1e3 * sum(r.vision_s for r in results) / max(1, sum(r.t.size for r in results))
     scns = list(dict.fromkeys(r.scenario for r in results))
     text = ["# Evaluation results", ""]
@@ -290,6 +300,11 @@ def write_outputs(results: Sequence[RunResult], out: Path, command: str = "",
     text += [f"- Vision (not counted above): {vision_ms:.2f} ms CPU per frame on average."]
     text += [f"- {line}" for line in notes]
     text += [""]
+    cal = calibration(results)
+    write_csv(out / "calibration.csv", cal, CALIBRATION_COLUMNS)
+    text += ["## Calibration of the particle filters", "",
+             "Share of frames (%) whose nominal confidence ellipse holds the true (x, y); a "
+             "calibrated filter matches the nominal level.", "", calibration_table(cal), ""]
     text += ["Columns: see `tileviz/evaluation/metrics.py` (module docstring). Widths and RMSE "
              "over the vouched frames; MCL widths are the box around its 95 % ellipse. False "
              "vouches: frames vouched for (not lost) whose set missed the truth. Detection delay "

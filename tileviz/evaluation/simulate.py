@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from tileviz.baselines.mcl import MCL, MclConfig
+from tileviz.baselines.mcl import MCL, MclConfig, calibrated_config, chi2_2d
 from tileviz.evaluation.events import noticed
 from tileviz.evaluation.scenarios import RECOVERY_MAX_SLIP, SCENARIOS, fault_schedule
 from tileviz.localizer import Localizer
@@ -19,11 +19,11 @@ from tileviz.runner import initial_box
 from tileviz.types import STATUSES, Box, BoxSet, FrameInput, Odometry, Pose, SensorBounds
 
 __all__ = [
-    "FAULT_METHODS", "INTERVAL_METHODS", "METHODS", "METHOD_LABELS", "STATUS_CODES",
+    "FAULT_METHODS", "INTERVAL_METHODS", "MCL_METHODS", "METHODS", "METHOD_LABELS", "STATUS_CODES",
     "MethodTrace", "RunResult", "Task", "run_one",
 ]
 
-METHODS = ("interval", "interval-recovery", "interval-truth", "odometry", "mcl")
+METHODS = ("interval", "interval-recovery", "interval-truth", "odometry", "mcl", "mcl-untuned")
 """Method names, in table order."""
 INTERVAL_METHODS = METHODS[:4]
 """The methods that report a status (the interval localizer in its modes)."""
@@ -36,8 +36,15 @@ METHOD_LABELS = {
     "interval-recovery": "interval (autonomous, recovery on)",
     "interval-truth": "interval (truth mode)",
     "odometry": "odometry only",
-    "mcl": "MCL",
+    "mcl": "MCL (calibrated)",
+    "mcl-untuned": "MCL (untuned)",
 }
+MCL_METHODS = ("mcl", "mcl-untuned")
+"""The particle filters: ``mcl`` is the calibrated one
+(:func:`tileviz.baselines.mcl.calibrated_config`: measured view likelihood, roughening,
+KLD-sampling up to ``--particles``, AMCL recovery), ``mcl-untuned`` the plain one
+(``MclConfig()``: Gaussians of ``--mcl-sigma-scale`` x the declared bounds, ``--particles``
+particles, ``--mcl-inject``)."""
 STATUS_CODES = {s: i for i, s in enumerate((*STATUSES, "estimate"))}
 """Per-frame status as a small integer in :class:`MethodTrace` (``estimate``: MCL)."""
 
@@ -66,7 +73,9 @@ class MethodTrace:
     mean. ``inside`` (n,): truth inside the set (MCL: inside the 95 % ellipse). ``status`` (n,)
     :data:`STATUS_CODES`. ``boxes`` (n,): number of boxes (MCL: 0). ``alarm`` (n,): the method
     :func:`noticed` something at the frame (:data:`FAULT_METHODS` only; False for the others).
-    ``cpu_s``: total CPU time of the steps, seconds."""
+    ``d2`` (n,): MCL: squared Mahalanobis distance of the true (x, y) from the particle mean in
+    the (x, y) covariance (the truth lies in the level-p ellipse when d2 <= chi2_2(p)); NaN for
+    the interval methods. ``cpu_s``: total CPU time of the steps, seconds."""
 
     lo: np.ndarray
     hi: np.ndarray
@@ -75,6 +84,7 @@ class MethodTrace:
     status: np.ndarray
     boxes: np.ndarray
     alarm: np.ndarray
+    d2: np.ndarray
     cpu_s: float = 0.0
 
     @classmethod
@@ -83,7 +93,7 @@ class MethodTrace:
         return cls(lo=np.full((n, 3), np.nan), hi=np.full((n, 3), np.nan),
                    centre=np.full((n, 3), np.nan), inside=np.zeros(n, bool),
                    status=np.zeros(n, np.int8), boxes=np.zeros(n, np.int32),
-                   alarm=np.zeros(n, bool))
+                   alarm=np.zeros(n, bool), d2=np.full(n, np.nan))
 
 
 @dataclass
@@ -155,12 +165,20 @@ def run_one(task: Task) -> RunResult:
                  "interval-recovery": localizer("autonomous", RECOVERY_MAX_SLIP[scn.preset]),
                  "interval-truth": localizer("truth"), "odometry": localizer("odometry")}
     room = cfg.sim.room_half_size
-    mcl = MCL(tile_size=L, camera_offset=offset, bounds=bounds, initial=box0,
-              config=MclConfig(particles=task.particles, inject_rate=task.mcl_inject,
-                               sigma_scale=task.mcl_sigma_scale,
-                               seed=int(np.random.SeedSequence([task.seed, key, 2])
-                                        .generate_state(1)[0])),
-              region=Box(-room, room, -room, room, -math.pi, math.pi))
+
+    def mcl_seed(i: int) -> int:
+        return int(np.random.SeedSequence([task.seed, key, i]).generate_state(1)[0])
+
+    region = Box(-room, room, -room, room, -math.pi, math.pi)
+    mcls = {
+        "mcl": MCL(tile_size=L, camera_offset=offset, bounds=bounds, initial=box0,
+                   config=calibrated_config(particles=task.particles, seed=mcl_seed(3)),
+                   region=region),
+        "mcl-untuned": MCL(tile_size=L, camera_offset=offset, bounds=bounds, initial=box0,
+                           config=MclConfig(particles=task.particles, inject_rate=task.mcl_inject,
+                                            sigma_scale=task.mcl_sigma_scale, seed=mcl_seed(2)),
+                           region=region),
+    }
 
     res = RunResult(scenario=task.scenario, run=task.run, seed=task.seed,
                     t=np.zeros(n), truth=np.zeros((n, 3)), fault=np.zeros(n, bool),
@@ -211,9 +229,9 @@ def run_one(task: Task) -> RunResult:
         r = k % len(METHODS)
         for name in METHODS[r:] + METHODS[:r]:
             tr = res.methods[name]
-            if name == "mcl":
+            if name in MCL_METHODS:
                 c0 = clock()
-                est = mcl.step(pending, frame.compass, obs)
+                est = mcls[name].step(pending, frame.compass, obs)
                 tr.cpu_s += clock() - c0
                 hw = np.array(est.half_widths())
                 mean = est.mean.copy()
@@ -221,7 +239,8 @@ def run_one(task: Task) -> RunResult:
                 tr.lo[k] = mean - hw
                 tr.hi[k] = mean + hw
                 tr.centre[k] = mean
-                tr.inside[k] = est.ellipse_contains(tt[0], tt[1])
+                tr.d2[k] = est.mahalanobis2(tt[0], tt[1])
+                tr.inside[k] = tr.d2[k] <= chi2_2d(0.95)
                 tr.status[k] = STATUS_CODES["estimate"]
                 continue
             loc = intervals[name]
