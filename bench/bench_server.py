@@ -45,8 +45,13 @@ def cpu_seconds(pid: int) -> float:
 
 
 def image_uuids(messages: list[dict[str, Any]]) -> dict[str, str]:
-    """uuid -> "camera" or "stage" for the GUI images among ``messages``."""
-    return {m["uuid"]: "camera" if m["props"].get("label") == "camera view" else "stage"
+    """uuid -> "camera", "inset" or "stage" for the GUI images among ``messages``."""
+    def kind(label: str) -> str:
+        if label == "camera view":
+            return "camera"
+        return "inset" if label.startswith("the set around") else "stage"
+
+    return {m["uuid"]: kind(str(m["props"].get("label") or ""))
             for m in messages if m.get("type") == "GuiImageMessage"}
 
 
@@ -84,6 +89,9 @@ def last_timeline_max(messages: list[dict[str, Any]], timeline: str) -> int:
 async def ws_run(url: str, seconds: float) -> tuple[Counter, int, float, int]:
     async with ViserClient(url) as c:
         await c.wait_for(lambda m: m.get("type") == "ReplayDoneMessage")
+        # the left panel sends the stages only when it shows them
+        await c.send({"type": "GuiUpdateMessage", "uuid": c.gui_uuid("Below"),
+                      "updates": {"value": "Camera and stages"}})
         await asyncio.sleep(3.0)  # warm up
         timeline = timeline_uuid(c.messages)
         kinds = image_uuids(c.messages)

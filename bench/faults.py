@@ -7,8 +7,11 @@
 Each run simulates the preset (``SimSource``, Lissajous setpoint) through ``Runner`` (robust
 vision, interval localizer in mode ``autonomous``), injects one fault with ``SimSource.inject``
 after ``--before`` frames, and goes on for ``--after`` frames past the fault's end. Every fault
-runs twice: recovery off (``LocalizerConfig.max_slip = (0, 0)``, the default) and on (``max_slip``
-of the preset, below). Frame k's fault labels are those ``SimSource`` puts on the frame; the fault
+runs three times: recovery off (``LocalizerConfig.max_slip = (0, 0)``, the default), on
+(``max_slip`` of the preset, below) and ``model`` (the fault model :data:`FAULT_MODEL`:
+``LocalizerConfig.fault_speed``, ``fault_yaw_rate``; there a frame that takes the fault set is a
+recovery frame whose hypothesis held when H2', the odometry bounds widened by the model, held at
+every frame before it). Frame k's fault labels are those ``SimSource`` puts on the frame; the fault
 starts at the first labelled frame F and ends at the last one E (a kidnap: F = E, the first frame
 at the new pose).
 
@@ -69,6 +72,11 @@ from tileviz.vision import observation_error  # noqa: E402
 
 MAX_SLIP = RECOVERY_MAX_SLIP
 """Recovery setting per preset (metres, radians)."""
+FAULT_MODEL = (0.2, 0.1)
+"""The fault model of the third setting (``LocalizerConfig.fault_speed``, ``fault_yaw_rate``:
+m/s, rad/s beyond the odometry bounds), every preset."""
+SETTINGS = ("off", "on", "model")
+"""Recovery off, ``max_slip`` on, the fault model on."""
 
 
 @dataclass(frozen=True)
@@ -130,7 +138,7 @@ class RunResult:
 
     preset: str
     fault: str
-    recovery: bool
+    recovery: str
     seed: int
     start: int = -1
     end: int = -1
@@ -175,13 +183,17 @@ def _near(rec: FrameRecord, max_slip: tuple[float, float]) -> bool | None:
     )
 
 
-def run_one(name: str, seed: int, spec: FaultSpec, recovery: bool, before: int,
+def run_one(name: str, seed: int, spec: FaultSpec, recovery: str, before: int,
             after: int) -> RunResult:
-    """Simulate, inject ``spec`` after ``before`` frames, go on ``after`` frames past its end."""
+    """Simulate, inject ``spec`` after ``before`` frames, go on ``after`` frames past its end;
+    ``recovery``: one of :data:`SETTINGS`."""
     cfg = preset(name)
-    max_slip = MAX_SLIP[name] if recovery else (0.0, 0.0)
+    max_slip = MAX_SLIP[name] if recovery == "on" else (0.0, 0.0)
+    fs, fw = FAULT_MODEL if recovery == "model" else (0.0, 0.0)
     cfg = replace(cfg, sim=replace(cfg.sim, seed=seed), floor=replace(cfg.floor, seed=seed + 1),
-                  localizer=replace(cfg.localizer, max_slip=max_slip))
+                  localizer=replace(cfg.localizer, max_slip=max_slip, fault_speed=fs,
+                                    fault_yaw_rate=fw))
+    within_model = True  # H2' (the bounds widened by the fault model) held at every frame so far
     nz = cfg.noise
     src = SimSource(cfg)
     runner = Runner(cfg)
@@ -213,6 +225,10 @@ def run_one(name: str, seed: int, spec: FaultSpec, recovery: bool, before: int,
         if prev is not None and prev.odometry is not None and prev.truth is not None:
             broken |= not prediction_encloses(prev.truth.as_tuple(), truth.as_tuple(),
                                               prev.odometry, nz.speed_error, nz.yaw_rate_error)
+            within_model &= prediction_encloses(prev.truth.as_tuple(), truth.as_tuple(),
+                                                prev.odometry, nz.speed_error + fs,
+                                                nz.yaw_rate_error + fw)
+        within_model &= "kidnap" not in frame.faults
         if rec.compass is not None:
             broken |= abs(_wrap(rec.compass - truth.theta)) > nz.compass_error + 1e-12
         view_ok = _view_ok(rec, cfg)
@@ -233,7 +249,10 @@ def run_one(name: str, seed: int, spec: FaultSpec, recovery: bool, before: int,
         holds.append(not broken)
         if broken:
             chain = True
-        repaired = reinflated and _near(rec, max_slip) is True and view_ok is not False
+        if recovery == "model":  # H2' held throughout: the fault set holds the truth
+            repaired = reinflated and within_model and view_ok is not False
+        else:
+            repaired = reinflated and _near(rec, max_slip) is True and view_ok is not False
         if inside:
             chain = False
         vouched = rec.status != "lost"
@@ -305,7 +324,7 @@ def summarize(runs: list[RunResult]) -> list[str]:
     unexplained = sum(len(r.wrong_unexplained) for r in runs)
     lost = sum(r.lost_frames > 0 for r in runs)
     width = max(r.max_width for r in runs)
-    return [f"| {r0.preset} | {r0.fault} | {'on' if r0.recovery else 'off'} | {len(runs)} | "
+    return [f"| {r0.preset} | {r0.fault} | {r0.recovery} | {len(runs)} | "
             f"{detection} | {recovery} | {contain} ({inside}/{vouched}) | {explained} | "
             f"{unexplained} | {lost}/{len(runs)} | {100 * width:.1f} |"]
 
@@ -325,12 +344,13 @@ READING = """Reading the table:
 - "wrong: hypothesis broken" counts vouched frames without the truth inside a run that a broken
   hypothesis started (``docs/guarantees.md``): an odometry fault not noticed yet (the first frames
   of a slip), a fault noticed with recovery off (``rejected`` frames keep the stale prediction until
-  ``lost``), a kidnap beyond ``max_slip`` (H5 broken) or by a whole tile (never visible).
+  ``lost``), a kidnap beyond ``max_slip`` (H5 broken) or beyond the fault model (H2' broken: at
+  most 5 frames before ``lost``), or by a whole tile (never visible).
 - "wrong: unexplained" would be a failure of the guarantee itself; "before any fault" too.
 """
 
 
-def _job(args: tuple[str, int, int, bool, int, int]) -> RunResult:
+def _job(args: tuple[str, int, int, str, int, int]) -> RunResult:
     name, seed, index, recovery, before, after = args
     return run_one(name, seed, fault_specs(name)[index], recovery, before, after)
 
@@ -350,7 +370,7 @@ def main() -> int:
     jobs = []
     for name, n in (("default", args.seeds), ("seed", args.seed_preset_seeds)):
         for index in range(len(fault_specs(name))):
-            for recovery in (False, True):
+            for recovery in SETTINGS:
                 for seed in range(n):
                     jobs.append((name, seed, index, recovery, args.before, args.after))
     t0 = time.perf_counter()
@@ -360,7 +380,7 @@ def main() -> int:
     else:
         results = [_job(j) for j in jobs]
     elapsed = time.perf_counter() - t0
-    groups: dict[tuple[str, str, bool], list[RunResult]] = {}
+    groups: dict[tuple[str, str, str], list[RunResult]] = {}
     for r in results:
         groups.setdefault((r.preset, r.fault, r.recovery), []).append(r)
     lines = list(HEADER)
@@ -371,7 +391,7 @@ def main() -> int:
     notes.append(f"- wrong vouched frames before any fault: {before}")
     unexplained = [(r, k) for r in results for k in r.wrong_unexplained]
     notes.append(f"- unexplained wrong vouched frames: {len(unexplained)}"
-                 + "".join(f"\n  - {r.preset} {r.fault} recovery {'on' if r.recovery else 'off'} "
+                 + "".join(f"\n  - {r.preset} {r.fault} recovery {r.recovery} "
                            f"seed {r.seed} frame {k}" for r, k in unexplained[:20]))
     bad = [v for r in results for v in r.bad_views]
     notes.append(f"- views vision accepted on a faulty frame outside their declared bounds: "
@@ -393,8 +413,10 @@ def main() -> int:
         "one fault at a time, more fault types, and the explanation of every wrong vouched "
         "frame.",
         f"Fault after {args.before} frames, run on for {args.after} frames after its end; "
-        "20 frames a second. Recovery on: `max_slip` = "
-        + ", ".join(f"{n} {v}" for n, v in MAX_SLIP.items()) + " (m, rad).",
+        "20 frames a second. Recovery `on`: `max_slip` = "
+        + ", ".join(f"{n} {v}" for n, v in MAX_SLIP.items()) + " (m, rad); recovery `model`: "
+        f"the fault model (`--fault-model`) {FAULT_MODEL[0]} m/s, {FAULT_MODEL[1]} rad/s beyond "
+        "the odometry bounds, every preset.",
         "",
         *lines,
         "",

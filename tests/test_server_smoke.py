@@ -4,6 +4,7 @@ scene and the controls, and a Step advances exactly one frame. Plus the command 
 from __future__ import annotations
 
 import asyncio
+import math
 import os
 import re
 import subprocess
@@ -261,3 +262,24 @@ def test_a_requested_busy_port_is_one_line_and_the_default_says_where_it_went(tm
             assert app.port != port
         finally:
             app.stop()
+
+
+def test_the_view_follows_the_robot_while_playing(tmp_path):
+    a = App(preset("default"), SessionOptions(out_dir=tmp_path), port=0)
+    a.start()
+    try:
+        async def scenario() -> None:
+            async with ViserClient(a.url) as c:
+                await c.wait_for(lambda m: m.get("type") == "ReplayDoneMessage")
+                mark = len(c.messages)
+                # the server moves this client's view: its look-at point goes with the robot
+                m = await c.wait_for(lambda m: m.get("type") == "SetCameraLookAtMessage",
+                                     start=mark, timeout=600)
+                x, y = float(m["look_at"][0]), float(m["look_at"][1])
+                path = [e.record.truth for e in map(a.session.history.get, range(
+                    a.session.history.first, a.session.history.last + 1))]
+                assert min(math.hypot(p.x - x, p.y - y) for p in path) < 1e-6
+
+        asyncio.run(scenario())
+    finally:
+        a.stop()

@@ -21,7 +21,7 @@ from tests.exact_truth import MP, heading_margin, in_box, in_set, mpf
 from tileviz.config import LocalizerConfig
 from tileviz.intervals import TWO_PI, lattice_cut, lattice_intersect, turn_shift
 from tileviz.localizer import Localizer, contract_branch, lever_enclosure, observation_windows
-from tileviz.types import Box, BoxSet, Observation, SensorBounds
+from tileviz.types import Box, BoxSet, Observation, Odometry, SensorBounds
 
 FAST = settings(max_examples=200)
 WORKER = Path(__file__).with_name("codac_oracle_worker.py")
@@ -197,3 +197,48 @@ def test_the_codac_worker_reads_every_float_exactly() -> None:
     back = [float.fromhex(v) for v in json.loads(r.stdout)["values"]]
     assert back == values
     assert "codac" not in sys.modules and 1.0 + 2.0**-53 == 1.0  # this process: nearest
+
+
+# --- degenerate parameters: handled exactly (the adversary covers those) or refused ---------------
+
+_BASE = dict(tile_size=1.0, camera_offset=(0.3, 0.0), bounds=SensorBounds(0.01, 0.01, 0.01),
+             config=LocalizerConfig(), initial=Box(0, 0.1, 0, 0.1, 0, 0.1))
+
+
+@pytest.mark.parametrize(("over", "name"), [
+    ({"tile_size": math.nan}, "tile_size"), ({"tile_size": math.inf}, "tile_size"),
+    ({"tile_size": 5e-324}, "tile_size"), ({"tile_size": 0.0}, "tile_size"),
+    ({"camera_offset": (math.nan, 0.0)}, "camera_offset[0]"),
+    ({"camera_offset": (0.0, -math.inf)}, "camera_offset[1]"),
+    ({"bounds": SensorBounds(math.nan, 0, 0)}, "speed_error"),
+    ({"bounds": SensorBounds(0, math.inf, 0)}, "yaw_rate_error"),
+    ({"bounds": SensorBounds(0, 0, -5e-324)}, "compass_error"),
+    ({"initial": Box(0, math.inf, 0, 1, 0, 1)}, "initial box.x_hi"),
+    ({"initial": Box(0, 1, math.nan, 1, 0, 1)}, "initial box.y_lo"),
+])
+def test_degenerate_settings_are_refused_in_one_line(over, name) -> None:
+    with pytest.raises(ValueError) as err:
+        Localizer(**{**_BASE, **over})
+    assert str(err.value).startswith(name) and "\n" not in str(err.value)
+
+
+@pytest.mark.parametrize("kw", [{"max_slip": (math.inf, 0.0)}, {"max_slip": (0.1, math.nan)},
+                                {"truth_inflation": (math.nan, 0.0, 0.0)}])
+def test_degenerate_config_is_refused_in_one_line(kw) -> None:
+    with pytest.raises(ValueError, match=f"^{next(iter(kw))}") as err:
+        LocalizerConfig(**kw)
+    assert "\n" not in str(err.value)
+
+
+def test_zero_and_subnormal_bounds_are_legal_and_exact() -> None:
+    """Zero-width (and -0.0, subnormal) error bounds and a zero-width initial box: the set is the
+    exact pose, rounded outward, and stays around the truth through a step at the bounds."""
+    loc = Localizer(tile_size=0.5, camera_offset=(5e-324, -0.0),
+                    bounds=SensorBounds(-0.0, 5e-324, 0.0), config=LocalizerConfig(),
+                    initial=Box(0.25, 0.25, 0.1, 0.1, 0.5, 0.5))
+    step = loc.step(None, 0.5, None)
+    assert step.status == "predicted" and in_set(step.updated.boxes, mpf(0.25), mpf(0.1),
+                                                 mpf(0.5))
+    step = loc.step(Odometry(0.0, 0.0, 1.0), 0.5, None)  # standing still, exactly
+    assert in_set(step.updated.boxes, mpf(0.25), mpf(0.1), mpf(0.5))
+    assert max(step.updated.hull().widths) < 1e-15

@@ -11,6 +11,7 @@ from pathlib import Path
 from tileviz.cliutil import (
     CliError,
     Parser,
+    fault_model,
     float_in,
     int_in,
     positive_int,
@@ -170,6 +171,11 @@ def replay_parser() -> Parser:
     p.add_argument("--extractor", choices=EXTRACTORS, default=None,
                    help="vision extractor (default: the dataset's, else robust)")
     p.add_argument("--max-boxes", type=positive_int("--max-boxes"), default=None)
+    p.add_argument("--fault-model", type=fault_model("--fault-model"), default=None,
+                   metavar="SPEED,YAW_RATE",
+                   help="how much faster than the odometry bounds a fault (wheel slip, push) may "
+                   "move the robot, m/s and rad/s: the localizer then tracks through such a fault "
+                   "and says lost beyond it (docs/faults.md); default off (0,0)")
     p.add_argument("--mcap", default=None, metavar="OUT.mcap",
                    help="also write the run for Foxglove: camera images, truth, the sets as 3-D "
                    "cubes, status and box widths (needs the [ros] extra)")
@@ -203,6 +209,9 @@ def replay(argv: list[str]) -> int:
         cfg = replay_config(source.meta, mode=args.mode, extractor=args.extractor)
         if args.max_boxes:
             cfg = replace(cfg, localizer=replace(cfg.localizer, max_boxes=args.max_boxes))
+        if args.fault_model is not None:
+            cfg = replace(cfg, localizer=replace(cfg.localizer, fault_speed=args.fault_model[0],
+                                                 fault_yaw_rate=args.fault_model[1]))
         out = CsvOut(args.out, REPLAY_COLUMNS)
         eq = CsvOut(args.output_file, RESIDUAL_COLUMNS) if args.output_file else None
         runner = Runner(cfg)

@@ -51,6 +51,21 @@ def nonneg_float(name: str) -> Callable[[str], float]:
     return parse
 
 
+def fault_model(name: str) -> Callable[[str], tuple[float, float]]:
+    """argparse type: ``SPEED,YAW_RATE`` (m/s, rad/s), two finite floats >= 0: the fault model
+    (``LocalizerConfig.fault_speed``, ``fault_yaw_rate``); ``0,0`` turns it off."""
+    one = nonneg_float(name)
+
+    def parse(text: str) -> tuple[float, float]:
+        parts = text.split(",")
+        if len(parts) != 2:
+            raise argparse.ArgumentTypeError(
+                f"{name} must be SPEED,YAW_RATE (m/s, rad/s), got {text!r}")
+        return (one(parts[0]), one(parts[1]))
+
+    return parse
+
+
 def float_in(name: str, lo: float, hi: float, *, lo_open: bool = True) -> Callable[[str], float]:
     """argparse type: a finite float in (lo, hi] ([lo, hi] when not ``lo_open``), the error
     naming the option and the range."""

@@ -200,9 +200,22 @@ class LocalizerConfig:
     view contracts the prediction inflated by ``max_slip`` (a slip still going on is followed
     rather than lost again); 0 = only the frame that noticed it."""
 
+    fault_speed: float = 0.0
+    """Fault model (``docs/faults.md``): how much faster, in m/s, a fault (a wheel slip, a push)
+    may move the robot than the odometry and its ``speed_error`` allow. With ``fault_speed`` or
+    ``fault_yaw_rate`` > 0 the localizer also keeps the fault set: every pose reachable under the
+    bounds widened by the fault model, contracted by every view; when a view or the compass
+    rejects the set, the localizer takes the fault set's contraction instead (it tracks through
+    the slip). 0 and 0: no fault model."""
+    fault_yaw_rate: float = 0.0
+    """Fault model: how much faster, in rad/s, a fault may turn the robot than the odometry and
+    its ``yaw_rate_error`` allow."""
+
     def __post_init__(self) -> None:
         if self.mode not in MODES:
             raise ValueError(f"mode must be one of {MODES}, got {self.mode!r}")
+        _check_nonneg("fault_speed", self.fault_speed)
+        _check_nonneg("fault_yaw_rate", self.fault_yaw_rate)
         if not isinstance(self.max_slip, tuple | list) or len(self.max_slip) != 2:
             raise ValueError(f"max_slip must be (metres, radians), got {self.max_slip!r}")
         _check_nonneg("max_slip[0]", self.max_slip[0])

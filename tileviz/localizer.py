@@ -35,6 +35,24 @@ Statuses (dataset-format.md):
   (with a periodic floor any view fits a wide enough set, so a contraction would only look
   confident), and stays ``lost`` until :meth:`Localizer.reset`.
 
+Fault model (``LocalizerConfig.fault_speed`` m/s, ``fault_yaw_rate`` rad/s; off when both are 0)
+---------------------------------------------------------------------------------------------------
+Mode ``autonomous`` only; it replaces the ``max_slip`` recovery below. The localizer keeps a second
+set beside its own, the fault set F: predicted with the odometry bounds widened by the fault model
+(``speed_error + fault_speed``, ``yaw_rate_error + fault_yaw_rate``), cut by the compass when the
+compass meets it, and contracted by every view, exactly as the set itself is. When a view or the
+compass rejects the set, the set becomes F's contraction (``reinflated``, status ``contracted``)
+and the two sets agree again; a view that fits F no more either counts as a rejection, and
+:data:`FAULT_MAX_REJECTIONS` of those in a row make the status ``lost``.
+
+Hypothesis (H2'): over every step the true speed and yaw rate stay within the bounds widened by
+the fault model. Under H1, H2', H3 and H4, F holds the truth at every frame (the induction of the
+plain guarantee, with wider bounds), so every frame that takes F holds the truth: a slip within the
+model is followed, the set tight (F is contracted by every view). The set itself may miss the truth
+while a fault is not yet noticed (as without the model). Beyond the model (a kidnap) views stop
+fitting F and the status is ``lost`` after at most FAULT_MAX_REJECTIONS frames. Cost: a second
+prediction and contraction per frame.
+
 Recovery (``LocalizerConfig.max_slip = (d, a)``, metres and radians; off when both are 0)
 -------------------------------------------------------------------------------------------
 Mode ``autonomous`` only (mode ``truth`` starts afresh every frame).
@@ -172,6 +190,12 @@ _nextafter = math.nextafter
 FIXPOINT_TOL = 1e-12
 """A contraction pass that moves the heading bounds by less than this (rad, in total) ends the
 fixpoint iteration."""
+
+FAULT_MAX_REJECTIONS = 5
+"""With the fault model on, a view that fits neither the set nor the fault set means the motion
+went beyond the fault model (a kidnap) or the view is an outlier; this many in a row and the
+status is ``lost`` (``max_rejections`` if smaller): never more frames vouching for a set that
+may have lost the truth."""
 
 _QUARTER_LO = (0.0, HALF_PI_LO, _nextafter(2.0 * HALF_PI_LO, -_INF),
                _nextafter(3.0 * HALF_PI_LO, -_INF))
@@ -833,6 +857,15 @@ class Localizer:
         self._slip = (_nonneg("max_slip[0]", config.max_slip[0]),
                       _nonneg("max_slip[1]", config.max_slip[1]))
         self._recover = config.mode == "autonomous" and (self._slip[0] > 0 or self._slip[1] > 0)
+        fv = _nonneg("fault_speed", config.fault_speed)
+        fw = _nonneg("fault_yaw_rate", config.fault_yaw_rate)
+        self._faulty = config.mode == "autonomous" and (fv > 0 or fw > 0)
+        """The fault model is on: the fault set is kept (module docstring, "Fault model"); it
+        replaces the ``max_slip`` recovery."""
+        self._recover = self._recover and not self._faulty
+        n = _nextafter
+        self._fault_bounds = (n(self._ev + fv, _INF), n(self._ew + fw, _INF))
+        self._fault: list[Tuple6] = []
         self._boxes: list[Tuple6] = []
         self._rejections = 0
         self._lost = False
@@ -843,6 +876,7 @@ class Localizer:
         """Start again from ``box`` (it must contain the true pose): clears the rejection streak
         and the ``lost`` state."""
         self._boxes = [_check_box("initial box", box)]
+        self._fault = list(self._boxes)
         self._rejections = 0
         self._lost = False
         self._window = 0
@@ -942,6 +976,23 @@ class Localizer:
         else:
             boxes = list(self._boxes)
 
+        fault: list[Tuple6] | None = None  # the fault set's prediction (fault model on)
+        if self._faulty and not self._lost:
+            fault = self._fault
+            if odometry is not None:
+                n = _nextafter
+                ev, ew = self._fault_bounds
+                fault = _in_range([predict_box(b, n(v - ev, -_INF), n(v + ev, _INF),
+                                               n(w - ew, -_INF), n(w + ew, _INF), dt)
+                                   for b in fault])
+                if len(fault) > 1:
+                    fault, h = _tidy(fault, cap)
+                    hulled = hulled or h
+            if compass is not None:
+                cut = self._compass_cut(fault, compass)
+                if cut:  # (a compass that misses the fault set too is ignored)
+                    fault, h = _tidy(cut, cap)
+                    hulled = hulled or h
         compass_rejected = False
         reinflated = False
         raw = boxes  # the prediction before the compass: what recovery inflates
@@ -961,7 +1012,11 @@ class Localizer:
                 hulled = hulled or h
             else:
                 compass_rejected = True
-                if recover:
+                if fault is not None:
+                    # the compass misses the prediction: the fault set holds what a fault allows
+                    boxes = fault
+                    reinflated = True
+                elif recover:
                     # the prediction misses the compass: keep it (the compass may be the outlier)
                     # and add the slip candidates the compass allows (the odometry may be)
                     self._window = cfg.slip_window
@@ -982,6 +1037,7 @@ class Localizer:
         else:
             view = _view_window(observation)
             out: list[Tuple6] = []
+            view_hulled = False
             if following:
                 # within slip_window frames of a noticed fault: the view contracts the prediction
                 # inflated by max_slip (it holds the plain prediction)
@@ -995,7 +1051,32 @@ class Localizer:
                     out.extend(got)
                     if p > passes:
                         passes = p
-                    hulled = hulled or h
+                    view_hulled = view_hulled or h
+                hulled = hulled or view_hulled
+            if fault is not None:
+                # the set is taken from the fault set only when the view cuts it to a few
+                # disjoint boxes: a hull (more cells than max_boxes) would be a wide box called
+                # contracted, so such a frame counts as a rejection instead
+                if reinflated:  # (boxes is the fault set already: contracted above)
+                    if out:
+                        fault = out
+                    if view_hulled or len(out) > cap:
+                        out = []
+                else:
+                    got_f: list[Tuple6] = []
+                    f_hulled = False
+                    for b in fault:
+                        got, p, h = _contract_view(b, view, None, self._L, self._lever,
+                                                   cfg.passes, cap)
+                        got_f.extend(got)
+                        f_hulled = f_hulled or h
+                    hulled = hulled or f_hulled
+                    if got_f:
+                        fault = got_f
+                        if not out and not f_hulled and len(got_f) <= cap:
+                            # the view rejects the prediction, not the fault set
+                            out = got_f
+                            reinflated = True
             if out:
                 status = "contracted"
                 self._rejections = 0
@@ -1020,12 +1101,22 @@ class Localizer:
                             updated_boxes, h = _tidy(boxes + extra, cap)
                             hulled = hulled or h
                             reinflated = True
-                if mode == "autonomous" and self._rejections >= cfg.max_rejections:
+                limit = cfg.max_rejections
+                if self._faulty and limit > FAULT_MAX_REJECTIONS:
+                    limit = FAULT_MAX_REJECTIONS
+                if mode == "autonomous" and self._rejections >= limit:
                     status = "lost"
                     self._lost = True
                     self._window = 0
                     updated_boxes = [_hull_all(updated_boxes)]
         self._boxes = updated_boxes
+        if fault is not None:
+            if reinflated:  # the set was taken from the fault set: they agree again
+                fault = updated_boxes
+            elif len(fault) > 1:
+                fault, h = _tidy(fault, cap)
+                hulled = hulled or h
+            self._fault = fault
         result = _new(LocalizerStep)  # LocalizerStep(...) without its frozen __init__
         result.__dict__.update(
             predicted=predicted,

@@ -155,7 +155,6 @@ def render_inset(rec: FrameRecord, tile_size: float, size: int = INSET_SIZE) -> 
     bar = nice_length(0.3 * span)
     n = int(round(bar * frame.scale))
     x0, y0 = 14, size - 16
-    cv2.rectangle(img, (x0 - 4, y0 - 24), (x0 + n + 8 + 60, y0 + 8), BACKGROUND, -1)
     cv2.line(img, (x0, y0), (x0 + n, y0), TEXT, 2)
     for u in (x0, x0 + n):
         cv2.line(img, (u, y0 - 5), (u, y0 + 5), TEXT, 2)

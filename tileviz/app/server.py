@@ -45,6 +45,7 @@ from tileviz.app.session import Session, SessionOptions
 from tileviz.cliutil import (
     CliError,
     Parser,
+    fault_model,
     float_in,
     int_in,
     nonneg_int,
@@ -154,6 +155,9 @@ class App:
                                           FOLLOW_OFFSET[2])
         server.initial_camera.look_at = (rx, ry, 0.0)
         server.scene.configure_default_lights(enabled=True, cast_shadow=False)
+        # no image-based lighting: with software WebGL (no GPU) the environment map made every lit
+        # mesh cost seconds a frame (bench/bench_page.py); the default lights light the scene
+        server.scene.configure_environment_map(None)
         self.scene = SceneView(server.scene, pool=max(1, self.cfg.localizer.max_boxes),
                                particles=self.options.mcl_particles)
         self.controls = Controls(server, self.submit, self.cfg, layers=s.layers,
@@ -482,6 +486,11 @@ def parser() -> Parser:
                    help="draw the interval boxes (default on)")
     p.add_argument("--display", action=argparse.BooleanOptionalAction, default=True,
                    help="stream the pipeline stage images (default on)")
+    p.add_argument("--fault-model", type=fault_model("--fault-model"), default=None,
+                   metavar="SPEED,YAW_RATE",
+                   help="how much faster than the odometry bounds a fault (wheel slip, push) may "
+                   "move the robot, m/s and rad/s: the localizer tracks through such a fault "
+                   "(docs/guarantees.md); default off")
     p.add_argument("--ppm", type=float_in("--ppm", *PPM_RANGE, lo_open=False),
                    help="pixels per metre")
     p.add_argument("--tile-size", type=float_in("--tile-size", *TILE_SIZE_RANGE, lo_open=False),
@@ -556,7 +565,7 @@ def config_from_args(args: argparse.Namespace) -> Config:
                            "meta.json sets the floor and the camera)")
         meta = DatasetSource(args.dataset).meta  # checks meta.json and the frames.csv header
         cfg = replay_config(meta, mode=args.mode, extractor=args.extractor)
-        return _with_seed(cfg, args.seed)
+        return _with_fault_model(_with_seed(cfg, args.seed), args.fault_model)
     cfg = preset(args.preset or "default")
     if args.tile_size is not None:
         cfg = replace(cfg, floor=replace(cfg.floor, tile_size=args.tile_size,
@@ -568,7 +577,15 @@ def config_from_args(args: argparse.Namespace) -> Config:
         cfg = replace(cfg, localizer=replace(cfg.localizer, mode=args.mode))
     if args.extractor is not None:
         cfg = replace(cfg, vision=replace(cfg.vision, extractor=args.extractor))
-    return _with_seed(cfg, args.seed)
+    return _with_fault_model(_with_seed(cfg, args.seed), args.fault_model)
+
+
+def _with_fault_model(cfg: Config, model: tuple[float, float] | None) -> Config:
+    """``cfg`` with the localizer's fault model (m/s, rad/s) when one was given."""
+    if model is None:
+        return cfg
+    return replace(cfg, localizer=replace(cfg.localizer, fault_speed=model[0],
+                                          fault_yaw_rate=model[1]))
 
 
 def _with_seed(cfg: Config, seed: int | None) -> Config:
