@@ -343,7 +343,12 @@ def test_wheel_slip_with_recovery_is_noticed_followed_and_recovered() -> None:
         assert run.start <= rec.index <= run.start + noticed[0]
         assert rec.status == "contracted" and not rec.step.reinflated
     assert all(r.status != "lost" for r in run.records)
-    assert all(r.status == "contracted" and r.truth_inside() for r in run.records[run.end + 3:])
+    after = run.records[run.end + 3:]
+    assert all(r.truth_inside() for r in after)
+    # followed again: every view the extractor accepts contracts the set (a refused view only
+    # predicts), and most frames have one
+    assert all(r.status == "contracted" for r in after if r.vision.accepted)
+    assert sum(r.status == "contracted" for r in after) >= 0.9 * len(after)
 
 
 def test_wheel_slip_without_recovery_is_noticed_and_ends_lost() -> None:
