@@ -38,9 +38,11 @@ def record(cfg: Config, folder: Path, frames: int) -> None:
             w.write(frame)
 
 
-def replay_stats(folder: Path, mode: str) -> dict[str, float]:
+def replay_stats(folder: Path, mode: str, base: Config | None = None) -> dict[str, float]:
+    """``base``: the configuration under the meta's geometry (None: the one tileviz stored;
+    ``Config()``: what a dataset written by another program gets, its camera not a preset)."""
     src = DatasetSource(folder)
-    cfg = src.meta.to_config()
+    cfg = src.meta.to_config(base)
     cfg = replace(cfg, localizer=replace(cfg.localizer, mode=mode))
     runner = Runner(cfg)
     inside = vouched = 0
@@ -166,8 +168,9 @@ def main() -> None:
             record(cfg, folder, frames)
         print(f"\n== preset {name}: {frames} frames ({args.minutes} min simulated), "
               f"recorded in {time.perf_counter() - t0:.0f} s -> {folder}")
-        for mode in ("autonomous", "odometry"):
-            s = replay_stats(folder, mode)
+        for mode, base in (("autonomous", None), ("odometry", None),
+                           ("autonomous, camera not a preset", Config())):
+            s = replay_stats(folder, mode.split(",")[0], base)
             print(f"{mode:>10}: " + "  ".join(
                 f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in s.items()))
         tm = timing(folder)

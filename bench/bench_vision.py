@@ -129,6 +129,25 @@ def main(argv: list[str] | None = None) -> int:
             stages, total = stage_table(imgs, cam, base.floor, replace(base.vision, extractor=ext))
             row = "  ".join(f"{k} {v:.3f}" for k, v in stages.items())
             print(f"{w}x{h} {ext:<8} total {total:.3f} | {row}")
+    # the robust extractor per floor family of the vision study (bench/floorgen.py)
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import floorgen
+
+    for fam in floorgen.FAMILIES:
+        times = []
+        for i in range(min(args.frames, 60)):
+            rng = np.random.default_rng([i, 77])
+            spec = floorgen.draw_floor(fam, rng)
+            img = floorgen.render(spec, *floorgen.draw_view(rng), rng)
+            cam = CameraConfig(ppm=spec.ppm, width=spec.width, height=spec.height,
+                               offset=(0.0, 0.0))
+            vis = VisionConfig(extractor="robust")
+            for _ in range(3):
+                t0 = clock()
+                extract(img, camera=cam, tile_size=spec.tile_size, vision=vis)
+                times.append((clock() - t0) * 1e3)
+        print(f"320x240 robust, floor family {fam:<12} median {med(times):.3f} ms, "
+              f"p90 {float(np.percentile(times, 90)):.3f} ms")
     # the faithful chain vs the bare OpenCV calls, seed constants, interleaved
     for name, (w, h) in (("seed 256x384", (256, 384)), ("default 320x240", (320, 240)),
                          ("default 640x480", (640, 480))):

@@ -189,9 +189,12 @@ def test_fault_scenarios_inject_their_faults(scenario, kind):
         # one lying view every second from 0.15 s: a floor view of elsewhere, which vision accepts
         # and the localizer refuses (its set does not fit it)
         assert faulty.tolist() == [3, 23, 43]
-        assert res.accepted[faulty].all() and not res.in_bounds[faulty].any()
+        # (vision may refuse one of these random views on its own: the others must be refused
+        # by the localizer)
+        lying = faulty[res.accepted[faulty]]
+        assert lying.size >= 2 and not res.in_bounds[lying].any()
         assert res.in_bounds[res.fault == 0].all()
-        assert (res.methods["interval"].status[faulty] == ev.STATUS_CODES["rejected"]).all()
+        assert (res.methods["interval"].status[lying] == ev.STATUS_CODES["rejected"]).all()
     else:
         assert faulty[0] == 20
         assert not res.accepted[20:40].any()

@@ -19,6 +19,7 @@ from tileviz.cliutil import (
 )
 from tileviz.config import (
     EXTRACTORS,
+    FLOOR_STYLES,
     MODES,
     PPM_RANGE,
     PRESETS,
@@ -27,6 +28,7 @@ from tileviz.config import (
     TILE_SIZE_RANGE,
     Config,
     preset,
+    with_floor_style,
 )
 
 MAX_DURATION = 86400.0
@@ -75,6 +77,9 @@ def record_parser() -> Parser:
     p.add_argument("--png-level", type=int, choices=range(10), default=0, metavar="0..9",
                    help="PNG compression (default 0: pixels stored, 7x faster to write and 25x "
                    "to decode; 1 to 9: about 0.45x the disk)")
+    p.add_argument("--floor-style", choices=tuple(FLOOR_STYLES), default="default",
+                   help="the floor's look: light grout, wide grout, a photograph on the tiles, "
+                   "uneven lighting (default: the preset's floor)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     return p
 
@@ -101,6 +106,8 @@ def config_from_args(cfg: Config, args: object) -> Config:
         floor = replace(floor, seed=a["seed"] + 1)
     sim = replace(sim, **sm)
     out = replace(cfg, floor=floor, camera=camera, noise=noise, sim=sim)
+    if a.get("floor_style") not in (None, "default"):
+        out = with_floor_style(out, a["floor_style"])
     if a.get("extractor") is not None:
         out = replace(out, vision=replace(out.vision, extractor=a["extractor"]))
     if a.get("mode") is not None:

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 from tileviz.config import (
     EXTRACTORS,
+    FLOOR_STYLES,
     MODES,
     PPM_RANGE,
     SEED_RANGE,
@@ -198,14 +199,17 @@ class Reset:
 
 @dataclass(frozen=True)
 class Restart:
-    """Start a new run with another floor or camera: tile size L (m) and ppm (pixels/m)."""
+    """Start a new run with another floor or camera: tile size L (m), ppm (pixels/m) and the
+    floor style (a key of ``tileviz.config.FLOOR_STYLES``)."""
 
     tile_size: float
     ppm: float
+    style: str = "default"
 
     def __post_init__(self) -> None:
         _in_range("tile size", self.tile_size, *TILE_SIZE_RANGE)
         _in_range("ppm", self.ppm, *PPM_RANGE)
+        _choice("floor style", self.style, tuple(FLOOR_STYLES))
 
 
 @dataclass(frozen=True)

@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Any
 from tileviz.app import commands as C
 from tileviz.config import (
     EXTRACTORS,
+    FLOOR_STYLES,
     MODES,
     PPM_RANGE,
     SEED_RANGE,
@@ -183,8 +184,11 @@ class Controls:
                                             step=0.001)
             self.ppm = gui.add_number("Pixels per metre", cfg.camera.ppm, min=PPM_RANGE[0],
                                       max=PPM_RANGE[1], step=0.01)
+            self.floor_style = gui.add_dropdown("Floor style", tuple(FLOOR_STYLES),
+                                                initial_value="default")
             self.restart = gui.add_button("Restart with this floor and camera")
-        self._on_click(self.restart, lambda: C.Restart(self.tile_size.value, self.ppm.value))
+        self._on_click(self.restart, lambda: C.Restart(self.tile_size.value, self.ppm.value,
+                                                       self.floor_style.value))
 
         with gui.add_folder("Layers", expand_by_default=False):
             self.display = gui.add_checkbox("Stream stage images", display)

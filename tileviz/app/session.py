@@ -31,7 +31,7 @@ from tileviz.app import commands as C
 from tileviz.app.history import Encoder, Entry, History, ParticleView
 from tileviz.app.outputs import output_path, sanitize_name
 from tileviz.app.scene import texture_pixels_per_tile
-from tileviz.config import Config, LocalizerConfig, NoiseConfig
+from tileviz.config import Config, LocalizerConfig, NoiseConfig, with_floor_style
 from tileviz.runner import Runner, initial_box
 from tileviz.summary import RunTally
 from tileviz.types import FrameInput
@@ -124,6 +124,8 @@ class Session:
         self._rate_t = time.perf_counter()
         self._rate_n = 0
         self.cfg = cfg
+        self._unstyled = cfg
+        """The configuration before any floor style (``Restart.style`` "default" goes back)."""
         self.setpoint_kind = cfg.sim.setpoint
         self.mcl: Any = None
         """The MCL baseline (:class:`tileviz.baselines.mcl.MCL`) when on, else None."""
@@ -536,10 +538,13 @@ class Session:
         self.note(f"{why}: replaying {self.source.describe()} from frame 0")
 
     def _restart(self, cmd: C.Restart) -> None:
-        floor = replace(self.cfg.floor, tile_size=float(cmd.tile_size),
-                        grout_width=min(self.cfg.floor.grout_width, cmd.tile_size / 8))
+        base = self._unstyled.floor
+        floor = replace(base, tile_size=float(cmd.tile_size),
+                        grout_width=min(base.grout_width, cmd.tile_size / 8))
         camera = replace(self.cfg.camera, ppm=float(cmd.ppm))
-        cfg = replace(self.cfg, floor=floor, camera=camera)  # validates (ValueError)
+        vision = replace(self._unstyled.vision, extractor=self.cfg.vision.extractor)
+        cfg = replace(self.cfg, floor=floor, camera=camera, vision=vision)  # validates
+        cfg = with_floor_style(cfg, cmd.style)
         self._new_run(cfg)
         self.compute()
         self.note(f"new run: tile size {cmd.tile_size:g} m, {cmd.ppm:g} px/m")

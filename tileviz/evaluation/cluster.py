@@ -130,19 +130,23 @@ def run_on_cluster(
         raise ClusterError("--scheduler needs dask.distributed: pip install -e '.[cluster]' "
                            "(or pip install 'dask[distributed]')") from None
     target, n = parse_scheduler(scheduler)
-    with dask.config.set({"distributed.scheduler.allowed-failures": ALLOWED_FAILURES}):
+    # (a local cluster's workers get this configuration: no statistical profiler sampling the
+    # runs' stacks every 10 ms)
+    with dask.config.set({"distributed.scheduler.allowed-failures": ALLOWED_FAILURES,
+                          "distributed.worker.profile.enabled": False}):
         cluster = None
         client = None
         futures: list[Any] = []
         try:
             if target == "local":
                 # the worker processes start with Ctrl-C ignored (inherited): the main process
-                # alone handles it and closes the cluster, the workers print nothing
+                # alone handles it and closes the cluster, the workers print nothing (nor do
+                # their logs of the heartbeats lost while the cluster closes)
                 main = threading.current_thread() is threading.main_thread()
                 old = signal.signal(signal.SIGINT, signal.SIG_IGN) if main else None
                 try:
                     cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                                           dashboard_address=":0", silence_logs=logging.ERROR)
+                                           dashboard_address=":0", silence_logs=logging.CRITICAL)
                 finally:
                     if main:
                         signal.signal(signal.SIGINT, old)

@@ -24,6 +24,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -150,6 +151,28 @@ def _periodic_smooth_noise(rng: np.random.Generator, n: int, scale: float) -> np
     return smooth / max(float(smooth.std()), 1e-12)
 
 
+_DATA = Path(__file__).resolve().parent / "data"
+
+
+def _photo_texture(rng: np.random.Generator, k: int, r: int) -> np.ndarray:
+    """A (k r) x (k r) texture of k x k tiles, each a random r x r crop of the gravel photograph
+    (``data/gravel.png``, CC0) turned by a random quarter turn; zero mean."""
+    img = cv2.imread(str(_DATA / "gravel.png"), cv2.IMREAD_GRAYSCALE)
+    if img is None:
+        raise ValueError(f"cannot read the floor photograph {_DATA / 'gravel.png'}")
+    # each tile shows 0.5..1 of the photo's side
+    out = np.empty((k * r, k * r), np.float64)
+    n = img.shape[0]
+    for ti in range(k):
+        for tj in range(k):
+            side = int(rng.integers(n // 2, n + 1))
+            x0, y0 = (int(v) for v in rng.integers(0, n - side + 1, size=2))
+            crop = cv2.resize(img[y0:y0 + side, x0:x0 + side], (r, r),
+                              interpolation=cv2.INTER_AREA)
+            out[ti * r:(ti + 1) * r, tj * r:(tj + 1) * r] = np.rot90(crop, int(rng.integers(4)))
+    return out - out.mean()
+
+
 def _appearance(floor: FloorConfig) -> np.ndarray:
     """The floor's multiplicative appearance over one period of 16 x 16 tiles, float32 texels
     (rows = y, columns = x, 32 texels a tile): tile brightness x texture x stains."""
@@ -163,6 +186,8 @@ def _appearance(floor: FloorConfig) -> np.ndarray:
         + 0.6 * _periodic_smooth_noise(rng, n, r / 12.0)
         + 0.5 * _periodic_smooth_noise(rng, n, 1.0)
     )
+    if floor.surface == "photo":
+        texture = _photo_texture(rng, k, r)
     texture = 1.0 + floor.texture_strength * texture / texture.std()
     stains = np.ones((n, n))
     count = rng.poisson(floor.stains_per_tile * k * k)
@@ -212,6 +237,10 @@ class FloorRenderer:
         r2 = self._u * self._u + self._v * self._v
         r2max = float((w - 1) ** 2 + (h - 1) ** 2) / 4.0
         self._vignette = (1.0 - camera.vignetting * r2 / max(r2max, 1.0)).astype(np.float32)
+        if floor.light_gradient > 0:
+            # uneven light: falling off linearly from the image's left edge to its right edge
+            ramp = 1.0 - floor.light_gradient * (self._u / max(w - 1.0, 1.0) + 0.5)
+            self._vignette = (self._vignette * ramp).astype(np.float32)
         vig = np.clip(self._vignette, 0.0, 1.0)
         self._vignette = np.ascontiguousarray(np.repeat(vig[..., None], 3, axis=2))
         # Noise: a fixed field of twice the image size (the same in the three channels, i.e.
@@ -324,7 +353,7 @@ class FloorRenderer:
             img = cv2.filter2D(img, -1, _line_kernel(p["angle"], p["length"]))
         if cam.blur_sigma > 0:
             img = cv2.GaussianBlur(img, (0, 0), cam.blur_sigma)
-        if cam.vignetting > 0:
+        if cam.vignetting > 0 or self.floor.light_gradient > 0:
             img = cv2.multiply(img, self._vignette)
         if rng is not None and cam.noise_sigma > 0:
             h, w = cam.height, cam.width

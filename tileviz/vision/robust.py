@@ -79,7 +79,7 @@ class RobustSettings:
     """A dip counts as a line when at least this fraction of the deepest dip."""
     max_rise: float = 3.0
     """Median 20-80 % edge rise of the lines above which the view is ``blurred``, px."""
-    max_step: float = 0.3
+    max_step: float = 0.85
     """|level left - level right| / brighter level above which a line is a ``step edge``."""
     spacing_fraction: float = 0.5
     """A line may sit at most this fraction of the declared position bound off the lattice."""
@@ -95,8 +95,13 @@ class RobustSettings:
     width_slack: float = 1.0
     contrast_ratio: float = 1.7
     """Lines may differ in contrast (depth / level) at most by this factor."""
-    foreign_length: float = 0.2
+    foreign_length: float = 0.3
     """Straight edges off the lattice longer than this fraction of the smaller side refuse."""
+    foreign_contrast: float = 0.35
+    """Edges weaker than this fraction of the grout's depth (a step of that many gray levels)
+    are not searched for foreign objects."""
+    heading_share: float = 0.2
+    """Share of the pixels (the strongest gradients) that vote for the heading."""
     refine_tilt: float = 0.012
     """Heading correction (rad) above which the warp is redone."""
     check_position_px: float = 2.0
@@ -112,6 +117,23 @@ class RobustSettings:
     """Prior scatter of a part's centroid at unit part length, px sqrt(px) (0.15 px for a
     100 px part), weighing ``prior_dof`` degrees of freedom."""
     prior_dof: float = 2.0
+    floor_px: float = 0.1
+    """Smallest position bound of a view, px (with ``floor_width`` x the grout's half-depth
+    width and ``floor_rise`` x its edge rise added)."""
+    floor_width: float = 0.02
+    asym_factor: float = 1.5
+    asym_step: float = 0.2
+    """A line's asymmetry counts fully from this step between its sides on (proportionally
+    below)."""
+    """Weight in the position bound of the largest disagreement between a part's centroid and
+    the midpoint of its half-depth edges (an asymmetric dip), px per px."""
+    floor_rise: float = 0.05
+    floor_rad: float = 0.0005
+    """Smallest heading bound of a view, rad."""
+    heading_sigmas: float = 6.0
+    """The heading bound is this many standard errors of the fitted tilt (plus ``floor_rad``):
+    the tilt's error has heavier tails than the positions' (bench/vision_study.py)."""
+    """Smallest heading bound of a view, rad."""
 
 
 DEFAULT_SETTINGS = RobustSettings()
@@ -175,6 +197,7 @@ class _Line:
     chord: float  # line length in the view, px
     parts: np.ndarray  # (PARTS,) centroid in each part (NaN when not measured)
     tpart: np.ndarray  # (PARTS,) mean tangent coordinate of each part
+    asym: float  # largest |half-depth midpoint - centroid| over the parts, px
     wpart: np.ndarray  # (PARTS,) length of each part (0 when not measured)
     pos: float = math.nan  # at tangent coordinate 0, after the common tilt fit
     var: float = math.inf  # variance of pos from the fit's scatter, px^2
@@ -259,8 +282,13 @@ class _Run:
         self.details: dict[str, float] = {}
         # grey-closing window of the profile baseline (wider than any grout dip) and the
         # half-size of the window each dip is measured in, samples (px)
-        self.closing = 2 * int(round(max(8.0, 0.02 * self.ppm))) + 1
-        self.window = self.closing // 2 + 8
+        # (up to a third of the tile period: a grout band up to ~20 px wide on any floor whose
+        # tiles span 80 px or more)
+        self.closing = 2 * int(round(min(max(8.0, 0.17 * self.lp), 30.0))) + 1
+        # half-size of the window each dip is measured in: 20 samples suit grout up to ~9 px
+        # wide; a wider band measures again with a window up to closing + 8 (see execute)
+        self.window = min(20, self.closing + 8)
+        self.inverted = False  # grout lighter than the tiles: the gray levels are inverted
 
     def _lap(self, name: str, t0: float) -> float:
         t = time.perf_counter()
@@ -275,14 +303,21 @@ class _Run:
         t = self._lap("statistics", t)
         dx = cv2.Scharr(self.gray, cv2.CV_16S, 1, 0)
         dy = cv2.Scharr(self.gray, cv2.CV_16S, 0, 1)
-        # Scharr answers 16 x a unit step; its noise is about 15.4 sigma per component
-        high = max(240.0, 6.0 * 15.4 * self._noise_sigma())
-        self.edges = cv2.Canny(dx, dy, 0.5 * high, high, L2gradient=True)
+        self._dxy = (dx, dy)
+        self._noise_sigma()
         t = self._lap("edges", t)
         y3 = self._heading(dx, dy)
         t = self._lap("heading", t)
         for attempt in range(3):
-            lines = self._select(self._measure(y3))
+            lines = self._select(self._measure(y3, attempt))
+            # a window too narrow for the grout (a wide band): measure again with a wider one
+            width = self.details.get("width", math.nan) if lines[0] or lines[1] else math.nan
+            need = self.closing + 8
+            if math.isfinite(width):
+                need = min(int(math.ceil(1.5 * width + 12.0)), need)
+            if need > self.window:
+                self.window = need
+                lines = self._select(self._measure(y3, attempt + 1))
             tilt = self._fit(lines)
             t = self._lap("profiles", t)
             y3 += tilt
@@ -326,34 +361,75 @@ class _Run:
         return sigma
 
     def _heading(self, dx: np.ndarray, dy: np.ndarray) -> float:
-        """First y3 estimate (rad) from the gradient directions of the edge pixels."""
-        # the edge pixels in row-major order (as np.flatnonzero gives them, 4x faster)
-        pts = cv2.findNonZero(self.edges)
-        if pts is None or len(pts) < 20:
+        """First y3 estimate (rad) from the gradient directions of the strongest gradients.
+
+        Every pixel votes (not only Canny's edge pixels: on a textured surface those are mostly
+        the texture's): 4 phi of its gradient, weighted by the gradient magnitude, over the
+        pixels in the top ``heading_share`` of magnitudes; the peak of the smoothed histogram,
+        then the weighted circular mean of the votes near the peak (report eq. 4.4 per pixel).
+        Grout lines, tile-to-tile shade steps and a surface laid along the tiles all vote for
+        the lattice direction (mod pi/2); isotropic texture adds a flat floor."""
+        # (2 phi) as the angle of (gx^2 - gy^2, 2 gx gy), and |g|^2 its length
+        # every other row and column: a quarter of the votes is plenty for a first estimate
+        # (the fit over the lattice refines it)
+        fx = dx[::2, ::2].astype(np.float32)
+        fy = dy[::2, ::2].astype(np.float32)
+        c2 = cv2.subtract(cv2.multiply(fx, fx), cv2.multiply(fy, fy))
+        s2 = cv2.multiply(fx, fy, scale=2.0)
+        mag2, ang2 = cv2.cartToPolar(c2, s2)  # |g|^2, 2 phi in [0, 2 pi)
+        m = mag2.ravel()
+        n = m.size
+        k = max(20, int(self.st.heading_share * n))
+        thr = float(np.partition(m, n - k)[n - k])
+        if thr <= 0.0:
             raise _Fail("no lines")
-        pts = pts.reshape(-1, 2)
-        gx = dx[pts[:, 1], pts[:, 0]].astype(np.float32)
-        gy = dy[pts[:, 1], pts[:, 0]].astype(np.float32)
-        c2 = gx * gx - gy * gy
-        s2 = 2.0 * gx * gy
-        ang = np.arctan2(2.0 * c2 * s2, c2 * c2 - s2 * s2)  # 4 phi
-        wgt = np.sqrt(gx * gx + gy * gy)
+        sel = np.flatnonzero(m >= thr)
+        wgt = np.sqrt(m[sel])  # |g|
+        ang = np.remainder(2.0 * ang2.ravel()[sel], 2.0 * math.pi) - math.pi  # 4 phi - pi
         nb = 90
         b = ((ang + math.pi) * (nb / (2.0 * math.pi))).astype(np.int32) % nb
         hist = np.bincount(b, weights=wgt, minlength=nb)
-        # hist + np.roll(hist, 1) + np.roll(hist, -1), the same sums without np.roll's overhead
         smooth = (hist + np.concatenate((hist[-1:], hist[:-1]))
                   + np.concatenate((hist[1:], hist[:1])))
         peak = (int(np.argmax(smooth)) + 0.5) * (2.0 * math.pi / nb) - math.pi
         near = np.abs(np.remainder(ang - peak + math.pi, 2.0 * math.pi) - math.pi) < 0.35
         wn = wgt[near]
-        an = ang[near]
+        an = ang[near] + math.pi
         self.details["orientation_share"] = float(wn.sum() / max(float(wgt.sum()), 1e-9))
         # gradient directions are normal to the lines: 4 (a + pi/2) = 4 a (mod 2 pi)
         return math.atan2(float(np.dot(wn, np.sin(an))), float(np.dot(wn, np.cos(an)))) / 4.0
 
-    def _measure(self, y3: float) -> list[list[_Line]]:
-        """Warp the image by y3 and measure the dips of both families."""
+    def _light_grout(self, warped: np.ndarray, size: tuple[int, int],
+                     cs: tuple[float, float]) -> bool:
+        """Whether the grout is lighter than the tiles: the family profiles (row and column
+        means of the warped image, offsets from the mean) hold stronger narrow peaks (above a
+        grey opening) than narrow dips (below a grey closing), summed over both families."""
+        wo, ho = size
+        c, s = cs
+        kern = np.ones((1, self.closing), np.uint8)
+        score = 0.0
+        for k, axis in ((0, 1), (1, 0)):
+            n = ho if k == 0 else wo
+            q = np.arange(n) - ((n - 1) / 2.0)
+            lo, hi = self._spans(q, c, s, along_rows=k == 0)
+            length = np.maximum(hi - lo, 0.0)
+            ok = length >= max(8.0, 0.15 * float(length.max()))
+            if int(ok.sum()) < 8:
+                continue
+            sums = cv2.reduce(warped, axis, cv2.REDUCE_SUM, dtype=cv2.CV_64F).ravel()
+            prof = (sums[ok] / length[ok]).astype(np.float32)[None, :]
+            # beyond the view: the median level (the tiles'), so that a stretch of tile or a
+            # line cut by the border is neither a peak nor a dip
+            mid = float(np.median(prof))
+            bd = {"borderType": cv2.BORDER_CONSTANT, "borderValue": mid}
+            close = cv2.erode(cv2.dilate(prof, kern, **bd), kern, **bd)
+            opening = cv2.dilate(cv2.erode(prof, kern, **bd), kern, **bd)
+            score += float((prof - opening).max()) - float((close - prof).max())
+        return score > 0.0
+
+    def _measure(self, y3: float, attempt: int = 1) -> list[list[_Line]]:
+        """Warp the image by y3 and measure the dips of both families (on the first attempt,
+        also decide the grout's polarity)."""
         c, s = math.cos(y3), math.sin(y3)
         w, h = self.w, self.h
         wo = int(math.ceil(w * abs(c) + h * abs(s))) + 2
@@ -373,6 +449,13 @@ class _Run:
             borderMode=cv2.BORDER_CONSTANT,
             borderValue=0,
         )
+        if attempt == 0 and self._light_grout(warped, (wo, ho), (c, s)):
+            # lighter grout: measure the inverted image (255 - gray), whose offset from its
+            # mean is -warped; every later step then sees dark lines on brighter tiles
+            self.inverted = True
+            self.mean = 255.0 - self.mean
+        if self.inverted:
+            cv2.multiply(warped, -1.0, dst=warped)
         self.warped = warped
         self.centre = (x0, y0)
         # integral image: the sum over any stretch of any row or column in four look-ups
@@ -532,6 +615,12 @@ class _Run:
         inside = (cj - hj - 4.0 >= -r) & (cj + hj + 4.0 <= r)
         cen = _centroid(pp, jf, cj, hj, ll, lr)
         cen = np.where(inside & (np.abs(cen - cj) <= hj), cen, np.nan).reshape(m, PARTS)
+        # the same position from the dip's half-depth edges: a symmetric dip gives the
+        # centroid; a step or shadow inside the window pulls the two apart
+        mid = (0.5 * (xl[:nr] + xr[:nr])).reshape(m, PARTS)
+        with np.errstate(invalid="ignore"):
+            asym = np.nanmax(np.where(np.isfinite(cen) & np.isfinite(mid), np.abs(mid - cen),
+                                      0.0), axis=1)
         with np.errstate(invalid="ignore", divide="ignore"):
             wmed = _nanmedian(width.T)
             rmed = _nanmedian(rise.T)
@@ -553,6 +642,7 @@ class _Run:
                     contrast=float(cmed[i]),
                     chord=float(total[fam[i], pk[i]]),
                     parts=pk[i] - r + cen[i],
+                    asym=float(asym[i]),
                     tpart=tpart[i],
                     wpart=np.where(ok, count[i], 0).astype(np.float64),
                 )
@@ -695,12 +785,32 @@ class _Run:
             if sum(ln.chord for ln in fam) < st.min_evidence * self.side:
                 raise _Fail("too few segments")
         self.details["position_se_px"] = se
-        if (
-            st.sigmas * se > self.bound_px
-            or st.sigmas * self.details["heading_se"] > self.bound_rad
-        ):
+        pos_px, head = self._frame_bound(se)
+        self.details["bound_px"] = pos_px
+        self.details["bound_rad"] = head
+        if pos_px > self.vision.position_error_px or head > self.vision.heading_error:
             raise _Fail("imprecise")
         self.y = normalise(ys[0], ys[1], y3, self.tile_size)
+
+    def _frame_bound(self, se: float) -> tuple[float, float]:
+        """This view's error bound (px, rad) from its own evidence (docs/vision.md, "The
+        bound of a view"): ``sigmas`` standard errors of the fit (the scatter of every line's
+        parts about one straight lattice), plus the largest deviations the fit could not
+        explain (a line off the lattice spacing, half the worst part off its line), plus a
+        floor for what the scatter cannot show (interpolation, a band's width under uneven
+        light, blur)."""
+        st = self.st
+        d = self.details
+        # a step between the two sides of a line (a shadow or a box edge near it, a shade step)
+        # inside the centroid's window pulls the centroid off the half-depth midpoint; without
+        # a step the difference is only the crossings' noise
+        d["asymmetry_px"] = max(ln.asym * min(1.0, ln.step / st.asym_step)
+                                for fam in self.lines for ln in fam)
+        pos = (st.sigmas * se + d["spacing_residual_px"] + 0.5 * d["straightness_px"]
+               + st.asym_factor * d["asymmetry_px"]
+               + st.floor_px + st.floor_width * d["width"] + st.floor_rise * d["rise"])
+        head = st.heading_sigmas * d["heading_se"] + st.floor_rad
+        return pos, head
 
     def _missing_lines(self, k: int, ref: float, found: np.ndarray, y3: float) -> None:
         """Refuse when the lattice predicts a well-visible line of family k that was not found
@@ -727,7 +837,14 @@ class _Run:
 
     def _foreign(self) -> None:
         """Refuse when a long straight edge is not explained by the predicted grout lines."""
-        assert self.y is not None and self.edges is not None
+        assert self.y is not None
+        # Edges at least ``foreign_contrast`` of the grout's own contrast (in gray levels: a
+        # texture's fine edges are not objects) and above the noise. Scharr answers 16 x a unit
+        # step; its noise is about 15.4 sigma per component.
+        dx, dy = self._dxy
+        high = max(240.0, 6.0 * 15.4 * self.details["noise_sigma"],
+                   16.0 * self.st.foreign_contrast * self.details["depth"])
+        self.edges = cv2.Canny(dx, dy, 0.5 * high, high, L2gradient=True)
         free = self.edges.copy()
         wmax = max(ln.width for fam in self.lines for ln in fam)
         thick = int(math.ceil(wmax + 2.0 * max(2.0, 0.5 * wmax) + 2.0))
@@ -793,8 +910,8 @@ class _Run:
                 y1=self.y[0],
                 y2=self.y[1],
                 y3=self.y[2],
-                position_error=self.vision.position_error_px / self.ppm,
-                heading_error=self.vision.heading_error,
+                position_error=self.details["bound_px"] / self.ppm,
+                heading_error=self.details["bound_rad"],
             )
         return VisionResult(
             observation=obs,
@@ -938,9 +1055,11 @@ def _draw_lattice_mask(
         j0 = math.floor((-reach + yk * ppm) / lp)
         j1 = math.ceil((reach + yk * ppm) / lp)
         for j in range(j0, j1 + 1):
-            e = clip_line(n, j * lp - yk * ppm, w, h)
+            # clipped to the image grown by ``thick`` on every side: a line just outside the
+            # view still masks the part of its band inside it
+            e = clip_line(n, j * lp - yk * ppm, w + 2 * thick, h + 2 * thick)
             if e is None:
                 continue
-            a = (int(round(e[0])), int(round(e[1])))
-            b = (int(round(e[2])), int(round(e[3])))
+            a = (int(round(e[0])) - thick, int(round(e[1])) - thick)
+            b = (int(round(e[2])) - thick, int(round(e[3])) - thick)
             cv2.line(img, a, b, 0, thick)

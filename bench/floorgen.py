@@ -1,0 +1,339 @@
+"""Tiled-floor views rendered independently of ``tileviz.sim.camera`` (for the vision study).
+
+This module shares no code with the product's renderer: it samples every pixel at 3 x 3 points
+(box-filter anti-aliasing) straight from the floor's definition, so the study does not tune the
+extractor to the renderer's own quirks. Conventions are those of ``docs/dataset-format.md``: an
+orthographic downward camera, ``ppm`` pixels per metre, image centre ``((W-1)/2, (H-1)/2)``; a
+pixel ``(col, row)`` sees the floor point ``c + R(theta) a`` with ``a_forward = -(row - cy)/ppm``
+and ``a_left = -(col - cx)/ppm``; grout line centres on ``x = kL`` and ``y = kL``.
+
+Floor families (:data:`FAMILIES`), each drawn at random by :func:`draw_floor`:
+
+- ``plain``: light tiles, dark grout 1..6 px, a little per-tile shade;
+- ``light_grout``: grout lighter than the tiles;
+- ``wide_grout``: grout 8..20 px wide, darker or lighter;
+- ``shade_steps``: neighbouring tiles of strongly different shades (steps of up to 150 levels);
+- ``photo``: real photographs on the tiles (scikit-image's CC0 ``brick``, ``grass`` and
+  ``gravel`` samples; docs/vision.md), each tile a different crop and quarter turn;
+- ``terrazzo``: speckled stone (chips of random size and shade);
+- ``wood``: wavy grain along one tile axis, the axis alternating from tile to tile;
+- ``degraded``: any surface above with heavy noise, blur, vignetting, a lighting gradient, JPEG;
+- ``coarse``: thin grout (about 1 px) at 100..140 px/m.
+
+Corruptions (:data:`CORRUPTIONS`): a cable, the edge of a box, a shadow edge, glare, motion blur.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+FAMILIES = ("plain", "light_grout", "wide_grout", "shade_steps", "photo", "terrazzo", "wood",
+            "degraded", "coarse")
+CORRUPTIONS = ("cable", "box", "shadow", "glare", "motion_blur")
+PHOTOS = ("brick", "grass", "gravel")
+SS = 3
+"""Samples per pixel side."""
+
+
+@functools.cache
+def photo(name: str) -> np.ndarray:
+    """A photograph shipped by scikit-image (CC0), gray float32 0..1, 512 x 512."""
+    import skimage.data
+
+    img = getattr(skimage.data, name)()
+    if img.ndim == 3:
+        img = cv2.cvtColor(img, cv2.COLOR_RGB2GRAY)
+    return img.astype(np.float32) / 255.0
+
+
+@dataclass
+class FloorSpec:
+    """One random floor and camera. Lengths in metres unless ``_px``; shades 0..255."""
+
+    family: str
+    tile_size: float
+    ppm: float
+    grout_px: float
+    grout_shade: float
+    tile_shade: float
+    shade_spread: float  # per-tile shade: tile_shade +- shade_spread (uniform)
+    surface: str  # flat, photo:<name>, terrazzo, wood
+    surface_amp: float  # relative amplitude of the surface texture
+    width: int = 320
+    height: int = 240
+    noise: float = 2.0
+    blur: float = 0.5
+    vignetting: float = 0.0
+    gradient: float = 0.0  # relative lighting change across the view
+    jpeg: int = 0
+    seed: int = 0
+    extra: dict = field(default_factory=dict)
+
+
+def draw_floor(family: str, rng: np.random.Generator) -> FloorSpec:
+    """A random floor and camera of ``family`` (see the module docstring)."""
+    lp = float(rng.uniform(80.0, 240.0))  # tile period, px
+    ppm = float(rng.uniform(150.0, 650.0))
+    tile = lp / ppm
+    dark = bool(rng.uniform() < 0.5)
+    spec = FloorSpec(
+        family=family, tile_size=tile, ppm=ppm, grout_px=float(rng.uniform(1.5, 6.0)),
+        grout_shade=float(rng.uniform(30, 120)), tile_shade=float(rng.uniform(150, 225)),
+        shade_spread=float(rng.uniform(0, 15)), surface="flat", surface_amp=0.0,
+        noise=float(rng.uniform(0.5, 4.0)), blur=float(rng.uniform(0.0, 1.0)),
+        vignetting=float(rng.uniform(0.0, 0.15)), seed=int(rng.integers(0, 2**31)),
+    )
+    if family == "light_grout":
+        spec.tile_shade = float(rng.uniform(50, 150))
+        spec.grout_shade = float(rng.uniform(spec.tile_shade + 50, 245))
+        spec.grout_px = float(rng.uniform(1.5, 8.0))
+    elif family == "wide_grout":
+        spec.grout_px = float(rng.uniform(8.0, 20.0))
+        if not dark:
+            spec.tile_shade = float(rng.uniform(50, 140))
+            spec.grout_shade = float(rng.uniform(spec.tile_shade + 50, 240))
+    elif family == "shade_steps":
+        spec.grout_px = float(rng.uniform(2.0, 8.0))
+        if dark:
+            spec.tile_shade, spec.shade_spread = 155.0, 75.0
+            spec.grout_shade = float(rng.uniform(10, 50))
+        else:
+            spec.tile_shade, spec.shade_spread = 100.0, 75.0
+            spec.grout_shade = float(rng.uniform(205, 245))
+    elif family == "photo":
+        spec.surface = "photo:" + PHOTOS[int(rng.integers(0, len(PHOTOS)))]
+        spec.surface_amp = float(rng.uniform(0.3, 0.8))
+        spec.grout_px = float(rng.uniform(2.0, 10.0))
+        if not dark:
+            spec.tile_shade = float(rng.uniform(80, 140))
+            spec.grout_shade = float(rng.uniform(200, 245))
+    elif family == "terrazzo":
+        spec.surface = "terrazzo"
+        spec.surface_amp = float(rng.uniform(0.2, 0.4))
+        spec.tile_shade = float(rng.uniform(130, 170))
+        spec.grout_shade = float(rng.uniform(15, 60))
+        spec.grout_px = float(rng.uniform(1.5, 8.0))
+    elif family == "wood":
+        spec.surface = "wood"
+        spec.surface_amp = float(rng.uniform(0.1, 0.3))
+        spec.tile_shade = float(rng.uniform(120, 200))
+        spec.grout_shade = float(rng.uniform(20, 70))
+        spec.grout_px = float(rng.uniform(1.5, 5.0))
+    elif family == "degraded":
+        base = draw_floor(FAMILIES[int(rng.integers(0, 7))], rng)
+        base.family = family
+        base.noise = float(rng.uniform(5.0, 10.0))
+        base.blur = float(rng.uniform(0.8, 1.8))
+        base.vignetting = float(rng.uniform(0.15, 0.4))
+        base.gradient = float(rng.uniform(0.2, 0.5))
+        base.jpeg = int(rng.integers(30, 80))
+        return base
+    elif family == "coarse":
+        ppm = float(rng.uniform(100.0, 140.0))
+        spec.ppm = ppm
+        spec.tile_size = float(rng.uniform(0.8, 1.6))
+        spec.grout_px = float(rng.uniform(0.8, 1.5))
+        spec.grout_shade = float(rng.uniform(20, 80))
+    elif family != "plain":
+        raise ValueError(f"unknown floor family {family!r}")
+    return spec
+
+
+def _hash(i: np.ndarray, j: np.ndarray, seed: int, salt: int) -> np.ndarray:
+    """A uniform 0..1 value per tile (i, j), from integer hashing (vectorised)."""
+    h = (i.astype(np.int64) * 73856093) ^ (j.astype(np.int64) * 19349663) ^ (seed * 83492791)
+    h = (h ^ salt) & 0xFFFFFFFF
+    h = (h * 2654435761) & 0xFFFFFFFF
+    h ^= h >> 15
+    h = (h * 2246822519) & 0xFFFFFFFF
+    h ^= h >> 13
+    return (h & 0xFFFFFF).astype(np.float64) / float(0x1000000)
+
+
+def _surface(spec: FloorSpec, i: np.ndarray, j: np.ndarray, fx: np.ndarray, fy: np.ndarray
+             ) -> np.ndarray:
+    """Relative surface modulation (about 0) at tile-local coordinates fx, fy in [0, 1)."""
+    if spec.surface == "flat":
+        return np.zeros_like(fx)
+    if spec.surface.startswith("photo:"):
+        tex = photo(spec.surface[6:])
+        n = tex.shape[0]
+        # each tile: its own crop (offset) and quarter turn; the photo spans 0.6..1 tile
+        scale = n * (0.6 + 0.4 * _hash(i, j, spec.seed, 7))
+        turn = (4 * _hash(i, j, spec.seed, 11)).astype(np.int64)
+        u, v = fx, fy
+        u, v = (np.where(turn == 1, 1 - v, np.where(turn == 2, 1 - u, np.where(turn == 3, v, u))),
+                np.where(turn == 1, u, np.where(turn == 2, 1 - v, np.where(turn == 3, 1 - u, v))))
+        ox = _hash(i, j, spec.seed, 13) * n
+        oy = _hash(i, j, spec.seed, 17) * n
+        cx = ((u * scale + ox) % n).astype(np.int64)
+        cy = ((v * scale + oy) % n).astype(np.int64)
+        val = tex[cy, cx]
+        return (val - 0.5) * 2.0 * spec.surface_amp
+    if spec.surface == "terrazzo":
+        # chips: a hashed grid of cells, each cell a chip of random shade and size
+        cells = 9.0 + 6.0 * _hash(i, j, spec.seed, 3)
+        # the chips' grid is turned by a random angle per tile (never along the grout)
+        rot = 2.0 * math.pi * _hash(i, j, spec.seed, 37)
+        cr, sr = np.cos(rot), np.sin(rot)
+        fx, fy = fx * cr - fy * sr + 4.0, fx * sr + fy * cr + 4.0
+        gi = np.floor(fx * cells)
+        gj = np.floor(fy * cells)
+        key_i = i * 64 + gi
+        key_j = j * 64 + gj
+        shade = _hash(key_i, key_j, spec.seed, 5) - 0.5
+        rad = 0.25 + 0.25 * _hash(key_i, key_j, spec.seed, 9)
+        cx = (gi + 0.3 + 0.4 * _hash(key_i, key_j, spec.seed, 19)) / cells
+        cy = (gj + 0.3 + 0.4 * _hash(key_i, key_j, spec.seed, 23)) / cells
+        inside = (np.hypot(fx - cx, fy - cy) * cells) < rad
+        return np.where(inside, 2.0 * shade * spec.surface_amp, 0.0)
+    if spec.surface == "wood":
+        along_x = ((i + j) % 2) == 0
+        a = np.where(along_x, fy, fx)
+        b = np.where(along_x, fx, fy)
+        freq = 6.0 + 8.0 * _hash(i, j, spec.seed, 29)
+        phase = 6.28 * _hash(i, j, spec.seed, 31)
+        wav = 0.08 * np.sin(2 * math.pi * (1.3 * b + phase)) + 0.04 * np.sin(
+            2 * math.pi * (3.1 * b + 2 * phase))
+        g = np.sin(2 * math.pi * freq * (a + wav) + phase)
+        return spec.surface_amp * (0.7 * g + 0.3 * np.sin(2 * math.pi * 2.3 * freq * (a + wav)))
+    raise ValueError(f"unknown surface {spec.surface!r}")
+
+
+def render(spec: FloorSpec, cx: float, cy: float, theta: float,
+           rng: np.random.Generator, corruption: str | None = None) -> np.ndarray:
+    """The view (HxWx3 uint8 RGB) of a camera centred on floor point ``(cx, cy)`` (metres)
+    with heading ``theta`` (rad), with optional ``corruption`` (one of :data:`CORRUPTIONS`)."""
+    w, h, ppm, L = spec.width, spec.height, spec.ppm, spec.tile_size
+    sub = (np.arange(SS) + 0.5) / SS - 0.5
+    u = (np.arange(w)[None, :, None, None] - (w - 1) / 2.0) + sub[None, None, None, :]
+    v = (np.arange(h)[:, None, None, None] - (h - 1) / 2.0) + sub[None, None, :, None]
+    a_f = -v / ppm
+    a_l = -u / ppm
+    ct, st = math.cos(theta), math.sin(theta)
+    px = cx + a_f * ct - a_l * st
+    py = cy + a_f * st + a_l * ct
+    X = px / L
+    Y = py / L
+    i = np.floor(X)
+    j = np.floor(Y)
+    fx = X - i
+    fy = Y - j
+    i, j, fx, fy = np.broadcast_arrays(i, j, fx, fy)
+    half = 0.5 * spec.grout_px / ppm / L
+    grout = (np.minimum(fx, 1 - fx) < half) | (np.minimum(fy, 1 - fy) < half)
+    shade = spec.tile_shade + spec.shade_spread * (2.0 * _hash(i, j, spec.seed, 1) - 1.0)
+    tile = shade * (1.0 + _surface(spec, i, j, fx, fy))
+    val = np.where(grout, spec.grout_shade, tile)
+    img = val.mean(axis=(2, 3)).astype(np.float32)
+    if corruption is not None:
+        img = _corrupt(img, corruption, rng, spec)
+    # lighting: a linear gradient across the view and vignetting
+    uu = (np.arange(w) - (w - 1) / 2.0)[None, :] / (0.5 * w)
+    vv = (np.arange(h) - (h - 1) / 2.0)[:, None] / (0.5 * h)
+    ga = rng.uniform(0, 2 * math.pi)
+    light = 1.0 + 0.5 * spec.gradient * (math.cos(ga) * uu + math.sin(ga) * vv)
+    light = light * (1.0 - spec.vignetting * 0.5 * (uu * uu + vv * vv))
+    img = img * light.astype(np.float32)
+    if spec.blur > 0:
+        img = cv2.GaussianBlur(img, (0, 0), spec.blur)
+    if corruption == "motion_blur":
+        img = _motion_blur(img, rng)
+    img = img + rng.normal(0.0, spec.noise, img.shape).astype(np.float32)
+    out = np.clip(np.rint(img), 0, 255).astype(np.uint8)
+    tint = np.array([1.0, 0.97, 0.92]) if spec.seed % 2 else np.array([0.95, 1.0, 1.0])
+    rgb = np.clip(np.rint(out[..., None] * tint), 0, 255).astype(np.uint8)
+    if spec.jpeg:
+        ok, buf = cv2.imencode(".jpg", rgb, [cv2.IMWRITE_JPEG_QUALITY, spec.jpeg])
+        if ok:
+            rgb = cv2.imdecode(buf, cv2.IMREAD_COLOR)
+    return rgb
+
+
+def _corrupt(img: np.ndarray, kind: str, rng: np.random.Generator, spec: FloorSpec
+             ) -> np.ndarray:
+    h, w = img.shape
+    yy, xx = np.mgrid[0:h, 0:w].astype(np.float32)
+    ang = rng.uniform(0, math.pi)
+    off = rng.uniform(-0.25, 0.25) * min(w, h)
+    d = (-(xx - (w - 1) / 2) * math.sin(ang) + (yy - (h - 1) / 2) * math.cos(ang)) - off
+    if kind == "cable":
+        width = rng.uniform(3.0, 10.0)
+        shade = rng.uniform(10, 60) if rng.uniform() < 0.7 else rng.uniform(200, 250)
+        cov = np.clip(0.5 * width + 0.5 - np.abs(d), 0, 1)
+        return img + cov * (shade - img)
+    if kind == "box":
+        cov = np.clip(d + 0.5, 0, 1)
+        return img + cov * (rng.uniform(60, 200) - img)
+    if kind == "shadow":
+        t = np.clip(d / rng.uniform(1.0, 4.0) + 0.5, 0, 1)
+        return img * (1.0 - rng.uniform(0.35, 0.6) * t)
+    if kind == "glare":
+        gx, gy = rng.uniform(0.25, 0.75) * w, rng.uniform(0.25, 0.75) * h
+        r = rng.uniform(0.2, 0.35) * min(w, h)
+        return img + 400.0 * np.exp(-((xx - gx) ** 2 + (yy - gy) ** 2) / (2 * r * r))
+    if kind == "motion_blur":
+        return img  # applied after the optics (see render)
+    raise ValueError(f"unknown corruption {kind!r}")
+
+
+def _motion_blur(img: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    length = rng.uniform(15.0, 40.0)
+    ang = rng.uniform(0, math.pi)
+    n = int(math.ceil(length)) | 1
+    k = np.zeros((n + 2, n + 2), np.float32)
+    c = (n + 1) / 2.0
+    for t in np.linspace(-length / 2, length / 2, 4 * n):
+        k[int(round(c + t * math.sin(ang))), int(round(c + t * math.cos(ang)))] += 1.0
+    return cv2.filter2D(img, -1, k / k.sum())
+
+
+def readable(spec: FloorSpec, cx: float, cy: float, theta: float) -> bool:
+    """Whether a person could read the lattice: each family's grout lines that cross the view
+    at least ``grout/2 + 8`` px inside it span together at least 0.75 x the smaller side."""
+    w, h, lp = spec.width, spec.height, spec.tile_size * spec.ppm
+    inset = 0.5 * spec.grout_px + 8.0
+    ct, st = math.cos(theta), math.sin(theta)
+    for k in range(2):
+        total = 0.0
+        # family k: lines x = mL (k = 0) or y = mL (k = 1); a pixel's coordinate along the
+        # family's world normal is linear in (u, v): X = cx/L + (-v ct + u st)/lp ...
+        if k == 0:
+            g0, gu, gv = cx * spec.ppm, st, -ct
+        else:
+            g0, gu, gv = cy * spec.ppm, -ct, -st
+        # half extents of the inset rectangle
+        hw, hh = 0.5 * (w - 1) - inset, 0.5 * (h - 1) - inset
+        lo = g0 - abs(gu) * hw - abs(gv) * hh
+        hi = g0 + abs(gu) * hw + abs(gv) * hh
+        for m in range(math.ceil(lo / lp), math.floor(hi / lp) + 1):
+            total += _chord(gu, gv, m * lp - g0, hw, hh)
+        if total < 0.75 * min(w, h):
+            return False
+    return True
+
+
+def _chord(gu: float, gv: float, s: float, hw: float, hh: float) -> float:
+    """Length of the line gu u + gv v = s inside |u| <= hw, |v| <= hh (unit (gu, gv))."""
+    tu, tv = -gv, gu
+    pu, pv = gu * s, gv * s
+    lo, hi = -math.inf, math.inf
+    for p0, d, e in ((pu, tu, hw), (pv, tv, hh)):
+        if abs(d) < 1e-12:
+            if abs(p0) > e:
+                return 0.0
+            continue
+        a, b = (-e - p0) / d, (e - p0) / d
+        lo, hi = max(lo, min(a, b)), min(hi, max(a, b))
+    return max(0.0, hi - lo)
+
+
+def draw_view(rng: np.random.Generator) -> tuple[float, float, float]:
+    """A random camera centre (metres, within 30 m) and heading (rad)."""
+    return (float(rng.uniform(-30, 30)), float(rng.uniform(-30, 30)),
+            float(rng.uniform(-math.pi, math.pi)))
