@@ -157,14 +157,30 @@ def test_bad_bags_are_one_line(original: tuple[Path, list[list[str]]], tmp_path:
 
 def test_a_truncated_bag_keeps_the_frames_before_it(original: tuple[Path, list[list[str]]],
                                                     tmp_path: Path) -> None:
+    """A ROS 2 MCAP recording cut short: the frames before the cut are imported and replay; a
+    ROS 1 bag without its index: one line."""
     ds, _ = original
-    bag = write_bag(ds, tmp_path / "b", ros1=True)
-    raw = bag.read_bytes()
-    cut = tmp_path / "cut.bag"
-    cut.write_bytes(raw[: len(raw) * 2 // 3])
+    bag = write_bag(ds, tmp_path / "b", storage="mcap")
+    (mcap,) = bag.glob("*.mcap")
+    raw = mcap.read_bytes()
+    mcap.write_bytes(raw[: len(raw) * 2 // 3])
     out = tmp_path / "o"
-    r = _cli(*_import_args(ds, cut, out))
-    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    r = _cli(*_import_args(ds, bag, out))
+    lines = r.stderr.strip().splitlines()
+    assert r.returncode == 2 and len(lines) == 1, r.stderr
+    assert "truncated or damaged after" in lines[0] and "frame(s) before it were written" \
+        in lines[0]
+    n = len(_rows(out / "frames.csv"))
+    assert 10 < n < 61
+    assert tileviz_main(["replay", str(out), "--out", str(tmp_path / "r.csv"), "--quiet"]) == 0
+    assert len(_rows(tmp_path / "r.csv")) == n
+    bag1 = write_bag(ds, tmp_path / "b1", ros1=True)
+    cut = tmp_path / "cut.bag"
+    raw = bag1.read_bytes()
+    cut.write_bytes(raw[: len(raw) * 2 // 3])
+    r = _cli(*_import_args(ds, cut, tmp_path / "o1"))
+    lines = r.stderr.strip().splitlines()
+    assert r.returncode == 2 and len(lines) == 1 and "not a readable ROS bag" in lines[0]
     assert "Traceback" not in r.stderr
 
 
@@ -185,3 +201,35 @@ def test_time_going_backwards_and_no_images(original: tuple[Path, list[list[str]
     empty = write_bag(ds, tmp_path / "empty", image_limit=0)
     r = _cli(*_import_args(ds, empty, tmp_path / "o2"))
     assert r.returncode == 2 and "no images on '/camera/image'" in r.stderr
+
+
+def test_a_real_camera_through_a_bag(tmp_path: Path) -> None:
+    """record --lens -> ROS 2 bag of the raw images -> import-bag --camera-model (the recording's
+    meta.json: its block and view) -> replay: rectified, the truth inside every set. A file with
+    the block alone (calibrate's output) gives a view of the raw size."""
+    ds = tmp_path / "lens"
+    assert tileviz_main(["record", str(ds), "--duration", "2", "--quiet", "--seed", "6",
+                         "--lens", "webcam"]) == 0
+    orig = tmp_path / "orig.csv"
+    assert tileviz_main(["replay", str(ds), "--out", str(orig), "--quiet"]) == 0
+    bag = write_bag(ds, tmp_path / "bag", storage="mcap")
+    out = tmp_path / "imported"
+    assert tileviz_main(_import_args(ds, bag, out, "--camera-model", str(ds / "meta.json"))) == 0
+    meta = read_meta(out)
+    assert meta.camera_model == read_meta(ds).camera_model
+    assert (meta.image_width, meta.image_height) == (320, 240)
+    plain = tmp_path / "plain"
+    shutil.copytree(ds, plain)
+    doc = json.loads((plain / "meta.json").read_text())
+    del doc["tileviz_config"]  # the settings an imported dataset gets
+    (plain / "meta.json").write_text(json.dumps(doc))
+    base = tmp_path / "plain.csv"
+    assert tileviz_main(["replay", str(plain), "--out", str(base), "--quiet"]) == 0
+    _check_replay(ds, out, _rows(base), slack=1e-6)
+    block = tmp_path / "cam.json"
+    block.write_text(json.dumps({"camera_model": doc["camera_model"]}))
+    out2 = tmp_path / "imported2"
+    assert tileviz_main(_import_args(ds, bag, out2, "--camera-model", str(block))) == 0
+    assert (read_meta(out2).image_width, read_meta(out2).image_height) == (640, 480)
+    frame = next(iter(DatasetSource(out2)))
+    assert frame.image.shape == (480, 640, 3)

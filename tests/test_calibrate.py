@@ -141,8 +141,9 @@ def test_one_image_gives_the_floor_with_the_given_camera(boards: list[str],
 def test_one_image_without_meta_prints_the_block(boards: list[str]) -> None:
     r = _cli(boards[0], *_args())
     assert r.returncode == 0, r.stderr
-    block = json.loads(r.stdout[r.stdout.index("{"):])["camera_model"]
+    block = json.loads(r.stdout)["camera_model"]  # stdout is the JSON alone
     assert block["dist_coeffs"] == [0.0] * 5 and block["raw_width"] == 480
+    assert r.stderr.startswith("floor: ") and "mm RMS on the floor" in r.stderr
 
 
 def test_bad_input_is_one_line(boards: list[str], tmp_path: Path) -> None:

@@ -18,7 +18,9 @@ The declared ``speed_error``, ``yaw_rate_error`` and ``compass_error`` are the g
 the largest growth over the frames; ``meta.json``'s ``import_widening`` keeps those growths.
 Bad input is one line: a topic the bag lacks (its topics listed), an unknown message type, a bag
 without images, time going backwards, a truncated bag; the frames before the problem are
-written (a valid, shorter dataset) before the error is reported.
+written (a valid, shorter dataset) before the error is reported. A ROS 2 MCAP file cut short
+(a recording that crashed: no summary, no index) is read record by record up to the cut; a
+ROS 1 bag or a sqlite3 database without its index cannot be read at all (one line).
 """
 
 from __future__ import annotations
@@ -146,6 +148,107 @@ class BagImportOptions:
     start_error: tuple[float, float, float] | None = None
 
 
+def camera_model_file(path: str) -> tuple[Any, tuple[int, int] | None]:
+    """The camera model of a JSON file with a ``camera_model`` block (a dataset's meta.json, or
+    what ``calibrate`` prints) and the rectified view size it gives (``image_width``,
+    ``image_height``), or None (then the raw size). CliError naming the file."""
+    from tileviz.datasets.camera_model import CameraModel, CameraModelError
+
+    try:
+        doc = json.loads(Path(path).read_text(encoding="utf-8"))
+    except OSError as e:
+        raise CliError(f"--camera-model: cannot read {path} ({e.strerror or e})") from None
+    except (json.JSONDecodeError, UnicodeDecodeError):
+        raise CliError(f"--camera-model: {path} is not valid JSON") from None
+    if not isinstance(doc, dict) or doc.get("camera_model") is None:
+        raise CliError(f"--camera-model: {path} has no camera_model block")
+    try:
+        model = CameraModel.from_json(doc["camera_model"], path)
+    except CameraModelError as e:
+        raise CliError(str(e)) from None
+    w, h = doc.get("image_width"), doc.get("image_height")
+    ok = all(isinstance(v, int) and not isinstance(v, bool) and v > 0 for v in (w, h))
+    return model, ((w, h) if ok else None)
+
+
+@dataclass(frozen=True)
+class _Connection:
+    topic: str
+    msgtype: str
+    id: int
+
+
+class _CutMcap:
+    """A ROS 2 MCAP file read record by record up to where it breaks: a recording cut short
+    has no summary or index, which rosbags needs. Same few calls as rosbags' AnyReader; the
+    message iteration raises at the cut. Message types from the ROS 2 (Humble) definitions."""
+
+    def __init__(self, path: Path) -> None:
+        from rosbags.typesys import Stores, get_typestore
+
+        self.path = path
+        self.typestore = get_typestore(Stores.ROS2_HUMBLE)
+        schemas: dict[int, str] = {}
+        conns: dict[int, _Connection] = {}
+        for rec in self._records(stop_at_cut=True):
+            kind = type(rec).__name__
+            if kind == "Schema":
+                schemas[rec.id] = rec.name
+            elif kind == "Channel" and rec.message_encoding == "cdr":
+                conns[rec.id] = _Connection(rec.topic, schemas.get(rec.schema_id, "?"), rec.id)
+        self.connections = list(conns.values())
+
+    def _records(self, *, stop_at_cut: bool) -> Iterator[Any]:
+        from mcap.stream_reader import StreamReader
+
+        with open(self.path, "rb") as f:
+            it = iter(StreamReader(f).records)
+            while True:
+                try:
+                    rec = next(it)
+                except StopIteration:
+                    return
+                except Exception:
+                    if stop_at_cut:
+                        return
+                    raise
+                yield rec
+
+    def open(self) -> None:
+        pass
+
+    def close(self) -> None:
+        pass
+
+    def messages(self, connections: list[_Connection]) -> Iterator[tuple[Any, int, bytes]]:
+        by_id = {c.id: c for c in connections}
+        for rec in self._records(stop_at_cut=False):
+            if type(rec).__name__ == "Message" and rec.channel_id in by_id:
+                yield by_id[rec.channel_id], rec.log_time, rec.data
+
+    def deserialize(self, raw: bytes, msgtype: str) -> Any:
+        return self.typestore.deserialize_cdr(raw, msgtype)
+
+
+def _open_bag(path: Path, any_reader: Any) -> Any:
+    """rosbags' reader of the bag, or for a ROS 2 MCAP file cut short (no footer) the records
+    up to the cut."""
+    try:
+        reader = any_reader([path])
+        reader.open()
+        return reader
+    except Exception as e:  # noqa: BLE001 - rosbags' errors for unreadable bags vary
+        files = sorted(path.glob("*.mcap")) if path.is_dir() else [path]
+        if len(files) == 1 and files[0].suffix == ".mcap":
+            try:
+                cut = _CutMcap(files[0])
+            except Exception:  # noqa: BLE001
+                cut = None
+            if cut is not None and cut.connections:
+                return cut
+        raise CliError(f"{path}: not a readable ROS bag ({type(e).__name__}: {e})") from None
+
+
 def _topics(reader: Any) -> dict[str, str]:
     return {c.topic: c.msgtype for c in reader.connections}
 
@@ -173,8 +276,9 @@ def _messages(reader: Any, topic: str, bag: str) -> Iterator[tuple[int, int, Any
         except StopIteration:
             return
         except Exception as e:  # noqa: BLE001 - rosbags' errors for damaged files vary
+            why = f"{type(e).__name__}: {e}" if str(e) else type(e).__name__
             raise CliError(f"{bag}: truncated or damaged after {n} message(s) on {topic!r} "
-                           f"({type(e).__name__}: {e})") from None
+                           f"({why})") from None
         conn, bag_ns, raw = item
         try:
             msg = reader.deserialize(raw, conn.msgtype)
@@ -205,7 +309,7 @@ def _series(reader: Any, topic: str, bag: str, pick: Any) -> tuple[_Series, str 
 def import_bag(bag: str, out: str, opt: BagImportOptions) -> tuple[int, dict[str, float]]:
     """Write the dataset; returns (frames written, the widenings). CliError (one line) for bad
     input, after writing the frames before the problem."""
-    from tileviz.dataset import DatasetMeta, DatasetWriter, read_meta
+    from tileviz.dataset import DatasetMeta, DatasetWriter
     from tileviz.types import FrameInput, Odometry
 
     any_reader = _rosbags()
@@ -214,17 +318,8 @@ def import_bag(bag: str, out: str, opt: BagImportOptions) -> tuple[int, dict[str
         raise CliError(f"{bag}: no such bag file or folder")
     model = view = None
     if opt.camera_model_meta is not None:
-        cm_meta = read_meta(Path(opt.camera_model_meta).parent) if Path(
-            opt.camera_model_meta).name == "meta.json" else None
-        if cm_meta is None or cm_meta.camera_model is None:
-            raise CliError(f"--camera-model: {opt.camera_model_meta} is not a meta.json with a "
-                           "camera_model block")
-        model, view = cm_meta.camera_model, (cm_meta.image_width, cm_meta.image_height)
-    try:
-        reader = any_reader([path])
-        reader.open()
-    except Exception as e:  # noqa: BLE001 - rosbags' errors for unreadable bags vary
-        raise CliError(f"{bag}: not a readable ROS bag ({type(e).__name__}: {e})") from None
+        model, view = camera_model_file(opt.camera_model_meta)
+    reader = _open_bag(path, any_reader)
     try:
         topics = _topics(reader)
         _check_topic(topics, opt.image_topic, IMAGE_TYPES, bag, "--image-topic")
@@ -366,8 +461,9 @@ def _parser(prog: str) -> Parser:
                    help="rad/s bound")
     p.add_argument("--compass-error", required=True, type=nonneg_float("--compass-error"),
                    help="rad bound")
-    p.add_argument("--camera-model", default=None, metavar="META",
-                   help="a meta.json with the camera's camera_model block (and view size)")
+    p.add_argument("--camera-model", default=None, metavar="JSON",
+                   help="a JSON file with the camera's camera_model block (a dataset's "
+                   "meta.json, whose image_width/height are the view, or calibrate's output)")
     p.add_argument("--start-pose", default=None, metavar="X,Y,TH",
                    help="known start pose (default 0,0,0: the grout crossing nearest the start)")
     p.add_argument("--start-error", default=None, metavar="EX,EY,ETH",

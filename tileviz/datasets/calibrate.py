@@ -14,9 +14,11 @@ image's undistorted corners and their floor points.
 
 Prints the calibration's RMS reprojection error in pixels (intrinsics, over every image) and the
 floor fit's RMS error in pixels and in millimetres on the floor; writes the block into
-``--meta`` (other keys kept) or prints it as JSON. One-line errors: an image where the board is
-not found (named), two images (too few for intrinsics, one is enough for the floor alone), a
-degenerate pose (the board too small or seen edge-on, a homography that sees no floor).
+``--meta`` (other keys kept) or prints it as JSON (the errors then on stderr, so that the
+output can be saved as the file ``import-bag --camera-model`` takes). One-line errors: an
+image where the board is not found (named), two images (too few for intrinsics, one is enough
+for the floor alone), a degenerate pose (the board too small or seen edge-on, a homography that
+sees no floor).
 """
 
 from __future__ import annotations
@@ -210,11 +212,13 @@ def main(command: str, argv: list[str]) -> int:
             given = DatasetMeta.from_json(meta_doc, where=args.meta).camera_model
         model, errors = calibrate(args.images, cols=int(m.group(1)), rows=int(m.group(2)),
                                   square=args.square, pose=pose, given=given)
+        # without --meta, stdout is the block alone (to save as a file) and the errors go to stderr
+        report = sys.stdout if meta_doc is not None else sys.stderr
         if "intrinsics_px" in errors:
             print(f"intrinsics: {errors['intrinsics_px']:.3f} px RMS reprojection error over "
-                  f"{len(args.images)} images")
+                  f"{len(args.images)} images", file=report)
         print(f"floor: {errors['floor_px']:.3f} px RMS, {errors['floor_mm']:.2f} mm RMS on the "
-              "floor")
+              "floor", file=report)
         if meta_doc is None:
             print(json.dumps({"camera_model": model.to_json()}, indent=2))
             return 0
