@@ -1,13 +1,15 @@
 """How many frames a second headless Chromium paints the live page, with software WebGL
 (SwiftShader, no GPU), at the server's default settings.
 
-    python bench/bench_page.py [--seconds 10] [--warmup 8] [--bare] [-- serve options...]
+    python bench/bench_page.py [--seconds 10] [--warmup 8] [--bare [--box env|noenv]]
+                               [-- serve options...]
 
 ``serve.py`` runs in its own process (default preset, playing in real time, default options or
 the ones after ``--``); Debian's chromium (1400x900) opens the page, waits ``--warmup`` seconds,
 then counts ``requestAnimationFrame`` callbacks over ``--seconds`` (the browser calls one per
 frame it paints; a page busy decoding messages or rendering paints fewer). ``--bare``: the same
-count on an empty viser page (a grid only), for comparison. Also the CPU time all chromium
+count on an empty viser page (a grid only; ``--box``: one lit box, with or without viser's
+environment map), for comparison. Also the CPU time all chromium
 processes used per painted frame (a figure less sensitive to other load than the rate). The
 rate depends on the machine and its load: run it on an idle machine, read it as a rough number.
 """
@@ -91,19 +93,29 @@ def main() -> None:
     ap.add_argument("--seconds", type=float, default=10.0)
     ap.add_argument("--warmup", type=float, default=8.0)
     ap.add_argument("--bare", action="store_true", help="an empty viser page instead")
+    ap.add_argument("--box", choices=("env", "noenv"), default=None,
+                    help="with --bare: one lit box instead of the grid, with viser's default "
+                    "environment map (image-based lighting) or without it")
     ap.add_argument("serve", nargs="*", help="serve.py options (after --)")
     args = ap.parse_args()
     if args.bare:
         import viser
 
         server = viser.ViserServer(port=0, verbose=False)
-        server.scene.add_grid("/grid")
+        if args.box is None:
+            server.scene.add_grid("/grid")
+        else:
+            server.scene.configure_default_lights(enabled=True, cast_shadow=False)
+            if args.box == "noenv":
+                server.scene.configure_environment_map(None)
+            server.scene.add_box("/box", color=(200, 100, 100), dimensions=(0.5, 0.3, 0.1))
         try:
             rate, cpu = paint_rate(f"http://127.0.0.1:{server.get_port()}/", args.seconds,
                                    args.warmup)
         finally:
             server.stop()
-        print(f"bare viser page: {rate:.1f} frames painted a second, browser CPU "
+        what = "a grid" if args.box is None else f"one box, {args.box}"
+        print(f"bare viser page ({what}): {rate:.1f} frames painted a second, browser CPU "
               f"{1e3 * cpu:.0f} ms a painted frame")
         return
     proc, url = start_serve(["--port", "0", *args.serve])

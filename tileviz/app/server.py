@@ -66,7 +66,7 @@ from tileviz.config import (
 )
 
 if TYPE_CHECKING:
-    from viser import GuiButtonGroupHandle, GuiEvent
+    from viser import GuiButtonGroupHandle, GuiEvent, ViserServer
 
 __all__ = ["App", "main", "options_from_args", "parser", "serve_config"]
 
@@ -114,7 +114,7 @@ class App:
         self.dropped = 0
         """Commands refused because the queue was full."""
         self.session: Session | None = None
-        self.server: Any = None
+        self.server: ViserServer | None = None
         self.pushes = 0
         """Scene/panel pushes so far."""
         self._stop = threading.Event()
@@ -200,6 +200,7 @@ class App:
     @property
     def port(self) -> int:
         """The port actually listened on."""
+        assert self.server is not None, "the server is not started"
         return int(self.server.get_port())
 
     @property
@@ -305,6 +306,7 @@ class App:
             # one batch: the browser applies the frame's updates together, and viser wakes its
             # sender once per push instead of once per message (nothing is held back: the block
             # ends with the push)
+            assert self.server is not None
             with self.server.atomic():
                 self._push_inner(plots or force)
         except Exception as e:  # noqa: BLE001 - drawing must not stop the loop
@@ -366,6 +368,7 @@ class App:
             return
         if not (math.isfinite(x) and math.isfinite(y)):
             return
+        assert self.server is not None
         for client in self.server.get_clients().values():
             cam = client.camera
             try:
