@@ -152,11 +152,24 @@ def place(page: object, name: str) -> tuple[float, float, float, float]:
     return (b["x"] - top["x"], b["y"] - top["y"], b["width"], b["height"])
 
 
+def settled_place(page: object, name: str) -> tuple[float, float, float, float]:
+    """:func:`place` once the panel's layout has settled (two readings 0.3 s apart agree; the
+    first frame's page can still be laying out its panel), bounded by the hang guard."""
+    last = place(page, name)
+    for _ in range(int(WAIT / 300)):
+        page.wait_for_timeout(300)  # type: ignore[attr-defined]
+        now = place(page, name)
+        if now == last:
+            return now
+        last = now
+    raise AssertionError(f"the control panel never settled: {name!r} kept moving")
+
+
 def test_a_button_stays_put_after_kidnap_and_reset(browser, app):
     from playwright.sync_api import expect
 
     page = open_page(browser, app.url)
-    play, step = place(page, "Play"), place(page, "Step")
+    play, step = settled_place(page, "Play"), place(page, "Step")
     status = page.locator(".tileviz-status").bounding_box()
     button(page, "Kidnap (teleport the robot)").click()
     expect(page.locator(".tileviz-notes")).to_contain_text("kidnapped", timeout=WAIT)
