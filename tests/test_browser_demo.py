@@ -153,11 +153,11 @@ def place(page: object, name: str) -> tuple[float, float, float, float]:
 
 
 def settled_place(page: object, name: str) -> tuple[float, float, float, float]:
-    """:func:`place` once the panel's layout has settled (two readings 0.3 s apart agree; the
-    first frame's page can still be laying out its panel), bounded by the hang guard."""
+    """:func:`place` once the panel's layout has settled (two readings 0.5 s apart agree; a new
+    page can still be laying out its panel), bounded by the hang guard."""
     last = place(page, name)
-    for _ in range(int(WAIT / 300)):
-        page.wait_for_timeout(300)  # type: ignore[attr-defined]
+    for _ in range(int(WAIT / 500)):
+        page.wait_for_timeout(500)  # type: ignore[attr-defined]
         now = place(page, name)
         if now == last:
             return now
@@ -169,12 +169,14 @@ def test_a_button_stays_put_after_kidnap_and_reset(browser, app):
     from playwright.sync_api import expect
 
     page = open_page(browser, app.url)
+    button(page, "Step").click()  # one round trip of updates after the first layout
+    expect(page.get_by_text("frame 1,")).to_be_visible(timeout=WAIT)
     play, step = settled_place(page, "Play"), place(page, "Step")
     status = page.locator(".tileviz-status").bounding_box()
     button(page, "Kidnap (teleport the robot)").click()
     expect(page.locator(".tileviz-notes")).to_contain_text("kidnapped", timeout=WAIT)
     button(page, "Step").click()
-    expect(page.get_by_text("frame 1,")).to_be_visible(timeout=WAIT)
+    expect(page.get_by_text("frame 2,")).to_be_visible(timeout=WAIT)
     assert place(page, "Play") == play
     button(page, "Reset the run").click()
     expect(page.locator(".tileviz-notes")).to_contain_text("Reset: a new run", timeout=WAIT)
