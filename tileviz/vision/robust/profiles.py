@@ -5,29 +5,28 @@ dips of both families and their measurement in parts (position, depth, width, ri
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import cv2
 import numpy as np
 
 from tileviz.vision.robust.state import PARTS, Line, RobustRun
 
-__all__ = ["centroid", "crossings", "dips", "light_grout", "measure", "nanmedian", "plateaus",
-           "select_lines", "view_spans"]
+__all__ = ["Projection", "centroid", "crossings", "dips", "light_grout", "measure", "nanmedian",
+           "measure_parts", "plateaus", "profiles", "project", "select_lines", "view_spans"]
 
 
-def light_grout(run: RobustRun, warped: np.ndarray, size: tuple[int, int],
-                 cs: tuple[float, float]) -> bool:
+def light_grout(run: RobustRun, warped: np.ndarray,
+                spans: tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
+                ) -> bool:
     """Whether the grout is lighter than the tiles: the family profiles (row and column
     means of the warped image, offsets from the mean) hold stronger narrow peaks (above a
-    grey opening) than narrow dips (below a grey closing), summed over both families."""
-    wo, ho = size
-    c, s = cs
+    grey opening) than narrow dips (below a grey closing), summed over both families.
+    ``spans``: the in-view stretch of every row and column (:func:`view_spans`)."""
     kern = np.ones((1, run.closing), np.uint8)
     score = 0.0
     for k, axis in ((0, 1), (1, 0)):
-        n = ho if k == 0 else wo
-        q = np.arange(n) - ((n - 1) / 2.0)
-        lo, hi = view_spans(run, q, c, s, along_rows=k == 0)
+        lo, hi = spans[k]
         length = np.maximum(hi - lo, 0.0)
         ok = length >= max(8.0, 0.15 * float(length.max()))
         if int(ok.sum()) < 8:
@@ -46,9 +45,44 @@ def light_grout(run: RobustRun, warped: np.ndarray, size: tuple[int, int],
     return score > 0.0
 
 
+@dataclass
+class Projection:
+    """The view warped by one heading ``y3`` and its two family profiles (row and column
+    means), with the dips found in them. The profile arrays are (2, size): family k in row k,
+    profile samples shifted by ``pad`` (the widest window a dip is ever measured in), NaN
+    (``prof``, ``dark``) or empty spans (``lo`` = inf, ``hi`` = -inf) beyond the data."""
+
+    y3: float
+    integ: np.ndarray  # integral image of the warped view (CV_64F)
+    pad: int
+    prof: np.ndarray  # mean gray level of each row / column
+    dark: np.ndarray  # grey closing of the profile minus the profile
+    lo: np.ndarray  # in-view stretch of each row / column, tangent coordinate (px)
+    hi: np.ndarray
+    total: np.ndarray  # its length (px)
+    fam: np.ndarray  # (m,) family of each dip
+    peak: np.ndarray  # (m,) its deepest sample (padded index)
+
+
 def measure(run: RobustRun, y3: float, attempt: int = 1) -> list[list[Line]]:
-    """Warp the image by y3 and measure the dips of both families (on the first attempt,
-    also decide the grout's polarity)."""
+    """The dips of both families at heading y3, measured with the window ``run.window``. The
+    warp and the profiles are computed once per heading (a second call with the same y3 on a
+    later attempt, with a wider window, reuses them); on the first attempt, this also
+    decides the grout's polarity."""
+    proj = run.projection
+    # An inverted view (light grout) is not reused: a later attempt subtracts the inverted
+    # image's mean from the gray levels before inverting, so its profile levels differ from
+    # the first attempt's by 255 - 2 x the gray mean (reported to the extractor's owners;
+    # kept as it is so that this reuse changes no observation).
+    if attempt == 0 or proj is None or proj.y3 != y3 or run.inverted:
+        proj = project(run, y3, attempt)
+        run.projection = proj
+    return dips(run, proj)
+
+
+def project(run: RobustRun, y3: float, attempt: int) -> Projection:
+    """Warp the image by y3 (on the first attempt, also decide the grout's polarity), and find
+    the dips of both family profiles."""
     c, s = math.cos(y3), math.sin(y3)
     w, h = run.w, run.h
     wo = int(math.ceil(w * abs(c) + h * abs(s))) + 2
@@ -68,7 +102,11 @@ def measure(run: RobustRun, y3: float, attempt: int = 1) -> list[list[Line]]:
         borderMode=cv2.BORDER_CONSTANT,
         borderValue=0,
     )
-    if attempt == 0 and light_grout(run, warped, (wo, ho), (c, s)):
+    spans = (
+        view_spans(run, np.arange(ho) - y0, c, s, along_rows=True),
+        view_spans(run, np.arange(wo) - x0, c, s, along_rows=False),
+    )
+    if attempt == 0 and light_grout(run, warped, spans):
         # lighter grout: measure the inverted image (255 - gray), whose offset from its
         # mean is -warped; every later step then sees dark lines on brighter tiles
         run.inverted = True
@@ -80,11 +118,7 @@ def measure(run: RobustRun, y3: float, attempt: int = 1) -> list[list[Line]]:
     # integral image: the sum over any stretch of any row or column in four look-ups
     integ = cv2.integral(warped, sdepth=cv2.CV_64F)
     sums = (integ[1:, -1] - integ[:-1, -1], integ[-1, 1:] - integ[-1, :-1])
-    spans = (
-        view_spans(run, np.arange(ho) - y0, c, s, along_rows=True),
-        view_spans(run, np.arange(wo) - x0, c, s, along_rows=False),
-    )
-    return dips(run, integ, sums, spans)
+    return profiles(run, y3, integ, sums, spans)
 
 
 def view_spans(
@@ -109,18 +143,16 @@ def view_spans(
     return lo, hi
 
 
-def dips(
+def profiles(
     run: RobustRun,
+    y3: float,
     integ: np.ndarray,
     sums: tuple[np.ndarray, np.ndarray],
     spans: tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]],
-) -> list[list[Line]]:
-    """The lines of both families. Dips are found in each family's whole profile (row or
-    column means of the warped image); each dip is then measured in PARTS equal stretches
-    of the part of its line that every sample of its window sees (so all samples of a part
-    average the same stretch of floor), from the integral image ``integ``. Every dip of both
-    families is measured at once (vectorised)."""
-    r = run.window
+) -> Projection:
+    """Both family profiles (row and column means of the warped image: ``sums`` over the
+    in-view ``spans``), their baselines and their dips."""
+    r = run.closing + 8  # the widest window (see execute)
     mean = run.mean
     size = max(sums[0].size, sums[1].size) + 2 * r
     # family k in row k; columns shifted by r; missing data NaN
@@ -134,8 +166,7 @@ def dips(
         length = np.maximum(hi[k, r : r + n] - lo[k, r : r + n], 0.0)
         total[k, r : r + n] = length
         valid = length >= max(8.0, 0.15 * float(length.max()))
-        with np.errstate(invalid="ignore", divide="ignore"):
-            prof[k, r : r + n] = np.where(valid, sums[k] / length + mean, np.nan)
+        prof[k, r : r + n] = np.where(valid, sums[k] / length + mean, np.nan)
     # baseline: a grey closing (max then min filter, along each row) removes dips narrower
     # than its window
     missing = np.isnan(prof)
@@ -166,65 +197,119 @@ def dips(
         ends = np.flatnonzero(edges == -1)
         for s0, s1 in zip(starts.tolist(), ends.tolist(), strict=True):
             peaks.append((k, s0 + int(np.argmax(dk[s0:s1]))))
-    if not peaks:
+    return Projection(
+        y3=y3, integ=integ, pad=r, prof=prof, dark=dark, lo=lo, hi=hi, total=total,
+        fam=np.array([k for k, _ in peaks], np.intp),
+        peak=np.array([p for _, p in peaks], np.intp),
+    )
+
+
+def dips(run: RobustRun, proj: Projection) -> list[list[Line]]:
+    """The lines of both families from the dips of their profiles (:func:`profiles`): each
+    dip is measured in PARTS equal stretches of the part of its line that every sample of its
+    window (``run.window`` samples each side) sees (so all samples of a part average the same
+    stretch of floor), from the integral image. Every dip of both families is measured at
+    once (vectorised). Only the dips that :func:`select_lines` can keep are measured in parts
+    (at least ``rel_depth`` of the deepest line's depth): the others give no line.
+
+    Missing data is NaN throughout: the caller silences numpy's warnings on it
+    (:func:`~tileviz.vision.robust.extractor.extract_robust` does)."""
+    if proj.peak.size == 0:
         return [[], []]
-    fam = np.array([k for k, _ in peaks])
-    pk = np.array([p for _, p in peaks])
-    m = pk.size
+    r = run.window
+    fam = proj.fam
+    pk = proj.peak
     jj = np.arange(-r, r + 1)
     jf = jj.astype(np.float64)
-    cols = pk[:, None] + jj[None, :]
+    cols = pk[:, None] + jj[None, :]  # padded profile index
     # the whole profile: depth, half-depth crossings, width, window and plateau levels
-    p0 = prof[fam[:, None], cols]
-    d0 = dark[fam[:, None], cols]
-    near = np.nan_to_num(d0[:, r - 2 : r + 3], nan=-np.inf)
+    p0 = proj.prof[fam[:, None], cols]
+    d0 = proj.dark[fam[:, None], cols]
+    near = d0[:, r - 2 : r + 3]
+    near = np.where(np.isnan(near), -np.inf, near)
     depth = near.max(axis=1)
     hl, hr = crossings(d0, jf, np.argmax(near, axis=1) - 2, 0.5 * depth)
     c0 = 0.5 * (hl + hr)
     half = 1.5 * (hr - hl) + 1.5
-    lev_l, lev_r = plateaus(p0, jf, c0, half)
     # the parts: PARTS equal stretches of the window's common in-view stretch
     # (over the samples a part's centroid and plateaus use: c0 +- (half + 4))
-    used = np.abs(jf[None, :] - np.nan_to_num(c0)[:, None]) <= (
-        np.nan_to_num(half)[:, None] + 5.0
+    used = np.abs(jf[None, :] - np.where(np.isnan(c0), 0.0, c0)[:, None]) <= (
+        np.where(np.isnan(half), 0.0, half)[:, None] + 5.0
     )
-    u_lo = np.where(used, lo[fam[:, None], cols], -np.inf).max(axis=1) + 1.0
-    u_hi = np.where(used, hi[fam[:, None], cols], np.inf).min(axis=1) - 1.0
+    u_lo = np.where(used, proj.lo[fam[:, None], cols], -np.inf).max(axis=1) + 1.0
+    u_hi = np.where(used, proj.hi[fam[:, None], cols], np.inf).min(axis=1) - 1.0
     step = (u_hi - u_lo) / PARTS
-    usable = np.isfinite(c0) & (step >= run.st.min_part / 2.0)
+    usable = np.flatnonzero(np.isfinite(c0) & (step >= run.st.min_part / 2.0))
+    if usable.size == 0:
+        return [[], []]
+    # every row is measured on its own: a subset of the rows gives the same lines
+    top = float(depth[usable].max())
+    strong = usable[depth[usable] >= run.st.rel_depth * top]
+    meas = (p0, c0, half, depth, u_lo, step)
+    out = measure_parts(run, proj, strong, cols, jf, *meas)
+    if not any(ln.depth == top for fam_lines in out for ln in fam_lines):
+        # the deepest dip gave no line: shallower ones may pass select_lines
+        out = measure_parts(run, proj, usable, cols, jf, *meas)
+    return out
+
+
+def measure_parts(
+    run: RobustRun,
+    proj: Projection,
+    rows: np.ndarray,
+    cols: np.ndarray,
+    jf: np.ndarray,
+    p0: np.ndarray,
+    c0: np.ndarray,
+    half: np.ndarray,
+    depth: np.ndarray,
+    u_lo: np.ndarray,
+    step: np.ndarray,
+) -> list[list[Line]]:
+    """The lines of the dips ``rows`` (indices into the dips of ``proj``), measured in parts
+    (see :func:`dips`; the per-dip arrays are those :func:`dips` computed for every dip)."""
+    r = run.window
+    mean = run.mean
+    integ = proj.integ
+    fam = proj.fam[rows]
+    pk = proj.peak[rows]
+    cols = cols[rows]
+    p0, c0, half, depth = p0[rows], c0[rows], half[rows], depth[rows]
+    u_lo, step = u_lo[rows], step[rows]
+    m = rows.size
+    lev_l, lev_r = plateaus(p0, jf, c0, half)
     x0, y0 = run.centre
     along = np.where(fam == 0, x0, y0)  # warp coordinate of u = 0
-    with np.errstate(invalid="ignore"):
-        edges_u = u_lo[:, None] + step[:, None] * np.arange(PARTS + 1)[None, :]
-        idx = np.ceil(along[:, None] + edges_u)
-    idx = np.where(usable[:, None], idx, 0.0).astype(np.intp)
+    edges_u = u_lo[:, None] + step[:, None] * np.arange(PARTS + 1)[None, :]
+    idx = np.ceil(along[:, None] + edges_u).astype(np.intp)
     count = np.diff(idx, axis=1)  # samples in each part, (m, PARTS)
     tpart = 0.5 * (idx[:, :-1] + idx[:, 1:] - 1) - along[:, None]
-    line = np.clip(cols - r, 0, integ.shape[0] + integ.shape[1])  # warp row / column
-    a = idx[:, None, :-1]  # (m, 1, PARTS)
-    b = idx[:, None, 1:]
-    q = line[:, :, None]  # (m, W, 1)
-    fam1 = (fam == 0)[:, None, None]
+    line = np.clip(cols - proj.pad, 0, integ.shape[0] + integ.shape[1])  # warp row / column
+    # sums over the parts from the integral image: family 1 along rows (integ[line, idx]),
+    # family 2 along columns (integ[idx, line]), as flat indices
     hmax, wmax = integ.shape[0] - 1, integ.shape[1] - 1
-    qr = np.minimum(q, hmax - 1)
-    qc = np.minimum(q, wmax - 1)
-    ar, br = np.minimum(a, wmax), np.minimum(b, wmax)
-    ac, bc = np.minimum(a, hmax), np.minimum(b, hmax)
-    part_sum = np.where(
-        fam1,
-        integ[qr + 1, br] - integ[qr, br] - integ[qr + 1, ar] + integ[qr, ar],
-        integ[bc, qc + 1] - integ[bc, qc] - integ[ac, qc + 1] + integ[ac, qc],
-    )  # (m, W, PARTS)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        pp = part_sum / count[:, None, :] + mean
-    pp = np.where(usable[:, None, None] & ~np.isnan(p0)[:, :, None], pp, np.nan)
+    fam1 = (fam == 0)[:, None, None]
+    q = np.minimum(line[:, :, None], np.where(fam1, hmax - 1, wmax - 1))  # (m, W, 1)
+    umax = np.where(fam1, wmax, hmax)
+    ua = np.minimum(idx[:, None, :-1], umax)  # (m, 1, PARTS)
+    ub = np.minimum(idx[:, None, 1:], umax)
+    stride = integ.shape[1]
+    lin0 = np.where(fam1, q * stride, q)  # flat offset of line q and of line q + 1
+    lin1 = np.where(fam1, (q + 1) * stride, q + 1)
+    ka = np.where(fam1, ua, ua * stride)
+    kb = np.where(fam1, ub, ub * stride)
+    flat = integ.ravel()
+    part_sum = flat[lin1 + kb] - flat[lin0 + kb] - flat[lin1 + ka] + flat[lin0 + ka]
+    pp = part_sum / count[:, None, :] + mean  # (m, W, PARTS)
+    pp = np.where(np.isnan(p0)[:, :, None], np.nan, pp)
     pp = pp.transpose(0, 2, 1).reshape(m * PARTS, -1)  # row i * PARTS + j
     cj = np.repeat(c0, PARTS)
     hj = np.repeat(half, PARTS)
     ll, lr = plateaus(pp, jf, cj, hj)
     lev = ll[:, None] + (lr - ll)[:, None] * np.clip(jf[None, :] - cj[:, None] + 0.5, 0, 1)
     dp = lev - pp
-    nearp = np.nan_to_num(dp[:, r - 3 : r + 4], nan=-np.inf)
+    nearp = dp[:, r - 3 : r + 4]
+    nearp = np.where(np.isnan(nearp), -np.inf, nearp)
     dpk = nearp.max(axis=1)
     jp = np.argmax(nearp, axis=1) - 3
     lv = np.concatenate([0.5 * dpk, 0.2 * dpk, 0.8 * dpk])
@@ -239,21 +324,20 @@ def dips(
     # the same position from the dip's half-depth edges: a symmetric dip gives the
     # centroid; a step or shadow inside the window pulls the two apart
     mid = (0.5 * (xl[:nr] + xr[:nr])).reshape(m, PARTS)
-    with np.errstate(invalid="ignore"):
-        asym = np.nanmax(np.where(np.isfinite(cen) & np.isfinite(mid), np.abs(mid - cen),
-                                  0.0), axis=1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        wmed = nanmedian(width.T)
-        rmed = nanmedian(rise.T)
-        cmed = nanmedian((dpk / np.maximum(ll, lr)).reshape(m, PARTS).T)
+    asym = np.nanmax(np.where(np.isfinite(cen) & np.isfinite(mid), np.abs(mid - cen), 0.0),
+                     axis=1)
+    # medians over the parts of each dip's width, rise and contrast, in one sort
+    meds = nanmedian(np.concatenate(
+        (width.T, rise.T, (dpk / np.maximum(ll, lr)).reshape(m, PARTS).T), axis=1))
+    wmed, rmed, cmed = meds[:m], meds[m : 2 * m], meds[2 * m :]
     lo_lev = np.minimum(lev_l, lev_r)
     hi_lev = np.maximum(lev_l, lev_r)
     stepr = (hi_lev - lo_lev) / np.maximum(hi_lev, 1e-9)
+    finite = np.isfinite(cen)
+    wpart = np.where(finite, count, 0).astype(np.float64)
+    parts = (pk - proj.pad)[:, None] + cen
     out: list[list[Line]] = [[], []]
-    for i in range(m):
-        ok = np.isfinite(cen[i])
-        if not usable[i] or not ok.any():
-            continue
+    for i in np.flatnonzero(finite.any(axis=1)).tolist():
         out[int(fam[i])].append(
             Line(
                 depth=float(depth[i]),
@@ -261,11 +345,11 @@ def dips(
                 rise=float(rmed[i]),
                 step=float(stepr[i]),
                 contrast=float(cmed[i]),
-                chord=float(total[fam[i], pk[i]]),
-                parts=pk[i] - r + cen[i],
+                chord=float(proj.total[fam[i], pk[i]]),
+                parts=parts[i],
                 asym=float(asym[i]),
                 tpart=tpart[i],
-                wpart=np.where(ok, count[i], 0).astype(np.float64),
+                wpart=wpart[i],
             )
         )
     return out
@@ -322,9 +406,8 @@ def crossings(
     rows = np.arange(d.shape[0])
     dl0, dl1 = d[rows, il], d[rows, il + 1]
     dr0, dr1 = d[rows, ir], d[rows, ir - 1]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        xl = jl + (lv[:, 0] - dl0) / (dl1 - dl0)
-        xr = jrt - (lv[:, 0] - dr0) / (dr1 - dr0)
+    xl = jl + (lv[:, 0] - dl0) / (dl1 - dl0)
+    xr = jrt - (lv[:, 0] - dr0) / (dr1 - dr0)
     return np.where(ok, xl, np.nan), np.where(ok, xr, np.nan)
 
 
@@ -340,9 +423,8 @@ def plateaus(
     ml = (jr < cl) & (jr >= cl - 4.0) & ok
     mr = (jr > cr) & (jr <= cr + 4.0) & ok
     pz = np.where(ok, p, 0.0)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        left = (pz * ml).sum(axis=1) / ml.sum(axis=1)
-        right = (pz * mr).sum(axis=1) / mr.sum(axis=1)
+    left = (pz * ml).sum(axis=1) / ml.sum(axis=1)
+    right = (pz * mr).sum(axis=1) / mr.sum(axis=1)
     return left, right
 
 
@@ -368,9 +450,8 @@ def centroid(
         ccol = cc[:, None]
         w = np.clip(np.minimum(jr + 0.5, ccol + h) - np.maximum(jr - 0.5, ccol - h), 0.0, 1.0)
         lev = ll + (lr - ll) * np.clip(jr - ccol + 0.5, 0.0, 1.0)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            q = (1.0 - p / lev) * w
-            q = np.where(w > 0, q, 0.0)  # NaN inside the window stays NaN
-            tot = q.sum(axis=1)
-            cc = np.where(tot > 0, (q * jr).sum(axis=1) / tot, np.nan)
+        q = (1.0 - p / lev) * w
+        q = np.where(w > 0, q, 0.0)  # NaN inside the window stays NaN
+        tot = q.sum(axis=1)
+        cc = np.where(tot > 0, (q * jr).sum(axis=1) / tot, np.nan)
     return cc

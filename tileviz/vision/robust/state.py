@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -97,6 +98,7 @@ class RobustRun:
         # wide; a wider band measures again with a window up to closing + 8 (see execute)
         self.window = min(20, self.closing + 8)
         self.inverted = False  # grout lighter than the tiles: the gray levels are inverted
+        self.projection: Any = None  # the last profiles.Projection (reused by a wider window)
 
     def lap(self, name: str, t0: float) -> float:
         """Add the time since ``t0`` (perf_counter, s) to stage ``name`` (ms); the time now."""
