@@ -1,13 +1,21 @@
-"""Vision timings: per stage at 320x240 and 640x480, the full faithful chain against the bare
-OpenCV calls with the seed constants (same run, interleaved), and the robust extractor.
+"""Vision timings: per stage at 320x240 and 640x480, the robust extractor per floor family, and
+the full faithful chain against the bare OpenCV calls with the seed constants (same run,
+interleaved).
 
     python bench/bench_vision.py [--frames 200] [--threads N] [--clock wall|cpu]
+                                 [--only stages,families,chain]
 
-OpenCV runs on one thread (importing tileviz.vision sets it, for reproducible edges) unless
-``--threads N`` is given; both chains then run on N threads.
+OpenCV runs on one thread unless ``--threads N`` is given (this script sets it: importing
+tileviz.vision leaves OpenCV's thread count alone); both chains then run on N threads. With
+``--clock cpu`` every total is this thread's CPU time (``time.thread_time``), which a busy
+shared machine inflates far less than wall time; on one OpenCV thread it is the whole cost.
+The per-stage figures are the extractor's own timings (``VisionResult.timings``, wall clock).
 
 Frames are rendered once (default floor, random poses, camera noise on) and reused, so only the
-vision is timed. Each figure is the median over frames of the per-frame time. The bare chain is
+vision is timed. Each figure is the median over frames of the per-frame time. Per floor family
+(``bench/floorgen.py``, all nine), ``min(frames, 60)`` clean views, each extracted 3 times:
+median and 90th percentile of those times; a family that cannot be rendered (scikit-image
+missing for ``photo``) is reported as skipped, the others still run. The bare chain is
 exactly what the original called (report chapter 4, ``docs/seed-code.md``): cvtColor,
 Laplacian(CV_8U, ksize 1), Canny(50, 255, 3), morphologyEx(CLOSE, 1x1), dilate(3x3), and
 HoughLinesP(1, pi/180, 60, 100, 50); ours adds everything around them (input checks, segment
@@ -96,8 +104,9 @@ def compare(imgs: list[np.ndarray], cam: CameraConfig, tile_size: float,
 
 def parse(doc: str, argv: list[str] | None, threads: bool = False) -> argparse.Namespace:
     """The options shared by the benchmarks (``--frames``, ``--clock``), applied: with
-    ``--clock cpu`` this module's ``clock`` becomes the thread's CPU time (OpenCV runs on this
-    thread alone: importing tileviz.vision set one thread)."""
+    ``--clock cpu`` this module's ``clock`` becomes the thread's CPU time (the caller sets
+    OpenCV to one thread, :func:`~tileviz.vision.set_opencv_threads`, so that the thread's
+    CPU time holds all of OpenCV's work)."""
     ap = argparse.ArgumentParser(description=doc.splitlines()[0])
     ap.add_argument("--frames", type=int, default=200)
     ap.add_argument("--clock", choices=("wall", "cpu"), default="wall",
@@ -105,6 +114,8 @@ def parse(doc: str, argv: list[str] | None, threads: bool = False) -> argparse.N
                     "(time.thread_time) with OpenCV on one thread, which a busy shared machine "
                     "does not inflate")
     if threads:
+        ap.add_argument("--only", default="stages,families,chain",
+                        help="comma-separated parts to run: stages, families, chain")
         ap.add_argument("--threads", type=int, default=None,
                         help="cv2.setNumThreads for both chains (default: 1, as every tileviz "
                         "entry point sets it)")
@@ -115,41 +126,63 @@ def parse(doc: str, argv: list[str] | None, threads: bool = False) -> argparse.N
     return args
 
 
+def family_table(frames: int) -> None:
+    """The robust extractor per floor family of the vision study (``bench/floorgen.py``):
+    median and 90th percentile over ``min(frames, 60)`` clean views x 3 runs, ms."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import floorgen
+
+    vis = VisionConfig(extractor="robust")
+    for fam in floorgen.FAMILIES:
+        try:
+            views = []
+            for i in range(min(frames, 60)):
+                rng = np.random.default_rng([i, 77])
+                spec = floorgen.draw_floor(fam, rng)
+                img = floorgen.render(spec, *floorgen.draw_view(rng), rng)
+                cam = CameraConfig(ppm=spec.ppm, width=spec.width, height=spec.height,
+                                   offset=(0.0, 0.0))
+                views.append((img, cam, spec.tile_size))
+        except ImportError as exc:  # photo needs scikit-image's sample images
+            print(f"320x240 robust, floor family {fam:<12} skipped: {exc}")
+            continue
+        times = []
+        accepted = 0
+        for img, cam, tile_size in views:
+            for _ in range(3):
+                t0 = clock()
+                res = extract(img, camera=cam, tile_size=tile_size, vision=vis)
+                times.append((clock() - t0) * 1e3)
+            accepted += res.accepted
+        print(f"320x240 robust, floor family {fam:<12} median {med(times):.3f} ms, "
+              f"p90 {float(np.percentile(times, 90)):.3f} ms "
+              f"({len(views)} views x 3, {accepted} accepted)")
+
+
 def main(argv: list[str] | None = None) -> int:
     args = parse(__doc__, argv, threads=True)
     set_opencv_threads(args.threads if args.threads is not None else OPENCV_THREADS)
     print(f"OpenCV {cv2.__version__}, {cv2.getNumThreads()} threads, {args.clock} clock; "
           f"numpy {np.__version__}; {args.frames} frames per case; medians in ms")
+    parts = set(args.only.split(","))
+    unknown = parts - {"stages", "families", "chain"}
+    if unknown:
+        print(f"bench_vision: unknown --only part(s): {', '.join(sorted(unknown))}")
+        return 2
     base = preset("default")
-    for w, h in ((320, 240), (640, 480)):
+    for w, h in ((320, 240), (640, 480)) if "stages" in parts else ():
         cam = replace(base.camera, width=w, height=h)
         imgs = frames(cam, base.floor, args.frames)
         for ext in ("faithful", "robust"):
             stages, total = stage_table(imgs, cam, base.floor, replace(base.vision, extractor=ext))
             row = "  ".join(f"{k} {v:.3f}" for k, v in stages.items())
             print(f"{w}x{h} {ext:<8} total {total:.3f} | {row}")
-    # the robust extractor per floor family of the vision study (bench/floorgen.py)
-    sys.path.insert(0, str(Path(__file__).resolve().parent))
-    import floorgen
-
-    for fam in floorgen.FAMILIES:
-        times = []
-        for i in range(min(args.frames, 60)):
-            rng = np.random.default_rng([i, 77])
-            spec = floorgen.draw_floor(fam, rng)
-            img = floorgen.render(spec, *floorgen.draw_view(rng), rng)
-            cam = CameraConfig(ppm=spec.ppm, width=spec.width, height=spec.height,
-                               offset=(0.0, 0.0))
-            vis = VisionConfig(extractor="robust")
-            for _ in range(3):
-                t0 = clock()
-                extract(img, camera=cam, tile_size=spec.tile_size, vision=vis)
-                times.append((clock() - t0) * 1e3)
-        print(f"320x240 robust, floor family {fam:<12} median {med(times):.3f} ms, "
-              f"p90 {float(np.percentile(times, 90)):.3f} ms")
+    if "families" in parts:
+        family_table(args.frames)
     # the faithful chain vs the bare OpenCV calls, seed constants, interleaved
-    for name, (w, h) in (("seed 256x384", (256, 384)), ("default 320x240", (320, 240)),
-                         ("default 640x480", (640, 480))):
+    chains = (("seed 256x384", (256, 384)), ("default 320x240", (320, 240)),
+              ("default 640x480", (640, 480)))
+    for name, (w, h) in chains if "chain" in parts else ():
         cfg = preset("seed") if name.startswith("seed") else preset("default")
         cam = replace(cfg.camera, width=w, height=h)
         vision = replace(cfg.vision, extractor="faithful")  # VisionConfig defaults = seed's
