@@ -1,7 +1,10 @@
 """Acceptance figures of issue 4, measured over recorded runs.
 
-For each preset (default: L = 1 m, 200 px/m, 320x240; seed: the original's constants) it records a
-simulated run of ``--minutes`` minutes as a dataset, replays it in autonomous and odometry modes and
+For each case, a preset (default: L = 1 m, 200 px/m, 320x240; seed: the original's constants)
+with an optional floor style (``preset:style``, the styles of ``record --floor-style``; by
+default the plain default floor, the default preset on the ``photo`` floor (a photograph of
+gravel on the tiles) and the seed preset), it records a simulated run of ``--minutes`` minutes
+as a dataset, replays it in autonomous and odometry modes and
 prints: share of frames whose truth is inside the reported set, count of each status, median and
 p95 box widths (x, y in cm, heading in degrees). Then it times, on the same images, the replay per
 frame (PNG decode + vision + localizer, as ``replay`` runs it, and its parts) against the bare
@@ -9,7 +12,7 @@ OpenCV calls of the original pipeline with its constants (cvtColor, Laplacian, C
 dilate, HoughLinesP).
 
     python bench/acceptance.py --minutes 10            # the issue's figures
-    python bench/acceptance.py --minutes 1 --presets default
+    python bench/acceptance.py --minutes 1 --cases default default:photo
 """
 
 from __future__ import annotations
@@ -25,7 +28,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from tileviz.config import Config, preset
+from tileviz.config import FLOOR_STYLES, Config, preset, with_floor_style
 from tileviz.datasets import DatasetMeta, DatasetSource, DatasetWriter
 from tileviz.pipeline import FrameLoop
 from tileviz.pipeline.workers import vision_ahead
@@ -156,20 +159,29 @@ def timing(folder: Path, repeats: int = 3, limit: int = 600) -> dict[str, float]
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--minutes", type=float, default=10.0)
-    ap.add_argument("--presets", nargs="+", default=["default", "seed"])
+    ap.add_argument("--cases", nargs="+", default=["default", "default:photo", "seed"],
+                    metavar="PRESET[:STYLE]",
+                    help=f"floor styles: {', '.join(FLOOR_STYLES)}")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--keep", help="keep the datasets under this folder")
     args = ap.parse_args()
     root = Path(args.keep) if args.keep else Path(tempfile.mkdtemp(prefix="tileviz-accept-"))
-    for name in args.presets:
-        cfg = preset(name)
+    for case in args.cases:
+        name, _, style = case.partition(":")
+        try:
+            cfg = preset(name)
+            if style:
+                cfg = with_floor_style(cfg, style)
+        except ValueError as exc:
+            ap.error(f"case {case!r}: {exc}")
         cfg = replace(cfg, sim=replace(cfg.sim, seed=args.seed))
         frames = int(args.minutes * 60 / cfg.sim.dt)
-        folder = root / f"{name}-{args.seed}"
+        folder = root / f"{name}-{style or 'floor'}-{args.seed}"
         t0 = time.perf_counter()
         if not (folder / "frames.csv").exists():
             record(cfg, folder, frames)
-        print(f"\n== preset {name}: {frames} frames ({args.minutes} min simulated), "
+        print(f"\n== preset {name}, floor style {style or '(preset)'}: {frames} frames "
+              f"({args.minutes} min simulated), "
               f"recorded in {time.perf_counter() - t0:.0f} s -> {folder}")
         for mode, base in (("autonomous", None), ("odometry", None),
                            ("autonomous, camera not a preset", Config())):

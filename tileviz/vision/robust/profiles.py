@@ -222,9 +222,10 @@ def dips(run: RobustRun, proj: Projection) -> list[list[Line]]:
     jj = np.arange(-r, r + 1)
     jf = jj.astype(np.float64)
     cols = pk[:, None] + jj[None, :]  # padded profile index
+    at = fam[:, None] * proj.prof.shape[1] + cols  # flat index into the (2, size) arrays
     # the whole profile: depth, half-depth crossings, width, window and plateau levels
-    p0 = proj.prof[fam[:, None], cols]
-    d0 = proj.dark[fam[:, None], cols]
+    p0 = proj.prof.ravel()[at]
+    d0 = proj.dark.ravel()[at]
     near = d0[:, r - 2 : r + 3]
     near = np.where(np.isnan(near), -np.inf, near)
     depth = near.max(axis=1)
@@ -236,8 +237,8 @@ def dips(run: RobustRun, proj: Projection) -> list[list[Line]]:
     used = np.abs(jf[None, :] - np.where(np.isnan(c0), 0.0, c0)[:, None]) <= (
         np.where(np.isnan(half), 0.0, half)[:, None] + 5.0
     )
-    u_lo = np.where(used, proj.lo[fam[:, None], cols], -np.inf).max(axis=1) + 1.0
-    u_hi = np.where(used, proj.hi[fam[:, None], cols], np.inf).min(axis=1) - 1.0
+    u_lo = np.where(used, proj.lo.ravel()[at], -np.inf).max(axis=1) + 1.0
+    u_hi = np.where(used, proj.hi.ravel()[at], np.inf).min(axis=1) - 1.0
     step = (u_hi - u_lo) / PARTS
     usable = np.flatnonzero(np.isfinite(c0) & (step >= run.st.min_part / 2.0))
     if usable.size == 0:
@@ -403,9 +404,12 @@ def crossings(
     r = (j.size - 1) // 2
     il = np.clip(jl + r, 0, j.size - 2).astype(np.intp)
     ir = np.clip(jrt + r, 1, j.size - 1).astype(np.intp)
-    rows = np.arange(d.shape[0])
-    dl0, dl1 = d[rows, il], d[rows, il + 1]
-    dr0, dr1 = d[rows, ir], d[rows, ir - 1]
+    base = np.arange(0, d.size, j.size)  # flat index of each row's first sample
+    flat = d.ravel()
+    il += base
+    ir += base
+    dl0, dl1 = flat[il], flat[il + 1]
+    dr0, dr1 = flat[ir], flat[ir - 1]
     xl = jl + (lv[:, 0] - dl0) / (dl1 - dl0)
     xr = jrt - (lv[:, 0] - dr0) / (dr1 - dr0)
     return np.where(ok, xl, np.nan), np.where(ok, xr, np.nan)
@@ -443,13 +447,15 @@ def centroid(
     the window holds missing data or no darkness."""
     jr = j[None, :]
     ll = lev_l[:, None]
-    lr = lev_r[:, None]
+    dl = lev_r[:, None] - ll
     h = half[:, None]
+    j_hi = jr + 0.5
+    j_lo = jr - 0.5
     cc = c.copy()
     for _ in range(iterations):
         ccol = cc[:, None]
-        w = np.clip(np.minimum(jr + 0.5, ccol + h) - np.maximum(jr - 0.5, ccol - h), 0.0, 1.0)
-        lev = ll + (lr - ll) * np.clip(jr - ccol + 0.5, 0.0, 1.0)
+        w = np.clip(np.minimum(j_hi, ccol + h) - np.maximum(j_lo, ccol - h), 0.0, 1.0)
+        lev = ll + dl * np.clip(jr - ccol + 0.5, 0.0, 1.0)
         q = (1.0 - p / lev) * w
         q = np.where(w > 0, q, 0.0)  # NaN inside the window stays NaN
         tot = q.sum(axis=1)
