@@ -176,7 +176,7 @@ def main(argv: list[str] | None = None) -> int:
         for ext in ("faithful", "robust"):
             stages, total = stage_table(imgs, cam, base.floor, replace(base.vision, extractor=ext))
             row = "  ".join(f"{k} {v:.3f}" for k, v in stages.items())
-            print(f"{w}x{h} {ext:<8} total {total:.3f} | {row}")
+            print(f"{w}x{h} {ext:<8} total {total:.3f} | stages (wall clock) {row}")
     if "families" in parts:
         family_table(args.frames)
     # the faithful chain vs the bare OpenCV calls, seed constants, interleaved
