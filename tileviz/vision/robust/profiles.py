@@ -64,12 +64,14 @@ class Projection:
     peak: np.ndarray  # (m,) its deepest sample (padded index)
 
 
-def measure(run: RobustRun, y3: float, attempt: int = 1) -> list[list[Line]]:
+def measure(
+    run: RobustRun, y3: float, attempt: int = 1, *, reuse: bool = True, every: bool = False
+) -> list[list[Line]]:
     """The dips of both families at heading y3, measured with the window ``run.window``. The
     warp and the profiles are computed once per heading (a second call with the same y3 on a
-    later attempt, with a wider window, reuses them); on the first attempt, this also
-    decides the grout's polarity."""
-    proj = run.projection
+    later attempt, with a wider window, reuses them unless ``reuse`` is false); on the first
+    attempt, this also decides the grout's polarity. ``every``: see :func:`dips`."""
+    proj = run.projection if reuse else None
     # An inverted view (light grout) is not reused: a later attempt subtracts the inverted
     # image's mean from the gray levels before inverting, so its profile levels differ from
     # the first attempt's by 255 - 2 x the gray mean (reported to the extractor's owners;
@@ -77,7 +79,7 @@ def measure(run: RobustRun, y3: float, attempt: int = 1) -> list[list[Line]]:
     if attempt == 0 or proj is None or proj.y3 != y3 or run.inverted:
         proj = project(run, y3, attempt)
         run.projection = proj
-    return dips(run, proj)
+    return dips(run, proj, every=every)
 
 
 def project(run: RobustRun, y3: float, attempt: int) -> Projection:
@@ -204,13 +206,14 @@ def profiles(
     )
 
 
-def dips(run: RobustRun, proj: Projection) -> list[list[Line]]:
+def dips(run: RobustRun, proj: Projection, *, every: bool = False) -> list[list[Line]]:
     """The lines of both families from the dips of their profiles (:func:`profiles`): each
     dip is measured in PARTS equal stretches of the part of its line that every sample of its
     window (``run.window`` samples each side) sees (so all samples of a part average the same
     stretch of floor), from the integral image. Every dip of both families is measured at
     once (vectorised). Only the dips that :func:`select_lines` can keep are measured in parts
-    (at least ``rel_depth`` of the deepest line's depth): the others give no line.
+    (at least ``rel_depth`` of the deepest line's depth): the others give no line; with
+    ``every``, every usable dip is (the same lines once :func:`select_lines` has run).
 
     Missing data is NaN throughout: the caller silences numpy's warnings on it
     (:func:`~tileviz.vision.robust.extractor.extract_robust` does)."""
@@ -245,7 +248,7 @@ def dips(run: RobustRun, proj: Projection) -> list[list[Line]]:
         return [[], []]
     # every row is measured on its own: a subset of the rows gives the same lines
     top = float(depth[usable].max())
-    strong = usable[depth[usable] >= run.st.rel_depth * top]
+    strong = usable if every else usable[depth[usable] >= run.st.rel_depth * top]
     meas = (p0, c0, half, depth, u_lo, step)
     out = measure_parts(run, proj, strong, cols, jf, *meas)
     if not any(ln.depth == top for fam_lines in out for ln in fam_lines):
