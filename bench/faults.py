@@ -245,7 +245,7 @@ def run_one(name: str, seed: int, spec: FaultSpec, recovery: str, before: int,
         inside = rec.updated.contains(truth.x, truth.y, truth.theta)
         faults.append(faulty)
         alarms.append(noticed(rec.status, step is not None and step.compass_rejected,
-                              rec.vision.accepted))
+                              rec.vision.accepted, step is not None and step.reinflated))
         vouches.append(rec.status != "lost")
         insides.append(inside)
         holds.append(not broken)

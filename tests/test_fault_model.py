@@ -22,6 +22,7 @@ from tileviz.core.localizer import FAULT_MAX_REJECTIONS
 from tileviz.types import Box
 
 MODEL = LocalizerConfig(fault_speed=0.2, fault_yaw_rate=0.1)
+NO_MODEL = LocalizerConfig(fault_speed=0.0, fault_yaw_rate=0.0)
 
 
 def _longest_unvouched_streak(rows: list[tuple[str, bool | None]]) -> int:
@@ -33,9 +34,20 @@ def _longest_unvouched_streak(rows: list[tuple[str, bool | None]]) -> int:
     return best
 
 
-def test_the_fault_model_is_off_by_default() -> None:
+def test_the_fault_model_is_on_by_default_and_max_slip_replaces_it() -> None:
+    """The default model (0.2 m/s, 0.1 rad/s, chosen in docs/faults.md): a 0.15 m/s slip is
+    followed with the defaults; a ``max_slip`` recovery, or 0,0, turns the model off."""
     cfg = LocalizerConfig()
-    assert (cfg.fault_speed, cfg.fault_yaw_rate) == (0.0, 0.0)
+    assert (cfg.fault_speed, cfg.fault_yaw_rate) == (0.2, 0.1)
+    slip = [(-0.15, 0.0) if 40 <= k < 80 else (0.0, 0.0) for k in range(120)]
+    for config, reinflates in ((cfg, True), (NO_MODEL, False),
+                               (LocalizerConfig(max_slip=(0.1, 0.1)), True)):
+        drive = Drive(config)
+        steps = [drive.step(excess=e) for e in slip]
+        assert any(s.reinflated for s in steps) is reinflates
+        # with max_slip the frame that notices the slip is rejected (the model says contracted)
+        assert any(s.status == "rejected" and s.reinflated for s in steps) is (
+            config.max_slip != (0.0, 0.0))
     with pytest.raises(ValueError, match="^fault_speed"):
         LocalizerConfig(fault_speed=float("inf"))
     with pytest.raises(ValueError, match="^fault_yaw_rate"):
@@ -58,7 +70,7 @@ def test_tracking_through_a_slip(seed) -> None:
     assert any(s == "contracted" and r for s, r in rows[40:80])  # followed during the slip
     assert all(r for _, r in rows[100:]) and max(widths[100:]) < 0.05
     # without the model the same slip ends the run
-    drive = Drive(LocalizerConfig(), seed=seed)
+    drive = Drive(NO_MODEL, seed=seed)
     statuses = [drive.step(excess=(-0.15, 0.0) if 40 <= k < 80 else (0.0, 0.0)).status
                 for k in range(160)]
     assert statuses[-1] == "lost"
@@ -155,7 +167,8 @@ def test_serve_passes_the_fault_model_to_the_localizer(tmp_path: Path) -> None:
     ds = make_fault_dataset(tmp_path / "ds", FaultPlan(frames=2))
     cfg = serve_config(parser().parse_args(["--dataset", str(ds), "--fault-model", "0.3,0"]))
     assert (cfg.localizer.fault_speed, cfg.localizer.fault_yaw_rate) == (0.3, 0.0)
-    assert serve_config(parser().parse_args([])).localizer.fault_speed == 0.0
+    assert serve_config(parser().parse_args([])).localizer.fault_speed == 0.2  # the default
+    assert serve_config(parser().parse_args(["--fault-model", "0,0"])).localizer.fault_speed == 0
 
 
 def test_a_fault_set_wider_than_the_view_can_cut_is_never_called_contracted() -> None:

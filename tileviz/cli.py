@@ -141,7 +141,7 @@ def replay_parser() -> Parser:
                    metavar="SPEED,YAW_RATE",
                    help="how much faster than the odometry bounds a fault (wheel slip, push) may "
                    "move the robot, m/s and rad/s: the localizer then tracks through such a fault "
-                   "and says lost beyond it (docs/faults.md); default off (0,0)")
+                   "and says lost beyond it (docs/faults.md); 0,0 turns it off (default 0.2,0.1)")
     p.add_argument("--mcap", default=None, metavar="OUT.mcap",
                    help="also write the run for Foxglove: camera images, truth, the sets as 3-D "
                    "cubes, status and box widths (needs the [ros] extra)")

@@ -22,14 +22,17 @@ the slip candidates, the poses within (d, d, a) of it that the compass and the v
 per lattice cell (docs/method.md, "Recovery"); for ``slip_window`` frames after that, every view
 contracts the prediction widened by ``max_slip``.
 
-Fault model (``LocalizerConfig.fault_speed`` m/s, ``fault_yaw_rate`` rad/s; mode ``autonomous``;
-off when both are 0; it replaces the ``max_slip`` recovery): a second set, the fault set, is
-predicted with the odometry bounds widened by the model, cut by the compass when the compass meets
-it, and contracted by every view. When a view or the compass rejects the set, the set becomes the
-fault set's contraction (``reinflated``, status ``contracted``); a view that fits neither counts
-as a rejection, and :data:`FAULT_MAX_REJECTIONS` of those in a row make the status ``lost``.
-Under H1, H2' (the true speed and yaw rate within the widened bounds), H3 and H4 the fault set
-holds the truth at every frame (``docs/guarantees.md``).
+Fault model (``LocalizerConfig.fault_speed`` m/s, ``fault_yaw_rate`` rad/s; on by default; mode
+``autonomous``; off when both are 0, or when the ``max_slip`` recovery is on): a second set, the
+fault set, is predicted with the odometry bounds widened by the model, cut by the compass when the
+compass meets it, and contracted by every view. When a view or the compass rejects the set, the set
+becomes the fault set's contraction (``reinflated``, status ``contracted``); a view that fits
+neither counts as a rejection, and :data:`FAULT_MAX_REJECTIONS` of those in a row make the status
+``lost``. For ``slip_window`` frames after the fault set was taken, the set is the fault set's
+contraction whenever the view cuts it to at most ``max_boxes`` boxes (``LocalizerStep.fault_frame``
+counts them): a slip still going on is followed rather than noticed again, frames late. Under H1,
+H2' (the true speed and yaw rate within the widened bounds), H3 and H4 the fault set holds the
+truth at every frame (``docs/guarantees.md``).
 
 Modes (``LocalizerConfig.mode``): ``autonomous``; ``truth`` (every frame the set restarts from
 the true pose inflated by ``truth_inflation``, then the compass and the view contract it; never
@@ -90,7 +93,11 @@ class LocalizerStep:
     box cap (or a lattice split too fine to keep) replaced some set by its hull this frame.
     ``compass_rejected``: the compass reading missed the predicted set and was ignored.
     ``rejections``: the current streak of consecutive rejected views. ``reinflated``: recovery
-    added the slip candidates to the set this frame (module docstring, "Recovery").
+    added the slip candidates to the set this frame (module docstring, "Recovery"), or the set was
+    taken from the fault set (module docstring, "Fault model"). ``fault_frame``: fault model
+    only: k >= 1 while the localizer follows a noticed fault (the k-th frame since the view or
+    compass rejected the set and the fault set was taken; ``slip_window`` frames after the last
+    such rejection), 0 otherwise.
     """
 
     predicted: BoxSet
@@ -101,7 +108,7 @@ class LocalizerStep:
     compass_rejected: bool = False
     rejections: int = 0
     reinflated: bool = False
-
+    fault_frame: int = 0
 
 
 class Localizer:
@@ -149,10 +156,10 @@ class Localizer:
         self._recover = config.mode == "autonomous" and (self._slip[0] > 0 or self._slip[1] > 0)
         fv = _nonneg("fault_speed", config.fault_speed)
         fw = _nonneg("fault_yaw_rate", config.fault_yaw_rate)
-        self._faulty = config.mode == "autonomous" and (fv > 0 or fw > 0)
-        """The fault model is on: the fault set is kept (module docstring, "Fault model"); it
-        replaces the ``max_slip`` recovery."""
-        self._recover = self._recover and not self._faulty
+        self._faulty = config.mode == "autonomous" and (fv > 0 or fw > 0) and not self._recover
+        """The fault model is on: the fault set is kept (module docstring, "Fault model"). A
+        ``max_slip`` recovery replaces it (an explicit recovery setting wins over the default
+        model)."""
         n = _nextafter
         self._fault_bounds = (n(self._ev + fv, _INF), n(self._ew + fw, _INF))
         self._fault: list[Tuple6] = []
@@ -160,6 +167,7 @@ class Localizer:
         self._rejections = 0
         self._lost = False
         self._window = 0
+        self._fault_frame = 0
         self.reset(initial)
 
     def reset(self, box: Box) -> None:
@@ -170,6 +178,7 @@ class Localizer:
         self._rejections = 0
         self._lost = False
         self._window = 0
+        self._fault_frame = 0
 
     @property
     def current(self) -> BoxSet:
@@ -288,7 +297,9 @@ class Localizer:
         raw = boxes  # the prediction before the compass: what recovery inflates
         recover = self._recover and not self._lost
         following = recover and self._window > 0  # a fault noticed lately: follow it
-        if following:
+        # the fault model: a fault noticed lately, the view contracts the fault set first
+        fault_following = fault is not None and self._window > 0
+        if following or fault_following:
             self._window -= 1
         if compass is not None:
             c_lo = _nextafter(compass - self._ec, -_INF)
@@ -306,6 +317,8 @@ class Localizer:
                     # the compass misses the prediction: the fault set holds what a fault allows
                     boxes = fault
                     reinflated = True
+                    self._window = cfg.slip_window
+                    self._fault_frame = 0
                 elif recover:
                     # the prediction misses the compass: keep it (the compass may be the outlier)
                     # and add the slip candidates the compass allows (the odometry may be)
@@ -347,13 +360,30 @@ class Localizer:
                 # the set is taken from the fault set only when the view cuts it to a few
                 # disjoint boxes: a hull (more cells than max_boxes) would be a wide box called
                 # contracted, so such a frame counts as a rejection instead
-                if reinflated:  # (boxes is the fault set already: contracted above)
+                if fault_following and not reinflated and out:
+                    # within slip_window frames of a noticed fault: the set is the fault set's
+                    # contraction whenever the view fits it in a few boxes (a slip still going
+                    # on is followed, not noticed again frames later)
+                    got_f: list[Tuple6] = []
+                    f_hulled = False
+                    for b in fault:
+                        got, p, h = _contract_view(b, view, None, self._L, self._lever,
+                                                   cfg.passes, cap)
+                        got_f.extend(got)
+                        f_hulled = f_hulled or h
+                    hulled = hulled or f_hulled
+                    if got_f:
+                        fault = got_f
+                        if not f_hulled and len(got_f) <= cap:
+                            out = got_f
+                            reinflated = True
+                elif reinflated:  # (boxes is the fault set already: contracted above)
                     if out:
                         fault = out
                     if view_hulled or len(out) > cap:
                         out = []
                 else:
-                    got_f: list[Tuple6] = []
+                    got_f = []
                     f_hulled = False
                     for b in fault:
                         got, p, h = _contract_view(b, view, None, self._L, self._lever,
@@ -367,6 +397,8 @@ class Localizer:
                             # the view rejects the prediction, not the fault set
                             out = got_f
                             reinflated = True
+                            self._window = cfg.slip_window
+                            self._fault_frame = 0
             if out:
                 status = "contracted"
                 self._rejections = 0
@@ -407,6 +439,8 @@ class Localizer:
                 fault, h = _tidy(fault, cap)
                 hulled = hulled or h
             self._fault = fault
+            self._fault_frame = (self._fault_frame + 1
+                                 if (reinflated or self._window > 0) and not self._lost else 0)
         result = _new(LocalizerStep)  # LocalizerStep(...) without its frozen __init__
         result.__dict__.update(
             predicted=predicted,
@@ -417,6 +451,7 @@ class Localizer:
             compass_rejected=compass_rejected,
             rejections=self._rejections,
             reinflated=reinflated,
+            fault_frame=self._fault_frame,
         )
         return result
 
