@@ -343,3 +343,39 @@ def test_a_lost_localizer_stays_lost_when_the_settings_change(cfg, tmp_path):
     s.apply(C.Step())
     assert s.shown_entry().record.status == "contracted" and s.shown_entry().record.truth_inside()
     s.close()
+
+
+def test_the_fault_model_is_set_from_the_gui_and_the_page_says_when_it_is_used(cfg, tmp_path):
+    """The settings' fault model (SetFaultModel) reaches the localizer; the status readout says
+    when the fault set is followed (frame k of it) and counts the views that fit neither set
+    before ``lost`` (a kidnap)."""
+    from tileviz.app.server import fault_line
+
+    with pytest.raises(ValueError, match="fault model speed"):
+        C.SetFaultModel(-0.1, 0.1)
+    s = make(cfg, tmp_path)
+    assert (s.cfg.localizer.fault_speed, s.cfg.localizer.fault_yaw_rate) == (0.2, 0.1)
+    s.apply(C.SetFaultModel(0.3, 0.1, on=False))
+    assert (s.cfg.localizer.fault_speed, s.cfg.localizer.fault_yaw_rate) == (0.0, 0.0)
+    s.apply(C.SetFaultModel(0.3, 0.15))
+    assert (s.cfg.localizer.fault_speed, s.cfg.localizer.fault_yaw_rate) == (0.3, 0.15)
+    for _ in range(10):
+        s.apply(C.Step())
+    s.apply(C.Inject("slip", frames=40))
+    lines = []
+    for _ in range(50):
+        s.apply(C.Step())
+        rec = s.shown_entry().record
+        lines.append(fault_line(rec.step, s.cfg.localizer))
+        assert rec.status != "lost"
+    followed = [ln for ln in lines if ln.startswith("tracking through a fault: frame ")]
+    assert followed and "frame 1 of the fault set" in followed[0]
+    s.apply(C.Kidnap((2.3, -1.7, 0.4)))
+    said = []
+    for _ in range(8):
+        s.apply(C.Step())
+        rec = s.shown_entry().record
+        said.append((rec.status, fault_line(rec.step, s.cfg.localizer)))
+    assert any("fit neither set (5 make it lost)" in ln for _, ln in said)
+    assert said[-1] == ("lost", "")
+    s.close()

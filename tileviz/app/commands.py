@@ -29,7 +29,8 @@ __all__ = [
     "LAYERS", "PANEL_VIEWS", "SIMULATOR_ONLY", "Command", "Inject", "Kidnap", "Live", "Pause",
     "Play", "Relocalize", "Report", "SetFollow", "ShowPanel",
     "Reset", "Restart", "Seek", "SetDisplay", "SetExtractor", "SetInflation", "SetLayer",
-    "SetManualTarget", "SetMaxSpeed", "SetMcl", "SetMode", "SetNoise", "SetSetpoint", "SetSpeed",
+    "SetFaultModel", "SetManualTarget", "SetMaxSpeed", "SetMcl", "SetMode", "SetNoise",
+    "SetSetpoint", "SetSpeed",
     "SetWaypoints", "StartRecording", "Step", "StepBack", "StopRecording", "TogglePlay",
     "parse_waypoints",
 ]
@@ -264,6 +265,21 @@ class SetInflation:
 
 
 @dataclass(frozen=True)
+class SetFaultModel:
+    """The localizer's fault model (``LocalizerConfig.fault_speed``, ``fault_yaw_rate``): how
+    much faster than its odometry bounds a fault may move the robot, m/s and rad/s; ``on``
+    False turns it off (0, 0)."""
+
+    speed: float
+    yaw_rate: float
+    on: bool = True
+
+    def __post_init__(self) -> None:
+        _in_range("fault model speed", self.speed, 0.0, 10.0)
+        _in_range("fault model yaw rate", self.yaw_rate, 0.0, 10.0)
+
+
+@dataclass(frozen=True)
 class SetDisplay:
     """Stream the pipeline stage images (and keep them in the history) or not."""
 
@@ -355,7 +371,8 @@ class Report:
 Command = (
     Play | Pause | TogglePlay | Step | StepBack | Seek | Live | SetSpeed | SetMaxSpeed
     | SetSetpoint | SetManualTarget | SetWaypoints | Kidnap | Relocalize | Reset | Restart
-    | SetMode | SetExtractor | SetNoise | SetInflation | SetDisplay | SetMcl | SetLayer | Inject
+    | SetMode | SetExtractor | SetNoise | SetInflation | SetFaultModel | SetDisplay | SetMcl
+    | SetLayer | Inject
     | StartRecording | StopRecording | Report | SetFollow | ShowPanel
 )
 """Any command the loop understands."""

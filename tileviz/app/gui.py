@@ -173,6 +173,13 @@ class Controls:
                                                step=0.01, initial_value=ix)
             self.inflation_t = gui.add_slider("Truth inflation heading (rad)", min=0.0,
                                               max=1.5, step=0.01, initial_value=it)
+            loc = cfg.localizer
+            self.fault_on = gui.add_checkbox("Fault model (track through slips)",
+                                             loc.fault_speed > 0 or loc.fault_yaw_rate > 0)
+            self.fault_speed = gui.add_slider("Fault speed (m/s)", min=0.0, max=1.0, step=0.01,
+                                              initial_value=loc.fault_speed or 0.2)
+            self.fault_yaw = gui.add_slider("Fault yaw rate (rad/s)", min=0.0, max=1.0,
+                                            step=0.01, initial_value=loc.fault_yaw_rate or 0.1)
             self.mcl = gui.add_checkbox("Monte Carlo Localization (orange)", mcl)
         self._on_change(self.mode, lambda: C.SetMode(self.mode.value))
         self._on_change(self.extractor, lambda: C.SetExtractor(self.extractor.value))
@@ -180,6 +187,12 @@ class Controls:
         for h in (self.speed_error, self.yaw_error, self.compass_error, self.fraction):
             self._on_change(h, lambda: C.SetNoise(self.speed_error.value, self.yaw_error.value,
                                                   self.compass_error.value, self.fraction.value))
+        fault_inputs: tuple[GuiInputHandle[Any], ...] = (self.fault_on, self.fault_speed,
+                                                         self.fault_yaw)
+        for fh in fault_inputs:
+            self._on_change(fh, lambda: C.SetFaultModel(self.fault_speed.value,
+                                                       self.fault_yaw.value,
+                                                       bool(self.fault_on.value)))
         for h in (self.inflation_xy, self.inflation_t):
             self._on_change(h, lambda: C.SetInflation(self.inflation_xy.value,
                                                       self.inflation_t.value))

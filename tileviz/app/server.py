@@ -62,8 +62,10 @@ from tileviz.config import (
     SEED_RANGE,
     TILE_SIZE_RANGE,
     Config,
+    LocalizerConfig,
     preset,
 )
+from tileviz.core.localizer import FAULT_MAX_REJECTIONS, LocalizerStep
 
 if TYPE_CHECKING:
     from viser import GuiButtonGroupHandle, GuiEvent, ViserServer
@@ -397,6 +399,9 @@ class App:
                          f"{'' if live else ' (from the history)'}")
             lines.append(f"status <b>{r.status}</b>: {html.escape(STATUS_WORDS.get(r.status, ''))}"
                          f", {len(r.updated)} box(es)")
+            fault = fault_line(r.step, s.cfg.localizer)
+            if fault:
+                lines.append(fault)
             reason = r.vision.reason
             lines.append("camera view used" if r.vision.observation is not None
                          else f"camera view not used: {html.escape(reason)}")
@@ -448,6 +453,23 @@ class App:
                 f'<div class="tileviz-notes" style="{NOTES_STYLE}">{"<br>".join(notes)}</div>')
 
 
+def fault_line(step: LocalizerStep | None, loc: LocalizerConfig) -> str:
+    """The fault model's state at one frame, in words ('' when there is nothing to say): the
+    frame of a followed fault (``LocalizerStep.fault_frame``) and the views in a row that fitted
+    neither the set nor the fault set, out of the number that makes the status ``lost``."""
+    if step is None or step.status == "lost" or not (loc.fault_speed or loc.fault_yaw_rate):
+        return ""
+    if loc.max_slip != (0.0, 0.0) or loc.mode != "autonomous":
+        return ""
+    parts = []
+    if step.fault_frame > 0:
+        parts.append(f"tracking through a fault: frame {step.fault_frame} of the fault set")
+    if step.rejections > 0:
+        limit = min(loc.max_rejections, FAULT_MAX_REJECTIONS)
+        parts.append(f"{step.rejections} view(s) in a row fit neither set ({limit} make it lost)")
+    return "; ".join(parts)
+
+
 STATUS_WORDS = {
     "contracted": "the camera's view shrank the set",
     "predicted": "no usable view: odometry and compass only",
@@ -494,7 +516,7 @@ def parser() -> Parser:
                    metavar="SPEED,YAW_RATE",
                    help="how much faster than the odometry bounds a fault (wheel slip, push) may "
                    "move the robot, m/s and rad/s: the localizer tracks through such a fault "
-                   "(docs/guarantees.md); default off")
+                   "(docs/guarantees.md); 0,0 turns it off (default 0.2,0.1)")
     p.add_argument("--ppm", type=float_in("--ppm", *PPM_RANGE, lo_open=False),
                    help="pixels per metre")
     p.add_argument("--tile-size", type=float_in("--tile-size", *TILE_SIZE_RANGE, lo_open=False),

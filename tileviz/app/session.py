@@ -454,6 +454,8 @@ class Session:
                 self._set_noise(cmd)
             case C.SetInflation():
                 self._set_inflation(cmd)
+            case C.SetFaultModel():
+                self._set_fault_model(cmd)
             case C.SetDisplay(on=on):
                 self.display = bool(on)
                 self.runner.keep_stages = self.display
@@ -592,6 +594,14 @@ class Session:
         loc: LocalizerConfig = replace(self.cfg.localizer,
                                        truth_inflation=(cmd.xy, cmd.xy, cmd.theta))
         self._reconfigure(replace(self.cfg, localizer=loc), "truth inflation")
+
+    def _set_fault_model(self, cmd: C.SetFaultModel) -> None:
+        speed, yaw_rate = (cmd.speed, cmd.yaw_rate) if cmd.on else (0.0, 0.0)
+        loc: LocalizerConfig = replace(self.cfg.localizer, fault_speed=speed,
+                                       fault_yaw_rate=yaw_rate)
+        self._reconfigure(replace(self.cfg, localizer=loc),
+                          f"fault model {speed:g} m/s, {yaw_rate:g} rad/s" if cmd.on
+                          else "fault model off")
 
     def _start_recording(self, cmd: C.StartRecording) -> None:
         if self.recording is not None or self._record_pending is not None:
