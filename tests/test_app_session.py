@@ -379,3 +379,35 @@ def test_the_fault_model_is_set_from_the_gui_and_the_page_says_when_it_is_used(c
     assert any("fit neither set (5 make it lost)" in ln for _, ln in said)
     assert said[-1] == ("lost", "")
     s.close()
+
+
+def test_relocalize_in_a_region_from_the_gui_and_after_lost(cfg, tmp_path):
+    """The GUI's "Re-localize in the region" (RelocalizeRegion) restarts a lost localizer with
+    candidates that hold the truth; with ``relocalize_region`` (``serve --relocalize-region``)
+    that happens by itself at the frame after ``lost``."""
+    from tileviz.app.server import fault_line
+
+    assert C.parse_region("-1, -2, 3 4") == (-1.0, -2.0, 3.0, 4.0)
+    with pytest.raises(ValueError, match="region"):
+        C.parse_region("1, 2, 3")
+    with pytest.raises(ValueError, match="x0 <= x1"):
+        C.RelocalizeRegion((1.0, 0.0, 0.0, 1.0))
+    for auto in (False, True):
+        region = (1.3, -2.5, 3.1, -1.0)  # holds the kidnap's pose (2.3, -1.7)
+        s = make(cfg, tmp_path / str(auto), relocalize_region=region if auto else None)
+        for _ in range(3):
+            s.apply(C.Step())
+        s.apply(C.Kidnap((2.3, -1.7, 0.4)))
+        for _ in range(8):
+            s.apply(C.Step())
+        statuses = [s.history.get(i).record.status for i in range(s.history.first, s.shown + 1)]
+        assert "lost" in statuses
+        if not auto:
+            assert s.shown_entry().record.status == "lost"
+            s.apply(C.RelocalizeRegion(region))
+        s.apply(C.Step())
+        rec = s.shown_entry().record
+        assert rec.status == "contracted" and rec.truth_inside() and len(rec.updated) > 1
+        assert fault_line(rec.step, s.cfg.localizer).startswith(
+            f"re-localizing: {len(rec.updated)} candidate(s)")
+        s.close()

@@ -27,12 +27,12 @@ from tileviz.config import (
 
 __all__ = [
     "LAYERS", "PANEL_VIEWS", "SIMULATOR_ONLY", "Command", "Inject", "Kidnap", "Live", "Pause",
-    "Play", "Relocalize", "Report", "SetFollow", "ShowPanel",
+    "Play", "Relocalize", "RelocalizeRegion", "Report", "SetFollow", "ShowPanel",
     "Reset", "Restart", "Seek", "SetDisplay", "SetExtractor", "SetInflation", "SetLayer",
     "SetFaultModel", "SetManualTarget", "SetMaxSpeed", "SetMcl", "SetMode", "SetNoise",
     "SetSetpoint", "SetSpeed",
     "SetWaypoints", "StartRecording", "Step", "StepBack", "StopRecording", "TogglePlay",
-    "parse_waypoints",
+    "parse_region", "parse_waypoints",
 ]
 
 LAYERS = (
@@ -186,6 +186,34 @@ class Kidnap:
 @dataclass(frozen=True)
 class Relocalize:
     """Tell the localizer the robot's true pose (within the configured initial pose error)."""
+
+
+@dataclass(frozen=True)
+class RelocalizeRegion:
+    """Restart the localizer from "somewhere in ``region``" = (x0, y0, x1, y1), metres, heading
+    from the compass (``Localizer.relocalize``: one candidate box per tile cell that fits the
+    view, dropped as the motion takes them out of the region; the robot must stay in it until one
+    candidate is left)."""
+
+    region: tuple[float, float, float, float]
+
+    def __post_init__(self) -> None:
+        if len(self.region) != 4:
+            raise ValueError(f"region must be x0, y0, x1, y1 (m), got {self.region!r}")
+        x0, y0, x1, y1 = (_in_range(f"region {n}", v, -1e4, 1e4)
+                          for n, v in zip(("x0", "y0", "x1", "y1"), self.region, strict=True))
+        if x0 > x1 or y0 > y1:
+            raise ValueError(f"region needs x0 <= x1 and y0 <= y1, got {self.region!r}")
+
+
+def parse_region(text: str) -> tuple[float, float, float, float]:
+    """``"x0, y0, x1, y1"`` (metres) as a region; ValueError naming the problem."""
+    parts = [p for p in text.replace(",", " ").split() if p]
+    if len(parts) != 4:
+        raise ValueError(f"region: expected 'x0, y0, x1, y1', got {text.strip()!r}")
+    x0, y0, x1, y1 = (finite_number(f"region {n}", p)
+                      for n, p in zip(("x0", "y0", "x1", "y1"), parts, strict=True))
+    return (x0, y0, x1, y1)
 
 
 @dataclass(frozen=True)
@@ -370,7 +398,8 @@ class Report:
 
 Command = (
     Play | Pause | TogglePlay | Step | StepBack | Seek | Live | SetSpeed | SetMaxSpeed
-    | SetSetpoint | SetManualTarget | SetWaypoints | Kidnap | Relocalize | Reset | Restart
+    | SetSetpoint | SetManualTarget | SetWaypoints | Kidnap | Relocalize | RelocalizeRegion
+    | Reset | Restart
     | SetMode | SetExtractor | SetNoise | SetInflation | SetFaultModel | SetDisplay | SetMcl
     | SetLayer | Inject
     | StartRecording | StopRecording | Report | SetFollow | ShowPanel

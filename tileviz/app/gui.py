@@ -143,6 +143,8 @@ class Controls:
             self.set_waypoints = gui.add_button("Drive the waypoints")
             self.kidnap = gui.add_button("Kidnap (teleport the robot)")
             self.relocalize = gui.add_button("Relocalize (tell the true pose)")
+            self.region = gui.add_text("Region x0, y0, x1, y1 (m)", "-2, -2, 2, 2")
+            self.relocalize_region = gui.add_button("Re-localize in the region")
             self.seed = gui.add_number("Seed", cfg.sim.seed, min=SEED_RANGE[0], max=SEED_RANGE[1],
                                       step=1)
             self.reset = gui.add_button("Reset the run")
@@ -152,6 +154,8 @@ class Controls:
                        lambda: C.SetWaypoints(C.parse_waypoints(self.waypoints.value)))
         self._on_click(self.kidnap, C.Kidnap)
         self._on_click(self.relocalize, C.Relocalize)
+        self._on_click(self.relocalize_region,
+                       lambda: C.RelocalizeRegion(C.parse_region(self.region.value)))
         self._on_click(self.reset, lambda: C.Reset(seed=_integer("seed", self.seed.value)))
         self._on_pick()
 

@@ -73,6 +73,9 @@ class SessionOptions:
     start_frame: int = 0
     """The frame shown first (frame index): the frames before it are computed on start, without
     stage images."""
+    relocalize_region: tuple[float, float, float, float] | None = None
+    """(x0, y0, x1, y1), metres: whenever the localizer is ``lost`` it restarts from "somewhere in
+    this region" at the next frame (``Localizer.relocalize``)."""
     dataset: Path | None = None
     """Replay this tileviz-dataset/1 folder instead of simulating (the Config passed to the
     session should be :func:`tileviz.datasets.replay_config` of its meta)."""
@@ -297,6 +300,9 @@ class Session:
         entry = Entry.make(rec, stages=self.display, encoder=self.encoder, mcl=particles)
         self.shown = self.history.append(entry)
         self.tally.add(rec)
+        region = self.options.relocalize_region
+        if region is not None and rec.status == "lost" and self.runner.primary is not None:
+            self.runner.primary.localizer.relocalize(region)  # from the next frame on
         self.frames_computed += 1
         self._count_rate()
         self.version += 1
@@ -442,6 +448,8 @@ class Session:
                 self._kidnap(cmd)
             case C.Relocalize():
                 self._relocalize()
+            case C.RelocalizeRegion(region=region):
+                self._relocalize_region(region)
             case C.Reset():
                 self._reset(cmd)
             case C.Restart():
@@ -526,6 +534,17 @@ class Session:
             self._start_mcl(box)  # a fresh filter (its seed's particles), as at the start
         self.degraded = False
         self.note("localizer restarted at the true pose (within the initial pose error)")
+
+    def _relocalize_region(self, region: tuple[float, float, float, float]) -> None:
+        primary = self.runner.primary
+        if primary is None:
+            self.note("Re-localize: no interval localizer runs; nothing changed")
+            return
+        n = primary.localizer.relocalize(region)  # ValueError (too large): nothing changed
+        self.degraded = False
+        x0, y0, x1, y1 = region
+        self.note(f"localizer restarted somewhere in ({x0:g}, {y0:g})-({x1:g}, {y1:g}) m "
+                  f"(up to {n} candidates; keep the robot in the region)")
 
     def _reset(self, cmd: C.Reset) -> None:
         cfg = self.cfg

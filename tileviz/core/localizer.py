@@ -71,13 +71,18 @@ from tileviz.core.contraction import Window, _contract_view, _view_window, lever
 from tileviz.core.prediction import compass_pieces, predict_box
 from tileviz.types import Box, BoxSet, Observation, Odometry, Pose, SensorBounds, Status
 
-__all__ = ["FAULT_MAX_REJECTIONS", "Localizer", "LocalizerStep"]
+__all__ = ["FAULT_MAX_REJECTIONS", "RELOCALIZE_MAX_CANDIDATES", "Localizer", "LocalizerStep",
+           "region_candidates"]
 
 FAULT_MAX_REJECTIONS = 5
 """With the fault model on, a view that fits neither the set nor the fault set means the motion
 went beyond the fault model (a kidnap) or the view is an outlier; this many in a row and the
 status is ``lost`` (``max_rejections`` if smaller): never more frames vouching for a set that
 may have lost the truth."""
+
+RELOCALIZE_MAX_CANDIDATES = 400
+"""The most candidate boxes a re-localization region may need (:meth:`Localizer.relocalize`);
+a larger region is refused rather than hulled into one wide box."""
 
 _INF = math.inf
 _nextafter = math.nextafter
@@ -97,7 +102,8 @@ class LocalizerStep:
     taken from the fault set (module docstring, "Fault model"). ``fault_frame``: fault model
     only: k >= 1 while the localizer follows a noticed fault (the k-th frame since the view or
     compass rejected the set and the fault set was taken; ``slip_window`` frames after the last
-    such rejection), 0 otherwise.
+    such rejection), 0 otherwise. ``relocalizing``: the set still holds the candidates of a
+    re-localization (:meth:`Localizer.relocalize`), cut to its region.
     """
 
     predicted: BoxSet
@@ -109,6 +115,25 @@ class LocalizerStep:
     rejections: int = 0
     reinflated: bool = False
     fault_frame: int = 0
+    relocalizing: bool = False
+
+
+def region_candidates(region: tuple[float, float, float, float], tile_size: float,
+                      heading: tuple[float, float] | None = None) -> int:
+    """The most candidate boxes a re-localization in ``region`` (x0, y0, x1, y1, metres) can
+    leave on a floor of ``tile_size`` m tiles: the tile cells the region meets times the heading
+    branches (a view's heading repeats every quarter turn) that ``heading`` (lo, hi rad; None: a
+    whole turn) meets. ValueError when that exceeds :data:`RELOCALIZE_MAX_CANDIDATES`."""
+    x0, y0, x1, y1 = region
+    t_lo, t_hi = (-math.pi, math.pi) if heading is None else heading
+    cells = (math.floor((x1 - x0) / tile_size) + 2) * (math.floor((y1 - y0) / tile_size) + 2)
+    branches = min(4, math.floor((t_hi - t_lo) / (math.pi / 2)) + 2)
+    need = cells * branches
+    if need > RELOCALIZE_MAX_CANDIDATES:
+        raise ValueError(f"region spans up to {need} candidate boxes (tile cells x heading "
+                         f"branches), more than {RELOCALIZE_MAX_CANDIDATES}: give a smaller "
+                         f"region")
+    return need
 
 
 class Localizer:
@@ -168,6 +193,8 @@ class Localizer:
         self._lost = False
         self._window = 0
         self._fault_frame = 0
+        self._region: tuple[float, float, float, float] | None = None
+        self._cap = config.max_boxes
         self.reset(initial)
 
     def reset(self, box: Box) -> None:
@@ -179,6 +206,50 @@ class Localizer:
         self._lost = False
         self._window = 0
         self._fault_frame = 0
+        self._region = None
+        self._cap = self._cfg.max_boxes
+
+    def relocalize(self, region: tuple[float, float, float, float],
+                   heading: tuple[float, float] | None = None) -> int:
+        """Start again from "somewhere in ``region``" = (x0, y0, x1, y1), metres, x0 <= x1,
+        y0 <= y1 (the robot's point between the wheels), heading within ``heading`` = (lo, hi),
+        rad, or anywhere (None: the compass of the next frames cuts it). Clears the ``lost``
+        state like :meth:`reset`.
+
+        The next view cuts the region into one candidate box per lattice cell (the floor repeats:
+        every tile in the region offers a pose that fits the view), so the set may hold that many
+        boxes: the box cap is raised to the count the region needs while candidates remain. Until
+        one candidate remains (a single box narrower than a tile in x and y), every set is cut to
+        the region: candidates whose motion takes them out of it are dropped, which breaks the
+        floor's symmetry. Hypothesis (H1 for this start): the robot is in the region from now until
+        one candidate remains. Returns the number of candidate boxes allowed; ValueError when the
+        region would need more than :data:`RELOCALIZE_MAX_CANDIDATES`, or on a bad bound."""
+        if len(region) != 4:
+            raise ValueError(f"region must be (x0, y0, x1, y1), got {region!r}")
+        x0, y0, x1, y1 = (_finite(f"region[{i}]", v) for i, v in enumerate(region))
+        if x0 > x1 or y0 > y1:
+            raise ValueError(f"region must have x0 <= x1 and y0 <= y1, got {region!r}")
+        t_lo, t_hi = (-math.pi, math.pi) if heading is None else heading
+        t_lo = _finite("heading[0]", t_lo)
+        t_hi = _finite("heading[1]", t_hi)
+        need = region_candidates((x0, y0, x1, y1), self._L, (t_lo, t_hi))
+        self.reset(Box(x0, x1, y0, y1, t_lo, t_hi))
+        self._region = (x0, y0, x1, y1)
+        self._cap = max(self._cfg.max_boxes, need)
+        return self._cap
+
+    def _in_region(self, boxes: list[Tuple6]) -> list[Tuple6]:
+        """The parts of ``boxes`` whose x and y lie in the re-localization region (exact: min and
+        max of floats)."""
+        region = self._region
+        assert region is not None
+        x0, y0, x1, y1 = region
+        out = []
+        for b in boxes:
+            xl, xh, yl, yh = max(b[0], x0), min(b[1], x1), max(b[2], y0), min(b[3], y1)
+            if xl <= xh and yl <= yh:
+                out.append((xl, xh, yl, yh, b[4], b[5]))
+        return out
 
     @property
     def current(self) -> BoxSet:
@@ -203,7 +274,7 @@ class Localizer:
         Raises ValueError naming the quantity on NaN/inf, negative dt, negative bounds."""
         cfg = self._cfg
         mode = cfg.mode
-        cap = cfg.max_boxes
+        cap = self._cap  # cfg.max_boxes, unless re-localization candidates need more
         hulled = False
         # validate every input first, so a bad frame changes nothing. The fast test: every value
         # within +-LIMIT (written as literals; NaN fails, a non-number raises TypeError); on
@@ -328,6 +399,16 @@ class Localizer:
                         boxes, h2 = _tidy(boxes + extra, cap)
                         hulled = hulled or h or h2
                         reinflated = True
+        relocalizing = self._region is not None and not self._lost
+        if relocalizing:
+            # re-localization: the robot is in the region (Localizer.relocalize)
+            cut = self._in_region(boxes)
+            if cut:  # (a prediction wholly outside it: the view decides, below)
+                boxes = cut
+            if fault is not None:
+                cut = self._in_region(fault)
+                if cut:
+                    fault = cut
         predicted = _to_boxset(boxes)
 
         passes = 0
@@ -399,6 +480,8 @@ class Localizer:
                             reinflated = True
                             self._window = cfg.slip_window
                             self._fault_frame = 0
+            if relocalizing and out:
+                out = self._in_region(out)  # none left: the view fits no candidate in it
             if out:
                 status = "contracted"
                 self._rejections = 0
@@ -432,6 +515,12 @@ class Localizer:
                     self._window = 0
                     updated_boxes = [_hull_all(updated_boxes)]
         self._boxes = updated_boxes
+        if relocalizing:
+            b = updated_boxes[0]
+            if self._lost or (len(updated_boxes) == 1 and b[1] - b[0] < self._L
+                              and b[3] - b[2] < self._L):
+                self._region = None  # one candidate left (or lost): plain tracking again
+                self._cap = cfg.max_boxes
         if fault is not None:
             if reinflated:  # the set was taken from the fault set: they agree again
                 fault = updated_boxes
@@ -452,6 +541,7 @@ class Localizer:
             rejections=self._rejections,
             reinflated=reinflated,
             fault_frame=self._fault_frame,
+            relocalizing=relocalizing,
         )
         return result
 
