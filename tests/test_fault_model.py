@@ -127,22 +127,29 @@ def test_replay_with_a_fault_model_tracks_a_slip_and_is_honest_after_a_kidnap(
     with open(ds / "frames.csv", newline="") as f:
         truth = [(float(r["x"]), float(r["y"]), float(r["theta"])) for r in csv.DictReader(f)]
 
+    model_widths: list[float] = []
+
     def rows_of(out: list[dict[str, str]]) -> list[tuple[str, bool]]:
         rows = []
+        model_widths.clear()
         for r, t in zip(out, truth, strict=True):
             box = Box(*(float(r[k]) for k in ("x_lo", "x_hi", "y_lo", "y_hi", "theta_lo",
                                                "theta_hi")))
             rows.append((r["status"], in_box(box, *t)))
+            model_widths.append(max(box.x_hi - box.x_lo, box.y_hi - box.y_lo))
         return rows
 
-    plain = rows_of(_replay(ds, tmp_path / "plain.csv"))
-    model = rows_of(_replay(ds, tmp_path / "model.csv", "--fault-model", "0.2,0.1"))
+    plain = rows_of(_replay(ds, tmp_path / "plain.csv", "--fault-model", "0,0"))
+    model = rows_of(_replay(ds, tmp_path / "model.csv"))  # the default model: 0.2, 0.1
     after_slip = slice(plan.slip_at + plan.slip_frames + 20, plan.kidnap_at)
-    # without a model the slip ends the run; with it the set keeps tracking until the kidnap
+    # without a model the slip ends the run; with the default one the set keeps tracking until
+    # the kidnap, a few cm wide
     assert sum(s == "lost" for s, _ in plain[after_slip]) > 0.9 * (after_slip.stop
                                                                   - after_slip.start)
     assert not any(s == "lost" for s, _ in model[after_slip])
     assert all(inside for _, inside in model[after_slip])
+    widths = sorted(w for w in model_widths[after_slip])
+    assert widths[len(widths) // 2] <= 0.05
     assert _longest_unvouched_streak(model) <= 5
     # the kidnap (beyond the model) ends in lost within FAULT_MAX_REJECTIONS frames
     assert all(s == "lost" for s, _ in model[plan.kidnap_at + FAULT_MAX_REJECTIONS + 1:])
