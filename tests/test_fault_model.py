@@ -91,6 +91,26 @@ def test_a_kidnap_beyond_the_model_is_lost_within_five_frames() -> None:
     assert all(s == "lost" for s, _ in rows[36:])
 
 
+def test_a_turn_beyond_the_model_without_usable_views_is_lost_within_five_frames() -> None:
+    """A kidnap that also turns the robot by 0.3 rad while vision refuses every frame (no view):
+    the compass fits neither the set nor the fault set, each such frame counts as a rejection,
+    so at most 5 frames vouch for a set without the truth before ``lost``. (Seen in
+    bench/faults.py: the robust extractor refused the views after such a kidnap and the set,
+    only predicted, was vouched for 24 frames.)"""
+    drive = Drive(MODEL)
+    rows = []
+    for k in range(40):
+        step = drive.step(jump=(0.37, -0.21, 0.3) if k == 20 else None, view=k < 20)
+        rows.append((step.status, drive.inside(step)))
+    assert all(s == "contracted" and r for s, r in rows[:20])
+    assert _longest_unvouched_streak(rows) <= 5
+    assert all(s == "lost" for s, _ in rows[20 + FAULT_MAX_REJECTIONS:])
+    # without the compass's evidence (a turn within the model) the frames stay predicted
+    drive = Drive(MODEL)
+    statuses = [drive.step(view=k < 20).status for k in range(40)]
+    assert set(statuses[20:]) == {"predicted"}
+
+
 def test_every_reinflated_frame_holds_the_truth_under_the_model() -> None:
     """Slips that stay within the fault model (random excess up to 0.15 m/s, 0.08 rad/s, on and
     off): whenever the localizer takes the fault set (``reinflated``), the truth is in it."""

@@ -347,6 +347,7 @@ class Localizer:
             boxes = list(self._boxes)
 
         fault: list[Tuple6] | None = None  # the fault set's prediction (fault model on)
+        compass_beyond = False  # the compass misses the fault set too
         if self._faulty and not self._lost:
             fault = self._fault
             if odometry is not None:
@@ -363,6 +364,8 @@ class Localizer:
                 if cut:  # (a compass that misses the fault set too is ignored)
                     fault, h = _tidy(cut, cap)
                     hulled = hulled or h
+                else:
+                    compass_beyond = True
         compass_rejected = False
         reinflated = False
         raw = boxes  # the prediction before the compass: what recovery inflates
@@ -418,6 +421,17 @@ class Localizer:
         elif mode == "odometry" or observation is None:
             status = "predicted"
             updated_boxes = boxes
+            if compass_rejected and compass_beyond:
+                # fault model: the compass fits neither the set nor the fault set (a turn beyond
+                # the model, or a compass outlier): a rejection, as a view that fits neither,
+                # so frames without a usable view cannot vouch for long for a set that misses
+                # the truth
+                self._rejections += 1
+                if self._rejections >= min(cfg.max_rejections, FAULT_MAX_REJECTIONS):
+                    status = "lost"
+                    self._lost = True
+                    self._window = 0
+                    updated_boxes = [_hull_all(updated_boxes)]
         else:
             view = _view_window(observation)
             out: list[Tuple6] = []
