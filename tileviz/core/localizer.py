@@ -27,12 +27,13 @@ Fault model (``LocalizerConfig.fault_speed`` m/s, ``fault_yaw_rate`` rad/s; on b
 fault set, is predicted with the odometry bounds widened by the model, cut by the compass when the
 compass meets it, and contracted by every view. When a view or the compass rejects the set, the set
 becomes the fault set's contraction (``reinflated``, status ``contracted``); a view that fits
-neither counts as a rejection, and :data:`FAULT_MAX_REJECTIONS` of those in a row make the status
-``lost``. For ``slip_window`` frames after the fault set was taken, the set is the fault set's
-contraction whenever the view cuts it to at most ``max_boxes`` boxes (``LocalizerStep.fault_frame``
-counts them): a slip still going on is followed rather than noticed again, frames late. Under H1,
-H2' (the true speed and yaw rate within the widened bounds), H3 and H4 the fault set holds the
-truth at every frame (``docs/guarantees.md``).
+neither counts as a rejection (so does a frame without a view whose compass misses both sets), and
+:data:`FAULT_MAX_REJECTIONS` of those in a row make the status ``lost``. For ``slip_window`` frames
+after the fault set was taken, the set is the fault set's contraction whenever the view cuts it to
+at most ``max_boxes`` boxes (``LocalizerStep.fault_frame`` counts them): a slip still going on is
+followed rather than noticed again, frames late. Under H1, H2' (the true speed and yaw rate within
+the widened bounds), H3 and H4 the fault set holds the truth at every frame
+(``docs/guarantees.md``).
 
 Modes (``LocalizerConfig.mode``): ``autonomous``; ``truth`` (every frame the set restarts from
 the true pose inflated by ``truth_inflation``, then the compass and the view contract it; never
