@@ -261,6 +261,7 @@ class App:
             self._drain(wait)
             if self._stop.is_set():
                 break
+            s.poll()
             now = time.perf_counter()
             if s.playing and now >= next_frame:
                 try:

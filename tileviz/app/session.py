@@ -18,7 +18,9 @@ the source's frame index. They differ only after a frame failed (a gap in frame 
 from __future__ import annotations
 
 import math
+import os
 import sys
+import threading
 import time
 from collections import deque
 from dataclasses import dataclass, field, replace
@@ -121,6 +123,10 @@ class Session:
         self.recording: Any = None
         self.recording_path: Path | None = None
         self._record_pending: Path | None = None
+        self.last_recording: Path | None = None
+        """The last finished recording with at least one frame (what Export MCAP exports)."""
+        self.export: McapJob | None = None
+        """The MCAP export running in the background, if any."""
         self.csv: Any = None
         self.csv_path: Path | None = None
         self._kidnap_rng = np.random.default_rng(np.random.SeedSequence([cfg.sim.seed, 0xC1D]))
@@ -188,8 +194,11 @@ class Session:
             self._open_csv()
 
     def close(self) -> None:
-        """Close every file being written and stop the encoder thread (idempotent)."""
+        """Close every file being written and stop the encoder thread (idempotent); waits for an
+        MCAP export in progress."""
         self.encoder.close()
+        if self.export is not None:
+            self.export.join()
         if self.recording is not None:
             self._stop_recording("the server stopped")
         if self.csv is not None:
@@ -396,6 +405,8 @@ class Session:
         if w is None:
             return
         w.close()
+        if w.count > 0:
+            self.last_recording = self.recording_path
         tail = f" ({why})" if why else ""
         self.note(f"recorded {w.count} frames to {self.recording_path}{tail}", level)
 
@@ -468,6 +479,8 @@ class Session:
                 self._start_recording(cmd)
             case C.StopRecording():
                 self._stop_recording_cmd()
+            case C.ExportMcap():
+                self._export_mcap()
             case C.Report(text=text, level=level):
                 self.note(text, level)
             case C.SetFollow(on=on):
@@ -600,6 +613,29 @@ class Session:
         when = "the next new frame" if self.playing else "the next new frame (press Play or Step)"
         self.note(f"will record from {when} to {self._record_pending}")
 
+    def _export_mcap(self) -> None:
+        """Start exporting :attr:`last_recording` on a background thread (a long recording must
+        not freeze the loop); :meth:`poll` notes its end."""
+        if self.export is not None:
+            raise ValueError(f"an MCAP export is already running ({self.export.out})")
+        if self.last_recording is None:
+            what = ("stop the recording first" if self.recording_active
+                    else "record a run first (Start recording, then Stop recording)")
+            raise ValueError(f"nothing to export: {what}")
+        self.export = McapJob(self.last_recording)
+        self.note(f"exporting {self.last_recording} to {self.export.out} ...")
+
+    def poll(self) -> None:
+        """Note what background work finished since the last call (the loop calls this)."""
+        job = self.export
+        if job is None or job.running:
+            return
+        self.export = None
+        if job.error is not None:
+            self.note(f"MCAP export of {job.dataset} failed: {job.error}", "error")
+        else:
+            self.note(f"exported {job.frames} frames to {job.out} (open it in Foxglove)")
+
     def _stop_recording_cmd(self) -> None:
         if self._record_pending is not None and self.recording is None:
             self.note(f"nothing recorded: no new frame was made after Start recording (press "
@@ -607,3 +643,34 @@ class Session:
         self._record_pending = None
         self._stop_recording()
 
+
+
+class McapJob:
+    """The MCAP export of a recorded dataset folder on a background thread: ``dataset`` replayed
+    as ``python -m tileviz replay DATASET --mcap`` does, written to ``DATASET.mcap`` beside it.
+    ``frames``: frames written; ``error``: one line when it failed (the file may be partial)."""
+
+    def __init__(self, dataset: Path) -> None:
+        self.dataset = dataset
+        self.out = dataset.with_name(dataset.name + ".mcap")
+        self.frames = 0
+        self.error: str | None = None
+        self._thread = threading.Thread(target=self._run, name="tileviz-mcap", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        from tileviz.pipeline.replay import replay
+
+        try:
+            # the replay table is not kept: the MCAP file is what was asked for
+            self.frames = replay(self.dataset, out=os.devnull, mcap=self.out, jobs=1)
+        except Exception as e:  # noqa: BLE001 - reported as one line by Session.poll
+            self.error = f"{type(e).__name__}: {e}" if not isinstance(e, (OSError, ValueError)) \
+                else str(e)
+
+    @property
+    def running(self) -> bool:
+        return self._thread.is_alive()
+
+    def join(self, timeout: float | None = None) -> None:
+        self._thread.join(timeout)
