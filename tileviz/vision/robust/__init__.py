@@ -1,0 +1,60 @@
+"""The robust extractor: sub-pixel lattice parameters, and a refusal when the view is doubtful.
+
+Modules, one per job: :mod:`.settings` (thresholds), :mod:`.state` (one frame's state),
+:mod:`.statistics` (step 1), :mod:`.heading` (step 2), :mod:`.profiles` (steps 3-4),
+:mod:`.fit` (step 5 and the line checks), :mod:`.lattice` (spacing, the observation),
+:mod:`.bound` (the view's error bound), :mod:`.foreign` (the last checks) and
+:mod:`.extractor` (the entry point, the result and the stage images).
+
+How it measures (vectorised numpy/OpenCV; timings in ``bench/bench_vision.py``):
+
+1. Gray statistics: a constant image, or one with many saturated pixels (glare), is refused.
+2. Scharr gradients and Canny edges; the heading modulo pi/2 from the edge pixels' gradient
+   directions (a weighted histogram of 4 phi, its peak, then the weighted circular mean of the
+   pixels near the peak: the report's (cos 4a, sin 4a) of eq. 4.4 applied per pixel).
+3. One affine warp turns the image by that heading so that family-1 grout lines become rows and
+   family-2 lines columns (:func:`~tileviz.vision.geometry.family_normals`). Row (column) means
+   are the gray profile across every line of a family, averaged over the whole line.
+4. Dips of a profile are the line candidates. Each is then measured in four equal parts of the
+   stretch of its line that every sample of its window sees (sums from the integral image of
+   the warp, so that the samples of a part all average the same stretch of floor): its
+   position is the centroid of the darkness ``1 - profile / level``, with a plateau level of
+   its own on each side (a brighter tile on one side does not pull it), re-centred three
+   times; its depth, contrast (depth / level), half-depth width, 20-80 % edge rise and the step
+   between its two sides are measured too. Dips much wider than the strong ones (a shadow, a
+   stain) are not lines.
+5. A least-squares fit over every line's part positions gives the residual tilt of the warp
+   (one slope shared by all lines, one intercept per line): the heading correction, each
+   line's offset at the image centre, and standard errors from the scatter of the parts. A
+   large correction redoes the warp.
+6. Checks, in order; the first that fails is the ``reason``:
+   ``constant image``, ``glare``, ``no lines``, ``low contrast``, ``one family``, ``blurred``
+   (edges too soft), ``step edge`` (a line with a different level on each side),
+   ``inconsistent angle`` (a line not straight, or the two families not perpendicular within
+   their errors), ``foreign line`` (a line unlike the others in width or contrast: grout lines
+   share both), ``inconsistent spacing`` (line offsets not multiples of L apart, or a
+   well-visible lattice line missing), ``too few segments`` (too little line length per
+   family), ``imprecise`` (the fit's own standard errors, times 4, exceed the bounds), then
+   ``foreign line`` / ``step edge`` again for a long straight edge that is not on the lattice
+   (a cable; a box or shadow edge), found by a probabilistic Hough transform on the Canny edges
+   that the predicted grout lines do not explain.
+
+Known limit: a straight dark object lying exactly along the grout direction (within about
+0.2 deg), as wide and as dark as the grout, with no real grout line of that family in view,
+cannot be told from grout by a single image; the fault study shows how rare that is.
+
+The observation carries the declared bounds (``VisionConfig.position_error_px / ppm`` and
+``VisionConfig.heading_error``). The consistency checks work at the smaller of those bounds and
+the check scales of :class:`RobustSettings` (2 px, 0.02 rad): the defaults of the declared
+bounds (3 px, 0.025 rad) keep a margin over the largest errors the accuracy study saw among
+accepted frames (``bench/accuracy_study.py``), and a tighter declared bound tightens the checks.
+"""
+
+
+from __future__ import annotations
+
+from tileviz.vision.robust.extractor import extract_robust
+from tileviz.vision.robust.lattice import clip_line, normalise
+from tileviz.vision.robust.settings import DEFAULT_SETTINGS, RobustSettings
+
+__all__ = ["DEFAULT_SETTINGS", "RobustSettings", "clip_line", "extract_robust", "normalise"]

@@ -1,0 +1,180 @@
+"""The robust extractor's entry point: runs the steps in order on one frame, then builds the
+:class:`~tileviz.vision.result.VisionResult` and, on request, the stage images."""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import replace
+
+import cv2
+import numpy as np
+
+from tileviz.config import CameraConfig, VisionConfig
+from tileviz.types import Observation
+from tileviz.vision import draw
+from tileviz.vision.geometry import family_normals
+from tileviz.vision.result import BAG_HORIZONTAL, BAG_VERTICAL, VisionResult
+from tileviz.vision.robust.fit import check_lines, fit_tilt
+from tileviz.vision.robust.foreign import foreign_edges
+from tileviz.vision.robust.heading import first_heading
+from tileviz.vision.robust.lattice import clip_line, lattice_offsets
+from tileviz.vision.robust.profiles import measure, select_lines
+from tileviz.vision.robust.settings import DEFAULT_SETTINGS, RobustSettings
+from tileviz.vision.robust.state import Fail, RobustRun
+from tileviz.vision.robust.statistics import gray_statistics, noise_sigma
+
+__all__ = ["build_result", "execute", "extract_robust", "stage_images"]
+
+
+def extract_robust(
+    gray: np.ndarray,
+    *,
+    camera: CameraConfig,
+    tile_size: float,
+    vision: VisionConfig,
+    keep_stages: bool = False,
+    image: np.ndarray | None = None,
+    timings: dict[str, float] | None = None,
+    settings: RobustSettings = DEFAULT_SETTINGS,
+) -> VisionResult:
+    """Run the robust extractor on ``gray`` (HxW uint8); see the module docstring.
+
+    ``image`` (the RGB input) is only used for the overlays when ``keep_stages``; ``timings``
+    (ms) may already hold the gray conversion's time."""
+    tm = {} if timings is None else timings
+    run = RobustRun(gray, camera, tile_size, vision, settings, tm)
+    reason = "ok"
+    # missing data is NaN throughout (profiles beyond the view, unmeasured parts): arithmetic
+    # on it is expected and its warnings are noise
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        try:
+            execute(run)
+        except Fail as f:
+            reason = f.reason
+    t0 = time.perf_counter()
+    res = build_result(run, reason)
+    tm["result"] = (time.perf_counter() - t0) * 1e3
+    if keep_stages:
+        t1 = time.perf_counter()
+        stages = stage_images(run, image, res)
+        tm["stages"] = (time.perf_counter() - t1) * 1e3
+        res = replace(res, stages=stages)
+    return res
+
+
+def execute(run: RobustRun) -> None:
+    """Run every step; raises Fail with the reason of the first failed check."""
+    t = time.perf_counter()
+    gray_statistics(run)
+    t = run.lap("statistics", t)
+    dx = cv2.Scharr(run.gray, cv2.CV_16S, 1, 0)
+    dy = cv2.Scharr(run.gray, cv2.CV_16S, 0, 1)
+    run.dxy = (dx, dy)
+    noise_sigma(run)
+    t = run.lap("edges", t)
+    y3 = first_heading(run, dx, dy)
+    t = run.lap("heading", t)
+    for attempt in range(3):
+        lines = select_lines(run, measure(run, y3, attempt))
+        # a window too narrow for the grout (a wide band): measure again with a wider one
+        width = run.details.get("width", math.nan) if lines[0] or lines[1] else math.nan
+        need = run.closing + 8
+        if math.isfinite(width):
+            need = min(int(math.ceil(1.5 * width + 12.0)), need)
+        if need > run.window:
+            run.window = need
+            lines = select_lines(run, measure(run, y3, attempt + 1))
+        tilt = fit_tilt(run, lines)
+        t = run.lap("profiles", t)
+        y3 += tilt
+        if abs(tilt) <= run.st.refine_tilt or attempt == 2:
+            break
+    run.lines = lines
+    run.y3 = y3
+    check_lines(run, lines)
+    t = run.lap("checks", t)
+    lattice_offsets(run, lines, y3)
+    t = run.lap("lattice", t)
+    foreign_edges(run)
+    run.lap("foreign", t)
+
+
+def build_result(run: RobustRun, reason: str) -> VisionResult:
+    """The VisionResult of this run (segments = the measured lines, clipped to the view)."""
+    segs: list[tuple[float, float, float, float]] = []
+    bags: list[int] = []
+    offsets: list[float] = []
+    if run.y3 is not None:
+        normals = family_normals(run.y3)
+        x0, y0 = run.centre
+        for k, fam in enumerate(run.lines):
+            for ln in fam:
+                if not math.isfinite(ln.pos):
+                    continue
+                s_px = -(ln.pos - (y0 if k == 0 else x0))
+                seg = clip_line(normals[k], s_px, run.w, run.h)
+                if seg is None:
+                    continue
+                segs.append(seg)
+                bags.append(BAG_HORIZONTAL if k == 0 else BAG_VERTICAL)
+                offsets.append(s_px / run.ppm)
+    seg_arr = np.array(segs, np.float64).reshape(-1, 4)
+    ang = np.arctan2(seg_arr[:, 3] - seg_arr[:, 1], seg_arr[:, 2] - seg_arr[:, 0])
+    dis = np.stack([np.cos(4.0 * ang), np.sin(4.0 * ang)], axis=1).reshape(-1, 2)
+    med = None if run.y3 is None else (math.cos(4.0 * run.y3), math.sin(4.0 * run.y3))
+    obs = None
+    if reason == "ok" and run.y is not None:
+        obs = Observation(
+            y1=run.y[0],
+            y2=run.y[1],
+            y3=run.y[2],
+            position_error=run.details["bound_px"] / run.ppm,
+            heading_error=run.details["bound_rad"],
+        )
+    return VisionResult(
+        observation=obs,
+        accepted=obs is not None,
+        reason="ok" if obs is not None else ("no lines" if reason == "ok" else reason),
+        extractor="robust",
+        segments=seg_arr,
+        angles=ang,
+        bags=np.array(bags, np.int8),
+        disambiguation=dis,
+        offsets=np.array(offsets, np.float64),
+        median=med,
+        timings=run.tm,
+        details=run.details,
+    )
+
+
+def stage_images(
+    run: RobustRun, image: np.ndarray | None, res: VisionResult
+) -> dict[str, np.ndarray]:
+    """Stage images (HxWx3 uint8 RGB): input, gray, edges, warped (the view turned by the
+    heading: grout lines along rows and columns), lines (by bag), distances (each line's
+    signed offset from the centre), lattice (the lines the observation predicts), foreign
+    (unexplained edges and the straight ones among them), disambiguation ((cos 4a, sin 4a)
+    of the lines and the heading)."""
+    rgb = draw.to_rgb(run.gray if image is None else image)
+    out: dict[str, np.ndarray] = {"input": rgb, "gray": draw.to_rgb(run.gray)}
+    if run.edges is not None:
+        out["edges"] = draw.to_rgb(run.edges)
+    if run.warped is not None:
+        wv = cv2.normalize(run.warped, None, 0, 255, cv2.NORM_MINMAX).astype(np.uint8)
+        out["warped"] = draw.to_rgb(cv2.resize(wv, (run.w, run.h)))
+    out["lines"] = draw.draw_segments(rgb.copy(), res.segments, res.bags)
+    out["distances"] = draw.draw_offsets(
+        draw.draw_segments(rgb.copy(), res.segments, res.bags, thickness=1), res.bags,
+        res.offsets, run.y3, ppm=run.ppm,
+    )
+    if run.y is not None:
+        out["lattice"] = draw.draw_lattice(
+            rgb.copy(), run.y, ppm=run.ppm, tile_size=run.tile_size
+        )
+    if run.free_edges is not None:
+        out["foreign"] = draw.draw_segments(draw.to_rgb(run.free_edges), run.foreign, None)
+    out["disambiguation"] = draw.disambiguation_plot(
+        res.disambiguation, res.bags, res.median, size=int(run.side)
+    )
+    return out

@@ -1,0 +1,119 @@
+"""The lattice: line offsets modulo L, the spacing checks and the observation; geometry helpers
+(:func:`normalise`, :func:`clip_line`)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from tileviz.vision.geometry import QUARTER, family_normals
+from tileviz.vision.robust.bound import frame_bound
+from tileviz.vision.robust.state import Fail, Line, RobustRun
+
+__all__ = ["clip_line", "lattice_offsets", "missing_lines", "normalise"]
+
+
+def normalise(y1: float, y2: float, y3: float, tile_size: float) -> tuple[float, float, float]:
+    """The same observation with y3 in [-pi/4, pi/4) and y1, y2 in [0, L) (docs/method.md).
+
+    Turning y3 by -m pi/2 turns (y1, y2) by R(-m pi/2): R((m0 + m) pi/2) (y1', y2') must equal
+    R(m0 pi/2) (y1, y2)."""
+    m = math.floor((y3 + 0.25 * math.pi) / QUARTER)
+    y3n = y3 - m * QUARTER
+    if y3n >= 0.25 * math.pi:
+        y3n -= QUARTER
+        m += 1
+    elif y3n < -0.25 * math.pi:
+        y3n += QUARTER
+        m -= 1
+    a, b = ((y1, y2), (y2, -y1), (-y1, -y2), (-y2, y1))[m & 3]
+    a %= tile_size
+    b %= tile_size
+    return (0.0 if a >= tile_size else a, 0.0 if b >= tile_size else b, y3n)
+
+
+def clip_line(
+    n: tuple[float, float], s: float, width: int, height: int
+) -> tuple[float, float, float, float] | None:
+    """The part inside the image of the line ``n . (p - centre) = s`` (n a unit normal in pixel
+    coordinates, s in px) as endpoints (x1, y1, x2, y2), or None when it misses the image.
+    The image spans [-0.5, W - 0.5] x [-0.5, H - 0.5] (pixel centres at integers)."""
+    cxp, cyp = (width - 1) / 2.0, (height - 1) / 2.0
+    tx, ty = -n[1], n[0]
+    px, py = cxp + s * n[0], cyp + s * n[1]
+    lo, hi = -math.inf, math.inf
+    for p0, d, size in ((px, tx, width), (py, ty, height)):
+        if abs(d) < 1e-12:
+            if not -0.5 <= p0 <= size - 0.5:
+                return None
+            continue
+        a = (-0.5 - p0) / d
+        b = (size - 0.5 - p0) / d
+        lo = max(lo, min(a, b))
+        hi = min(hi, max(a, b))
+    if hi - lo <= 0:
+        return None
+    return (px + lo * tx, py + lo * ty, px + hi * tx, py + hi * ty)
+
+
+def lattice_offsets(run: RobustRun, lines: list[list[Line]], y3: float) -> None:
+    """Offsets modulo L per family, the spacing checks, and the observation."""
+    st = run.st
+    x0, y0 = run.centre
+    lp = run.lp
+    ys: list[float] = []
+    worst = 0.0
+    se = 0.0
+    for k, fam in enumerate(lines):
+        # signed offsets s_k (px) at the image centre: s1 = -(Y - Y0), s2 = -(X - X0)
+        s_arr = np.array([-(ln.pos - (y0 if k == 0 else x0)) for ln in fam])
+        w_arr = np.array([ln.chord for ln in fam])
+        ang = s_arr * (2.0 * math.pi / lp)
+        ref = math.atan2(float(np.dot(w_arr, np.sin(ang))), float(np.dot(w_arr, np.cos(ang))))
+        ref *= lp / (2.0 * math.pi)
+        res = np.remainder(s_arr - ref + 0.5 * lp, lp) - 0.5 * lp
+        ref += float(np.dot(w_arr, res) / w_arr.sum())
+        res = np.remainder(s_arr - ref + 0.5 * lp, lp) - 0.5 * lp
+        worst = max(worst, float(np.abs(res).max()))
+        var = np.array([ln.var for ln in fam])
+        se = max(se, math.sqrt(float(np.dot(w_arr * w_arr, var))) / float(w_arr.sum()))
+        ys.append(-ref / run.ppm)  # eq. 4.6 corrected: y_k = -s_k mod L
+        missing_lines(run, k, ref, s_arr, y3)
+    run.details["spacing_residual_px"] = worst
+    if worst > st.spacing_fraction * run.bound_px:
+        raise Fail("inconsistent spacing")
+    for fam in lines:
+        if sum(ln.chord for ln in fam) < st.min_evidence * run.side:
+            raise Fail("too few segments")
+    run.details["position_se_px"] = se
+    pos_px, head = frame_bound(run, se)
+    run.details["bound_px"] = pos_px
+    run.details["bound_rad"] = head
+    if pos_px > run.vision.position_error_px or head > run.vision.heading_error:
+        raise Fail("imprecise")
+    run.y = normalise(ys[0], ys[1], y3, run.tile_size)
+
+
+def missing_lines(run: RobustRun, k: int, ref: float, found: np.ndarray, y3: float) -> None:
+    """Refuse when the lattice predicts a well-visible line of family k that was not found
+    (the signed offsets ``ref + j L ppm``, px)."""
+    n = family_normals(y3)[k]
+    reach = 0.5 * math.hypot(run.w, run.h)
+    # a dip is measured over its window and 4 plateau samples on each side
+    margin = math.ceil(1.5 * run.details["width"] + 1.5) + 5
+
+    def chord(s: float) -> float:
+        e = clip_line(n, s, run.w, run.h)
+        return 0.0 if e is None else math.hypot(e[2] - e[0], e[3] - e[1])
+
+    # the longest chord of a direction through a rectangle passes through its centre
+    need = run.st.min_chord * chord(0.0)
+    j0 = math.floor((-reach - ref) / run.lp)
+    j1 = math.ceil((reach - ref) / run.lp)
+    for j in range(j0, j1 + 1):
+        s = ref + j * run.lp
+        if min(chord(s - margin), chord(s), chord(s + margin)) < need:
+            continue
+        if found.size == 0 or float(np.min(np.abs(found - s))) > 0.25 * run.lp:
+            raise Fail("inconsistent spacing")

@@ -1,0 +1,376 @@
+"""The gray profiles across the grout lines: the warp by the heading, the grout's polarity, the
+dips of both families and their measurement in parts (position, depth, width, rise, levels).
+"""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+
+from tileviz.vision.robust.state import PARTS, Line, RobustRun
+
+__all__ = ["centroid", "crossings", "dips", "light_grout", "measure", "nanmedian", "plateaus",
+           "select_lines", "view_spans"]
+
+
+def light_grout(run: RobustRun, warped: np.ndarray, size: tuple[int, int],
+                 cs: tuple[float, float]) -> bool:
+    """Whether the grout is lighter than the tiles: the family profiles (row and column
+    means of the warped image, offsets from the mean) hold stronger narrow peaks (above a
+    grey opening) than narrow dips (below a grey closing), summed over both families."""
+    wo, ho = size
+    c, s = cs
+    kern = np.ones((1, run.closing), np.uint8)
+    score = 0.0
+    for k, axis in ((0, 1), (1, 0)):
+        n = ho if k == 0 else wo
+        q = np.arange(n) - ((n - 1) / 2.0)
+        lo, hi = view_spans(run, q, c, s, along_rows=k == 0)
+        length = np.maximum(hi - lo, 0.0)
+        ok = length >= max(8.0, 0.15 * float(length.max()))
+        if int(ok.sum()) < 8:
+            continue
+        sums = cv2.reduce(warped, axis, cv2.REDUCE_SUM, dtype=cv2.CV_64F).ravel()
+        prof = (sums[ok] / length[ok]).astype(np.float32)[None, :]
+        # beyond the view: the median level (the tiles'), so that a stretch of tile or a
+        # line cut by the border is neither a peak nor a dip
+        mid = float(np.median(prof))
+        bt = cv2.BORDER_CONSTANT
+        close = cv2.erode(cv2.dilate(prof, kern, borderType=bt, borderValue=mid), kern,
+                          borderType=bt, borderValue=mid)
+        opening = cv2.dilate(cv2.erode(prof, kern, borderType=bt, borderValue=mid), kern,
+                             borderType=bt, borderValue=mid)
+        score += float((prof - opening).max()) - float((close - prof).max())
+    return score > 0.0
+
+
+def measure(run: RobustRun, y3: float, attempt: int = 1) -> list[list[Line]]:
+    """Warp the image by y3 and measure the dips of both families (on the first attempt,
+    also decide the grout's polarity)."""
+    c, s = math.cos(y3), math.sin(y3)
+    w, h = run.w, run.h
+    wo = int(math.ceil(w * abs(c) + h * abs(s))) + 2
+    ho = int(math.ceil(w * abs(s) + h * abs(c))) + 2
+    x0, y0 = (wo - 1) / 2.0, (ho - 1) / 2.0
+    cx, cy = (w - 1) / 2.0, (h - 1) / 2.0
+    # dst (X, Y) -> src: p = centre + (X - X0) (c, s) + (Y - Y0) (-s, c), so that rows follow
+    # family-1 lines (s1 = -(Y - Y0)) and columns family-2 lines (s2 = -(X - X0)).
+    m = np.array([[c, -s, cx - x0 * c + y0 * s], [s, c, cy - x0 * s - y0 * c]])
+    src = run.gray.astype(np.float32)
+    src -= np.float32(run.mean)  # outside the view reads 0, i.e. the mean level
+    warped = cv2.warpAffine(
+        src,
+        m,
+        (wo, ho),
+        flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+        borderMode=cv2.BORDER_CONSTANT,
+        borderValue=0,
+    )
+    if attempt == 0 and light_grout(run, warped, (wo, ho), (c, s)):
+        # lighter grout: measure the inverted image (255 - gray), whose offset from its
+        # mean is -warped; every later step then sees dark lines on brighter tiles
+        run.inverted = True
+        run.mean = 255.0 - run.mean
+    if run.inverted:
+        cv2.multiply(warped, -1.0, dst=warped)
+    run.warped = warped
+    run.centre = (x0, y0)
+    # integral image: the sum over any stretch of any row or column in four look-ups
+    integ = cv2.integral(warped, sdepth=cv2.CV_64F)
+    sums = (integ[1:, -1] - integ[:-1, -1], integ[-1, 1:] - integ[-1, :-1])
+    spans = (
+        view_spans(run, np.arange(ho) - y0, c, s, along_rows=True),
+        view_spans(run, np.arange(wo) - x0, c, s, along_rows=False),
+    )
+    return dips(run, integ, sums, spans)
+
+
+def view_spans(
+    run: RobustRun, q: np.ndarray, c: float, s: float, *, along_rows: bool
+) -> tuple[np.ndarray, np.ndarray]:
+    """The in-view stretch [lo, hi] of each warped row (``along_rows``) or column at offset
+    ``q`` from the warp centre, in the tangent coordinate u (relative to the centre); empty
+    where hi <= lo."""
+    cx, cy = (run.w - 1) / 2.0, (run.h - 1) / 2.0
+    lo = np.full(q.shape, -np.inf)
+    hi = np.full(q.shape, np.inf)
+    # src col = cx + a u + b q, row = cy + e u + f q
+    a, b, e, f = (c, -s, s, c) if along_rows else (-s, c, c, s)
+    for coef, base, size in ((a, cx + b * q, run.w), (e, cy + f * q, run.h)):
+        if abs(coef) < 1e-12:
+            lo = np.where((base >= -0.5) & (base <= size - 0.5), lo, np.inf)
+            continue
+        u1 = (-0.5 - base) / coef
+        u2 = (size - 0.5 - base) / coef
+        lo = np.maximum(lo, np.minimum(u1, u2))
+        hi = np.minimum(hi, np.maximum(u1, u2))
+    return lo, hi
+
+
+def dips(
+    run: RobustRun,
+    integ: np.ndarray,
+    sums: tuple[np.ndarray, np.ndarray],
+    spans: tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]],
+) -> list[list[Line]]:
+    """The lines of both families. Dips are found in each family's whole profile (row or
+    column means of the warped image); each dip is then measured in PARTS equal stretches
+    of the part of its line that every sample of its window sees (so all samples of a part
+    average the same stretch of floor), from the integral image ``integ``. Every dip of both
+    families is measured at once (vectorised)."""
+    r = run.window
+    mean = run.mean
+    size = max(sums[0].size, sums[1].size) + 2 * r
+    # family k in row k; columns shifted by r; missing data NaN
+    prof = np.full((2, size), np.nan)
+    lo = np.full((2, size), np.inf)
+    hi = np.full((2, size), -np.inf)
+    total = np.zeros((2, size))
+    for k in range(2):
+        n = sums[k].size
+        lo[k, r : r + n], hi[k, r : r + n] = spans[k]
+        length = np.maximum(hi[k, r : r + n] - lo[k, r : r + n], 0.0)
+        total[k, r : r + n] = length
+        valid = length >= max(8.0, 0.15 * float(length.max()))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            prof[k, r : r + n] = np.where(valid, sums[k] / length + mean, np.nan)
+    # baseline: a grey closing (max then min filter, along each row) removes dips narrower
+    # than its window
+    missing = np.isnan(prof)
+    filled = np.where(missing, mean, prof).astype(np.float32)
+    kern = np.ones((1, run.closing), np.uint8)
+    base = cv2.erode(
+        cv2.dilate(filled, kern, borderType=cv2.BORDER_REPLICATE),
+        kern,
+        borderType=cv2.BORDER_REPLICATE,
+    )
+    dark = base - prof  # NaN where no data
+    peaks: list[tuple[int, int]] = []
+    for k in range(2):
+        ok = ~missing[k]
+        if int(ok.sum()) < 8:
+            continue
+        diffs = np.abs(np.diff(prof[k][ok]))
+        kth = diffs.size // 2
+        sig = 1.4826 * float(np.partition(diffs, kth)[kth]) / math.sqrt(2.0)
+        run.details["profile_noise"] = max(run.details.get("profile_noise", 0.0), sig)
+        thr = max(0.5 * run.st.min_depth, 5.0 * sig)
+        dk = np.where(ok, dark[k], -np.inf)
+        above = dk > thr
+        if not above.any():
+            continue
+        edges = np.diff(above.astype(np.int8), prepend=0, append=0)
+        starts = np.flatnonzero(edges == 1)
+        ends = np.flatnonzero(edges == -1)
+        for s0, s1 in zip(starts.tolist(), ends.tolist(), strict=True):
+            peaks.append((k, s0 + int(np.argmax(dk[s0:s1]))))
+    if not peaks:
+        return [[], []]
+    fam = np.array([k for k, _ in peaks])
+    pk = np.array([p for _, p in peaks])
+    m = pk.size
+    jj = np.arange(-r, r + 1)
+    jf = jj.astype(np.float64)
+    cols = pk[:, None] + jj[None, :]
+    # the whole profile: depth, half-depth crossings, width, window and plateau levels
+    p0 = prof[fam[:, None], cols]
+    d0 = dark[fam[:, None], cols]
+    near = np.nan_to_num(d0[:, r - 2 : r + 3], nan=-np.inf)
+    depth = near.max(axis=1)
+    hl, hr = crossings(d0, jf, np.argmax(near, axis=1) - 2, 0.5 * depth)
+    c0 = 0.5 * (hl + hr)
+    half = 1.5 * (hr - hl) + 1.5
+    lev_l, lev_r = plateaus(p0, jf, c0, half)
+    # the parts: PARTS equal stretches of the window's common in-view stretch
+    # (over the samples a part's centroid and plateaus use: c0 +- (half + 4))
+    used = np.abs(jf[None, :] - np.nan_to_num(c0)[:, None]) <= (
+        np.nan_to_num(half)[:, None] + 5.0
+    )
+    u_lo = np.where(used, lo[fam[:, None], cols], -np.inf).max(axis=1) + 1.0
+    u_hi = np.where(used, hi[fam[:, None], cols], np.inf).min(axis=1) - 1.0
+    step = (u_hi - u_lo) / PARTS
+    usable = np.isfinite(c0) & (step >= run.st.min_part / 2.0)
+    x0, y0 = run.centre
+    along = np.where(fam == 0, x0, y0)  # warp coordinate of u = 0
+    with np.errstate(invalid="ignore"):
+        edges_u = u_lo[:, None] + step[:, None] * np.arange(PARTS + 1)[None, :]
+        idx = np.ceil(along[:, None] + edges_u)
+    idx = np.where(usable[:, None], idx, 0.0).astype(np.intp)
+    count = np.diff(idx, axis=1)  # samples in each part, (m, PARTS)
+    tpart = 0.5 * (idx[:, :-1] + idx[:, 1:] - 1) - along[:, None]
+    line = np.clip(cols - r, 0, integ.shape[0] + integ.shape[1])  # warp row / column
+    a = idx[:, None, :-1]  # (m, 1, PARTS)
+    b = idx[:, None, 1:]
+    q = line[:, :, None]  # (m, W, 1)
+    fam1 = (fam == 0)[:, None, None]
+    hmax, wmax = integ.shape[0] - 1, integ.shape[1] - 1
+    qr = np.minimum(q, hmax - 1)
+    qc = np.minimum(q, wmax - 1)
+    ar, br = np.minimum(a, wmax), np.minimum(b, wmax)
+    ac, bc = np.minimum(a, hmax), np.minimum(b, hmax)
+    part_sum = np.where(
+        fam1,
+        integ[qr + 1, br] - integ[qr, br] - integ[qr + 1, ar] + integ[qr, ar],
+        integ[bc, qc + 1] - integ[bc, qc] - integ[ac, qc + 1] + integ[ac, qc],
+    )  # (m, W, PARTS)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        pp = part_sum / count[:, None, :] + mean
+    pp = np.where(usable[:, None, None] & ~np.isnan(p0)[:, :, None], pp, np.nan)
+    pp = pp.transpose(0, 2, 1).reshape(m * PARTS, -1)  # row i * PARTS + j
+    cj = np.repeat(c0, PARTS)
+    hj = np.repeat(half, PARTS)
+    ll, lr = plateaus(pp, jf, cj, hj)
+    lev = ll[:, None] + (lr - ll)[:, None] * np.clip(jf[None, :] - cj[:, None] + 0.5, 0, 1)
+    dp = lev - pp
+    nearp = np.nan_to_num(dp[:, r - 3 : r + 4], nan=-np.inf)
+    dpk = nearp.max(axis=1)
+    jp = np.argmax(nearp, axis=1) - 3
+    lv = np.concatenate([0.5 * dpk, 0.2 * dpk, 0.8 * dpk])
+    xl, xr = crossings(np.tile(dp, (3, 1)), jf, np.tile(jp, 3), lv)
+    nr = dp.shape[0]
+    width = (xr[:nr] - xl[:nr]).reshape(m, PARTS)
+    rise = (0.5 * ((xl[2 * nr :] - xl[nr : 2 * nr]) + (xr[nr : 2 * nr] - xr[2 * nr :])))
+    rise = rise.reshape(m, PARTS)
+    inside = (cj - hj - 4.0 >= -r) & (cj + hj + 4.0 <= r)
+    cen = centroid(pp, jf, cj, hj, ll, lr)
+    cen = np.where(inside & (np.abs(cen - cj) <= hj), cen, np.nan).reshape(m, PARTS)
+    # the same position from the dip's half-depth edges: a symmetric dip gives the
+    # centroid; a step or shadow inside the window pulls the two apart
+    mid = (0.5 * (xl[:nr] + xr[:nr])).reshape(m, PARTS)
+    with np.errstate(invalid="ignore"):
+        asym = np.nanmax(np.where(np.isfinite(cen) & np.isfinite(mid), np.abs(mid - cen),
+                                  0.0), axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        wmed = nanmedian(width.T)
+        rmed = nanmedian(rise.T)
+        cmed = nanmedian((dpk / np.maximum(ll, lr)).reshape(m, PARTS).T)
+    lo_lev = np.minimum(lev_l, lev_r)
+    hi_lev = np.maximum(lev_l, lev_r)
+    stepr = (hi_lev - lo_lev) / np.maximum(hi_lev, 1e-9)
+    out: list[list[Line]] = [[], []]
+    for i in range(m):
+        ok = np.isfinite(cen[i])
+        if not usable[i] or not ok.any():
+            continue
+        out[int(fam[i])].append(
+            Line(
+                depth=float(depth[i]),
+                width=float(wmed[i]),
+                rise=float(rmed[i]),
+                step=float(stepr[i]),
+                contrast=float(cmed[i]),
+                chord=float(total[fam[i], pk[i]]),
+                parts=pk[i] - r + cen[i],
+                asym=float(asym[i]),
+                tpart=tpart[i],
+                wpart=np.where(ok, count[i], 0).astype(np.float64),
+            )
+        )
+    return out
+
+
+def select_lines(run: RobustRun, lines: list[list[Line]]) -> list[list[Line]]:
+    """Keep the dips that look like grout lines: deep enough against the deepest, and not
+    much wider than the strong ones (a broad shadow or stain is not a line)."""
+    every = lines[0] + lines[1]
+    if not every:
+        return [[], []]
+    deepest = max(ln.depth for ln in every)
+    wref = float(np.median([ln.width for ln in every if ln.depth >= 0.5 * deepest]))
+    run.details["depth"] = deepest
+    run.details["width"] = wref
+    return [
+        [
+            ln
+            for ln in fam
+            if ln.depth >= run.st.rel_depth * deepest and ln.width <= 2.0 * wref + 2.0
+        ]
+        for fam in lines
+    ]
+
+
+def nanmedian(a: np.ndarray) -> np.ndarray:
+    """Median over axis 0 of the finite entries of a small (k, m) array (NaN if none)."""
+    srt = np.sort(np.where(np.isfinite(a), a, np.inf), axis=0)
+    cnt = np.isfinite(a).sum(axis=0)
+    lo = np.clip((cnt - 1) // 2, 0, a.shape[0] - 1)
+    hi = np.clip(cnt // 2, 0, a.shape[0] - 1)
+    cols = np.arange(a.shape[1])
+    out = 0.5 * (srt[lo, cols] + srt[hi, cols])
+    return np.where(cnt > 0, out, np.nan)
+
+
+def crossings(
+    d: np.ndarray, j: np.ndarray, jp: np.ndarray, level: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Where each row of ``d`` (darkness over sample offsets ``j``) first falls below ``level``
+    on the left and on the right of its peak ``jp``, interpolated linearly; NaN when it does
+    not (or runs into missing data first)."""
+    lv = level[:, None]
+    below = ~(d >= lv)  # NaN counts as below: such a crossing interpolates to NaN
+    jr = j[None, :]
+    pk = jp[:, None].astype(np.float64)
+    big = float(j[-1]) + 1.0
+    jl = np.where(below & (jr < pk), jr, -big).max(axis=1)
+    jrt = np.where(below & (jr > pk), jr, big).min(axis=1)
+    ok = (jl > -big) & (jrt < big)
+    r = (j.size - 1) // 2
+    il = np.clip(jl + r, 0, j.size - 2).astype(np.intp)
+    ir = np.clip(jrt + r, 1, j.size - 1).astype(np.intp)
+    rows = np.arange(d.shape[0])
+    dl0, dl1 = d[rows, il], d[rows, il + 1]
+    dr0, dr1 = d[rows, ir], d[rows, ir - 1]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        xl = jl + (lv[:, 0] - dl0) / (dl1 - dl0)
+        xr = jrt - (lv[:, 0] - dr0) / (dr1 - dr0)
+    return np.where(ok, xl, np.nan), np.where(ok, xr, np.nan)
+
+
+def plateaus(
+    p: np.ndarray, j: np.ndarray, c: np.ndarray, half: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Mean level of each row of ``p`` (sample offsets ``j``) over the 4 samples just outside
+    its window [c - half, c + half], on the left and on the right (NaN if none)."""
+    cl = (c - half)[:, None]
+    cr = (c + half)[:, None]
+    jr = j[None, :]
+    ok = ~np.isnan(p)
+    ml = (jr < cl) & (jr >= cl - 4.0) & ok
+    mr = (jr > cr) & (jr <= cr + 4.0) & ok
+    pz = np.where(ok, p, 0.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        left = (pz * ml).sum(axis=1) / ml.sum(axis=1)
+        right = (pz * mr).sum(axis=1) / mr.sum(axis=1)
+    return left, right
+
+
+def centroid(
+    p: np.ndarray,
+    j: np.ndarray,
+    c: np.ndarray,
+    half: np.ndarray,
+    lev_l: np.ndarray,
+    lev_r: np.ndarray,
+    iterations: int = 3,
+) -> np.ndarray:
+    """Centroid of each row's darkness ``1 - p / level`` over [c - half, c + half] (sample
+    offsets ``j``), the level stepping from ``lev_l`` to ``lev_r`` at the current centre; each
+    sample weighs by its overlap with the window; re-centred ``iterations`` times. NaN where
+    the window holds missing data or no darkness."""
+    jr = j[None, :]
+    ll = lev_l[:, None]
+    lr = lev_r[:, None]
+    h = half[:, None]
+    cc = c.copy()
+    for _ in range(iterations):
+        ccol = cc[:, None]
+        w = np.clip(np.minimum(jr + 0.5, ccol + h) - np.maximum(jr - 0.5, ccol - h), 0.0, 1.0)
+        lev = ll + (lr - ll) * np.clip(jr - ccol + 0.5, 0.0, 1.0)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            q = (1.0 - p / lev) * w
+            q = np.where(w > 0, q, 0.0)  # NaN inside the window stays NaN
+            tot = q.sum(axis=1)
+            cc = np.where(tot > 0, (q * jr).sum(axis=1) / tot, np.nan)
+    return cc

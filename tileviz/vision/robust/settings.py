@@ -1,0 +1,81 @@
+"""Thresholds of the robust extractor (:class:`RobustSettings`) and their defaults."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+__all__ = ["DEFAULT_SETTINGS", "RobustSettings"]
+
+
+@dataclass(frozen=True)
+class RobustSettings:
+    """Thresholds of the robust extractor (gray levels 0..255, pixels, radians)."""
+
+    min_range: float = 6.0
+    """Gray range (2nd to 98th percentile) below which the image is ``constant image``."""
+    glare_fraction: float = 0.04
+    """Fraction of pixels >= 250 above which the frame is refused as ``glare``."""
+    min_depth: float = 15.0
+    """Weakest grout dip trusted, gray levels (``low contrast`` when the deepest is weaker)."""
+    rel_depth: float = 0.3
+    """A dip counts as a line when at least this fraction of the deepest dip."""
+    max_rise: float = 3.0
+    """Median 20-80 % edge rise of the lines above which the view is ``blurred``, px."""
+    max_step: float = 0.85
+    """|level left - level right| / brighter level above which a line is a ``step edge``."""
+    spacing_fraction: float = 0.5
+    """A line may sit at most this fraction of the declared position bound off the lattice."""
+    straight_fraction: float = 1.0
+    """A line's parts may sit at most this fraction of the position bound off the common fit."""
+    min_chord: float = 0.35
+    """A lattice line is expected (``inconsistent spacing`` when missing) where its chord is at
+    least this fraction of the longest chord in the view."""
+    min_evidence: float = 0.5
+    """Total line length per family, as a fraction of the smaller image side."""
+    width_ratio: float = 1.5
+    """Lines may differ in half-depth width at most by this factor (+ ``width_slack`` px)."""
+    width_slack: float = 1.0
+    contrast_ratio: float = 1.7
+    """Lines may differ in contrast (depth / level) at most by this factor."""
+    foreign_length: float = 0.3
+    """Straight edges off the lattice longer than this fraction of the smaller side refuse."""
+    foreign_contrast: float = 0.35
+    """Edges weaker than this fraction of the grout's depth (a step of that many gray levels)
+    are not searched for foreign objects."""
+    heading_share: float = 0.2
+    """Share of the pixels (the strongest gradients) that vote for the heading."""
+    refine_tilt: float = 0.012
+    """Heading correction (rad) above which the warp is redone."""
+    check_position_px: float = 2.0
+    """Scale of the position consistency checks, px: they use the smaller of this and the
+    declared ``VisionConfig.position_error_px``."""
+    check_heading: float = 0.02
+    """Scale of the heading check, rad (the smaller of this and ``heading_error``)."""
+    min_part: float = 20.0
+    """Shortest stretch of a line measured on its own (a part), px."""
+    sigmas: float = 4.0
+    """The fit's own standard errors times this must stay within the declared bounds."""
+    prior_sigma: float = 1.5
+    """Prior scatter of a part's centroid at unit part length, px sqrt(px) (0.15 px for a
+    100 px part), weighing ``prior_dof`` degrees of freedom."""
+    prior_dof: float = 2.0
+    floor_px: float = 0.1
+    """Smallest position bound of a view, px (with ``floor_width`` x the grout's half-depth
+    width and ``floor_rise`` x its edge rise added)."""
+    floor_width: float = 0.02
+    asym_factor: float = 1.5
+    asym_step: float = 0.2
+    """A line's asymmetry counts fully from this step between its sides on (proportionally
+    below)."""
+    """Weight in the position bound of the largest disagreement between a part's centroid and
+    the midpoint of its half-depth edges (an asymmetric dip), px per px."""
+    floor_rise: float = 0.05
+    floor_rad: float = 0.0005
+    """Smallest heading bound of a view, rad."""
+    heading_sigmas: float = 6.0
+    """The heading bound is this many standard errors of the fitted tilt (plus ``floor_rad``):
+    the tilt's error has heavier tails than the positions' (bench/vision_study.py)."""
+    """Smallest heading bound of a view, rad."""
+
+
+DEFAULT_SETTINGS = RobustSettings()

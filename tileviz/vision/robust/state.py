@@ -1,0 +1,105 @@
+"""The state of one frame through the robust extractor, shared by its steps.
+
+:class:`RobustRun` holds the frame, its settings and every intermediate result (the stage images
+read them); :class:`Line` is one measured grout line candidate; :class:`Fail` carries the reason
+of the first failed check. Each step (:mod:`.statistics`, :mod:`.heading`, :mod:`.profiles`,
+:mod:`.fit`, :mod:`.lattice`, :mod:`.bound`, :mod:`.foreign`) is a function of a RobustRun.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from tileviz.config import CameraConfig, VisionConfig
+from tileviz.vision.robust.settings import RobustSettings
+
+__all__ = ["PARTS", "Fail", "Line", "RobustRun"]
+
+PARTS = 4
+"""Each line is measured in this many parts along its length."""
+
+
+@dataclass
+class Line:
+    """A grout line candidate of one family, measured on the warped image.
+
+    Positions are profile coordinates (row for family 1, column for family 2) in the warp
+    frame; tangent coordinates t are along the line, relative to the warp centre."""
+
+    depth: float
+    width: float  # half-depth width, median over the parts, px
+    rise: float  # 20-80 % edge rise, median over the parts, px
+    step: float  # |level left - level right| / brighter level
+    contrast: float  # depth / brighter plateau level (vignetting and shading cancel)
+    chord: float  # line length in the view, px
+    parts: np.ndarray  # (PARTS,) centroid in each part (NaN when not measured)
+    tpart: np.ndarray  # (PARTS,) mean tangent coordinate of each part
+    asym: float  # largest |half-depth midpoint - centroid| over the parts, px
+    wpart: np.ndarray  # (PARTS,) length of each part (0 when not measured)
+    pos: float = math.nan  # at tangent coordinate 0, after the common tilt fit
+    var: float = math.inf  # variance of pos from the fit's scatter, px^2
+
+
+class Fail(Exception):
+    """A refusal: ``reason`` is one of the extractor's reasons (``tileviz.vision.REASONS``)."""
+
+    def __init__(self, reason: str) -> None:
+        super().__init__(reason)
+        self.reason = reason
+
+
+class RobustRun:
+    """One frame through the robust extractor (keeps intermediate arrays for the stages)."""
+
+    def __init__(
+        self,
+        gray: np.ndarray,
+        camera: CameraConfig,
+        tile_size: float,
+        vision: VisionConfig,
+        settings: RobustSettings,
+        timings: dict[str, float],
+    ) -> None:
+        self.gray = gray
+        self.vision = vision
+        self.st = settings
+        self.tm = timings
+        self.h, self.w = gray.shape
+        self.side = float(min(self.h, self.w))
+        self.ppm = float(camera.ppm)
+        self.tile_size = float(tile_size)
+        self.lp = self.tile_size * self.ppm  # tile period, px
+        # the consistency checks work at the smaller of the declared bounds and the check
+        # scales (the declared bounds keep a margin over the errors the checks let through)
+        self.bound_px = min(float(vision.position_error_px), settings.check_position_px)
+        self.bound_rad = min(float(vision.heading_error), settings.check_heading)
+        self.mean = 0.0
+        self.edges: np.ndarray | None = None
+        self.free_edges: np.ndarray | None = None
+        self.warped: np.ndarray | None = None
+        self.centre = (0.0, 0.0)  # warp centre (X0, Y0)
+        self.lines: list[list[Line]] = [[], []]
+        self.y3: float | None = None
+        self.y: tuple[float, float, float] | None = None
+        self.foreign: np.ndarray = np.zeros((0, 4))
+        self.dxy: tuple[np.ndarray, np.ndarray] | None = None  # Scharr gradients (CV_16S)
+        self.details: dict[str, float] = {}
+        # grey-closing window of the profile baseline (wider than any grout dip) and the
+        # half-size of the window each dip is measured in, samples (px)
+        # (up to a third of the tile period: a grout band up to ~20 px wide on any floor whose
+        # tiles span 80 px or more)
+        self.closing = 2 * int(round(min(max(8.0, 0.17 * self.lp), 30.0))) + 1
+        # half-size of the window each dip is measured in: 20 samples suit grout up to ~9 px
+        # wide; a wider band measures again with a window up to closing + 8 (see execute)
+        self.window = min(20, self.closing + 8)
+        self.inverted = False  # grout lighter than the tiles: the gray levels are inverted
+
+    def lap(self, name: str, t0: float) -> float:
+        """Add the time since ``t0`` (perf_counter, s) to stage ``name`` (ms); the time now."""
+        t = time.perf_counter()
+        self.tm[name] = self.tm.get(name, 0.0) + (t - t0) * 1e3
+        return t
