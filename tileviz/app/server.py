@@ -7,16 +7,16 @@ shown to the scene, the image panels, the plots and the readouts, at most ``push
 second (the browser cannot take more than ~60 updates a second; the loop itself runs faster).
 An exception inside a frame is logged as one line, shown in the GUI, and the loop goes on.
 
-Options (report table 6.1 and the server's own): ``--host`` (default 127.0.0.1: only this
-machine), ``--port`` (8080; the next free one if taken), ``--preset``, ``--interactive`` (start
-paused: one frame per Step), ``--intervals/--no-intervals`` (draw the boxes),
-``--display/--no-display`` (stream the stage images), ``--ppm``, ``--tile-size``,
-``--output-file NAME`` (CSV of the six equivalence residuals per frame, written under
-``--out-dir``), ``--seed``, ``--history``, ``--push-rate``, ``--image-rate``, ``--speed``,
-``--max-speed``, ``--mcl``/``--particles`` (the Monte Carlo Localization baseline beside the
-boxes), ``--mode``, ``--extractor``, and ``--dataset DIR``: replay a recorded tileviz-dataset/1
-folder instead of simulating (its meta.json sets the floor and the camera; the boxes are those
-``python -m tileviz replay`` writes).
+Options (report table 6.1 and the server's own): ``--host`` (default 127.0.0.1: only this machine),
+``--port`` (8080; the next free one if taken), ``--preset``, ``--interactive`` (start paused: one
+frame per Step), ``--intervals/--no-intervals`` (draw the boxes), ``--display/--no-display``
+(stream the stage images), ``--ppm``, ``--tile-size``, ``--output-file NAME`` (CSV of the six
+equivalence residuals per frame, written under ``--out-dir``), ``--seed``, ``--history``,
+``--push-rate``, ``--image-rate``, ``--speed``, ``--max-speed``, ``--lens`` (a real camera in the
+simulator), ``--mcl``/``--particles`` (the Monte Carlo Localization baseline beside the boxes),
+``--mode``, ``--extractor``, and ``--dataset DIR``: replay a recorded tileviz-dataset/1 folder
+instead of simulating (its meta.json sets the floor and the camera; the boxes are those ``python -m
+tileviz replay`` writes).
 """
 
 from __future__ import annotations
@@ -64,6 +64,7 @@ from tileviz.config import (
     Config,
     preset,
 )
+from tileviz.sim.lens import LENSES
 
 if TYPE_CHECKING:
     from viser import GuiButtonGroupHandle, GuiEvent, ViserServer
@@ -475,6 +476,10 @@ def parser() -> Parser:
                    help="simulator preset (default: default)")
     p.add_argument("--dataset", metavar="DIR", help="replay this tileviz-dataset/1 folder "
                    "instead of simulating (its meta.json sets the floor and the camera)")
+    p.add_argument("--lens", choices=LENSES, default=None,
+                   help="the simulated camera is a real one (webcam: tilted, a distorting "
+                   "lens); its raw and rectified images are shown as stages (a dataset with a "
+                   "camera_model shows them too)")
     p.add_argument("--mode", choices=MODES, default=None,
                    help="localizer mode (default autonomous)")
     p.add_argument("--extractor", choices=EXTRACTORS, default=None,
@@ -566,7 +571,8 @@ def serve_config(args: argparse.Namespace) -> Config:
         from tileviz.datasets import DatasetSource
 
         clash = [name for name, v in (("--preset", args.preset), ("--tile-size", args.tile_size),
-                                      ("--ppm", args.ppm)) if v is not None]
+                                      ("--ppm", args.ppm), ("--lens", args.lens))
+                 if v is not None]
         if clash:
             raise CliError(f"{', '.join(clash)} cannot be used with --dataset (the dataset's "
                            "meta.json sets the floor and the camera)")
@@ -616,7 +622,7 @@ def options_from_args(args: argparse.Namespace) -> SessionOptions:
                           out_dir=Path(args.out_dir),
                           output_file=args.output_file, speed=args.speed,
                           max_speed=args.max_speed, mcl=args.mcl, mcl_particles=args.particles,
-                          start_frame=args.start_frame,
+                          start_frame=args.start_frame, lens=args.lens,
                           dataset=Path(args.dataset) if args.dataset is not None else None)
 
 

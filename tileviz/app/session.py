@@ -35,6 +35,7 @@ from tileviz.app.outputs import output_path, sanitize_name
 from tileviz.app.scene import texture_pixels_per_tile
 from tileviz.config import Config, LocalizerConfig, NoiseConfig, with_floor_style
 from tileviz.pipeline import FrameLoop, FrameRecord, initial_box
+from tileviz.sim.camera import FAULT_KINDS
 from tileviz.summary import RunTally
 from tileviz.types import FrameInput
 
@@ -78,6 +79,10 @@ class SessionOptions:
     dataset: Path | None = None
     """Replay this tileviz-dataset/1 folder instead of simulating (the Config passed to the
     session should be :func:`tileviz.datasets.replay_config` of its meta)."""
+    lens: str | None = None
+    """The simulator's camera is this real camera (:data:`tileviz.sim.lens.LENSES`): raw images
+    through a tilted, distorting lens, rectified to the configured camera's view before vision;
+    the view bound grows as ``docs/dataset-format.md`` says for a ``camera_model``."""
 
 
 @dataclass
@@ -155,7 +160,7 @@ class Session:
         from tileviz.app.sources import make_source  # pymunk: only when a run starts
 
         self.source = make_source(cfg, dataset=self.options.dataset,
-                                  renderer=self.options.renderer)
+                                  renderer=self.options.renderer, lens=self.options.lens)
         floor_half = getattr(self.source, "floor_half_size", None)
         if floor_half is not None:  # a dataset: a floor under its whole true path
             half = floor_half(cfg.sim.room_half_size)
@@ -163,7 +168,7 @@ class Session:
             self.setpoint_kind = "dataset"
         self.cfg = cfg
         self.ended = None
-        self.runner = FrameLoop(cfg, keep_stages=self.display)
+        self.runner = FrameLoop(self._lens_bound(cfg), keep_stages=self.display)
         """The frame loop: the interval localizer and, when on, the MCL baseline (:data:`MCL`)."""
         if self._mcl_wanted:
             self._start_mcl(initial_box(cfg))
@@ -204,6 +209,20 @@ class Session:
         if self.csv is not None:
             self.csv.close()
             self.csv = None
+
+    def _lens_bound(self, cfg: Config) -> Config:
+        """``cfg`` for the localizer: with a simulated lens, the view bound grows by what the
+        rectification may move (as a dataset's ``camera_model`` makes ``replay`` do; a dataset's
+        configuration has that already)."""
+        rect = self.source.rectifier
+        if rect is None or not self.source.simulator:
+            return cfg
+        from tileviz.datasets.camera_model import view_margin
+
+        px, rad = view_margin(rect.model, rect)
+        return replace(cfg, vision=replace(cfg.vision,
+                                           position_error_px=cfg.vision.position_error_px + px,
+                                           heading_error=cfg.vision.heading_error + rad))
 
     # ------------------------------------------------------------------ notes
     def note(self, text: str, level: str = "info") -> None:
@@ -292,8 +311,14 @@ class Session:
         except Exception as e:  # noqa: BLE001 - the loop must survive any frame
             self._frame_failed(before, f"simulator: {e}", missed=self.source.index != before)
             return None
-        self._record(frame)
+        self._record(frame)  # a lens camera's raw image, as a robot logs it
+        lens_stages: dict[str, np.ndarray] | None = None
         try:
+            if self.source.rectifier is not None:
+                raw = frame.image
+                frame = replace(frame, image=self.source.rectifier(raw))
+                if self.runner.keep_stages:
+                    lens_stages = {"raw": raw, "rectified": frame.image}
             rec = self.runner.process(frame)
         except Exception as e:  # noqa: BLE001
             self._frame_failed(frame.index, str(e), missed=True)
@@ -303,7 +328,8 @@ class Session:
 
             self.csv.row(residual_row(rec))
         particles = self._mcl_view(rec)
-        entry = Entry.make(rec, stages=self.display, encoder=self.encoder, mcl=particles)
+        entry = Entry.make(rec, stages=self.display, encoder=self.encoder, mcl=particles,
+                           before=lens_stages)
         self.shown = self.history.append(entry)
         self.tally.add(rec)
         self.frames_computed += 1
@@ -387,6 +413,8 @@ class Session:
         assert folder is not None
         self._record_pending = None
         meta = DatasetMeta.from_config(self.cfg, name=f"tileviz live run ({folder.name})")
+        if self.source.rectifier is not None:  # raw images: replay rectifies them
+            meta = replace(meta, camera_model=self.source.rectifier.model)
         if frame.truth is not None:
             # the run may be under way: the dataset starts at this frame's true pose, known within
             # the configured initial error (docs/dataset-format.md: initial_pose +-
@@ -473,6 +501,9 @@ class Session:
             case C.SetLayer(layer=layer, visible=visible):
                 self.layers[layer] = bool(visible)
             case C.Inject(kind=kind, frames=frames):
+                if self.source.rectifier is not None and kind in FAULT_KINDS:
+                    raise ValueError(f"the {kind} fault is not drawn through a lens (--lens): "
+                                     "odometry faults only")
                 self._simulator.inject(kind, frames=frames)
                 self.note(f"fault {kind} injected")
             case C.StartRecording():
@@ -581,7 +612,7 @@ class Session:
             self._build(cfg)
             self._replay_from_start(what)
             return
-        self.runner.reconfigure(cfg)
+        self.runner.reconfigure(self._lens_bound(cfg))
         self.cfg = cfg
 
     def _set_mode(self, cmd: C.SetMode) -> None:
