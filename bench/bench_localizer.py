@@ -1,6 +1,7 @@
 """Benchmark: predict + contract of one box per frame, ours against codac 2.
 
-Usage: ``python bench/bench_localizer.py [--frames N] [--repeats R]``
+Usage: ``python bench/bench_localizer.py [--frames N] [--repeats R] [--clock wall|cpu]
+[--no-codac]``
 
 For each scenario (the ``default`` and ``seed`` presets' tile size, lever arm and bounds; mode
 ``autonomous``, i.e. tracking, and mode ``truth``, where every frame starts from the truth
@@ -9,7 +10,7 @@ their bounds (uniform, 90 % of each bound). Per frame we time:
 
 - ``ours step``: ``Localizer.step`` (validation, prediction, compass, contraction over the four
   branches, box-set housekeeping, the frozen result objects) -- what the runner calls;
-- ``ours core``: the same maths on plain tuples (``predict_box``, ``compass_pieces``,
+- ``ours core``: the same maths on :class:`Box` values alone (``predict_box``, ``compass_pieces``,
   ``contract_box``);
 - codac: the contraction alone of the same predicted boxes (recorded from our run) by the union
   (``CtcUnion``) over the four branches of ``CtcInverse`` of the sin constraints
@@ -21,8 +22,10 @@ return (``tests/test_codac_oracle.py`` checks it to 1e-9), plus the split into l
 single-pass variants are weaker (one forward-backward sweep). ``centered`` is codac's default
 ``CtcInverse``; ``plain`` switches the centered form off (cheaper, same result here).
 
-Timings are the best of ``--repeats`` runs over all frames. Also printed: statuses, the number of
-contraction passes per frame, and whether the truth stayed in the set.
+Timings are the best of ``--repeats`` runs over all frames, on the wall clock or (``--clock cpu``,
+steadier on a loaded machine) the thread's CPU time; ``--no-codac`` times ours alone. Also
+printed: statuses, the number of contraction passes per frame, and whether the truth stayed in the
+set.
 """
 
 from __future__ import annotations
@@ -53,6 +56,9 @@ from tileviz.core.tiles import observe  # noqa: E402
 from tileviz.types import Box, Observation, Odometry, Pose, SensorBounds  # noqa: E402
 
 WORKER = Path(__file__).resolve().parents[1] / "tests" / "codac_oracle_worker.py"
+
+clock = time.perf_counter
+"""The clock every figure is read from (``--clock``)."""
 
 
 def initial_box(cfg: Config) -> Box:
@@ -127,15 +133,15 @@ def time_step(cfg: Config, run: list[dict], repeats: int) -> float:
         loc = Localizer(tile_size=cfg.floor.tile_size, camera_offset=cfg.camera.offset,
                         bounds=bounds, config=cfg.localizer, initial=initial_box(cfg))
         step = loc.step
-        t0 = time.perf_counter()
+        t0 = clock()
         for a in args:
             step(*a)
-        best = min(best, time.perf_counter() - t0)
+        best = min(best, clock() - t0)
     return best / len(run) * 1e6
 
 
 def time_core(cfg: Config, run: list[dict], repeats: int) -> float:
-    """The maths alone on tuples, one box carried frame to frame (the hull of the result)."""
+    """The maths alone on Box values, one box carried frame to frame (the hull of the result)."""
     L = cfg.floor.tile_size
     lever = lever_enclosure(cfg.camera.offset)
     nz = cfg.noise
@@ -152,12 +158,12 @@ def time_core(cfg: Config, run: list[dict], repeats: int) -> float:
         if cfg.localizer.mode == "truth":
             p = f["truth"]
             ix, iy, it = cfg.localizer.truth_inflation
-            tbox = (p.x - ix, p.x + ix, p.y - iy, p.y + iy, p.theta - it, p.theta + it)
+            tbox = Box(p.x - ix, p.x + ix, p.y - iy, p.y + iy, p.theta - it, p.theta + it)
         prepared.append((odo, c - nz.compass_error, c + nz.compass_error, f["observation"], tbox))
     best = math.inf
     for _ in range(repeats):
-        box = initial_box(cfg).as_tuple()
-        t0 = time.perf_counter()
+        box = initial_box(cfg)
+        t0 = clock()
         for odo, c_lo, c_hi, obs, tbox in prepared:
             if tbox is not None:
                 box = tbox
@@ -168,9 +174,9 @@ def time_core(cfg: Config, run: list[dict], repeats: int) -> float:
                 box = cut[0]
             got, _, _ = contract_box(box, observation_windows(obs), L, lever, n, cap)
             if got:
-                box = (min(b[0] for b in got), max(b[1] for b in got), min(b[2] for b in got),
-                       max(b[3] for b in got), min(b[4] for b in got), max(b[5] for b in got))
-        best = min(best, time.perf_counter() - t0)
+                box = Box(min(b[0] for b in got), max(b[1] for b in got), min(b[2] for b in got),
+                          max(b[3] for b in got), min(b[4] for b in got), max(b[5] for b in got))
+        best = min(best, clock() - t0)
     return best / len(run) * 1e6
 
 
@@ -195,7 +201,12 @@ def main() -> int:
     ap.add_argument("--frames", type=int, default=2000)
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--seed", type=int, default=7)
+    ap.add_argument("--clock", choices=("wall", "cpu"), default="wall",
+                    help="wall: perf_counter; cpu: the thread's CPU time")
+    ap.add_argument("--no-codac", action="store_true", help="time ours only")
     args = ap.parse_args()
+    global clock
+    clock = time.thread_time if args.clock == "cpu" else time.perf_counter
     for name, mode in (("default", "autonomous"), ("seed", "autonomous"),
                        ("default", "truth"), ("seed", "truth")):
         cfg = with_overrides(preset(name), localizer={"mode": mode})
@@ -203,7 +214,8 @@ def main() -> int:
         predicted, stats = run_ours(cfg, run)
         step_us = time_step(cfg, run, args.repeats)
         core_us = time_core(cfg, run, args.repeats)
-        codac = time_codac(cfg, run, predicted, args.repeats)
+        codac = ({"us_per_box": {}} if args.no_codac
+                 else time_codac(cfg, run, predicted, args.repeats))
         print(f"== {name} preset, mode {mode}: L={cfg.floor.tile_size} m, "
               f"camera offset {cfg.camera.offset} m, "
               f"{args.frames} frames, best of {args.repeats}")
@@ -211,7 +223,7 @@ def main() -> int:
               f"truth inside {stats['truth_inside']}/{stats['frames']}, "
               f"max boxes {stats['max_boxes']}")
         print(f"   ours step (Localizer.step: predict+compass+contract): {step_us:7.1f} us/frame")
-        print(f"   ours core (tuples: predict+compass+contract):         {core_us:7.1f} us/frame")
+        print(f"   ours core (Box values: predict+compass+contract):     {core_us:7.1f} us/frame")
         for variant, us in codac["us_per_box"].items():
             print(f"   codac {variant:<28s} (contract only): {us:7.1f} us/frame   "
                   f"ours step / codac = {step_us / us:4.2f}   core / codac = {core_us / us:4.2f}")

@@ -423,12 +423,12 @@ CONSTRUCTION_FIELDS = {
     "speed_error": lambda v: {"bounds": replace(BOUNDS, speed_error=v)},
     "yaw_rate_error": lambda v: {"bounds": replace(BOUNDS, yaw_rate_error=v)},
     "compass_error": lambda v: {"bounds": replace(BOUNDS, compass_error=v)},
-    "x_lo": lambda v: {"initial": replace(BOX, x_lo=v)},
-    "x_hi": lambda v: {"initial": replace(BOX, x_hi=v)},
-    "y_lo": lambda v: {"initial": replace(BOX, y_lo=v)},
-    "y_hi": lambda v: {"initial": replace(BOX, y_hi=v)},
-    "t_lo": lambda v: {"initial": replace(BOX, t_lo=v)},
-    "t_hi": lambda v: {"initial": replace(BOX, t_hi=v)},
+    "x_lo": lambda v: {"initial": BOX._replace(x_lo=v)},
+    "x_hi": lambda v: {"initial": BOX._replace(x_hi=v)},
+    "y_lo": lambda v: {"initial": BOX._replace(y_lo=v)},
+    "y_hi": lambda v: {"initial": BOX._replace(y_hi=v)},
+    "t_lo": lambda v: {"initial": BOX._replace(t_lo=v)},
+    "t_hi": lambda v: {"initial": BOX._replace(t_hi=v)},
 }
 
 

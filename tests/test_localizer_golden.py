@@ -311,26 +311,27 @@ if __name__ == "__main__":
     regenerate()
 
 
-def test_hot_path_builds_the_same_objects() -> None:
-    """The localizer builds its Box / BoxSet / LocalizerStep results without the frozen
-    dataclass __init__ (it is slow): they must be the very same objects as the __init__ makes."""
-    from tileviz.core.boxes import _to_boxset
+def test_results_are_the_public_types_the_hot_path_computes_on() -> None:
+    """The localizer's results are public objects: every box of both sets is a
+    :class:`Box` (the type the hot path computes on), the sets are :class:`BoxSet` with the
+    boxes as a tuple, the step is an immutable :class:`LocalizerStep`, equal to one built from
+    its fields."""
     from tileviz.core.localizer import LocalizerStep
 
-    t1 = (0.1, 0.2, -0.3, 0.4, -0.0, 6.5)
-    t2 = (1.0, 1.5, 2.0, 2.5, 3.0, 3.5)
-    for boxes in ([t1], [t1, t2]):
-        got = _to_boxset(boxes)
-        want = BoxSet(tuple(Box(*b) for b in boxes))
-        assert type(got) is BoxSet and got == want and hash(got) == hash(want)
-        assert all(type(b) is Box for b in got.boxes)
-        assert [b.as_tuple() for b in got.boxes] == boxes
+    t1 = (0.1, 0.2, -0.3, 0.4, 0.0, 0.1)
     loc = Localizer(tile_size=1.0, camera_offset=(0.3, 0.0), bounds=SensorBounds(0.02, 0.01, 0.02),
-                    config=LocalizerConfig(), initial=Box(*t1[:4], 0.0, 0.1))
-    step = loc.step(Odometry(0.5, 0.1, 0.05), 0.05, None)
-    assert type(step) is LocalizerStep
-    again = LocalizerStep(step.predicted, step.updated, step.status, step.passes, step.hulled,
-                          step.compass_rejected, step.rejections, step.reinflated)
-    assert step == again and repr(step) == repr(again) and vars(step) == vars(again)
-    with pytest.raises(AttributeError):
-        step.status = "lost"  # type: ignore[misc]
+                    config=LocalizerConfig(max_slip=(0.1, 0.1)), initial=Box(*t1))
+    steps = [loc.step(Odometry(0.5, 0.1, 0.05), 0.05, None),
+             loc.step(Odometry(0.5, 0.1, 0.05), 0.1, Observation(0.4, 0.7, 0.12, 0.01, 0.01))]
+    for step in steps:
+        assert type(step) is LocalizerStep
+        for s in (step.predicted, step.updated):
+            assert type(s) is BoxSet and type(s.boxes) is tuple and s.boxes
+            assert all(type(b) is Box for b in s.boxes)
+        again = LocalizerStep(step.predicted, step.updated, step.status, step.passes,
+                              step.hulled, step.compass_rejected, step.rejections,
+                              step.reinflated)
+        assert step == again and repr(step) == repr(again) and hash(step) == hash(again)
+        with pytest.raises(AttributeError):
+            step.status = "lost"  # type: ignore[misc]
+    assert type(loc.current) is BoxSet and all(type(b) is Box for b in loc.current.boxes)

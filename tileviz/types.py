@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Literal, get_args
+from typing import Literal, NamedTuple, get_args
 
 import numpy as np
 
@@ -71,12 +71,12 @@ class Observation:
     heading_error: float
 
 
-@dataclass(frozen=True, slots=True)
-class Box:
+class Box(NamedTuple):
     """An axis-aligned box of robot poses: [x_lo, x_hi] x [y_lo, y_hi] x [t_lo, t_hi].
 
     Metres and radians. The heading interval is continuous; a pose (x, y, theta) is in the box when
-    theta + 2 pi k is in [t_lo, t_hi] for some integer k.
+    theta + 2 pi k is in [t_lo, t_hi] for some integer k. A named tuple: the localizer's hot path
+    computes on it directly (``b[0]`` is ``b.x_lo``, and so on in field order).
     """
 
     x_lo: float
@@ -99,6 +99,7 @@ class Box:
         )
 
     def as_tuple(self) -> tuple[float, float, float, float, float, float]:
+        """The six bounds as a plain tuple."""
         return (self.x_lo, self.x_hi, self.y_lo, self.y_hi, self.t_lo, self.t_hi)
 
     def contains(self, x: float, y: float, theta: float) -> bool:

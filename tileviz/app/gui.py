@@ -72,7 +72,8 @@ recomputed. *Go live* jumps to the newest frame.
 4.3), or the plots: *Does the view agree with the true pose?* draws the six equivalence
 residuals of report table 6.1 (Fig 6.3; zero when the view fits the true pose), *Size of the
 set* the widths of the blue set, *Distance from the set's centre to the truth* its error.
-Orange: the Monte Carlo Localization baseline (particles and 95 % ellipse), when switched on.
+Orange: the Monte Carlo Localization baseline, calibrated to the views' measured errors
+(particles and 95 % ellipse), when switched on.
 """
 """The page's "How to read this page" text (markdown)."""
 

@@ -523,9 +523,10 @@ def parser() -> Parser:
                    help="playback speed, x real time (default 1)")
     p.add_argument("--max-speed", action="store_true", help="run as fast as possible")
     p.add_argument("--mcl", action="store_true",
-                   help="also run the Monte Carlo Localization baseline (orange particles)")
+                   help="also run the Monte Carlo Localization baseline, calibrated to the "
+                        "views' measured errors (orange particles)")
     p.add_argument("--particles", type=_int_range("--particles", 10, 100_000), default=1000,
-                   help="MCL particle count (default 1000)")
+                   help="MCL's largest particle count (it keeps 100 to this many; default 1000)")
     return p
 
 

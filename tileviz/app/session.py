@@ -70,7 +70,7 @@ class SessionOptions:
     mcl: bool = False
     """Run the Monte Carlo Localization baseline beside the interval localizer."""
     mcl_particles: int = 1000
-    """Its particle count."""
+    """Its largest particle count (KLD-sampling keeps between 100 and this many)."""
     renderer: Any = None
     """A renderer for the simulator (tests); None = the real floor renderer."""
     start_frame: int = 0
@@ -345,10 +345,14 @@ class Session:
 
     def _start_mcl(self, box: Any) -> None:
         """(Re)start the MCL baseline in ``box``, stepped by the frame loop from the next frame
-        on; if it raises it leaves the loop, not stopping the demo (:meth:`_mcl_view`)."""
-        from tileviz.baselines import MclConfig, MclEstimator
+        on; if it raises it leaves the loop, not stopping the demo (:meth:`_mcl_view`). The
+        calibrated filter (:func:`tileviz.baselines.mcl.calibrated_config`: the measured view
+        error model, roughening, KLD-sampling up to ``mcl_particles`` particles, AMCL recovery),
+        as ``tileviz evaluate`` runs it under the name ``mcl``."""
+        from tileviz.baselines import MclEstimator
+        from tileviz.baselines.mcl import calibrated_config
 
-        config = MclConfig(particles=self.options.mcl_particles, seed=self.cfg.sim.seed)
+        config = calibrated_config(particles=self.options.mcl_particles, seed=self.cfg.sim.seed)
         self.runner.add(MCL, MclEstimator.from_config(self.cfg, initial=box, config=config,
                                                       bounds=self.runner.bounds), optional=True)
 

@@ -1,6 +1,6 @@
-"""Box sets on the localizer's hot path: plain 6-tuples (x_lo, x_hi, y_lo, y_hi, t_lo, t_hi),
-metres and radians (heading continuous), their validation, housekeeping (merging, the box cap)
-and conversion to the public :class:`tileviz.types.Box` / :class:`tileviz.types.BoxSet`."""
+"""Box sets on the localizer's hot path: lists of :class:`tileviz.types.Box` (metres and
+radians, heading continuous), their validation, housekeeping (merging, the box cap) and
+widening."""
 
 from __future__ import annotations
 
@@ -13,23 +13,25 @@ from tileviz.core.intervals import (
     lattice_hull,
     turn_shift,
 )
-from tileviz.types import Box, BoxSet
+from tileviz.types import Box
 
-__all__ = ["LIMIT", "MIN_TILE", "Tuple6", "inflate_box"]
-
-Tuple6 = tuple[float, float, float, float, float, float]
-"""A box as (x_lo, x_hi, y_lo, y_hi, t_lo, t_hi): metres, metres, radians (continuous)."""
+__all__ = [
+    "LIMIT", "MIN_TILE", "ONE_TURN", "checked_box", "finite", "hull_of", "in_range",
+    "inflate_box", "nonnegative", "one_turn", "tidy",
+]
 
 _INF = math.inf
 _nextafter = math.nextafter
 
 MIN_TILE = 1e-4
 """Smallest tile size L, metres (with LIMIT: at most 1e13 tiles across the representable floor)."""
-_TURN = _nextafter(TWO_PI + 2.0 * TWO_PI_ERROR, _INF)
-"""A heading interval wider than this holds every heading: it is cut to one turn."""
+ONE_TURN = _nextafter(TWO_PI + 2.0 * TWO_PI_ERROR, _INF)
+"""A heading interval wider than this (radians) holds every heading: it is cut to one turn."""
 
 
-def _finite(name: str, v: object) -> float:
+def finite(name: str, v: object) -> float:
+    """``v`` as a float; ValueError naming ``name`` unless it is a finite number within
+    +-LIMIT (bools refused)."""
     if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
         raise ValueError(f"{name} must be a finite number, got {v!r}")
     if not -LIMIT <= v <= LIMIT:
@@ -37,34 +39,37 @@ def _finite(name: str, v: object) -> float:
     return float(v)
 
 
-def _nonneg(name: str, v: object) -> float:
-    f = _finite(name, v)
+def nonnegative(name: str, v: object) -> float:
+    """:func:`finite`, and ValueError naming ``name`` when it is negative."""
+    f = finite(name, v)
     if f < 0:
         raise ValueError(f"{name} must be >= 0, got {v!r}")
     return f
 
 
-def _check_box(name: str, box: Box) -> Tuple6:
+def checked_box(name: str, box: object) -> Box:
+    """``box`` with float bounds and its heading cut to one turn; ValueError naming ``name``
+    when it is not a :class:`Box`, has a bound that is not :func:`finite`, or is empty."""
     if not isinstance(box, Box):
         raise ValueError(f"{name} must be a Box, got {type(box).__name__}")
-    t = tuple(_finite(f"{name}.{k}", getattr(box, k)) for k in
+    t = tuple(finite(f"{name}.{k}", getattr(box, k)) for k in
               ("x_lo", "x_hi", "y_lo", "y_hi", "t_lo", "t_hi"))
     for axis, (lo, hi) in zip("xyt", (t[0:2], t[2:4], t[4:6]), strict=True):
         if lo > hi:
             raise ValueError(f"{name} is empty: {axis}_lo = {lo} > {axis}_hi = {hi}")
-    return _one_turn(t)  # type: ignore[arg-type]
+    return one_turn(Box(*t))
 
 
-def _one_turn(b: Tuple6) -> Tuple6:
+def one_turn(b: Box) -> Box:
     """``b`` with a heading interval wider than a turn cut to one turn from its low end (the
     same poses, heading modulo 2 pi)."""
-    if b[5] - b[4] <= _TURN:
+    if b[5] - b[4] <= ONE_TURN:
         return b
-    return (b[0], b[1], b[2], b[3], b[4],
-            _nextafter(_nextafter(b[4] + TWO_PI, _INF) + TWO_PI_ERROR, _INF))
+    return Box(b[0], b[1], b[2], b[3], b[4],
+               _nextafter(_nextafter(b[4] + TWO_PI, _INF) + TWO_PI_ERROR, _INF))
 
 
-def _in_range(boxes: list[Tuple6]) -> list[Tuple6]:
+def in_range(boxes: list[Box]) -> list[Box]:
     """The boxes, headings cut to one turn; ValueError when a bound leaves +-LIMIT."""
     out = boxes
     for i, b in enumerate(boxes):
@@ -72,24 +77,24 @@ def _in_range(boxes: list[Tuple6]) -> list[Tuple6]:
                 and -LIMIT <= b[4] and b[5] <= LIMIT):
             raise ValueError(f"the set left +-{LIMIT:g} (m, rad): {b}; the odometry or the "
                              f"bounds are too large")
-        if b[5] - b[4] > _TURN:
+        if b[5] - b[4] > ONE_TURN:
             if out is boxes:
                 out = list(boxes)
-            out[i] = _one_turn(b)
+            out[i] = one_turn(b)
     return out
 
 
-def _shift_heading(b: Tuple6, ref: float) -> Tuple6:
+def _shift_heading(b: Box, ref: float) -> Box:
     """``b`` with its heading moved by the multiple of 2 pi that brings its centre nearest
     ``ref`` (outward rounded: :func:`tileviz.core.intervals.turn_shift`)."""
     k = round((ref - 0.5 * (b[4] + b[5])) / TWO_PI)
     if k == 0:
         return b
     t_lo, t_hi = turn_shift(b[4], b[5], k)
-    return (b[0], b[1], b[2], b[3], t_lo, t_hi)
+    return Box(b[0], b[1], b[2], b[3], t_lo, t_hi)
 
 
-def _hull_all(boxes: list[Tuple6]) -> Tuple6:
+def hull_of(boxes: list[Box]) -> Box:
     """The bounding box; headings shifted next to the first box's first."""
     ref = 0.5 * (boxes[0][4] + boxes[0][5])
     x_lo, x_hi, y_lo, y_hi, t_lo, t_hi = boxes[0]
@@ -101,10 +106,10 @@ def _hull_all(boxes: list[Tuple6]) -> Tuple6:
         y_hi = max(y_hi, b[3])
         t_lo = min(t_lo, b[4])
         t_hi = max(t_hi, b[5])
-    return (x_lo, x_hi, y_lo, y_hi, t_lo, t_hi)
+    return Box(x_lo, x_hi, y_lo, y_hi, t_lo, t_hi)
 
 
-def _meet(a: Tuple6, b: Tuple6) -> bool:
+def _meet(a: Box, b: Box) -> bool:
     """Whether two boxes share a point (heading modulo 2 pi)."""
     return (
         a[0] <= b[1] and b[0] <= a[1] and a[2] <= b[3] and b[2] <= a[3]
@@ -112,12 +117,12 @@ def _meet(a: Tuple6, b: Tuple6) -> bool:
     )
 
 
-def _tidy(boxes: list[Tuple6], cap: int) -> tuple[list[Tuple6], bool]:
+def tidy(boxes: list[Box], cap: int) -> tuple[list[Box], bool]:
     """Make the boxes disjoint (boxes that meet are replaced by their hull, repeatedly) and apply
     the cap (more than ``cap`` boxes: the hull of all). Returns (boxes, whether the cap fired).
     Boxes are swept in order of x_lo, so only pairs whose x ranges overlap are compared."""
     if len(boxes) > cap:
-        return [_hull_all(boxes)], True
+        return [hull_of(boxes)], True
     if len(boxes) < 2:
         return boxes, False
     out = sorted(boxes)
@@ -127,7 +132,7 @@ def _tidy(boxes: list[Tuple6], cap: int) -> tuple[list[Tuple6], bool]:
         j = i + 1
         while j < len(out) and out[j][0] <= a[1]:
             if _meet(a, out[j]):
-                out[i] = _hull_all([a, out[j]])
+                out[i] = hull_of([a, out[j]])
                 del out[j]
                 out.sort()
                 i = -1  # a hull can meet boxes already passed: sweep again
@@ -137,39 +142,9 @@ def _tidy(boxes: list[Tuple6], cap: int) -> tuple[list[Tuple6], bool]:
     return out, False
 
 
-# Building the frozen result objects through their dataclass __init__ (one object.__setattr__
-# per field) cost as much as the whole prediction; the hot path fills the same slots directly.
-# The objects are the same as Box(*b) / BoxSet(boxes) (tests/test_localizer_golden.py checks).
-_new = object.__new__
-_BOX_SLOTS = tuple(Box.__dict__[k].__set__
-                   for k in ("x_lo", "x_hi", "y_lo", "y_hi", "t_lo", "t_hi"))
-_BOXSET_SLOT = BoxSet.__dict__["boxes"].__set__
-
-
-def _box(b: Tuple6) -> Box:
-    """``Box(*b)``, built without the frozen dataclass __init__."""
-    s0, s1, s2, s3, s4, s5 = _BOX_SLOTS
-    x_lo, x_hi, y_lo, y_hi, t_lo, t_hi = b
-    o = _new(Box)
-    s0(o, x_lo)
-    s1(o, x_hi)
-    s2(o, y_lo)
-    s3(o, y_hi)
-    s4(o, t_lo)
-    s5(o, t_hi)
-    return o
-
-
-def _to_boxset(boxes: list[Tuple6]) -> BoxSet:
-    """``BoxSet(tuple(Box(*b) for b in boxes))``, built without the dataclass __init__s."""
-    o = _new(BoxSet)
-    _BOXSET_SLOT(o, (_box(boxes[0]),) if len(boxes) == 1 else tuple(map(_box, boxes)))
-    return o
-
-
-def inflate_box(b: Tuple6, d: float, dt: float) -> Tuple6:
+def inflate_box(b: Box, d: float, dt: float) -> Box:
     """Box ``b`` widened by ``d`` metres on each side in x and y and ``dt`` rad in heading
     (outward rounded): every pose within (d, d, dt) of a pose of ``b``."""
     n = _nextafter
-    return (n(b[0] - d, -_INF), n(b[1] + d, _INF), n(b[2] - d, -_INF), n(b[3] + d, _INF),
-            n(b[4] - dt, -_INF), n(b[5] + dt, _INF))
+    return Box(n(b[0] - d, -_INF), n(b[1] + d, _INF), n(b[2] - d, -_INF), n(b[3] + d, _INF),
+               n(b[4] - dt, -_INF), n(b[5] + dt, _INF))

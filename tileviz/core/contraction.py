@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import math
 
-from tileviz.core.boxes import Tuple6
 from tileviz.core.intervals import (
     HALF_PI,
     HALF_PI_ERROR,
@@ -22,11 +21,11 @@ from tileviz.core.intervals import (
     lattice_intersect,
     lattice_pieces_indexed,
 )
-from tileviz.types import Observation
+from tileviz.types import Box, Observation
 
 __all__ = [
-    "FIXPOINT_TOL", "Lever", "Window", "contract_box", "contract_branch", "lever_enclosure",
-    "observation_windows",
+    "FIXPOINT_TOL", "Lever", "Window", "contract_box", "contract_branch", "contract_view",
+    "lever_enclosure", "observation_windows", "view_window",
 ]
 
 Lever = tuple[float, float, float, float]
@@ -80,11 +79,11 @@ def observation_windows(obs: Observation) -> tuple[Window, Window, Window, Windo
     """The four rotation branches of an observation (docs/method.md, "The corrected equivalence"):
     for m = 0..3, [u] = R(m pi/2) ([y1 +- e], [y2 +- e]) and [h] = [y3 +- e3] + m pi/2, so the pose
     is consistent with branch m iff c in [u] + L Z^2 and theta in [h] + 2 pi Z."""
-    w0 = _view_window(obs)
+    w0 = view_window(obs)
     return (w0, _branch_window(w0, 1), _branch_window(w0, 2), _branch_window(w0, 3))
 
 
-def _view_window(obs: Observation) -> Window:
+def view_window(obs: Observation) -> Window:
     """Branch m = 0 of :func:`observation_windows`: ([y1 +- e], [y2 +- e], [y3 +- e3]), outward."""
     n = _nextafter
     e = obs.position_error
@@ -214,7 +213,7 @@ def _refine_cell(
     s_hi: float,
     g: tuple[float, float, float, float],
     recut: Window | None = None,
-) -> tuple[Tuple6 | None, int]:
+) -> tuple[Box | None, int]:
     """Contract one cell: the camera centre c = (x, y) + rho (cos, sin)(t + phi) must lie in the
     lattice piece [px] x [py]. Alternates the exact projections of that constraint onto x, y and
     the heading (the latter the hull of the arccos / arcsin preimage) until the heading stops
@@ -280,11 +279,11 @@ def _refine_cell(
             return None, p
         if moved <= FIXPOINT_TOL or p >= max_passes:
             break
-    return (x_lo, x_hi, y_lo, y_hi, t_lo, t_hi), p
+    return Box(x_lo, x_hi, y_lo, y_hi, t_lo, t_hi), p
 
 
 def _contract_cells(
-    b: Tuple6,
+    b: Box,
     a_lo: float,
     a_hi: float,
     win: Window,
@@ -292,7 +291,7 @@ def _contract_cells(
     lever: Lever | None,
     max_passes: int,
     max_cells: int,
-    out: list[Tuple6],
+    out: list[Box],
 ) -> tuple[int, bool]:
     """Contract box ``b`` whose heading is already cut to one piece [a_lo, a_hi] of branch
     ``win``: the camera-centre interval [c] = [x] + rho cos([t] + phi) (resp. y, sin) is cut
@@ -324,7 +323,7 @@ def _contract_cells(
     if lever is None:  # the camera is the robot point: the cut is exact and final
         for px_lo, px_hi in xs:
             for py_lo, py_hi in ys:
-                out.append((px_lo, px_hi, py_lo, py_hi, a_lo, a_hi))
+                out.append(Box(px_lo, px_hi, py_lo, py_hi, a_lo, a_hi))
         return 1, hulled
     passes = 0
     for px_lo, px_hi in xs:
@@ -342,13 +341,13 @@ def _contract_cells(
 
 
 def contract_branch(
-    b: Tuple6,
+    b: Box,
     win: Window,
     tile_size: float,
     lever: Lever | None,
     max_passes: int,
     max_cells: int,
-) -> tuple[list[Tuple6], int, bool]:
+) -> tuple[list[Box], int, bool]:
     """Contract box ``b`` with one rotation branch ``win`` of an observation (docs/method.md).
 
     The heading is cut to [h] + 2 pi Z, then each heading piece is contracted by
@@ -357,7 +356,7 @@ def contract_branch(
     than ``max_cells`` cells, the x and y pieces are replaced by their hulls (one box).
     Returns (boxes, largest number of passes, whether a hull replaced pieces).
     """
-    out: list[Tuple6] = []
+    out: list[Box] = []
     passes = 0
     hulled = False
     for a_lo, a_hi in lattice_intersect(
@@ -371,33 +370,33 @@ def contract_branch(
 
 
 def contract_box(
-    b: Tuple6,
+    b: Box,
     windows: tuple[Window, Window, Window, Window],
     tile_size: float,
     lever: Lever | None,
     max_passes: int,
     max_cells: int,
-) -> tuple[list[Tuple6], int, bool]:
+) -> tuple[list[Box], int, bool]:
     """Union over the four rotation branches of :func:`contract_branch`.
 
     The branches' heading windows are [h0] + m pi/2 + 2 pi Z = [h0] + k pi/2 with m = k mod 4, so
     one pass over the pi/2-lattice finds every branch piece the box heading meets (when the
     windows are disjoint, e3 < pi/4; otherwise each branch is cut on its own)."""
-    return _contract_view(b, windows[0], windows, tile_size, lever, max_passes, max_cells)
+    return contract_view(b, windows[0], windows, tile_size, lever, max_passes, max_cells)
 
 
-def _contract_view(
-    b: Tuple6,
+def contract_view(
+    b: Box,
     w0: Window,
     windows: tuple[Window, Window, Window, Window] | None,
     tile_size: float,
     lever: Lever | None,
     max_passes: int,
     max_cells: int,
-) -> tuple[list[Tuple6], int, bool]:
+) -> tuple[list[Box], int, bool]:
     """:func:`contract_box` with ``windows`` built on demand from branch 0 ``w0`` when None
     (only the branches the heading meets are needed)."""
-    out: list[Tuple6] = []
+    out: list[Box] = []
     passes = 0
     hulled = False
     h_lo, h_hi = w0[4], w0[5]

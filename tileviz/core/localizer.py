@@ -35,36 +35,33 @@ Modes (``LocalizerConfig.mode``): ``autonomous``; ``truth`` (every frame the set
 the true pose inflated by ``truth_inflation``, then the compass and the view contract it; never
 ``lost``); ``odometry`` (prediction and compass only, status ``predicted``).
 
-The hot path works on plain 6-tuples ``(x_lo, x_hi, y_lo, y_hi, t_lo, t_hi)``; the public API
-speaks :class:`tileviz.types.Box` / :class:`tileviz.types.BoxSet`. Its shortcuts (one-box cases,
-cos and sin ranges in one call, lattice walks that reuse their piece bounds, only the rotation
-branches the heading meets, result objects built without the frozen dataclass __init__) compute
-the very same floats as the general code: ``tests/test_localizer_golden.py`` compares every
-output bit of recorded sequences.
+The hot path computes on :class:`tileviz.types.Box` (a named tuple) throughout, as the public
+API does. Its shortcuts (one-box cases, cos and sin ranges in one call, lattice walks that reuse
+their piece bounds, only the rotation branches the heading meets) compute the very same floats
+as the general code: ``tests/test_localizer_golden.py`` compares every output bit of recorded
+sequences.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from typing import NamedTuple
 
 from tileviz.config import LocalizerConfig
 from tileviz.core.boxes import (
-    _TURN,
     MIN_TILE,
-    Tuple6,
-    _check_box,
-    _finite,
-    _hull_all,
-    _in_range,
-    _new,
-    _nonneg,
-    _one_turn,
-    _tidy,
-    _to_boxset,
+    ONE_TURN,
+    checked_box,
+    finite,
+    hull_of,
+    in_range,
     inflate_box,
+    nonnegative,
+    one_turn,
+    tidy,
 )
-from tileviz.core.contraction import Window, _contract_view, _view_window, lever_enclosure
+from tileviz.core.constants import LIMIT
+from tileviz.core.contraction import Window, contract_view, lever_enclosure, view_window
 from tileviz.core.prediction import compass_pieces, predict_box
 from tileviz.types import Box, BoxSet, Observation, Odometry, Pose, SensorBounds, Status
 
@@ -80,9 +77,8 @@ _INF = math.inf
 _nextafter = math.nextafter
 
 
-@dataclass(frozen=True)
-class LocalizerStep:
-    """What one :meth:`Localizer.step` did.
+class LocalizerStep(NamedTuple):
+    """What one :meth:`Localizer.step` did (an immutable named tuple).
 
     ``predicted``: the set after prediction and compass (before the view). ``updated``: the set
     after this frame's update. ``status``: see the module docstring. ``passes``: the largest
@@ -121,42 +117,42 @@ class Localizer:
         config: LocalizerConfig,
         initial: Box,
     ) -> None:
-        self._L = _finite("tile_size", tile_size)
+        self._L = finite("tile_size", tile_size)
         if self._L < MIN_TILE:
             raise ValueError(f"tile_size must be >= {MIN_TILE:g} m, got {tile_size!r}")
         if len(camera_offset) != 2:
             raise ValueError(f"camera_offset must be (forward, left), got {camera_offset!r}")
         off = (
-            _finite("camera_offset[0]", camera_offset[0]),
-            _finite("camera_offset[1]", camera_offset[1]),
+            finite("camera_offset[0]", camera_offset[0]),
+            finite("camera_offset[1]", camera_offset[1]),
         )
         self._lever = lever_enclosure(off)
-        self._ev = _nonneg("speed_error", bounds.speed_error)
-        self._ew = _nonneg("yaw_rate_error", bounds.yaw_rate_error)
-        self._ec = _nonneg("compass_error", bounds.compass_error)
+        self._ev = nonnegative("speed_error", bounds.speed_error)
+        self._ew = nonnegative("yaw_rate_error", bounds.yaw_rate_error)
+        self._ec = nonnegative("compass_error", bounds.compass_error)
         if not isinstance(config, LocalizerConfig):
             raise ValueError(f"config must be a LocalizerConfig, got {type(config).__name__}")
         self._cfg = config
         self._inflation = tuple(
-            _nonneg(f"truth_inflation[{i}]", v) for i, v in enumerate(config.truth_inflation)
+            nonnegative(f"truth_inflation[{i}]", v) for i, v in enumerate(config.truth_inflation)
         )
         if len(self._inflation) != 3:
             raise ValueError(f"truth_inflation needs 3 values, got {config.truth_inflation!r}")
         if len(config.max_slip) != 2:
             raise ValueError(f"max_slip must be (metres, radians), got {config.max_slip!r}")
-        self._slip = (_nonneg("max_slip[0]", config.max_slip[0]),
-                      _nonneg("max_slip[1]", config.max_slip[1]))
+        self._slip = (nonnegative("max_slip[0]", config.max_slip[0]),
+                      nonnegative("max_slip[1]", config.max_slip[1]))
         self._recover = config.mode == "autonomous" and (self._slip[0] > 0 or self._slip[1] > 0)
-        fv = _nonneg("fault_speed", config.fault_speed)
-        fw = _nonneg("fault_yaw_rate", config.fault_yaw_rate)
+        fv = nonnegative("fault_speed", config.fault_speed)
+        fw = nonnegative("fault_yaw_rate", config.fault_yaw_rate)
         self._faulty = config.mode == "autonomous" and (fv > 0 or fw > 0)
         """The fault model is on: the fault set is kept (module docstring, "Fault model"); it
         replaces the ``max_slip`` recovery."""
         self._recover = self._recover and not self._faulty
         n = _nextafter
         self._fault_bounds = (n(self._ev + fv, _INF), n(self._ew + fw, _INF))
-        self._fault: list[Tuple6] = []
-        self._boxes: list[Tuple6] = []
+        self._fault: list[Box] = []
+        self._boxes: list[Box] = []
         self._rejections = 0
         self._lost = False
         self._window = 0
@@ -165,7 +161,7 @@ class Localizer:
     def reset(self, box: Box) -> None:
         """Start again from ``box`` (it must contain the true pose): clears the rejection streak
         and the ``lost`` state."""
-        self._boxes = [_check_box("initial box", box)]
+        self._boxes = [checked_box("initial box", box)]
         self._fault = list(self._boxes)
         self._rejections = 0
         self._lost = False
@@ -174,7 +170,7 @@ class Localizer:
     @property
     def current(self) -> BoxSet:
         """The set after the last step (or the initial box)."""
-        return _to_boxset(self._boxes)
+        return BoxSet(tuple(self._boxes))
 
     @property
     def lost(self) -> bool:
@@ -197,49 +193,51 @@ class Localizer:
         cap = cfg.max_boxes
         hulled = False
         # validate every input first, so a bad frame changes nothing. The fast test: every value
-        # within +-LIMIT (written as literals; NaN fails, a non-number raises TypeError); on
+        # within +-LIMIT (bound to a local; NaN fails, a non-number raises TypeError); on
         # failure the checks that name the culprit run.
+        lim = LIMIT
+        neg_lim = -LIMIT
         if odometry is not None:
             v, w, dt = odometry.speed, odometry.yaw_rate, odometry.dt
             try:
-                ok = -1e9 <= v <= 1e9 and -1e9 <= w <= 1e9 and 0 <= dt <= 1e9
+                ok = neg_lim <= v <= lim and neg_lim <= w <= lim and 0 <= dt <= lim
             except TypeError:
                 ok = False
             if not ok:
-                _finite("odometry.speed", v)
-                _finite("odometry.yaw_rate", w)
-                _nonneg("odometry.dt", dt)
+                finite("odometry.speed", v)
+                finite("odometry.yaw_rate", w)
+                nonnegative("odometry.dt", dt)
         if compass is not None:
             try:
-                ok = -1e9 <= compass <= 1e9
+                ok = neg_lim <= compass <= lim
             except TypeError:
                 ok = False
             if not ok:
-                _finite("compass", compass)
+                finite("compass", compass)
         if observation is not None:
             o = observation
             e, e3 = o.position_error, o.heading_error
             try:
-                ok = (-1e9 <= o.y1 <= 1e9 and -1e9 <= o.y2 <= 1e9 and -1e9 <= o.y3 <= 1e9
-                      and 0 <= e <= 1e9 and 0 <= e3 <= 1e9)
+                ok = (neg_lim <= o.y1 <= lim and neg_lim <= o.y2 <= lim and neg_lim <= o.y3 <= lim
+                      and 0 <= e <= lim and 0 <= e3 <= lim)
             except TypeError:
                 ok = False
             if not ok:
-                _finite("observation.y1", o.y1)
-                _finite("observation.y2", o.y2)
-                _finite("observation.y3", o.y3)
-                _nonneg("observation.position_error", e)
-                _nonneg("observation.heading_error", e3)
+                finite("observation.y1", o.y1)
+                finite("observation.y2", o.y2)
+                finite("observation.y3", o.y3)
+                nonnegative("observation.position_error", e)
+                nonnegative("observation.heading_error", e3)
         if truth is not None:
             tx, ty, tt = truth.x, truth.y, truth.theta
             try:
-                ok = -1e9 <= tx <= 1e9 and -1e9 <= ty <= 1e9 and -1e9 <= tt <= 1e9
+                ok = neg_lim <= tx <= lim and neg_lim <= ty <= lim and neg_lim <= tt <= lim
             except TypeError:
                 ok = False
             if not ok:
-                _finite("truth.x", tx)
-                _finite("truth.y", ty)
-                _finite("truth.theta", tt)
+                finite("truth.x", tx)
+                finite("truth.y", ty)
+                finite("truth.theta", tt)
         elif mode == "truth":
             raise ValueError("truth: mode 'truth' needs the true pose every frame, got None")
 
@@ -247,8 +245,8 @@ class Localizer:
         if mode == "truth":
             ix, iy, it = self._inflation
             n = _nextafter
-            boxes = _in_range([(n(tx - ix, -_INF), n(tx + ix, _INF), n(ty - iy, -_INF),
-                                n(ty + iy, _INF), n(tt - it, -_INF), n(tt + it, _INF))])
+            boxes = in_range([Box(n(tx - ix, -_INF), n(tx + ix, _INF), n(ty - iy, -_INF),
+                                  n(ty + iy, _INF), n(tt - it, -_INF), n(tt + it, _INF))])
         elif odometry is not None:
             n = _nextafter
             v_lo, v_hi = n(v - self._ev, -_INF), n(v + self._ev, _INF)
@@ -257,31 +255,31 @@ class Localizer:
             boxes = ([predict_box(prior[0], v_lo, v_hi, w_lo, w_hi, dt)] if len(prior) == 1 else
                      [predict_box(b, v_lo, v_hi, w_lo, w_hi, dt) for b in prior])
             for b in boxes:
-                if not (-1e9 <= b[0] and b[1] <= 1e9 and -1e9 <= b[2] and b[3] <= 1e9
-                        and -1e9 <= b[4] and b[5] <= 1e9 and b[5] - b[4] <= _TURN):
-                    boxes = _in_range(boxes)  # raises, or cuts a heading to one turn
+                if not (neg_lim <= b[0] and b[1] <= lim and neg_lim <= b[2] and b[3] <= lim
+                        and neg_lim <= b[4] and b[5] <= lim and b[5] - b[4] <= ONE_TURN):
+                    boxes = in_range(boxes)  # raises, or cuts a heading to one turn
                     break
             if len(boxes) > 1:  # (one box is tidy: cap >= 1, LocalizerConfig checks it)
-                boxes, hulled = _tidy(boxes, cap)
+                boxes, hulled = tidy(boxes, cap)
         else:
             boxes = list(self._boxes)
 
-        fault: list[Tuple6] | None = None  # the fault set's prediction (fault model on)
+        fault: list[Box] | None = None  # the fault set's prediction (fault model on)
         if self._faulty and not self._lost:
             fault = self._fault
             if odometry is not None:
                 n = _nextafter
                 ev, ew = self._fault_bounds
-                fault = _in_range([predict_box(b, n(v - ev, -_INF), n(v + ev, _INF),
+                fault = in_range([predict_box(b, n(v - ev, -_INF), n(v + ev, _INF),
                                                n(w - ew, -_INF), n(w + ew, _INF), dt)
                                    for b in fault])
                 if len(fault) > 1:
-                    fault, h = _tidy(fault, cap)
+                    fault, h = tidy(fault, cap)
                     hulled = hulled or h
             if compass is not None:
                 cut = self._compass_cut(fault, compass)
                 if cut:  # (a compass that misses the fault set too is ignored)
-                    fault, h = _tidy(cut, cap)
+                    fault, h = tidy(cut, cap)
                     hulled = hulled or h
         compass_rejected = False
         reinflated = False
@@ -298,7 +296,7 @@ class Localizer:
             if len(cut) == 1:
                 boxes = cut
             elif cut:
-                boxes, h = _tidy(cut, cap)
+                boxes, h = tidy(cut, cap)
                 hulled = hulled or h
             else:
                 compass_rejected = True
@@ -312,21 +310,22 @@ class Localizer:
                     self._window = cfg.slip_window
                     extra, _, h = self._slip_candidates(raw, compass, None)
                     if extra:
-                        boxes, h2 = _tidy(boxes + extra, cap)
+                        boxes, h2 = tidy(boxes + extra, cap)
                         hulled = hulled or h or h2
                         reinflated = True
-        predicted = _to_boxset(boxes)
+        predicted = BoxSet(tuple(boxes))
 
         passes = 0
+        status: Status
         if self._lost and mode != "truth":
             status = "lost"
-            updated_boxes = [_hull_all(boxes)]
+            updated_boxes = [hull_of(boxes)]
         elif mode == "odometry" or observation is None:
             status = "predicted"
             updated_boxes = boxes
         else:
-            view = _view_window(observation)
-            out: list[Tuple6] = []
+            view = view_window(observation)
+            out: list[Box] = []
             view_hulled = False
             if following:
                 # within slip_window frames of a noticed fault: the view contracts the prediction
@@ -336,7 +335,7 @@ class Localizer:
                 reinflated = bool(out)
             else:
                 for b in boxes:
-                    got, p, h = _contract_view(b, view, None, self._L, self._lever, cfg.passes,
+                    got, p, h = contract_view(b, view, None, self._L, self._lever, cfg.passes,
                                                cap)
                     out.extend(got)
                     if p > passes:
@@ -353,10 +352,10 @@ class Localizer:
                     if view_hulled or len(out) > cap:
                         out = []
                 else:
-                    got_f: list[Tuple6] = []
+                    got_f: list[Box] = []
                     f_hulled = False
                     for b in fault:
-                        got, p, h = _contract_view(b, view, None, self._L, self._lever,
+                        got, p, h = contract_view(b, view, None, self._L, self._lever,
                                                    cfg.passes, cap)
                         got_f.extend(got)
                         f_hulled = f_hulled or h
@@ -373,7 +372,7 @@ class Localizer:
                 if len(out) == 1:
                     updated_boxes = out
                 else:
-                    updated_boxes, h = _tidy(out, cap)
+                    updated_boxes, h = tidy(out, cap)
                     hulled = hulled or h
             else:
                 self._rejections += 1
@@ -388,7 +387,7 @@ class Localizer:
                         passes = max(passes, p)
                         hulled = hulled or h
                         if extra:
-                            updated_boxes, h = _tidy(boxes + extra, cap)
+                            updated_boxes, h = tidy(boxes + extra, cap)
                             hulled = hulled or h
                             reinflated = True
                 limit = cfg.max_rejections
@@ -398,29 +397,27 @@ class Localizer:
                     status = "lost"
                     self._lost = True
                     self._window = 0
-                    updated_boxes = [_hull_all(updated_boxes)]
+                    updated_boxes = [hull_of(updated_boxes)]
         self._boxes = updated_boxes
         if fault is not None:
             if reinflated:  # the set was taken from the fault set: they agree again
                 fault = updated_boxes
             elif len(fault) > 1:
-                fault, h = _tidy(fault, cap)
+                fault, h = tidy(fault, cap)
                 hulled = hulled or h
             self._fault = fault
-        result = _new(LocalizerStep)  # LocalizerStep(...) without its frozen __init__
-        result.__dict__.update(
-            predicted=predicted,
-            updated=predicted if updated_boxes is boxes else _to_boxset(updated_boxes),
-            status=status,
-            passes=passes,
-            hulled=hulled,
-            compass_rejected=compass_rejected,
-            rejections=self._rejections,
-            reinflated=reinflated,
+        return LocalizerStep(
+            predicted,
+            predicted if updated_boxes is boxes else BoxSet(tuple(updated_boxes)),
+            status,
+            passes,
+            hulled,
+            compass_rejected,
+            self._rejections,
+            reinflated,
         )
-        return result
 
-    def _compass_cut(self, boxes: list[Tuple6], compass: float) -> list[Tuple6]:
+    def _compass_cut(self, boxes: list[Box], compass: float) -> list[Box]:
         """The boxes' poses whose heading is within ``compass_error`` of ``compass`` (mod 2 pi)."""
         c_lo = _nextafter(compass - self._ec, -_INF)
         c_hi = _nextafter(compass + self._ec, _INF)
@@ -428,10 +425,10 @@ class Localizer:
 
     def _slip_candidates(
         self,
-        raw: list[Tuple6],
+        raw: list[Box],
         compass: float | None,
         view: Window | None,
-    ) -> tuple[list[Tuple6], int, bool]:
+    ) -> tuple[list[Box], int, bool]:
         """Recovery: the poses within ``max_slip`` of the prediction ``raw`` (before the compass)
         that the compass and the view allow (``view``: branch 0 of its windows, or None), as
         disjoint boxes (one per lattice cell).
@@ -441,20 +438,20 @@ class Localizer:
         cfg = self._cfg
         cap = cfg.max_boxes
         d, dt = self._slip
-        grown, hulled = _tidy([_one_turn(inflate_box(b, d, dt)) for b in raw], cap)
+        grown, hulled = tidy([one_turn(inflate_box(b, d, dt)) for b in raw], cap)
         if compass is not None:
             cut = self._compass_cut(grown, compass)
             if cut:
-                grown, h = _tidy(cut, cap)
+                grown, h = tidy(cut, cap)
                 hulled = hulled or h
             elif view is None:
                 return [], 0, hulled  # the compass misses the slip candidates too
         if view is None:
             return grown, 0, hulled
-        out: list[Tuple6] = []
+        out: list[Box] = []
         passes = 0
         for b in grown:
-            got, p, h = _contract_view(b, view, None, self._L, self._lever, cfg.passes, cap)
+            got, p, h = contract_view(b, view, None, self._L, self._lever, cfg.passes, cap)
             out.extend(got)
             passes = max(passes, p)
             hulled = hulled or h

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import math
 
-from tileviz.core.boxes import Tuple6
 from tileviz.core.intervals import (
     TWO_PI,
     TWO_PI_ERROR,
@@ -13,6 +12,7 @@ from tileviz.core.intervals import (
     lattice_intersect,
     mul,
 )
+from tileviz.types import Box
 
 __all__ = ["compass_pieces", "predict_box"]
 
@@ -21,8 +21,8 @@ _nextafter = math.nextafter
 
 
 def predict_box(
-    b: Tuple6, v_lo: float, v_hi: float, w_lo: float, w_hi: float, dt: float
-) -> Tuple6:
+    b: Box, v_lo: float, v_hi: float, w_lo: float, w_hi: float, dt: float
+) -> Box:
     """Enclosure of every pose reachable from box ``b`` in ``dt`` s (docs/method.md, "Prediction").
 
     The true speed v(s) in [v_lo, v_hi] (m/s) and yaw rate w(s) in [w_lo, w_hi] (rad/s) may vary
@@ -51,7 +51,7 @@ def predict_box(
     else:
         dx_lo, dx_hi = mul(d_lo, d_hi, c_lo, c_hi)
         dy_lo, dy_hi = mul(d_lo, d_hi, s_lo, s_hi)
-    return (
+    return Box(
         n(x_lo + dx_lo, -_INF),
         n(x_hi + dx_hi, _INF),
         n(y_lo + dy_lo, -_INF),
@@ -61,11 +61,11 @@ def predict_box(
     )
 
 
-def compass_pieces(b: Tuple6, h_lo: float, h_hi: float) -> list[Tuple6]:
+def compass_pieces(b: Box, h_lo: float, h_hi: float) -> list[Box]:
     """Box ``b`` with its heading intersected with [h_lo, h_hi] + 2 pi Z (the compass reading
     +- its bound, any 2 pi shift): zero, one or (for a wide heading) several boxes."""
     pieces = lattice_intersect(b[4], b[5], h_lo, h_hi, TWO_PI, period_error=TWO_PI_ERROR)
     if len(pieces) == 1:  # the usual case, without a comprehension's frame
         lo, hi = pieces[0]
-        return [(b[0], b[1], b[2], b[3], lo, hi)]
-    return [(b[0], b[1], b[2], b[3], lo, hi) for lo, hi in pieces]
+        return [Box(b[0], b[1], b[2], b[3], lo, hi)]
+    return [Box(b[0], b[1], b[2], b[3], lo, hi) for lo, hi in pieces]
