@@ -90,12 +90,16 @@ class App:
     ``strict_port``). ``push_rate``: scene updates per second at most;
     ``image_rate``: image panel updates per second at most while playing (a paused or stepped
     frame always shows its images); ``plot_rate``: plot updates per second at most;
+    ``readout_rate``: status text and timeline updates per second at most while playing (a
+    paused or stepped frame, a new note and a change of play state or recording refresh them at
+    once);
     ``plot_window``: frames in the plots. ``frames``: pause after that many frames of the run.
     """
 
     def __init__(self, cfg: Config, options: SessionOptions | None = None, *,
                  host: str = "127.0.0.1", port: int = 8080, strict_port: bool = False,
                  push_rate: float = 20.0, image_rate: float = 10.0, plot_rate: float = 4.0,
+                 readout_rate: float = 5.0,
                  plot_window: int = 1000, verbose: bool = False,
                  frames: int | None = None) -> None:
         self.cfg = cfg
@@ -104,6 +108,9 @@ class App:
         self.strict_port = strict_port
         self.image_rate = float(image_rate)
         self._next_images = 0.0
+        self.readout_rate = float(readout_rate)
+        self._next_readout = 0.0
+        self._readout_key: object = None
         self.options = options or SessionOptions()
         self.host = host
         self.requested_port = port
@@ -351,6 +358,15 @@ class App:
                 self.plots.update(rows)
             if s.follow and s.playing:
                 self._follow(entry)
+        # the readouts change every frame; while playing, a person reads them a few times a
+        # second, and every refresh makes the browser lay out and redraw the panel
+        now = time.perf_counter()
+        key = (s.playing, s.recording_active, s.setpoint_kind, len(s.history) == 0,
+               id(s.notes[-1]) if s.notes else None)
+        if s.playing and key == self._readout_key and now < self._next_readout:
+            return
+        self._readout_key = key
+        self._next_readout = max(self._next_readout + 1.0 / self.readout_rate, now)
         self.controls.refresh(first=s.history.first, last=s.history.last, shown=pos,
                               playing=s.playing, setpoint=s.setpoint_kind,
                               target=tuple(s.cfg.sim.manual_target),  # type: ignore[arg-type]
