@@ -27,7 +27,7 @@ from tileviz.config import (
 
 __all__ = [
     "LAYERS", "PANEL_VIEWS", "SIMULATOR_ONLY", "Command", "Inject", "Kidnap", "Live", "Pause",
-    "Play", "Relocalize", "RelocalizeRegion", "Report", "SetFollow", "ShowPanel",
+    "ExportMcap", "Play", "Relocalize", "RelocalizeRegion", "Report", "SetFollow", "ShowPanel",
     "Reset", "Restart", "Seek", "SetDisplay", "SetExtractor", "SetInflation", "SetLayer",
     "SetFaultModel", "SetManualTarget", "SetMaxSpeed", "SetMcl", "SetMode", "SetNoise",
     "SetSetpoint", "SetSpeed",
@@ -385,6 +385,12 @@ class StopRecording:
 
 
 @dataclass(frozen=True)
+class ExportMcap:
+    """Export the last finished recording as an MCAP file for Foxglove, written beside its
+    dataset folder (``NAME.mcap``): the file ``python -m tileviz replay NAME --mcap`` writes."""
+
+
+@dataclass(frozen=True)
 class Report:
     """A one-line message for the GUI's notes (``level`` info or error; errors also go to
     stderr), e.g. a GUI input that was refused."""
@@ -402,7 +408,7 @@ Command = (
     | Reset | Restart
     | SetMode | SetExtractor | SetNoise | SetInflation | SetFaultModel | SetDisplay | SetMcl
     | SetLayer | Inject
-    | StartRecording | StopRecording | Report | SetFollow | ShowPanel
+    | StartRecording | StopRecording | ExportMcap | Report | SetFollow | ShowPanel
 )
 """Any command the loop understands."""
 
