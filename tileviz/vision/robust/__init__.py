@@ -18,11 +18,13 @@ How it measures (vectorised numpy/OpenCV; timings in ``bench/bench_vision.py``):
 4. Dips of a profile are the line candidates. Each is then measured in four equal parts of the
    stretch of its line that every sample of its window sees (sums from the integral image of
    the warp, so that the samples of a part all average the same stretch of floor): its
-   position is the centroid of the darkness ``1 - profile / level``, with a plateau level of
-   its own on each side (a brighter tile on one side does not pull it), re-centred three
-   times; its depth, contrast (depth / level), half-depth width, 20-80 % edge rise and the step
-   between its two sides are measured too. Dips much wider than the strong ones (a shadow, a
-   stain) are not lines.
+   position is the midpoint of the dip's two 50 % crossings, each side's darkness taken
+   against that side's own plateau level and depth (a brighter tile on one side, texture or a
+   slope of the light beside the grout do not pull it; the centroid of the darkness, re-centred
+   three times, only seeds the search); the 25 and 75 % midpoints and the part's roughness give
+   the part its own error bound; its depth, contrast (depth / level), half-depth width, 20-80 %
+   edge rise and the step between its two sides are measured too. Dips much wider than the
+   strong ones (a shadow, a stain) are not lines.
 5. A least-squares fit over every line's part positions gives the residual tilt of the warp
    (one slope shared by all lines, one intercept per line): the heading correction, each
    line's offset at the image centre, and standard errors from the scatter of the parts. A
@@ -34,7 +36,8 @@ How it measures (vectorised numpy/OpenCV; timings in ``bench/bench_vision.py``):
    their errors), ``foreign line`` (a line unlike the others in width or contrast: grout lines
    share both), ``inconsistent spacing`` (line offsets not multiples of L apart, or a
    well-visible lattice line missing), ``too few segments`` (too little line length per
-   family), ``imprecise`` (the fit's own standard errors, times 4, exceed the bounds), then
+   family), ``imprecise`` (the view's own bound, :mod:`.bound`, exceeds the largest bounds
+   the configuration allows), then
    ``foreign line`` / ``step edge`` again for a long straight edge that is not on the lattice
    (a cable; a box or shadow edge), found by a probabilistic Hough transform on the Canny edges
    that the predicted grout lines do not explain.

@@ -16,13 +16,8 @@ def frame_bound(run: RobustRun, se: float) -> tuple[float, float]:
     light, blur)."""
     st = run.st
     d = run.details
-    # a step between the two sides of a line (a shadow or a box edge near it, a shade step)
-    # inside the centroid's window pulls the centroid off the half-depth midpoint; without
-    # a step the difference is only the crossings' noise
-    d["asymmetry_px"] = max(ln.asym * min(1.0, ln.step / st.asym_step)
-                            for fam in run.lines for ln in fam)
     pos = (st.sigmas * se + d["spacing_residual_px"] + 0.5 * d["straightness_px"]
-           + st.asym_factor * d["asymmetry_px"]
+           + d["position_parts"]
            + st.floor_px + st.floor_width * d["width"] + st.floor_rise * d["rise"])
-    head = st.heading_sigmas * d["heading_se"] + st.floor_rad
+    head = st.heading_sigmas * d["heading_se"] + d["heading_parts"] + st.floor_rad
     return pos, head

@@ -46,6 +46,24 @@ def fit_tilt(run: RobustRun, lines: list[list[Line]]) -> float:
         if big.any():
             worst = max(worst, float(np.abs(res[big]).max()))
     run.details["straightness_px"] = worst
+    # The fit is linear in the part positions: d eps / d p_i = sign w_i (t_i - tb) / dall,
+    # d pos / d p_i = w_i / sum(w) [its own line] - sign tb d eps / d p_i. With every part
+    # within its own bound b_i, eps and pos are within sum |d / d p_i| b_i.
+    infl = [(ln, sign, tb, ln.wpart > 0) for ln, sign, tb, _ in stats]
+    d_eps = np.concatenate(
+        [sign * ln.wpart[ok] * (ln.tpart[ok] - tb) / max(dall, 1e-9)
+         for ln, sign, tb, ok in infl]) if infl else np.zeros(0)
+    run.part_bound = np.concatenate(
+        [run.st.part_sigmas * ln.sigma[ok] + ln.spread[ok] for ln, _, _, ok in infl]
+    ) if infl else np.zeros(0)
+    start = 0
+    for ln, sign, tb, ok in infl:
+        g = -sign * tb * d_eps
+        w = ln.wpart[ok]
+        g[start : start + w.size] += w / w.sum()
+        ln.infl = g
+        start += w.size
+    run.details["heading_parts"] = float(np.dot(np.abs(d_eps), run.part_bound))
     # Scatter of the parts about the fit, per unit of part length (px^2 px), with a weak
     # prior so that a fit with few degrees of freedom is not trusted blindly.
     st = run.st

@@ -17,7 +17,7 @@ __all__ = ["classify_edge", "draw_lattice_mask", "foreign_edges"]
 
 def foreign_edges(run: RobustRun) -> None:
     """Refuse when a long straight edge is not explained by the predicted grout lines."""
-    assert run.y is not None
+    assert run.y is not None and run.dxy is not None
     # Edges at least ``foreign_contrast`` of the grout's own contrast (in gray levels: a
     # texture's fine edges are not objects) and above the noise. Scharr answers 16 x a unit
     # step; its noise is about 15.4 sigma per component.

@@ -76,6 +76,11 @@ def lattice_offsets(run: RobustRun, lines: list[list[Line]], y3: float) -> None:
         ref += float(np.dot(w_arr, res) / w_arr.sum())
         res = np.remainder(s_arr - ref + 0.5 * lp, lp) - 0.5 * lp
         worst = max(worst, float(np.abs(res).max()))
+        # ref moves with the lines' offsets s = -(pos - centre), weighted by their chords
+        g = sum(c * ln.infl for c, ln in zip(w_arr.tolist(), fam, strict=True)) / w_arr.sum()
+        parts_k = float(np.dot(np.abs(g), run.part_bound))
+        run.details["position_parts"] = max(run.details.get("position_parts", 0.0),
+                                             parts_k)
         var = np.array([ln.var for ln in fam])
         se = max(se, math.sqrt(float(np.dot(w_arr * w_arr, var))) / float(w_arr.sum()))
         ys.append(-ref / run.ppm)  # eq. 4.6 corrected: y_k = -s_k mod L

@@ -236,12 +236,20 @@ def dips(
     inside = (cj - hj - 4.0 >= -r) & (cj + hj + 4.0 <= r)
     cen = centroid(pp, jf, cj, hj, ll, lr)
     cen = np.where(inside & (np.abs(cen - cj) <= hj), cen, np.nan).reshape(m, PARTS)
-    # the same position from the dip's half-depth edges: a symmetric dip gives the
-    # centroid; a step or shadow inside the window pulls the two apart
-    mid = (0.5 * (xl[:nr] + xr[:nr])).reshape(m, PARTS)
+    # the position: the midpoint of the dip's 50 % crossings, each side against its own
+    # plateau and depth (texture beside the grout, a slope of the light or a shade step
+    # between the tiles pull the centroid, much less the edges); measured where the
+    # centroid's window is inside the profile
+    mids, msig = midpoints(pp, jf, np.where(np.isfinite(cen.ravel()), cen.ravel(), cj),
+                            cj, hj, ll, lr)
+    mids = mids.reshape(3, m, PARTS)
+    msig = msig.reshape(m, PARTS)
+    pos50 = np.where(np.isfinite(cen), mids[0], np.nan)
     with np.errstate(invalid="ignore"):
-        asym = np.nanmax(np.where(np.isfinite(cen) & np.isfinite(mid), np.abs(mid - cen),
-                                  0.0), axis=1)
+        spread = np.maximum(np.abs(mids[1] - mids[0]), np.abs(mids[2] - mids[0]))
+    # a thin or shallow dip may miss its 25 or 75 % crossings: its position is then only
+    # known to be within its half-depth width (from the 50 % crossings)
+    sp_ok = np.where(np.isfinite(spread) & np.isfinite(msig), spread, 0.5 * width + 0.5)
     with np.errstate(invalid="ignore", divide="ignore"):
         wmed = nanmedian(width.T)
         rmed = nanmedian(rise.T)
@@ -251,7 +259,7 @@ def dips(
     stepr = (hi_lev - lo_lev) / np.maximum(hi_lev, 1e-9)
     out: list[list[Line]] = [[], []]
     for i in range(m):
-        ok = np.isfinite(cen[i])
+        ok = np.isfinite(pos50[i])
         if not usable[i] or not ok.any():
             continue
         out[int(fam[i])].append(
@@ -262,10 +270,11 @@ def dips(
                 step=float(stepr[i]),
                 contrast=float(cmed[i]),
                 chord=float(total[fam[i], pk[i]]),
-                parts=pk[i] - r + cen[i],
-                asym=float(asym[i]),
+                parts=np.where(ok, pk[i] - r + pos50[i], np.nan),
                 tpart=tpart[i],
                 wpart=np.where(ok, count[i], 0).astype(np.float64),
+                sigma=np.where(ok & np.isfinite(msig[i]), msig[i], 0.0),
+                spread=np.where(ok, sp_ok[i], 0.0),
             )
         )
     return out
@@ -326,6 +335,49 @@ def crossings(
         xl = jl + (lv[:, 0] - dl0) / (dl1 - dl0)
         xr = jrt - (lv[:, 0] - dr0) / (dr1 - dr0)
     return np.where(ok, xl, np.nan), np.where(ok, xr, np.nan)
+
+
+def midpoints(
+    p: np.ndarray, j: np.ndarray, start: np.ndarray, c: np.ndarray, half: np.ndarray,
+    lev_l: np.ndarray, lev_r: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Where each row of ``p`` (a part's profile over sample offsets ``j``, its dip within 3
+    samples of ``start``) crosses 50, 25 and 75 % of its own depth, as the midpoints of its
+    left and right crossings (shape (3, rows), NaN where a crossing is missing), and the
+    predicted standard error of the 50 % midpoint (rows,), px.
+
+    Each side's darkness is measured against that side's plateau (``lev_l``, ``lev_r``, taken
+    outside the window ``c +- half``) and normalised by that side's depth (plateau - bottom of
+    the dip), so a shade step between the tiles does not move the crossings; the level
+    switches sides at the midpoint (found twice, from ``start``). The standard error: the
+    row's roughness outside the window (noise and texture at the sample scale) over each
+    side's depth, divided by the slope of the normalised edge (from its 25 and 75 %
+    crossings), half the root sum of squares of the two sides."""
+    outside = np.abs(j[None, :] - c[:, None]) > half[:, None]
+    dif = np.abs(np.diff(p, axis=1))
+    okd = outside[:, 1:] & outside[:, :-1] & np.isfinite(dif)
+    rough = (1.4826 / math.sqrt(2.0)) * nanmedian(np.where(okd, dif, np.nan).T)
+    core = np.abs(j[None, :] - np.round(start)[:, None]) <= 3.0
+    bottom = np.where(core & ~np.isnan(p), p, np.inf).min(axis=1)
+    rows = p.shape[0]
+    levels = np.repeat(np.array([0.5, 0.25, 0.75]), rows)
+    mc = start.copy()
+    mids = np.full((3, rows), np.nan)
+    xl = xr = np.full(3 * rows, np.nan)
+    for _ in range(2):
+        lev = lev_l[:, None] + (lev_r - lev_l)[:, None] * np.clip(
+            j[None, :] - mc[:, None] + 0.5, 0.0, 1.0)
+        den = lev - bottom[:, None]
+        dn = np.where(den > 1e-6, (lev - p) / np.maximum(den, 1e-6), np.nan)
+        near = np.where(core, np.nan_to_num(dn, nan=-np.inf), -np.inf)
+        jp = j[np.argmax(near, axis=1)]
+        xl, xr = crossings(np.tile(dn, (3, 1)), j, np.tile(jp, 3), levels)
+        mids = (0.5 * (xl + xr)).reshape(3, rows)
+        mc = np.where(np.isfinite(mids[0]), mids[0], mc)
+    xl3, xr3 = xl.reshape(3, rows), xr.reshape(3, rows)
+    sl = rough / np.maximum(lev_l - bottom, 1e-6) * np.abs(xl3[2] - xl3[1]) / 0.5
+    sr = rough / np.maximum(lev_r - bottom, 1e-6) * np.abs(xr3[2] - xr3[1]) / 0.5
+    return mids, 0.5 * np.sqrt(sl * sl + sr * sr)
 
 
 def plateaus(

@@ -63,12 +63,9 @@ class RobustSettings:
     """Smallest position bound of a view, px (with ``floor_width`` x the grout's half-depth
     width and ``floor_rise`` x its edge rise added)."""
     floor_width: float = 0.02
-    asym_factor: float = 1.5
-    asym_step: float = 0.2
-    """A line's asymmetry counts fully from this step between its sides on (proportionally
-    below)."""
-    """Weight in the position bound of the largest disagreement between a part's centroid and
-    the midpoint of its half-depth edges (an asymmetric dip), px per px."""
+    part_sigmas: float = 4.0
+    """A part's own bound: this many of its predicted standard errors (its profile's
+    roughness over its edges' slopes) plus the spread of its 25/50/75 % midpoints."""
     floor_rise: float = 0.05
     floor_rad: float = 0.0005
     """Smallest heading bound of a view, rad."""

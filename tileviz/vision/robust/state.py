@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -36,10 +36,13 @@ class Line:
     step: float  # |level left - level right| / brighter level
     contrast: float  # depth / brighter plateau level (vignetting and shading cancel)
     chord: float  # line length in the view, px
-    parts: np.ndarray  # (PARTS,) centroid in each part (NaN when not measured)
+    parts: np.ndarray  # (PARTS,) position in each part, 50 % midpoint (NaN when not measured)
     tpart: np.ndarray  # (PARTS,) mean tangent coordinate of each part
-    asym: float  # largest |half-depth midpoint - centroid| over the parts, px
     wpart: np.ndarray  # (PARTS,) length of each part (0 when not measured)
+    sigma: np.ndarray  # (PARTS,) predicted standard error of each part's position, px
+    spread: np.ndarray  # (PARTS,) largest distance of its 25 / 75 % midpoints from the 50 %, px
+    infl: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    # d pos / d(position of every part of the fit), px per px (set by the fit)
     pos: float = math.nan  # at tangent coordinate 0, after the common tilt fit
     var: float = math.inf  # variance of pos from the fit's scatter, px^2
 
@@ -88,6 +91,8 @@ class RobustRun:
         self.foreign: np.ndarray = np.zeros((0, 4))
         self.dxy: tuple[np.ndarray, np.ndarray] | None = None  # Scharr gradients (CV_16S)
         self.details: dict[str, float] = {}
+        # each measured part's own error bound (px), in the fit's order of parts (set by it)
+        self.part_bound: np.ndarray = np.zeros(0)
         # grey-closing window of the profile baseline (wider than any grout dip) and the
         # half-size of the window each dip is measured in, samples (px)
         # (up to a third of the tile period: a grout band up to ~20 px wide on any floor whose
