@@ -27,7 +27,7 @@ from tileviz.config import (
 
 __all__ = [
     "LAYERS", "PANEL_VIEWS", "SIMULATOR_ONLY", "Command", "Inject", "Kidnap", "Live", "Pause",
-    "Play", "Relocalize", "Report", "SetFollow", "ShowPanel",
+    "ExportMcap", "Play", "Relocalize", "Report", "SetFollow", "ShowPanel",
     "Reset", "Restart", "Seek", "SetDisplay", "SetExtractor", "SetInflation", "SetLayer",
     "SetManualTarget", "SetMaxSpeed", "SetMcl", "SetMode", "SetNoise", "SetSetpoint", "SetSpeed",
     "SetWaypoints", "StartRecording", "Step", "StepBack", "StopRecording", "TogglePlay",
@@ -341,6 +341,12 @@ class StopRecording:
 
 
 @dataclass(frozen=True)
+class ExportMcap:
+    """Export the last finished recording as an MCAP file for Foxglove, written beside its
+    dataset folder (``NAME.mcap``): the file ``python -m tileviz replay NAME --mcap`` writes."""
+
+
+@dataclass(frozen=True)
 class Report:
     """A one-line message for the GUI's notes (``level`` info or error; errors also go to
     stderr), e.g. a GUI input that was refused."""
@@ -356,7 +362,7 @@ Command = (
     Play | Pause | TogglePlay | Step | StepBack | Seek | Live | SetSpeed | SetMaxSpeed
     | SetSetpoint | SetManualTarget | SetWaypoints | Kidnap | Relocalize | Reset | Restart
     | SetMode | SetExtractor | SetNoise | SetInflation | SetDisplay | SetMcl | SetLayer | Inject
-    | StartRecording | StopRecording | Report | SetFollow | ShowPanel
+    | StartRecording | StopRecording | ExportMcap | Report | SetFollow | ShowPanel
 )
 """Any command the loop understands."""
 

@@ -217,9 +217,13 @@ class Controls:
         with gui.add_folder("Record") as folders["record"]:
             self.record_name = gui.add_text("Dataset name", "live-run")
             self.record = gui.add_button("Start recording")
+            self.export = gui.add_button(
+                "Export MCAP", hint="Write the last recording as NAME.mcap beside its folder, "
+                "for Foxglove (as `python -m tileviz replay NAME --mcap` does)")
         self._recording = False
         self._on_click(self.record, lambda: (C.StopRecording() if self._recording
                                              else C.StartRecording(self.record_name.value)))
+        self._on_click(self.export, C.ExportMcap)
 
         tx, ty = cfg.sim.manual_target
         self.gizmo = server.scene.add_transform_controls(
