@@ -52,6 +52,7 @@ from tileviz.cliutil import (
     nonneg_int,
     positive_float,
     positive_int,
+    region,
     run_cli,
 )
 from tileviz.config import (
@@ -62,8 +63,10 @@ from tileviz.config import (
     SEED_RANGE,
     TILE_SIZE_RANGE,
     Config,
+    LocalizerConfig,
     preset,
 )
+from tileviz.core.localizer import FAULT_MAX_REJECTIONS, LocalizerStep
 from tileviz.sim.lens import LENSES
 
 if TYPE_CHECKING:
@@ -415,6 +418,9 @@ class App:
                          f"{'' if live else ' (from the history)'}")
             lines.append(f"status <b>{r.status}</b>: {html.escape(STATUS_WORDS.get(r.status, ''))}"
                          f", {len(r.updated)} box(es)")
+            fault = fault_line(r.step, s.cfg.localizer)
+            if fault:
+                lines.append(fault)
             reason = r.vision.reason
             lines.append("camera view used" if r.vision.observation is not None
                          else f"camera view not used: {html.escape(reason)}")
@@ -464,6 +470,27 @@ class App:
             notes.append(("<b>error:</b> " if n.level == "error" else "") + html.escape(n.text))
         return (f'<div class="tileviz-status" style="{STATUS_STYLE}">{"<br>".join(lines)}</div>'
                 f'<div class="tileviz-notes" style="{NOTES_STYLE}">{"<br>".join(notes)}</div>')
+
+
+def fault_line(step: LocalizerStep | None, loc: LocalizerConfig) -> str:
+    """The fault model's state at one frame, in words ('' when there is nothing to say): the
+    candidates of a re-localization in a region, the frame of a followed fault
+    (``LocalizerStep.fault_frame``) and the views in a row that fitted neither the set nor the
+    fault set, out of the number that makes the status ``lost``."""
+    if step is None or step.status == "lost":
+        return ""
+    parts = []
+    if step.relocalizing:
+        parts.append(f"re-localizing: {len(step.updated)} candidate(s) in the region")
+    if not (loc.fault_speed or loc.fault_yaw_rate) or loc.max_slip != (0.0, 0.0) or (
+            loc.mode != "autonomous"):
+        return "; ".join(parts)
+    if step.fault_frame > 0:
+        parts.append(f"tracking through a fault: frame {step.fault_frame} of the fault set")
+    if step.rejections > 0:
+        limit = min(loc.max_rejections, FAULT_MAX_REJECTIONS)
+        parts.append(f"{step.rejections} view(s) in a row fit neither set ({limit} make it lost)")
+    return "; ".join(parts)
 
 
 STATUS_WORDS = {
@@ -516,7 +543,12 @@ def parser() -> Parser:
                    metavar="SPEED,YAW_RATE",
                    help="how much faster than the odometry bounds a fault (wheel slip, push) may "
                    "move the robot, m/s and rad/s: the localizer tracks through such a fault "
-                   "(docs/guarantees.md); default off")
+                   "(docs/guarantees.md); 0,0 turns it off (default 0.2,0.1)")
+    p.add_argument("--relocalize-region", type=region("--relocalize-region"), default=None,
+                   metavar="X0,Y0,X1,Y1",
+                   help="after lost, restart from 'somewhere in this region' (metres; heading "
+                   "from the compass; the robot must stay in it until one candidate is left); "
+                   "write --relocalize-region=-1,-1,2,2 when X0 is negative")
     p.add_argument("--ppm", type=float_in("--ppm", *PPM_RANGE, lo_open=False),
                    help="pixels per metre")
     p.add_argument("--tile-size", type=float_in("--tile-size", *TILE_SIZE_RANGE, lo_open=False),
@@ -640,6 +672,7 @@ def options_from_args(args: argparse.Namespace) -> SessionOptions:
                           output_file=args.output_file, speed=args.speed,
                           max_speed=args.max_speed, mcl=args.mcl, mcl_particles=args.particles,
                           start_frame=args.start_frame, lens=args.lens,
+                          relocalize_region=args.relocalize_region,
                           dataset=Path(args.dataset) if args.dataset is not None else None)
 
 

@@ -76,6 +76,9 @@ class SessionOptions:
     start_frame: int = 0
     """The frame shown first (frame index): the frames before it are computed on start, without
     stage images."""
+    relocalize_region: tuple[float, float, float, float] | None = None
+    """(x0, y0, x1, y1), metres: whenever the localizer is ``lost`` it restarts from "somewhere in
+    this region" at the next frame (``Localizer.relocalize``)."""
     dataset: Path | None = None
     """Replay this tileviz-dataset/1 folder instead of simulating (the Config passed to the
     session should be :func:`tileviz.datasets.replay_config` of its meta)."""
@@ -332,6 +335,9 @@ class Session:
                            before=lens_stages)
         self.shown = self.history.append(entry)
         self.tally.add(rec)
+        region = self.options.relocalize_region
+        if region is not None and rec.status == "lost" and self.runner.primary is not None:
+            self.runner.primary.localizer.relocalize(region)  # from the next frame on
         self.frames_computed += 1
         self._count_rate()
         self.version += 1
@@ -485,6 +491,8 @@ class Session:
                 self._kidnap(cmd)
             case C.Relocalize():
                 self._relocalize()
+            case C.RelocalizeRegion(region=region):
+                self._relocalize_region(region)
             case C.Reset():
                 self._reset(cmd)
             case C.Restart():
@@ -497,6 +505,8 @@ class Session:
                 self._set_noise(cmd)
             case C.SetInflation():
                 self._set_inflation(cmd)
+            case C.SetFaultModel():
+                self._set_fault_model(cmd)
             case C.SetDisplay(on=on):
                 self.display = bool(on)
                 self.runner.keep_stages = self.display
@@ -573,6 +583,17 @@ class Session:
         self.degraded = False
         self.note("localizer restarted at the true pose (within the initial pose error)")
 
+    def _relocalize_region(self, region: tuple[float, float, float, float]) -> None:
+        primary = self.runner.primary
+        if primary is None:
+            self.note("Re-localize: no interval localizer runs; nothing changed")
+            return
+        n = primary.localizer.relocalize(region)  # ValueError (too large): nothing changed
+        self.degraded = False
+        x0, y0, x1, y1 = region
+        self.note(f"localizer restarted somewhere in ({x0:g}, {y0:g})-({x1:g}, {y1:g}) m "
+                  f"(up to {n} candidates; keep the robot in the region)")
+
     def _reset(self, cmd: C.Reset) -> None:
         cfg = self.cfg
         if cmd.seed is not None:
@@ -640,6 +661,14 @@ class Session:
         loc: LocalizerConfig = replace(self.cfg.localizer,
                                        truth_inflation=(cmd.xy, cmd.xy, cmd.theta))
         self._reconfigure(replace(self.cfg, localizer=loc), "truth inflation")
+
+    def _set_fault_model(self, cmd: C.SetFaultModel) -> None:
+        speed, yaw_rate = (cmd.speed, cmd.yaw_rate) if cmd.on else (0.0, 0.0)
+        loc: LocalizerConfig = replace(self.cfg.localizer, fault_speed=speed,
+                                       fault_yaw_rate=yaw_rate)
+        self._reconfigure(replace(self.cfg, localizer=loc),
+                          f"fault model {speed:g} m/s, {yaw_rate:g} rad/s" if cmd.on
+                          else "fault model off")
 
     def _start_recording(self, cmd: C.StartRecording) -> None:
         if self.recording is not None or self._record_pending is not None:
