@@ -1,15 +1,19 @@
 """How many frames a second headless Chromium paints the live page, with software WebGL
 (SwiftShader, no GPU), at the server's default settings.
 
-    python bench/bench_page.py [--seconds 10] [--warmup 8] [--bare [--box env|noenv]]
-                               [-- serve options...]
+    python bench/bench_page.py [--seconds 10] [--warmup 8]
+                               [--bare [--box env|noenv] [--moving]] [-- serve options...]
 
 ``serve.py`` runs in its own process (default preset, playing in real time, default options or
 the ones after ``--``); Debian's chromium (1400x900) opens the page, waits ``--warmup`` seconds,
 then counts ``requestAnimationFrame`` callbacks over ``--seconds`` (the browser calls one per
 frame it paints; a page busy decoding messages or rendering paints fewer). ``--bare``: the same
 count on an empty viser page (a grid only; ``--box``: one lit box, with or without viser's
-environment map), for comparison. Also the CPU time all chromium
+environment map; ``--moving``: the box moves 20 times a second, as the live page's scene does),
+for comparison. viser draws on demand: a page whose scene does not change draws nothing and the
+browser paints its idle frames cheaply, while every scene update makes it draw for the next
+quarter second, so a scene updated 20 times a second is drawn continuously and the rate is what
+one drawing of the scene costs. Also the CPU time all chromium
 processes used per painted frame (a figure less sensitive to other load than the rate). The
 rate depends on the machine and its load: run it on an idle machine, read it as a rough number.
 """
@@ -17,8 +21,10 @@ rate depends on the machine and its load: run it on an idle machine, read it as 
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -96,6 +102,8 @@ def main() -> None:
     ap.add_argument("--box", choices=("env", "noenv"), default=None,
                     help="with --bare: one lit box instead of the grid, with viser's default "
                     "environment map (image-based lighting) or without it")
+    ap.add_argument("--moving", action="store_true",
+                    help="with --bare --box: the box moves 20 times a second")
     ap.add_argument("serve", nargs="*", help="serve.py options (after --)")
     args = ap.parse_args()
     if args.bare:
@@ -108,13 +116,26 @@ def main() -> None:
             server.scene.configure_default_lights(enabled=True, cast_shadow=False)
             if args.box == "noenv":
                 server.scene.configure_environment_map(None)
-            server.scene.add_box("/box", color=(200, 100, 100), dimensions=(0.5, 0.3, 0.1))
+            box = server.scene.add_box("/box", color=(200, 100, 100),
+                                       dimensions=(0.5, 0.3, 0.1))
+        stop = threading.Event()
+
+        def move() -> None:
+            k = 0
+            while not stop.wait(0.05):
+                k += 1
+                box.position = (0.5 * math.sin(k / 20.0), 0.0, 0.0)
+
+        if args.moving and args.box is not None:
+            threading.Thread(target=move, daemon=True).start()
         try:
             rate, cpu = paint_rate(f"http://127.0.0.1:{server.get_port()}/", args.seconds,
                                    args.warmup)
         finally:
+            stop.set()
             server.stop()
-        what = "a grid" if args.box is None else f"one box, {args.box}"
+        what = "a grid" if args.box is None else (
+            f"one box, {args.box}{', moving 20 times a second' if args.moving else ''}")
         print(f"bare viser page ({what}): {rate:.1f} frames painted a second, browser CPU "
               f"{1e3 * cpu:.0f} ms a painted frame")
         return

@@ -38,6 +38,9 @@ Detection and recovery are computed by ``tileviz.evaluation.event_outcomes`` (an
 - views that vision accepted on a faulty frame although they were outside their declared bounds
   are listed with seed, frame and true pose (they would be the vision's fault).
 
+The ``model`` setting is the default ``LocalizerConfig`` (fault model 0.2 m/s, 0.1 rad/s);
+``off`` turns the fault model off, ``on`` uses ``max_slip`` (which replaces the fault model).
+
 Recovery setting (``max_slip``, metres and radians, ``tileviz.evaluation.RECOVERY_MAX_SLIP``, the
 ``interval-recovery`` method of the evaluation): ``default`` (0.1, 0.1), ``seed`` (0.04, 0.1) --
 below half a tile minus the tracking set's width, so a re-inflation leaves one lattice cell
@@ -62,7 +65,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import numpy as np  # noqa: E402
 
-from tileviz.config import Config, preset  # noqa: E402
+from tileviz.config import Config, LocalizerConfig, preset  # noqa: E402
 from tileviz.evaluation import RECOVERY_MAX_SLIP, event_outcomes, noticed  # noqa: E402
 from tileviz.pipeline import FrameLoop, FrameRecord  # noqa: E402
 from tileviz.sim.sensors import prediction_encloses  # noqa: E402
@@ -74,9 +77,9 @@ set_opencv_threads()  # as every tileviz entry point (workers re-run this on imp
 
 MAX_SLIP = RECOVERY_MAX_SLIP
 """Recovery setting per preset (metres, radians)."""
-FAULT_MODEL = (0.2, 0.1)
-"""The fault model of the third setting (``LocalizerConfig.fault_speed``, ``fault_yaw_rate``:
-m/s, rad/s beyond the odometry bounds), every preset."""
+FAULT_MODEL = (LocalizerConfig().fault_speed, LocalizerConfig().fault_yaw_rate)
+"""The fault model of the third setting, the default (``LocalizerConfig.fault_speed``,
+``fault_yaw_rate``: m/s, rad/s beyond the odometry bounds), every preset."""
 SETTINGS = ("off", "on", "model")
 """Recovery off, ``max_slip`` on, the fault model on."""
 
@@ -245,7 +248,7 @@ def run_one(name: str, seed: int, spec: FaultSpec, recovery: str, before: int,
         inside = rec.updated.contains(truth.x, truth.y, truth.theta)
         faults.append(faulty)
         alarms.append(noticed(rec.status, step is not None and step.compass_rejected,
-                              rec.vision.accepted))
+                              rec.vision.accepted, step is not None and step.reinflated))
         vouches.append(rec.status != "lost")
         insides.append(inside)
         holds.append(not broken)
@@ -415,10 +418,13 @@ def main() -> int:
         "one fault at a time, more fault types, and the explanation of every wrong vouched "
         "frame.",
         f"Fault after {args.before} frames, run on for {args.after} frames after its end; "
-        "20 frames a second. Recovery `on`: `max_slip` = "
-        + ", ".join(f"{n} {v}" for n, v in MAX_SLIP.items()) + " (m, rad); recovery `model`: "
-        f"the fault model (`--fault-model`) {FAULT_MODEL[0]} m/s, {FAULT_MODEL[1]} rad/s beyond "
-        "the odometry bounds, every preset.",
+        "20 frames a second. Recovery `off`: no recovery and no fault model (`--fault-model "
+        "0,0`); `on`: `max_slip` = "
+        + ", ".join(f"{n} {v}" for n, v in MAX_SLIP.items()) + " (m, rad); `model`: "
+        f"the fault model {FAULT_MODEL[0]} m/s, {FAULT_MODEL[1]} rad/s beyond the odometry "
+        "bounds, every preset: **the default** (how it was chosen: `python "
+        "bench/fault_defaults.py`, [guarantees.md](guarantees.md), \"How the default was "
+        "chosen\").",
         "",
         *lines,
         "",

@@ -349,3 +349,71 @@ def test_a_lost_localizer_stays_lost_when_the_settings_change(cfg, tmp_path):
     s.apply(C.Step())
     assert s.shown_entry().record.status == "contracted" and s.shown_entry().record.truth_inside()
     s.close()
+
+
+def test_the_fault_model_is_set_from_the_gui_and_the_page_says_when_it_is_used(cfg, tmp_path):
+    """The settings' fault model (SetFaultModel) reaches the localizer; the status readout says
+    when the fault set is followed (frame k of it) and counts the views that fit neither set
+    before ``lost`` (a kidnap)."""
+    from tileviz.app.server import fault_line
+
+    with pytest.raises(ValueError, match="fault model speed"):
+        C.SetFaultModel(-0.1, 0.1)
+    s = make(cfg, tmp_path)
+    assert (s.cfg.localizer.fault_speed, s.cfg.localizer.fault_yaw_rate) == (0.2, 0.1)
+    s.apply(C.SetFaultModel(0.3, 0.1, on=False))
+    assert (s.cfg.localizer.fault_speed, s.cfg.localizer.fault_yaw_rate) == (0.0, 0.0)
+    s.apply(C.SetFaultModel(0.3, 0.15))
+    assert (s.cfg.localizer.fault_speed, s.cfg.localizer.fault_yaw_rate) == (0.3, 0.15)
+    for _ in range(10):
+        s.apply(C.Step())
+    s.apply(C.Inject("slip", frames=40))
+    lines = []
+    for _ in range(50):
+        s.apply(C.Step())
+        rec = s.shown_entry().record
+        lines.append(fault_line(rec.step, s.cfg.localizer))
+        assert rec.status != "lost"
+    followed = [ln for ln in lines if ln.startswith("tracking through a fault: frame ")]
+    assert followed and "frame 1 of the fault set" in followed[0]
+    s.apply(C.Kidnap((2.3, -1.7, 0.4)))
+    said = []
+    for _ in range(8):
+        s.apply(C.Step())
+        rec = s.shown_entry().record
+        said.append((rec.status, fault_line(rec.step, s.cfg.localizer)))
+    assert any("fit neither set (5 make it lost)" in ln for _, ln in said)
+    assert said[-1] == ("lost", "")
+    s.close()
+
+
+def test_relocalize_in_a_region_from_the_gui_and_after_lost(cfg, tmp_path):
+    """The GUI's "Re-localize in the region" (RelocalizeRegion) restarts a lost localizer with
+    candidates that hold the truth; with ``relocalize_region`` (``serve --relocalize-region``)
+    that happens by itself at the frame after ``lost``."""
+    from tileviz.app.server import fault_line
+
+    assert C.parse_region("-1, -2, 3 4") == (-1.0, -2.0, 3.0, 4.0)
+    with pytest.raises(ValueError, match="region"):
+        C.parse_region("1, 2, 3")
+    with pytest.raises(ValueError, match="x0 <= x1"):
+        C.RelocalizeRegion((1.0, 0.0, 0.0, 1.0))
+    for auto in (False, True):
+        region = (1.3, -2.5, 3.1, -1.0)  # holds the kidnap's pose (2.3, -1.7)
+        s = make(cfg, tmp_path / str(auto), relocalize_region=region if auto else None)
+        for _ in range(3):
+            s.apply(C.Step())
+        s.apply(C.Kidnap((2.3, -1.7, 0.4)))
+        for _ in range(8):
+            s.apply(C.Step())
+        statuses = [s.history.get(i).record.status for i in range(s.history.first, s.shown + 1)]
+        assert "lost" in statuses
+        if not auto:
+            assert s.shown_entry().record.status == "lost"
+            s.apply(C.RelocalizeRegion(region))
+        s.apply(C.Step())
+        rec = s.shown_entry().record
+        assert rec.status == "contracted" and rec.truth_inside() and len(rec.updated) > 1
+        assert fault_line(rec.step, s.cfg.localizer).startswith(
+            f"re-localizing: {len(rec.updated)} candidate(s)")
+        s.close()

@@ -204,11 +204,16 @@ def test_record_with_a_lens_replays_with_the_truth_inside(lens_run: Path, tmp_pa
         assert _rows(other) == rows
 
 
-def test_server_dataset_source_delivers_rectified_frames(lens_run: Path) -> None:
+def test_server_dataset_source_rectifies_as_replay_does(lens_run: Path) -> None:
+    # the demo's source hands over the raw image (shown as a stage) and its rectifier, which
+    # gives the very pixels replay's reader delivers
     source = DatasetReplay(lens_run)
     frame = next(source)
-    assert frame.image.shape == (CFG.camera.height, CFG.camera.width, 3)
-    assert np.array_equal(frame.image, next(iter(DatasetSource(lens_run))).image)
+    assert np.array_equal(frame.image, next(iter(DatasetSource(lens_run, rectify=False))).image)
+    assert source.rectifier is not None
+    view = source.rectifier(frame.image)
+    assert view.shape == (CFG.camera.height, CFG.camera.width, 3)
+    assert np.array_equal(view, next(iter(DatasetSource(lens_run))).image)
 
 
 def test_a_raw_image_of_the_wrong_size_names_the_row(lens_run: Path, tmp_path: Path) -> None:

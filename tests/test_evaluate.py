@@ -58,6 +58,7 @@ def test_tiny_run_writes_the_tables_and_plots(tmp_path, capsys):
     assert "| scenario | method |" in md
     assert "interval (autonomous)" in md and "MCL" in md and "odometry only" in md
     assert "300 particles" in md
+    assert "fault model 0.2 m/s, 0.1 rad/s" in md  # the default, said in the notes
     for name in ("coverage.png", "error_clean.png", "error_dropout.png"):
         img = matplotlib.image.imread(out / name)
         assert img.ndim == 3 and img.shape[0] > 200 and img.shape[1] > 400
@@ -218,6 +219,8 @@ def test_fault_scenarios_inject_their_faults(scenario, kind):
         (["--mcl-inject", "2"], "--mcl-inject"),
         (["--mcl-sigma-scale", "0"], "--mcl-sigma-scale"),
         (["--seed", "-3"], "--seed"),
+        (["--fault-model", "0.2"], "--fault-model"),
+        (["--fault-model", "0.2,-1"], "--fault-model"),
         (["--frobnicate"], "unrecognized"),
     ],
 )
@@ -330,8 +333,9 @@ def test_kidnap_is_detected_at_once_and_never_recovered():
 
 
 def test_slip_is_recovered_with_recovery_on_only():
-    # 6 s = 120 frames, slip on frames 40..79 (beyond the odometry bound)
-    res = ev.run_one(ev.Task("slip", 0, 1, 6.0, particles=100))
+    # 6 s = 120 frames, slip on frames 40..79 (beyond the odometry bound); no fault model
+    # (evaluate --fault-model 0,0)
+    res = ev.run_one(ev.Task("slip", 0, 1, 6.0, particles=100, fault_model=(0.0, 0.0)))
     assert ev.fault_events(res.fault) == [(40, 79)]
     rows = ev.aggregate([res])
     off, on = _row(rows, "interval"), _row(rows, "interval-recovery")
@@ -342,6 +346,19 @@ def test_slip_is_recovered_with_recovery_on_only():
     assert on["recovery_max_frames"] >= 1
     # recovery on vouches wrongly only while the slip is unnoticed; off until it is lost
     assert 0 < on["false_vouches"] < off["false_vouches"]
+
+
+def test_with_the_default_fault_model_the_autonomous_localizer_tracks_the_slip():
+    """``evaluate`` with its default fault model (``--fault-model``): the same slip is noticed
+    and followed, never lost, and the wrong vouched frames are only the unnoticed first ones."""
+    res = ev.run_one(ev.Task("slip", 0, 1, 6.0, particles=100))
+    off = ev.run_one(ev.Task("slip", 0, 1, 6.0, particles=100, fault_model=(0.0, 0.0)))
+    model = _row(ev.aggregate([res]), "interval")
+    plain = _row(ev.aggregate([off]), "interval")
+    assert model["unrecovered_events"] == 0 and model["lost_frames"] == 0
+    assert 1 <= model["detection_max_frames"] <= 10
+    assert model["false_vouches"] < plain["false_vouches"]
+    assert model["false_vouches"] <= 10
 
 
 def test_clean_scenario_has_no_fault_figures():

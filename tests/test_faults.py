@@ -30,6 +30,8 @@ BOUNDS = SensorBounds(speed_error=0.02, yaw_rate_error=0.01, compass_error=0.02)
 E_POS, E_HEAD = 0.01, 0.02
 DT = 0.05
 SLIP = (0.1, 0.1)
+NO_MODEL = LocalizerConfig(fault_speed=0.0, fault_yaw_rate=0.0)
+"""Recovery off and no fault model: a rejected view is ignored, the prediction kept."""
 
 
 # --- the localizer alone, on a synthetic drive --------------------------------------------------
@@ -93,7 +95,7 @@ class Drive:
 
 def test_recovery_is_off_by_default_and_a_rejection_keeps_the_prediction() -> None:
     assert LocalizerConfig().max_slip == (0.0, 0.0)
-    drive = Drive(LocalizerConfig())
+    drive = Drive(NO_MODEL)
     for _ in range(10):
         assert drive.step().status == "contracted"
     step = drive.step(jump=(0.05, -0.03, 0.0))
@@ -134,7 +136,7 @@ def test_a_compass_that_misses_the_prediction_adds_the_candidates_it_allows() ->
     P = Box(-0.01, 0.01, -0.01, 0.01, 0.55, 0.57)  # 0.05 rad off: the compass (0.02) misses it
     for slip, expected in (((0.0, 0.0), False), (SLIP, True)):
         loc = Localizer(tile_size=1.0, camera_offset=(0.3, 0.0), bounds=BOUNDS,
-                        config=LocalizerConfig(max_slip=slip), initial=P)
+                        config=replace(NO_MODEL, max_slip=slip), initial=P)
         step = loc.step(None, truth.theta, None)
         assert step.compass_rejected and step.status == "predicted"
         assert step.reinflated is expected
@@ -162,7 +164,7 @@ def test_a_slip_beyond_the_bound_is_followed_from_the_first_frame_that_notices_i
 
 
 def test_without_recovery_a_slip_is_noticed_then_lost() -> None:
-    drive = Drive(LocalizerConfig())
+    drive = Drive(NO_MODEL)
     for _ in range(20):
         drive.step()
     statuses = [drive.step(excess=(0.1, 0.05)).status for _ in range(40)]
@@ -276,7 +278,8 @@ def _simulate(inject: Callable[[SimSource], None], kind: str, *, max_slip=(0.0, 
               seed: int = 3, after: int = AFTER) -> Run:
     cfg = preset("default")
     cfg = replace(cfg, sim=replace(cfg.sim, seed=seed),
-                  localizer=replace(cfg.localizer, max_slip=max_slip))
+                  localizer=replace(cfg.localizer, max_slip=max_slip, fault_speed=0.0,
+                                    fault_yaw_rate=0.0))
     src = SimSource(cfg)
     runner = FrameLoop(cfg)
     frames, records = [], []

@@ -185,6 +185,9 @@ def run_localizer(setup: dict[str, Any], inputs: dict[str, np.ndarray]) -> dict[
     c = dict(setup["config"])
     c["truth_inflation"] = tuple(c["truth_inflation"])
     c["max_slip"] = tuple(c["max_slip"])
+    # sequences recorded before the fault model existed ran without it
+    c.setdefault("fault_speed", 0.0)
+    c.setdefault("fault_yaw_rate", 0.0)
     loc = Localizer(tile_size=setup["tile_size"], camera_offset=tuple(setup["camera_offset"]),
                     bounds=SensorBounds(*setup["bounds"]), config=LocalizerConfig(**c),
                     initial=Box(*setup["initial"]))

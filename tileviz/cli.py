@@ -16,6 +16,7 @@ from tileviz.cliutil import (
     float_in,
     int_in,
     positive_int,
+    region,
     run_cli,
 )
 from tileviz.config import (
@@ -141,7 +142,14 @@ def replay_parser() -> Parser:
                    metavar="SPEED,YAW_RATE",
                    help="how much faster than the odometry bounds a fault (wheel slip, push) may "
                    "move the robot, m/s and rad/s: the localizer then tracks through such a fault "
-                   "and says lost beyond it (docs/faults.md); default off (0,0)")
+                   "and says lost beyond it (docs/faults.md); 0,0 turns it off (default 0.2,0.1)")
+    p.add_argument("--relocalize-region", type=region("--relocalize-region"), default=None,
+                   metavar="X0,Y0,X1,Y1",
+                   help="after lost, restart from 'somewhere in this region' (metres; heading "
+                   "from the compass): one candidate box per tile cell that fits the view, "
+                   "dropped as the robot's motion takes them out of the region; the robot must "
+                   "stay in it until one candidate is left (docs/guarantees.md); write "
+                   "--relocalize-region=-1,-1,2,2 when X0 is negative")
     p.add_argument("--mcap", default=None, metavar="OUT.mcap",
                    help="also write the run for Foxglove: camera images, truth, the sets as 3-D "
                    "cubes, status and box widths (needs the [ros] extra)")
@@ -176,6 +184,7 @@ def replay(argv: list[str]) -> int:
             n = run_replay(args.dataset, out=args.out, output_file=args.output_file,
                            mode=args.mode, extractor=args.extractor, max_boxes=args.max_boxes,
                            jobs=args.jobs, mcap=args.mcap, fault_model=args.fault_model,
+                           relocalize_region=args.relocalize_region,
                            on_total=on_total, on_frame=on_frame)
         finally:
             if bar is not None:

@@ -70,6 +70,29 @@ def fault_model(name: str) -> Callable[[str], tuple[float, float]]:
     return parse
 
 
+def region(name: str) -> Callable[[str], tuple[float, float, float, float]]:
+    """argparse type: ``X0,Y0,X1,Y1`` (metres), four finite floats with x0 <= x1 and y0 <= y1:
+    a re-localization region (``Localizer.relocalize``)."""
+
+    def parse(text: str) -> tuple[float, float, float, float]:
+        parts = text.split(",")
+        if len(parts) != 4:
+            raise argparse.ArgumentTypeError(f"{name} must be X0,Y0,X1,Y1 (metres), got {text!r}")
+        try:
+            x0, y0, x1, y1 = (float(p) for p in parts)
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f"{name} must be four numbers X0,Y0,X1,Y1 (metres), got {text!r}") from None
+        if not all(math.isfinite(v) and abs(v) <= 1e9 for v in (x0, y0, x1, y1)):
+            raise argparse.ArgumentTypeError(f"{name} must be finite numbers within 1e9, "
+                                             f"got {text!r}")
+        if x0 > x1 or y0 > y1:
+            raise argparse.ArgumentTypeError(f"{name} needs X0 <= X1 and Y0 <= Y1, got {text!r}")
+        return (x0, y0, x1, y1)
+
+    return parse
+
+
 def float_in(name: str, lo: float, hi: float, *, lo_open: bool = True) -> Callable[[str], float]:
     """argparse type: a finite float in (lo, hi] ([lo, hi] when not ``lo_open``), the error
     naming the option and the range."""

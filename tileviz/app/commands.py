@@ -27,11 +27,12 @@ from tileviz.config import (
 
 __all__ = [
     "LAYERS", "PANEL_VIEWS", "SIMULATOR_ONLY", "Command", "Inject", "Kidnap", "Live", "Pause",
-    "Play", "Relocalize", "Report", "SetFollow", "ShowPanel",
+    "ExportMcap", "Play", "Relocalize", "RelocalizeRegion", "Report", "SetFollow", "ShowPanel",
     "Reset", "Restart", "Seek", "SetDisplay", "SetExtractor", "SetInflation", "SetLayer",
-    "SetManualTarget", "SetMaxSpeed", "SetMcl", "SetMode", "SetNoise", "SetSetpoint", "SetSpeed",
+    "SetFaultModel", "SetManualTarget", "SetMaxSpeed", "SetMcl", "SetMode", "SetNoise",
+    "SetSetpoint", "SetSpeed",
     "SetWaypoints", "StartRecording", "Step", "StepBack", "StopRecording", "TogglePlay",
-    "parse_waypoints",
+    "parse_region", "parse_waypoints",
 ]
 
 LAYERS = (
@@ -188,6 +189,34 @@ class Relocalize:
 
 
 @dataclass(frozen=True)
+class RelocalizeRegion:
+    """Restart the localizer from "somewhere in ``region``" = (x0, y0, x1, y1), metres, heading
+    from the compass (``Localizer.relocalize``: one candidate box per tile cell that fits the
+    view, dropped as the motion takes them out of the region; the robot must stay in it until one
+    candidate is left)."""
+
+    region: tuple[float, float, float, float]
+
+    def __post_init__(self) -> None:
+        if len(self.region) != 4:
+            raise ValueError(f"region must be x0, y0, x1, y1 (m), got {self.region!r}")
+        x0, y0, x1, y1 = (_in_range(f"region {n}", v, -1e4, 1e4)
+                          for n, v in zip(("x0", "y0", "x1", "y1"), self.region, strict=True))
+        if x0 > x1 or y0 > y1:
+            raise ValueError(f"region needs x0 <= x1 and y0 <= y1, got {self.region!r}")
+
+
+def parse_region(text: str) -> tuple[float, float, float, float]:
+    """``"x0, y0, x1, y1"`` (metres) as a region; ValueError naming the problem."""
+    parts = [p for p in text.replace(",", " ").split() if p]
+    if len(parts) != 4:
+        raise ValueError(f"region: expected 'x0, y0, x1, y1', got {text.strip()!r}")
+    x0, y0, x1, y1 = (finite_number(f"region {n}", p)
+                      for n, p in zip(("x0", "y0", "x1", "y1"), parts, strict=True))
+    return (x0, y0, x1, y1)
+
+
+@dataclass(frozen=True)
 class Reset:
     """Start the run again from frame 0 (``seed``: a new noise seed, or None to keep it)."""
 
@@ -261,6 +290,21 @@ class SetInflation:
     def __post_init__(self) -> None:
         _in_range("inflation x/y", self.xy, 0.0, 10.0)
         _in_range("inflation theta", self.theta, 0.0, math.pi)
+
+
+@dataclass(frozen=True)
+class SetFaultModel:
+    """The localizer's fault model (``LocalizerConfig.fault_speed``, ``fault_yaw_rate``): how
+    much faster than its odometry bounds a fault may move the robot, m/s and rad/s; ``on``
+    False turns it off (0, 0)."""
+
+    speed: float
+    yaw_rate: float
+    on: bool = True
+
+    def __post_init__(self) -> None:
+        _in_range("fault model speed", self.speed, 0.0, 10.0)
+        _in_range("fault model yaw rate", self.yaw_rate, 0.0, 10.0)
 
 
 @dataclass(frozen=True)
@@ -341,6 +385,12 @@ class StopRecording:
 
 
 @dataclass(frozen=True)
+class ExportMcap:
+    """Export the last finished recording as an MCAP file for Foxglove, written beside its
+    dataset folder (``NAME.mcap``): the file ``python -m tileviz replay NAME --mcap`` writes."""
+
+
+@dataclass(frozen=True)
 class Report:
     """A one-line message for the GUI's notes (``level`` info or error; errors also go to
     stderr), e.g. a GUI input that was refused."""
@@ -354,9 +404,11 @@ class Report:
 
 Command = (
     Play | Pause | TogglePlay | Step | StepBack | Seek | Live | SetSpeed | SetMaxSpeed
-    | SetSetpoint | SetManualTarget | SetWaypoints | Kidnap | Relocalize | Reset | Restart
-    | SetMode | SetExtractor | SetNoise | SetInflation | SetDisplay | SetMcl | SetLayer | Inject
-    | StartRecording | StopRecording | Report | SetFollow | ShowPanel
+    | SetSetpoint | SetManualTarget | SetWaypoints | Kidnap | Relocalize | RelocalizeRegion
+    | Reset | Restart
+    | SetMode | SetExtractor | SetNoise | SetInflation | SetFaultModel | SetDisplay | SetMcl
+    | SetLayer | Inject
+    | StartRecording | StopRecording | ExportMcap | Report | SetFollow | ShowPanel
 )
 """Any command the loop understands."""
 

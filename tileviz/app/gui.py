@@ -144,6 +144,8 @@ class Controls:
             self.set_waypoints = gui.add_button("Drive the waypoints")
             self.kidnap = gui.add_button("Kidnap (teleport the robot)")
             self.relocalize = gui.add_button("Relocalize (tell the true pose)")
+            self.region = gui.add_text("Region x0, y0, x1, y1 (m)", "-2, -2, 2, 2")
+            self.relocalize_region = gui.add_button("Re-localize in the region")
             self.seed = gui.add_number("Seed", cfg.sim.seed, min=SEED_RANGE[0], max=SEED_RANGE[1],
                                       step=1)
             self.reset = gui.add_button("Reset the run")
@@ -153,6 +155,8 @@ class Controls:
                        lambda: C.SetWaypoints(C.parse_waypoints(self.waypoints.value)))
         self._on_click(self.kidnap, C.Kidnap)
         self._on_click(self.relocalize, C.Relocalize)
+        self._on_click(self.relocalize_region,
+                       lambda: C.RelocalizeRegion(C.parse_region(self.region.value)))
         self._on_click(self.reset, lambda: C.Reset(seed=_integer("seed", self.seed.value)))
         self._on_pick()
 
@@ -174,6 +178,13 @@ class Controls:
                                                step=0.01, initial_value=ix)
             self.inflation_t = gui.add_slider("Truth inflation heading (rad)", min=0.0,
                                               max=1.5, step=0.01, initial_value=it)
+            loc = cfg.localizer
+            self.fault_on = gui.add_checkbox("Fault model (track through slips)",
+                                             loc.fault_speed > 0 or loc.fault_yaw_rate > 0)
+            self.fault_speed = gui.add_slider("Fault speed (m/s)", min=0.0, max=1.0, step=0.01,
+                                              initial_value=loc.fault_speed or 0.2)
+            self.fault_yaw = gui.add_slider("Fault yaw rate (rad/s)", min=0.0, max=1.0,
+                                            step=0.01, initial_value=loc.fault_yaw_rate or 0.1)
             self.mcl = gui.add_checkbox("Monte Carlo Localization (orange)", mcl)
         self._on_change(self.mode, lambda: C.SetMode(self.mode.value))
         self._on_change(self.extractor, lambda: C.SetExtractor(self.extractor.value))
@@ -181,6 +192,12 @@ class Controls:
         for h in (self.speed_error, self.yaw_error, self.compass_error, self.fraction):
             self._on_change(h, lambda: C.SetNoise(self.speed_error.value, self.yaw_error.value,
                                                   self.compass_error.value, self.fraction.value))
+        fault_inputs: tuple[GuiInputHandle[Any], ...] = (self.fault_on, self.fault_speed,
+                                                         self.fault_yaw)
+        for fh in fault_inputs:
+            self._on_change(fh, lambda: C.SetFaultModel(self.fault_speed.value,
+                                                       self.fault_yaw.value,
+                                                       bool(self.fault_on.value)))
         for h in (self.inflation_xy, self.inflation_t):
             self._on_change(h, lambda: C.SetInflation(self.inflation_xy.value,
                                                       self.inflation_t.value))
@@ -217,9 +234,13 @@ class Controls:
         with gui.add_folder("Record") as folders["record"]:
             self.record_name = gui.add_text("Dataset name", "live-run")
             self.record = gui.add_button("Start recording")
+            self.export = gui.add_button(
+                "Export MCAP", hint="Write the last recording as NAME.mcap beside its folder, "
+                "for Foxglove (as `python -m tileviz replay NAME --mcap` does)")
         self._recording = False
         self._on_click(self.record, lambda: (C.StopRecording() if self._recording
                                              else C.StartRecording(self.record_name.value)))
+        self._on_click(self.export, C.ExportMcap)
 
         tx, ty = cfg.sim.manual_target
         self.gizmo = server.scene.add_transform_controls(

@@ -171,10 +171,12 @@ class Entry:
 
     @classmethod
     def make(cls, rec: FrameRecord, *, stages: bool = True, encoder: Encoder | None = None,
-             mcl: ParticleView | None = None) -> Entry:
+             mcl: ParticleView | None = None,
+             before: dict[str, np.ndarray] | None = None) -> Entry:
         """The entry of ``rec``: its images encoded (now, or on ``encoder``'s thread) and the
-        record stripped of its raw arrays."""
-        st = dict(rec.vision.stages) if stages else {}
+        record stripped of its raw arrays. ``before``: stage images shown before the
+        extractor's (e.g. a lens camera's raw and rectified image), kept only with ``stages``."""
+        st = {**(before or {}), **rec.vision.stages} if stages else {}
         if encoder is None:
             return cls(strip_record(rec), encode_images(rec.image, st), mcl)
         return cls(strip_record(rec), encoder.submit(rec.image, st), mcl)

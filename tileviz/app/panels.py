@@ -22,6 +22,8 @@ __all__ = ["ImagePanels", "ImageSlot", "decode_jpeg"]
 
 STAGE_TITLES: dict[str, str] = {
     "camera": "camera view",
+    "raw": "raw camera image (lens distortion and tilt)",
+    "rectified": "rectified to the orthographic view",
     "input": "input",
     "gray": "gray",
     "laplacian": "Laplacian",
@@ -73,7 +75,7 @@ class ImagePanels:
     ``gui``: a viser ``GuiApi``; ``slots``: image elements for the stages (the camera has its
     own). Unused slots are hidden; labels follow the extractor's stage names."""
 
-    def __init__(self, gui: GuiApi, *, slots: int = 12, width: int = 320,
+    def __init__(self, gui: GuiApi, *, slots: int = 14, width: int = 320,
                  height: int = 240) -> None:
         blank = np.zeros((max(2, height), max(2, width), 3), np.uint8)
         self.camera = ImageSlot(gui, blank, label=STAGE_TITLES["camera"])

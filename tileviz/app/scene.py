@@ -63,8 +63,11 @@ Z_BOX = 0.26
 Z_MCL = 0.25
 Z_WEDGE = 0.29
 Z_TRUTH = 0.31
-TEXTURE_PIXELS = 1600
-"""Largest side of the floor texture, pixels."""
+TEXTURE_PIXELS = 1024
+"""Largest side of the floor texture, pixels. The browser samples this texture for every floor
+pixel of every frame it draws: without a GPU (software WebGL) a 1600-pixel texture cost about as
+much as the rest of the scene together (``bench/bench_page_parts.py``); 1024 keeps a 1 m tile of
+the default room at 85 texture pixels, grout lines included."""
 PATH_KINDS = ("lissajous", "dataset")
 """Setpoint kinds (``set_world``) whose path is drawn: the Lissajous lap, a dataset's true path."""
 

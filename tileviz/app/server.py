@@ -7,16 +7,16 @@ shown to the scene, the image panels, the plots and the readouts, at most ``push
 second (the browser cannot take more than ~60 updates a second; the loop itself runs faster).
 An exception inside a frame is logged as one line, shown in the GUI, and the loop goes on.
 
-Options (report table 6.1 and the server's own): ``--host`` (default 127.0.0.1: only this
-machine), ``--port`` (8080; the next free one if taken), ``--preset``, ``--interactive`` (start
-paused: one frame per Step), ``--intervals/--no-intervals`` (draw the boxes),
-``--display/--no-display`` (stream the stage images), ``--ppm``, ``--tile-size``,
-``--output-file NAME`` (CSV of the six equivalence residuals per frame, written under
-``--out-dir``), ``--seed``, ``--history``, ``--push-rate``, ``--image-rate``, ``--speed``,
-``--max-speed``, ``--mcl``/``--particles`` (the Monte Carlo Localization baseline beside the
-boxes), ``--mode``, ``--extractor``, and ``--dataset DIR``: replay a recorded tileviz-dataset/1
-folder instead of simulating (its meta.json sets the floor and the camera; the boxes are those
-``python -m tileviz replay`` writes).
+Options (report table 6.1 and the server's own): ``--host`` (default 127.0.0.1: only this machine),
+``--port`` (8080; the next free one if taken), ``--preset``, ``--interactive`` (start paused: one
+frame per Step), ``--intervals/--no-intervals`` (draw the boxes), ``--display/--no-display``
+(stream the stage images), ``--ppm``, ``--tile-size``, ``--output-file NAME`` (CSV of the six
+equivalence residuals per frame, written under ``--out-dir``), ``--seed``, ``--history``,
+``--push-rate``, ``--image-rate``, ``--speed``, ``--max-speed``, ``--lens`` (a real camera in the
+simulator), ``--mcl``/``--particles`` (the Monte Carlo Localization baseline beside the boxes),
+``--mode``, ``--extractor``, and ``--dataset DIR``: replay a recorded tileviz-dataset/1 folder
+instead of simulating (its meta.json sets the floor and the camera; the boxes are those ``python -m
+tileviz replay`` writes).
 """
 
 from __future__ import annotations
@@ -52,6 +52,7 @@ from tileviz.cliutil import (
     nonneg_int,
     positive_float,
     positive_int,
+    region,
     run_cli,
 )
 from tileviz.config import (
@@ -62,8 +63,11 @@ from tileviz.config import (
     SEED_RANGE,
     TILE_SIZE_RANGE,
     Config,
+    LocalizerConfig,
     preset,
 )
+from tileviz.core.localizer import FAULT_MAX_REJECTIONS, LocalizerStep
+from tileviz.sim.lens import LENSES
 
 if TYPE_CHECKING:
     from viser import GuiButtonGroupHandle, GuiEvent, ViserServer
@@ -89,12 +93,16 @@ class App:
     ``strict_port``). ``push_rate``: scene updates per second at most;
     ``image_rate``: image panel updates per second at most while playing (a paused or stepped
     frame always shows its images); ``plot_rate``: plot updates per second at most;
+    ``readout_rate``: status text and timeline updates per second at most while playing (a
+    paused or stepped frame, a new note and a change of play state or recording refresh them at
+    once);
     ``plot_window``: frames in the plots. ``frames``: pause after that many frames of the run.
     """
 
     def __init__(self, cfg: Config, options: SessionOptions | None = None, *,
                  host: str = "127.0.0.1", port: int = 8080, strict_port: bool = False,
                  push_rate: float = 20.0, image_rate: float = 10.0, plot_rate: float = 4.0,
+                 readout_rate: float = 5.0,
                  plot_window: int = 1000, verbose: bool = False,
                  frames: int | None = None) -> None:
         self.cfg = cfg
@@ -103,6 +111,9 @@ class App:
         self.strict_port = strict_port
         self.image_rate = float(image_rate)
         self._next_images = 0.0
+        self.readout_rate = float(readout_rate)
+        self._next_readout = 0.0
+        self._readout_key: object = None
         self.options = options or SessionOptions()
         self.host = host
         self.requested_port = port
@@ -261,6 +272,7 @@ class App:
             self._drain(wait)
             if self._stop.is_set():
                 break
+            s.poll()
             now = time.perf_counter()
             if s.playing and now >= next_frame:
                 try:
@@ -349,6 +361,15 @@ class App:
                 self.plots.update(rows)
             if s.follow and s.playing:
                 self._follow(entry)
+        # the readouts change every frame; while playing, a person reads them a few times a
+        # second, and every refresh makes the browser lay out and redraw the panel
+        now = time.perf_counter()
+        key = (s.playing, s.recording_active, s.setpoint_kind, len(s.history) == 0,
+               id(s.notes[-1]) if s.notes else None)
+        if s.playing and key == self._readout_key and now < self._next_readout:
+            return
+        self._readout_key = key
+        self._next_readout = max(self._next_readout + 1.0 / self.readout_rate, now)
         self.controls.refresh(first=s.history.first, last=s.history.last, shown=pos,
                               playing=s.playing, setpoint=s.setpoint_kind,
                               target=tuple(s.cfg.sim.manual_target),  # type: ignore[arg-type]
@@ -397,6 +418,9 @@ class App:
                          f"{'' if live else ' (from the history)'}")
             lines.append(f"status <b>{r.status}</b>: {html.escape(STATUS_WORDS.get(r.status, ''))}"
                          f", {len(r.updated)} box(es)")
+            fault = fault_line(r.step, s.cfg.localizer)
+            if fault:
+                lines.append(fault)
             reason = r.vision.reason
             lines.append("camera view used" if r.vision.observation is not None
                          else f"camera view not used: {html.escape(reason)}")
@@ -448,6 +472,27 @@ class App:
                 f'<div class="tileviz-notes" style="{NOTES_STYLE}">{"<br>".join(notes)}</div>')
 
 
+def fault_line(step: LocalizerStep | None, loc: LocalizerConfig) -> str:
+    """The fault model's state at one frame, in words ('' when there is nothing to say): the
+    candidates of a re-localization in a region, the frame of a followed fault
+    (``LocalizerStep.fault_frame``) and the views in a row that fitted neither the set nor the
+    fault set, out of the number that makes the status ``lost``."""
+    if step is None or step.status == "lost":
+        return ""
+    parts = []
+    if step.relocalizing:
+        parts.append(f"re-localizing: {len(step.updated)} candidate(s) in the region")
+    if not (loc.fault_speed or loc.fault_yaw_rate) or loc.max_slip != (0.0, 0.0) or (
+            loc.mode != "autonomous"):
+        return "; ".join(parts)
+    if step.fault_frame > 0:
+        parts.append(f"tracking through a fault: frame {step.fault_frame} of the fault set")
+    if step.rejections > 0:
+        limit = min(loc.max_rejections, FAULT_MAX_REJECTIONS)
+        parts.append(f"{step.rejections} view(s) in a row fit neither set ({limit} make it lost)")
+    return "; ".join(parts)
+
+
 STATUS_WORDS = {
     "contracted": "the camera's view shrank the set",
     "predicted": "no usable view: odometry and compass only",
@@ -474,6 +519,10 @@ def parser() -> Parser:
                    help="simulator preset (default: default)")
     p.add_argument("--dataset", metavar="DIR", help="replay this tileviz-dataset/1 folder "
                    "instead of simulating (its meta.json sets the floor and the camera)")
+    p.add_argument("--lens", choices=LENSES, default=None,
+                   help="the simulated camera is a real one (webcam: tilted, a distorting "
+                   "lens); its raw and rectified images are shown as stages (a dataset with a "
+                   "camera_model shows them too)")
     p.add_argument("--mode", choices=MODES, default=None,
                    help="localizer mode (default autonomous)")
     p.add_argument("--extractor", choices=EXTRACTORS, default=None,
@@ -494,7 +543,12 @@ def parser() -> Parser:
                    metavar="SPEED,YAW_RATE",
                    help="how much faster than the odometry bounds a fault (wheel slip, push) may "
                    "move the robot, m/s and rad/s: the localizer tracks through such a fault "
-                   "(docs/guarantees.md); default off")
+                   "(docs/guarantees.md); 0,0 turns it off (default 0.2,0.1)")
+    p.add_argument("--relocalize-region", type=region("--relocalize-region"), default=None,
+                   metavar="X0,Y0,X1,Y1",
+                   help="after lost, restart from 'somewhere in this region' (metres; heading "
+                   "from the compass; the robot must stay in it until one candidate is left); "
+                   "write --relocalize-region=-1,-1,2,2 when X0 is negative")
     p.add_argument("--ppm", type=float_in("--ppm", *PPM_RANGE, lo_open=False),
                    help="pixels per metre")
     p.add_argument("--tile-size", type=float_in("--tile-size", *TILE_SIZE_RANGE, lo_open=False),
@@ -566,7 +620,8 @@ def serve_config(args: argparse.Namespace) -> Config:
         from tileviz.datasets import DatasetSource
 
         clash = [name for name, v in (("--preset", args.preset), ("--tile-size", args.tile_size),
-                                      ("--ppm", args.ppm)) if v is not None]
+                                      ("--ppm", args.ppm), ("--lens", args.lens))
+                 if v is not None]
         if clash:
             raise CliError(f"{', '.join(clash)} cannot be used with --dataset (the dataset's "
                            "meta.json sets the floor and the camera)")
@@ -616,7 +671,8 @@ def options_from_args(args: argparse.Namespace) -> SessionOptions:
                           out_dir=Path(args.out_dir),
                           output_file=args.output_file, speed=args.speed,
                           max_speed=args.max_speed, mcl=args.mcl, mcl_particles=args.particles,
-                          start_frame=args.start_frame,
+                          start_frame=args.start_frame, lens=args.lens,
+                          relocalize_region=args.relocalize_region,
                           dataset=Path(args.dataset) if args.dataset is not None else None)
 
 

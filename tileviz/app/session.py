@@ -18,7 +18,9 @@ the source's frame index. They differ only after a frame failed (a gap in frame 
 from __future__ import annotations
 
 import math
+import os
 import sys
+import threading
 import time
 from collections import deque
 from dataclasses import dataclass, field, replace
@@ -33,6 +35,7 @@ from tileviz.app.outputs import output_path, sanitize_name
 from tileviz.app.scene import texture_pixels_per_tile
 from tileviz.config import Config, LocalizerConfig, NoiseConfig, with_floor_style
 from tileviz.pipeline import FrameLoop, FrameRecord, initial_box
+from tileviz.sim.camera import FAULT_KINDS
 from tileviz.summary import RunTally
 from tileviz.types import FrameInput
 
@@ -73,9 +76,16 @@ class SessionOptions:
     start_frame: int = 0
     """The frame shown first (frame index): the frames before it are computed on start, without
     stage images."""
+    relocalize_region: tuple[float, float, float, float] | None = None
+    """(x0, y0, x1, y1), metres: whenever the localizer is ``lost`` it restarts from "somewhere in
+    this region" at the next frame (``Localizer.relocalize``)."""
     dataset: Path | None = None
     """Replay this tileviz-dataset/1 folder instead of simulating (the Config passed to the
     session should be :func:`tileviz.datasets.replay_config` of its meta)."""
+    lens: str | None = None
+    """The simulator's camera is this real camera (:data:`tileviz.sim.lens.LENSES`): raw images
+    through a tilted, distorting lens, rectified to the configured camera's view before vision;
+    the view bound grows as ``docs/dataset-format.md`` says for a ``camera_model``."""
 
 
 @dataclass
@@ -121,6 +131,10 @@ class Session:
         self.recording: Any = None
         self.recording_path: Path | None = None
         self._record_pending: Path | None = None
+        self.last_recording: Path | None = None
+        """The last finished recording with at least one frame (what Export MCAP exports)."""
+        self.export: McapJob | None = None
+        """The MCAP export running in the background, if any."""
         self.csv: Any = None
         self.csv_path: Path | None = None
         self._kidnap_rng = np.random.default_rng(np.random.SeedSequence([cfg.sim.seed, 0xC1D]))
@@ -149,7 +163,7 @@ class Session:
         from tileviz.app.sources import make_source  # pymunk: only when a run starts
 
         self.source = make_source(cfg, dataset=self.options.dataset,
-                                  renderer=self.options.renderer)
+                                  renderer=self.options.renderer, lens=self.options.lens)
         floor_half = getattr(self.source, "floor_half_size", None)
         if floor_half is not None:  # a dataset: a floor under its whole true path
             half = floor_half(cfg.sim.room_half_size)
@@ -157,7 +171,7 @@ class Session:
             self.setpoint_kind = "dataset"
         self.cfg = cfg
         self.ended = None
-        self.runner = FrameLoop(cfg, keep_stages=self.display)
+        self.runner = FrameLoop(self._lens_bound(cfg), keep_stages=self.display)
         """The frame loop: the interval localizer and, when on, the MCL baseline (:data:`MCL`)."""
         if self._mcl_wanted:
             self._start_mcl(initial_box(cfg))
@@ -188,13 +202,30 @@ class Session:
             self._open_csv()
 
     def close(self) -> None:
-        """Close every file being written and stop the encoder thread (idempotent)."""
+        """Close every file being written and stop the encoder thread (idempotent); waits for an
+        MCAP export in progress."""
         self.encoder.close()
+        if self.export is not None:
+            self.export.join()
         if self.recording is not None:
             self._stop_recording("the server stopped")
         if self.csv is not None:
             self.csv.close()
             self.csv = None
+
+    def _lens_bound(self, cfg: Config) -> Config:
+        """``cfg`` for the localizer: with a simulated lens, the view bound grows by what the
+        rectification may move (as a dataset's ``camera_model`` makes ``replay`` do; a dataset's
+        configuration has that already)."""
+        rect = self.source.rectifier
+        if rect is None or not self.source.simulator:
+            return cfg
+        from tileviz.datasets.camera_model import view_margin
+
+        px, rad = view_margin(rect.model, rect)
+        return replace(cfg, vision=replace(cfg.vision,
+                                           position_error_px=cfg.vision.position_error_px + px,
+                                           heading_error=cfg.vision.heading_error + rad))
 
     # ------------------------------------------------------------------ notes
     def note(self, text: str, level: str = "info") -> None:
@@ -283,8 +314,14 @@ class Session:
         except Exception as e:  # noqa: BLE001 - the loop must survive any frame
             self._frame_failed(before, f"simulator: {e}", missed=self.source.index != before)
             return None
-        self._record(frame)
+        self._record(frame)  # a lens camera's raw image, as a robot logs it
+        lens_stages: dict[str, np.ndarray] | None = None
         try:
+            if self.source.rectifier is not None:
+                raw = frame.image
+                frame = replace(frame, image=self.source.rectifier(raw))
+                if self.runner.keep_stages:
+                    lens_stages = {"raw": raw, "rectified": frame.image}
             rec = self.runner.process(frame)
         except Exception as e:  # noqa: BLE001
             self._frame_failed(frame.index, str(e), missed=True)
@@ -294,9 +331,13 @@ class Session:
 
             self.csv.row(residual_row(rec))
         particles = self._mcl_view(rec)
-        entry = Entry.make(rec, stages=self.display, encoder=self.encoder, mcl=particles)
+        entry = Entry.make(rec, stages=self.display, encoder=self.encoder, mcl=particles,
+                           before=lens_stages)
         self.shown = self.history.append(entry)
         self.tally.add(rec)
+        region = self.options.relocalize_region
+        if region is not None and rec.status == "lost" and self.runner.primary is not None:
+            self.runner.primary.localizer.relocalize(region)  # from the next frame on
         self.frames_computed += 1
         self._count_rate()
         self.version += 1
@@ -382,6 +423,8 @@ class Session:
         assert folder is not None
         self._record_pending = None
         meta = DatasetMeta.from_config(self.cfg, name=f"tileviz live run ({folder.name})")
+        if self.source.rectifier is not None:  # raw images: replay rectifies them
+            meta = replace(meta, camera_model=self.source.rectifier.model)
         if frame.truth is not None:
             # the run may be under way: the dataset starts at this frame's true pose, known within
             # the configured initial error (docs/dataset-format.md: initial_pose +-
@@ -400,6 +443,8 @@ class Session:
         if w is None:
             return
         w.close()
+        if w.count > 0:
+            self.last_recording = self.recording_path
         tail = f" ({why})" if why else ""
         self.note(f"recorded {w.count} frames to {self.recording_path}{tail}", level)
 
@@ -446,6 +491,8 @@ class Session:
                 self._kidnap(cmd)
             case C.Relocalize():
                 self._relocalize()
+            case C.RelocalizeRegion(region=region):
+                self._relocalize_region(region)
             case C.Reset():
                 self._reset(cmd)
             case C.Restart():
@@ -458,6 +505,8 @@ class Session:
                 self._set_noise(cmd)
             case C.SetInflation():
                 self._set_inflation(cmd)
+            case C.SetFaultModel():
+                self._set_fault_model(cmd)
             case C.SetDisplay(on=on):
                 self.display = bool(on)
                 self.runner.keep_stages = self.display
@@ -466,12 +515,17 @@ class Session:
             case C.SetLayer(layer=layer, visible=visible):
                 self.layers[layer] = bool(visible)
             case C.Inject(kind=kind, frames=frames):
+                if self.source.rectifier is not None and kind in FAULT_KINDS:
+                    raise ValueError(f"the {kind} fault is not drawn through a lens (--lens): "
+                                     "odometry faults only")
                 self._simulator.inject(kind, frames=frames)
                 self.note(f"fault {kind} injected")
             case C.StartRecording():
                 self._start_recording(cmd)
             case C.StopRecording():
                 self._stop_recording_cmd()
+            case C.ExportMcap():
+                self._export_mcap()
             case C.Report(text=text, level=level):
                 self.note(text, level)
             case C.SetFollow(on=on):
@@ -529,6 +583,17 @@ class Session:
         self.degraded = False
         self.note("localizer restarted at the true pose (within the initial pose error)")
 
+    def _relocalize_region(self, region: tuple[float, float, float, float]) -> None:
+        primary = self.runner.primary
+        if primary is None:
+            self.note("Re-localize: no interval localizer runs; nothing changed")
+            return
+        n = primary.localizer.relocalize(region)  # ValueError (too large): nothing changed
+        self.degraded = False
+        x0, y0, x1, y1 = region
+        self.note(f"localizer restarted somewhere in ({x0:g}, {y0:g})-({x1:g}, {y1:g}) m "
+                  f"(up to {n} candidates; keep the robot in the region)")
+
     def _reset(self, cmd: C.Reset) -> None:
         cfg = self.cfg
         if cmd.seed is not None:
@@ -572,7 +637,7 @@ class Session:
             self._build(cfg)
             self._replay_from_start(what)
             return
-        self.runner.reconfigure(cfg)
+        self.runner.reconfigure(self._lens_bound(cfg))
         self.cfg = cfg
 
     def _set_mode(self, cmd: C.SetMode) -> None:
@@ -597,12 +662,43 @@ class Session:
                                        truth_inflation=(cmd.xy, cmd.xy, cmd.theta))
         self._reconfigure(replace(self.cfg, localizer=loc), "truth inflation")
 
+    def _set_fault_model(self, cmd: C.SetFaultModel) -> None:
+        speed, yaw_rate = (cmd.speed, cmd.yaw_rate) if cmd.on else (0.0, 0.0)
+        loc: LocalizerConfig = replace(self.cfg.localizer, fault_speed=speed,
+                                       fault_yaw_rate=yaw_rate)
+        self._reconfigure(replace(self.cfg, localizer=loc),
+                          f"fault model {speed:g} m/s, {yaw_rate:g} rad/s" if cmd.on
+                          else "fault model off")
+
     def _start_recording(self, cmd: C.StartRecording) -> None:
         if self.recording is not None or self._record_pending is not None:
             raise ValueError("already recording; stop the current recording first")
         self._record_pending = output_path(self.options.out_dir, sanitize_name(cmd.name))
         when = "the next new frame" if self.playing else "the next new frame (press Play or Step)"
         self.note(f"will record from {when} to {self._record_pending}")
+
+    def _export_mcap(self) -> None:
+        """Start exporting :attr:`last_recording` on a background thread (a long recording must
+        not freeze the loop); :meth:`poll` notes its end."""
+        if self.export is not None:
+            raise ValueError(f"an MCAP export is already running ({self.export.out})")
+        if self.last_recording is None:
+            what = ("stop the recording first" if self.recording_active
+                    else "record a run first (Start recording, then Stop recording)")
+            raise ValueError(f"nothing to export: {what}")
+        self.export = McapJob(self.last_recording)
+        self.note(f"exporting {self.last_recording} to {self.export.out} ...")
+
+    def poll(self) -> None:
+        """Note what background work finished since the last call (the loop calls this)."""
+        job = self.export
+        if job is None or job.running:
+            return
+        self.export = None
+        if job.error is not None:
+            self.note(f"MCAP export of {job.dataset} failed: {job.error}", "error")
+        else:
+            self.note(f"exported {job.frames} frames to {job.out} (open it in Foxglove)")
 
     def _stop_recording_cmd(self) -> None:
         if self._record_pending is not None and self.recording is None:
@@ -611,3 +707,34 @@ class Session:
         self._record_pending = None
         self._stop_recording()
 
+
+
+class McapJob:
+    """The MCAP export of a recorded dataset folder on a background thread: ``dataset`` replayed
+    as ``python -m tileviz replay DATASET --mcap`` does, written to ``DATASET.mcap`` beside it.
+    ``frames``: frames written; ``error``: one line when it failed (the file may be partial)."""
+
+    def __init__(self, dataset: Path) -> None:
+        self.dataset = dataset
+        self.out = dataset.with_name(dataset.name + ".mcap")
+        self.frames = 0
+        self.error: str | None = None
+        self._thread = threading.Thread(target=self._run, name="tileviz-mcap", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        from tileviz.pipeline.replay import replay
+
+        try:
+            # the replay table is not kept: the MCAP file is what was asked for
+            self.frames = replay(self.dataset, out=os.devnull, mcap=self.out, jobs=1)
+        except Exception as e:  # noqa: BLE001 - reported as one line by Session.poll
+            self.error = f"{type(e).__name__}: {e}" if not isinstance(e, (OSError, ValueError)) \
+                else str(e)
+
+    @property
+    def running(self) -> bool:
+        return self._thread.is_alive()
+
+    def join(self, timeout: float | None = None) -> None:
+        self._thread.join(timeout)

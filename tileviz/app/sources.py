@@ -24,6 +24,7 @@ from typing import Any, Protocol
 
 from tileviz.config import Config
 from tileviz.datasets import MAX_MAGNITUDE, DatasetSource, replay_config
+from tileviz.datasets.camera_model import Rectifier
 from tileviz.sim.source import SimSource
 from tileviz.types import FrameInput, Pose
 
@@ -60,6 +61,8 @@ class RunSource(Protocol):
     """Whether :meth:`path` is a loop (its last point joins its first)."""
     index: int
     """Index of the next frame ``next()`` returns."""
+    rectifier: Rectifier | None
+    """Turns the source's raw images into the orthographic view (None: they are already)."""
 
     def __next__(self) -> FrameInput: ...
 
@@ -83,6 +86,8 @@ class LiveSimulator(SimSource):
     simulator = True
     restart_on_settings = False
     path_closed = True
+    rectifier: Rectifier | None = None
+    """Set when the simulator's camera has a lens (its images are raw)."""
 
     def path(self) -> list[tuple[float, float]]:
         """One lap of the configured Lissajous curve, metres."""
@@ -106,8 +111,11 @@ class DatasetReplay:
 
     def __init__(self, folder: str | os.PathLike[str]) -> None:
         self.folder = Path(folder)
-        self.dataset = DatasetSource(self.folder)
+        # raw images: the session rectifies them, to show the raw and the rectified view
+        self.dataset = DatasetSource(self.folder, rectify=False)
         self.meta = self.dataset.meta
+        self.rectifier = self.meta.rectifier()
+        """The rectification of the stored images (None without a ``camera_model``)."""
         self._frames = iter(self.dataset)
         self.index = 0
         self.frames = 0
@@ -197,9 +205,22 @@ def truth_path(frames_csv: Path, columns: list[str]) -> list[tuple[float, float]
     return points
 
 
-def make_source(cfg: Config, *, dataset: Path | None = None, renderer: Any = None) -> RunSource:
+def make_source(cfg: Config, *, dataset: Path | None = None, renderer: Any = None,
+                lens: str | None = None) -> RunSource:
     """The run source: a replay of ``dataset`` when given, else the simulator for ``cfg``
-    (``renderer``: the simulator's camera, None = the real floor renderer)."""
+    (``renderer``: the simulator's camera, None = the real floor renderer; ``lens``: a
+    :data:`tileviz.sim.lens.LENSES` preset, the simulator's camera is then that real camera and
+    the source's ``rectifier`` turns its raw images into ``cfg.camera``'s view)."""
     if dataset is not None:
         return DatasetReplay(dataset)
-    return LiveSimulator(cfg, renderer=renderer)
+    if lens is None:
+        return LiveSimulator(cfg, renderer=renderer)
+    from tileviz.sim.lens import LENSES, LensRenderer, webcam_model
+
+    if lens not in LENSES:
+        raise ValueError(f"lens must be one of {', '.join(LENSES)}, got {lens!r}")
+    model = webcam_model(cfg.camera)
+    sim = LiveSimulator(cfg, renderer=LensRenderer(cfg.floor, cfg.camera, model))
+    sim.rectifier = Rectifier(model, ppm=cfg.camera.ppm, width=cfg.camera.width,
+                              height=cfg.camera.height, camera_offset=cfg.camera.offset)
+    return sim

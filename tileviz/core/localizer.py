@@ -22,14 +22,18 @@ the slip candidates, the poses within (d, d, a) of it that the compass and the v
 per lattice cell (docs/method.md, "Recovery"); for ``slip_window`` frames after that, every view
 contracts the prediction widened by ``max_slip``.
 
-Fault model (``LocalizerConfig.fault_speed`` m/s, ``fault_yaw_rate`` rad/s; mode ``autonomous``;
-off when both are 0; it replaces the ``max_slip`` recovery): a second set, the fault set, is
-predicted with the odometry bounds widened by the model, cut by the compass when the compass meets
-it, and contracted by every view. When a view or the compass rejects the set, the set becomes the
-fault set's contraction (``reinflated``, status ``contracted``); a view that fits neither counts
-as a rejection, and :data:`FAULT_MAX_REJECTIONS` of those in a row make the status ``lost``.
-Under H1, H2' (the true speed and yaw rate within the widened bounds), H3 and H4 the fault set
-holds the truth at every frame (``docs/guarantees.md``).
+Fault model (``LocalizerConfig.fault_speed`` m/s, ``fault_yaw_rate`` rad/s; on by default; mode
+``autonomous``; off when both are 0, or when the ``max_slip`` recovery is on): a second set, the
+fault set, is predicted with the odometry bounds widened by the model, cut by the compass when the
+compass meets it, and contracted by every view. When a view or the compass rejects the set, the set
+becomes the fault set's contraction (``reinflated``, status ``contracted``); a view that fits
+neither counts as a rejection (so does a frame without a view whose compass misses both sets), and
+:data:`FAULT_MAX_REJECTIONS` of those in a row make the status ``lost``. For ``slip_window`` frames
+after the fault set was taken, the set is the fault set's contraction whenever the view cuts it to
+at most ``max_boxes`` boxes (``LocalizerStep.fault_frame`` counts them): a slip still going on is
+followed rather than noticed again, frames late. Under H1, H2' (the true speed and yaw rate within
+the widened bounds), H3 and H4 the fault set holds the truth at every frame
+(``docs/guarantees.md``).
 
 Modes (``LocalizerConfig.mode``): ``autonomous``; ``truth`` (every frame the set restarts from
 the true pose inflated by ``truth_inflation``, then the compass and the view contract it; never
@@ -65,13 +69,18 @@ from tileviz.core.contraction import Window, contract_view, lever_enclosure, vie
 from tileviz.core.prediction import compass_pieces, predict_box
 from tileviz.types import Box, BoxSet, Observation, Odometry, Pose, SensorBounds, Status
 
-__all__ = ["FAULT_MAX_REJECTIONS", "Localizer", "LocalizerStep"]
+__all__ = ["FAULT_MAX_REJECTIONS", "RELOCALIZE_MAX_CANDIDATES", "Localizer", "LocalizerStep",
+           "region_candidates"]
 
 FAULT_MAX_REJECTIONS = 5
 """With the fault model on, a view that fits neither the set nor the fault set means the motion
 went beyond the fault model (a kidnap) or the view is an outlier; this many in a row and the
 status is ``lost`` (``max_rejections`` if smaller): never more frames vouching for a set that
 may have lost the truth."""
+
+RELOCALIZE_MAX_CANDIDATES = 400
+"""The most candidate boxes a re-localization region may need (:meth:`Localizer.relocalize`);
+a larger region is refused rather than hulled into one wide box."""
 
 _INF = math.inf
 _nextafter = math.nextafter
@@ -86,7 +95,12 @@ class LocalizerStep(NamedTuple):
     box cap (or a lattice split too fine to keep) replaced some set by its hull this frame.
     ``compass_rejected``: the compass reading missed the predicted set and was ignored.
     ``rejections``: the current streak of consecutive rejected views. ``reinflated``: recovery
-    added the slip candidates to the set this frame (module docstring, "Recovery").
+    added the slip candidates to the set this frame (module docstring, "Recovery"), or the set was
+    taken from the fault set (module docstring, "Fault model"). ``fault_frame``: fault model
+    only: k >= 1 while the localizer follows a noticed fault (the k-th frame since the view or
+    compass rejected the set and the fault set was taken; ``slip_window`` frames after the last
+    such rejection), 0 otherwise. ``relocalizing``: the set still holds the candidates of a
+    re-localization (:meth:`Localizer.relocalize`), cut to its region.
     """
 
     predicted: BoxSet
@@ -97,7 +111,26 @@ class LocalizerStep(NamedTuple):
     compass_rejected: bool = False
     rejections: int = 0
     reinflated: bool = False
+    fault_frame: int = 0
+    relocalizing: bool = False
 
+
+def region_candidates(region: tuple[float, float, float, float], tile_size: float,
+                      heading: tuple[float, float] | None = None) -> int:
+    """The most candidate boxes a re-localization in ``region`` (x0, y0, x1, y1, metres) can
+    leave on a floor of ``tile_size`` m tiles: the tile cells the region meets times the heading
+    branches (a view's heading repeats every quarter turn) that ``heading`` (lo, hi rad; None: a
+    whole turn) meets. ValueError when that exceeds :data:`RELOCALIZE_MAX_CANDIDATES`."""
+    x0, y0, x1, y1 = region
+    t_lo, t_hi = (-math.pi, math.pi) if heading is None else heading
+    cells = (math.floor((x1 - x0) / tile_size) + 2) * (math.floor((y1 - y0) / tile_size) + 2)
+    branches = min(4, math.floor((t_hi - t_lo) / (math.pi / 2)) + 2)
+    need = cells * branches
+    if need > RELOCALIZE_MAX_CANDIDATES:
+        raise ValueError(f"region spans up to {need} candidate boxes (tile cells x heading "
+                         f"branches), more than {RELOCALIZE_MAX_CANDIDATES}: give a smaller "
+                         f"region")
+    return need
 
 
 class Localizer:
@@ -145,10 +178,10 @@ class Localizer:
         self._recover = config.mode == "autonomous" and (self._slip[0] > 0 or self._slip[1] > 0)
         fv = nonnegative("fault_speed", config.fault_speed)
         fw = nonnegative("fault_yaw_rate", config.fault_yaw_rate)
-        self._faulty = config.mode == "autonomous" and (fv > 0 or fw > 0)
-        """The fault model is on: the fault set is kept (module docstring, "Fault model"); it
-        replaces the ``max_slip`` recovery."""
-        self._recover = self._recover and not self._faulty
+        self._faulty = config.mode == "autonomous" and (fv > 0 or fw > 0) and not self._recover
+        """The fault model is on: the fault set is kept (module docstring, "Fault model"). A
+        ``max_slip`` recovery replaces it (an explicit recovery setting wins over the default
+        model)."""
         n = _nextafter
         self._fault_bounds = (n(self._ev + fv, _INF), n(self._ew + fw, _INF))
         self._fault: list[Box] = []
@@ -156,6 +189,9 @@ class Localizer:
         self._rejections = 0
         self._lost = False
         self._window = 0
+        self._fault_frame = 0
+        self._region: tuple[float, float, float, float] | None = None
+        self._cap = config.max_boxes
         self.reset(initial)
 
     def reset(self, box: Box) -> None:
@@ -166,6 +202,51 @@ class Localizer:
         self._rejections = 0
         self._lost = False
         self._window = 0
+        self._fault_frame = 0
+        self._region = None
+        self._cap = self._cfg.max_boxes
+
+    def relocalize(self, region: tuple[float, float, float, float],
+                   heading: tuple[float, float] | None = None) -> int:
+        """Start again from "somewhere in ``region``" = (x0, y0, x1, y1), metres, x0 <= x1,
+        y0 <= y1 (the robot's point between the wheels), heading within ``heading`` = (lo, hi),
+        rad, or anywhere (None: the compass of the next frames cuts it). Clears the ``lost``
+        state like :meth:`reset`.
+
+        The next view cuts the region into one candidate box per lattice cell (the floor repeats:
+        every tile in the region offers a pose that fits the view), so the set may hold that many
+        boxes: the box cap is raised to the count the region needs while candidates remain. Until
+        one candidate remains (a single box narrower than a tile in x and y), every set is cut to
+        the region: candidates whose motion takes them out of it are dropped, which breaks the
+        floor's symmetry. Hypothesis (H1 for this start): the robot is in the region from now until
+        one candidate remains. Returns the number of candidate boxes allowed; ValueError when the
+        region would need more than :data:`RELOCALIZE_MAX_CANDIDATES`, or on a bad bound."""
+        if len(region) != 4:
+            raise ValueError(f"region must be (x0, y0, x1, y1), got {region!r}")
+        x0, y0, x1, y1 = (finite(f"region[{i}]", v) for i, v in enumerate(region))
+        if x0 > x1 or y0 > y1:
+            raise ValueError(f"region must have x0 <= x1 and y0 <= y1, got {region!r}")
+        t_lo, t_hi = (-math.pi, math.pi) if heading is None else heading
+        t_lo = finite("heading[0]", t_lo)
+        t_hi = finite("heading[1]", t_hi)
+        need = region_candidates((x0, y0, x1, y1), self._L, (t_lo, t_hi))
+        self.reset(Box(x0, x1, y0, y1, t_lo, t_hi))
+        self._region = (x0, y0, x1, y1)
+        self._cap = max(self._cfg.max_boxes, need)
+        return self._cap
+
+    def _in_region(self, boxes: list[Box]) -> list[Box]:
+        """The parts of ``boxes`` whose x and y lie in the re-localization region (exact: min and
+        max of floats)."""
+        region = self._region
+        assert region is not None
+        x0, y0, x1, y1 = region
+        out = []
+        for b in boxes:
+            xl, xh, yl, yh = max(b[0], x0), min(b[1], x1), max(b[2], y0), min(b[3], y1)
+            if xl <= xh and yl <= yh:
+                out.append(Box(xl, xh, yl, yh, b[4], b[5]))
+        return out
 
     @property
     def current(self) -> BoxSet:
@@ -190,7 +271,7 @@ class Localizer:
         Raises ValueError naming the quantity on NaN/inf, negative dt, negative bounds."""
         cfg = self._cfg
         mode = cfg.mode
-        cap = cfg.max_boxes
+        cap = self._cap  # cfg.max_boxes, unless re-localization candidates need more
         hulled = False
         # validate every input first, so a bad frame changes nothing. The fast test: every value
         # within +-LIMIT (bound to a local; NaN fails, a non-number raises TypeError); on
@@ -265,6 +346,7 @@ class Localizer:
             boxes = list(self._boxes)
 
         fault: list[Box] | None = None  # the fault set's prediction (fault model on)
+        compass_beyond = False  # the compass misses the fault set too
         if self._faulty and not self._lost:
             fault = self._fault
             if odometry is not None:
@@ -281,12 +363,16 @@ class Localizer:
                 if cut:  # (a compass that misses the fault set too is ignored)
                     fault, h = tidy(cut, cap)
                     hulled = hulled or h
+                else:
+                    compass_beyond = True
         compass_rejected = False
         reinflated = False
         raw = boxes  # the prediction before the compass: what recovery inflates
         recover = self._recover and not self._lost
         following = recover and self._window > 0  # a fault noticed lately: follow it
-        if following:
+        # the fault model: a fault noticed lately, the view contracts the fault set first
+        fault_following = fault is not None and self._window > 0
+        if following or fault_following:
             self._window -= 1
         if compass is not None:
             c_lo = _nextafter(compass - self._ec, -_INF)
@@ -304,6 +390,8 @@ class Localizer:
                     # the compass misses the prediction: the fault set holds what a fault allows
                     boxes = fault
                     reinflated = True
+                    self._window = cfg.slip_window
+                    self._fault_frame = 0
                 elif recover:
                     # the prediction misses the compass: keep it (the compass may be the outlier)
                     # and add the slip candidates the compass allows (the odometry may be)
@@ -313,6 +401,16 @@ class Localizer:
                         boxes, h2 = tidy(boxes + extra, cap)
                         hulled = hulled or h or h2
                         reinflated = True
+        relocalizing = self._region is not None and not self._lost
+        if relocalizing:
+            # re-localization: the robot is in the region (Localizer.relocalize)
+            cut = self._in_region(boxes)
+            if cut:  # (a prediction wholly outside it: the view decides, below)
+                boxes = cut
+            if fault is not None:
+                cut = self._in_region(fault)
+                if cut:
+                    fault = cut
         predicted = BoxSet(tuple(boxes))
 
         passes = 0
@@ -323,6 +421,17 @@ class Localizer:
         elif mode == "odometry" or observation is None:
             status = "predicted"
             updated_boxes = boxes
+            if compass_rejected and compass_beyond:
+                # fault model: the compass fits neither the set nor the fault set (a turn beyond
+                # the model, or a compass outlier): a rejection, as a view that fits neither,
+                # so frames without a usable view cannot vouch for long for a set that misses
+                # the truth
+                self._rejections += 1
+                if self._rejections >= min(cfg.max_rejections, FAULT_MAX_REJECTIONS):
+                    status = "lost"
+                    self._lost = True
+                    self._window = 0
+                    updated_boxes = [hull_of(updated_boxes)]
         else:
             view = view_window(observation)
             out: list[Box] = []
@@ -346,13 +455,30 @@ class Localizer:
                 # the set is taken from the fault set only when the view cuts it to a few
                 # disjoint boxes: a hull (more cells than max_boxes) would be a wide box called
                 # contracted, so such a frame counts as a rejection instead
-                if reinflated:  # (boxes is the fault set already: contracted above)
+                if fault_following and not reinflated and out:
+                    # within slip_window frames of a noticed fault: the set is the fault set's
+                    # contraction whenever the view fits it in a few boxes (a slip still going
+                    # on is followed, not noticed again frames later)
+                    got_f: list[Box] = []
+                    f_hulled = False
+                    for b in fault:
+                        got, p, h = contract_view(b, view, None, self._L, self._lever,
+                                                   cfg.passes, cap)
+                        got_f.extend(got)
+                        f_hulled = f_hulled or h
+                    hulled = hulled or f_hulled
+                    if got_f:
+                        fault = got_f
+                        if not f_hulled and len(got_f) <= cap:
+                            out = got_f
+                            reinflated = True
+                elif reinflated:  # (boxes is the fault set already: contracted above)
                     if out:
                         fault = out
                     if view_hulled or len(out) > cap:
                         out = []
                 else:
-                    got_f: list[Box] = []
+                    got_f = []
                     f_hulled = False
                     for b in fault:
                         got, p, h = contract_view(b, view, None, self._L, self._lever,
@@ -366,6 +492,10 @@ class Localizer:
                             # the view rejects the prediction, not the fault set
                             out = got_f
                             reinflated = True
+                            self._window = cfg.slip_window
+                            self._fault_frame = 0
+            if relocalizing and out:
+                out = self._in_region(out)  # none left: the view fits no candidate in it
             if out:
                 status = "contracted"
                 self._rejections = 0
@@ -399,6 +529,12 @@ class Localizer:
                     self._window = 0
                     updated_boxes = [hull_of(updated_boxes)]
         self._boxes = updated_boxes
+        if relocalizing:
+            b = updated_boxes[0]
+            if self._lost or (len(updated_boxes) == 1 and b[1] - b[0] < self._L
+                              and b[3] - b[2] < self._L):
+                self._region = None  # one candidate left (or lost): plain tracking again
+                self._cap = cfg.max_boxes
         if fault is not None:
             if reinflated:  # the set was taken from the fault set: they agree again
                 fault = updated_boxes
@@ -406,6 +542,8 @@ class Localizer:
                 fault, h = tidy(fault, cap)
                 hulled = hulled or h
             self._fault = fault
+            self._fault_frame = (self._fault_frame + 1
+                                 if (reinflated or self._window > 0) and not self._lost else 0)
         return LocalizerStep(
             predicted,
             predicted if updated_boxes is boxes else BoxSet(tuple(updated_boxes)),
@@ -415,6 +553,8 @@ class Localizer:
             compass_rejected,
             self._rejections,
             reinflated,
+            self._fault_frame,
+            relocalizing,
         )
 
     def _compass_cut(self, boxes: list[Box], compass: float) -> list[Box]:

@@ -48,13 +48,17 @@ class DatasetSource:
     Images may be PNG or JPEG with any names; they are returned as HxWx3 uint8 RGB.
     """
 
-    def __init__(self, folder: str | os.PathLike[str], *, prefetch: int = 0) -> None:
+    def __init__(self, folder: str | os.PathLike[str], *, prefetch: int = 0,
+                 rectify: bool = True) -> None:
         """``prefetch``: images decoded ahead of the frame being delivered, on a background
         thread (OpenCV's decoder releases the GIL, so decoding overlaps the caller's vision);
-        0 decodes each image when its frame is asked for. Errors still arrive in row order."""
+        0 decodes each image when its frame is asked for. Errors still arrive in row order.
+        ``rectify``: with a ``camera_model``, deliver the rectified view (True) or the raw
+        images as stored (False: the caller rectifies, e.g. to show both)."""
         if not isinstance(prefetch, int) or prefetch < 0:
             raise ValueError(f"prefetch must be an integer >= 0, got {prefetch!r}")
         self.prefetch = prefetch
+        self.rectify = bool(rectify)
         self.folder = Path(folder)
         self.meta = read_meta(folder)
         self.frames_path = self.folder / "frames.csv"
@@ -173,7 +177,7 @@ class DatasetSource:
         if (w, h) != size:
             raise DatasetError(f"{where}: image {name!r} is {w}x{h}, meta.json says "
                                f"{size[0]}x{size[1]}{' (camera_model raw size)' if cm else ''}")
-        if cm is not None:  # to the orthographic view; the tables are computed once
+        if cm is not None and self.rectify:  # to the orthographic view; tables made once
             if self._rectifier is None:
                 self._rectifier = self.meta.rectifier()
             image = self._rectifier(image)  # type: ignore[misc]

@@ -34,6 +34,7 @@ def evaluate(
     particles: int = 1000,
     mcl_inject: float = 0.0,
     mcl_sigma_scale: float = 0.5,
+    fault_model: tuple[float, float] | None = None,
     progress: bool = True,
     on_result: Callable[[RunResult], object] | None = None,
     scheduler: str | None = None,
@@ -43,8 +44,10 @@ def evaluate(
     process (``jobs`` 1), a pool of ``jobs`` processes, or on the Dask cluster ``scheduler``
     (:mod:`tileviz.evaluation.cluster`; ``jobs`` is then unused); ``on_result`` gets each result
     as its run finishes. Returns the results made, sorted by scenario (in the given order) then
-    run. Run r uses simulator seed ``seed + r``. Ctrl-C (KeyboardInterrupt) stops the runs not
-    finished and propagates; ``on_result`` has seen every finished one."""
+    run. Run r uses simulator seed ``seed + r``. ``fault_model``: the autonomous localizer's
+    fault model (m/s, rad/s; None: the configuration's default; :class:`Task`). Ctrl-C
+    (KeyboardInterrupt) stops the runs not finished and propagates; ``on_result`` has seen every
+    finished one."""
     for s in scenarios:
         if s not in SCENARIOS:
             raise ValueError(f"unknown scenario {s!r} (choose from {', '.join(SCENARIOS)})")
@@ -55,7 +58,7 @@ def evaluate(
     if not math.isfinite(duration) or duration <= 0:
         raise ValueError(f"duration must be a finite number > 0, got {duration!r}")
     skipped = set(skip)
-    tasks = [Task(s, r, seed + r, duration, particles, mcl_inject, mcl_sigma_scale)
+    tasks = [Task(s, r, seed + r, duration, particles, mcl_inject, mcl_sigma_scale, fault_model)
              for s in scenarios for r in range(runs) if (s, r, seed + r) not in skipped]
     from tqdm import tqdm
 

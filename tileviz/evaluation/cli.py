@@ -6,7 +6,16 @@ import os
 import sys
 from pathlib import Path
 
-from tileviz.cliutil import CliError, Parser, nonneg_float, positive_float, positive_int, run_cli
+from tileviz.cliutil import (
+    CliError,
+    Parser,
+    fault_model,
+    nonneg_float,
+    positive_float,
+    positive_int,
+    run_cli,
+)
+from tileviz.config import LocalizerConfig
 from tileviz.evaluation.campaign import evaluate
 from tileviz.evaluation.cluster import parse_scheduler
 from tileviz.evaluation.report import figures, write_outputs
@@ -36,6 +45,13 @@ def _parser() -> Parser:
                    help="MCL particle injection rate per frame, 0..1, in the room (default 0)")
     p.add_argument("--mcl-sigma-scale", type=positive_float("--mcl-sigma-scale"), default=0.5,
                    help="MCL likelihood sigmas as a multiple of the declared bounds (default 0.5)")
+    p.add_argument("--fault-model", type=fault_model("--fault-model"), default=None,
+                   metavar="SPEED,YAW_RATE",
+                   help="the autonomous localizer's fault model: how much faster than its "
+                   "odometry bounds a fault may move the robot, m/s and rad/s; 0,0 turns it off "
+                   f"(default {LocalizerConfig().fault_speed:g},"
+                   f"{LocalizerConfig().fault_yaw_rate:g}); the recovery method uses max_slip "
+                   "instead")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="run on a Dask cluster: tcp://host:8786 (a running scheduler) or "
                    "local:N (a local cluster of N worker processes); needs "
@@ -83,8 +99,11 @@ def main(command: str, argv: list[str]) -> int:
             raise CliError(f"--out {out} exists and is not a folder")
         if args.scheduler is not None:
             parse_scheduler(args.scheduler)
+        model = args.fault_model or (LocalizerConfig().fault_speed,
+                                     LocalizerConfig().fault_yaw_rate)
         settings = {"duration": args.duration, "particles": args.particles,
-                    "mcl_inject": args.mcl_inject, "mcl_sigma_scale": args.mcl_sigma_scale}
+                    "mcl_inject": args.mcl_inject, "mcl_sigma_scale": args.mcl_sigma_scale,
+                    "fault_model": list(model)}
         store = RunStore.open(out, settings, resume=args.resume is not None)
         wanted = {(s, r, args.seed + r) for s in scenarios for r in range(args.runs)}
         kept = store.done & wanted
@@ -94,7 +113,7 @@ def main(command: str, argv: list[str]) -> int:
             made = evaluate(scenarios, runs=args.runs, duration=args.duration, jobs=args.jobs,
                             seed=args.seed, particles=args.particles,
                             mcl_inject=args.mcl_inject, mcl_sigma_scale=args.mcl_sigma_scale,
-                            progress=not args.quiet, on_result=store.add,
+                            fault_model=tuple(model), progress=not args.quiet, on_result=store.add,
                             scheduler=args.scheduler, skip=kept)
         except KeyboardInterrupt:
             n = len(store.done & wanted)
@@ -111,7 +130,12 @@ def main(command: str, argv: list[str]) -> int:
                  f"roughening, KLD-sampling of 100 to {args.particles} particles, AMCL recovery "
                  f"(tileviz/baselines/mcl.py); "
                  f"{args.runs} run(s) of {args.duration:g} s per scenario, seeds {args.seed}.."
-                 f"{args.seed + args.runs - 1}."]
+                 f"{args.seed + args.runs - 1}.",
+                 "interval (autonomous): " + (
+                     f"fault model {model[0]:g} m/s, {model[1]:g} rad/s beyond the odometry "
+                     "bounds (--fault-model)" if model[0] > 0 or model[1] > 0 else
+                     "no fault model (--fault-model 0,0)") + "; interval (recovery on): "
+                 "max_slip recovery, no fault model."]
         rows = write_outputs(results, out, cmd.strip(), notes)
         for line in figures(rows):
             print(line)

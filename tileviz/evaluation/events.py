@@ -12,12 +12,14 @@ __all__ = ["EventOutcome", "event_outcomes", "fault_events", "noticed"]
 
 
 
-def noticed(status: str, compass_rejected: bool, has_view: bool) -> bool:
+def noticed(status: str, compass_rejected: bool, has_view: bool,
+            reinflated: bool = False) -> bool:
     """Whether the autonomous interval localizer showed, at one frame, that something was wrong:
     a view ``rejected``, ``lost``, a compass reading that missed the set (``compass_rejected``),
     or no view to use (``has_view`` False: vision refused the frame, so the status is
-    ``predicted``)."""
-    return status in ("rejected", "lost") or compass_rejected or not has_view
+    ``predicted``), or, with the fault model, the set taken from the fault set (``reinflated``:
+    the view or the compass rejected the set, the status stays ``contracted``)."""
+    return status in ("rejected", "lost") or compass_rejected or not has_view or reinflated
 
 
 def fault_events(faulty: np.ndarray) -> list[tuple[int, int]]:

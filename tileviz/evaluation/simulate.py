@@ -65,6 +65,10 @@ class Task:
     particles: int = 1000
     mcl_inject: float = 0.0
     mcl_sigma_scale: float = 0.5
+    fault_model: tuple[float, float] | None = None
+    """The autonomous localizer's fault model (m/s, rad/s; ``LocalizerConfig.fault_speed``,
+    ``fault_yaw_rate``; ``(0, 0)`` off); None keeps the configuration's default. The
+    ``interval-recovery`` method uses ``max_slip``, which replaces any fault model."""
 
 
 @dataclass
@@ -149,6 +153,9 @@ def run_one(task: Task) -> RunResult:
 
     scn = SCENARIOS[task.scenario]
     cfg = scn.config(task.seed)
+    if task.fault_model is not None:
+        cfg = replace(cfg, localizer=replace(cfg.localizer, fault_speed=task.fault_model[0],
+                                             fault_yaw_rate=task.fault_model[1]))
     dt = cfg.sim.dt
     n = max(1, int(round(task.duration / dt)))
     L = cfg.floor.tile_size
@@ -242,6 +249,7 @@ def run_one(task: Task) -> RunResult:
             st: LocalizerStep = rec.estimates[name]
             _record_set(tr, k, st.updated, st.status, tt)
             if name in FAULT_METHODS:
-                tr.alarm[k] = noticed(st.status, st.compass_rejected, obs is not None)
+                tr.alarm[k] = noticed(st.status, st.compass_rejected, obs is not None,
+                                      st.reinflated)
         pending_step = src.last_step
     return res

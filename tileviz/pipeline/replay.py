@@ -13,6 +13,7 @@ from collections.abc import Callable, Iterator
 from dataclasses import replace
 
 from tileviz.config import Extractor, Mode
+from tileviz.core.localizer import region_candidates
 from tileviz.datasets import DatasetSource, replay_config
 from tileviz.pipeline.frame_loop import FrameLoop, FrameRecord
 from tileviz.pipeline.outputs import (
@@ -47,6 +48,7 @@ def replay(
     jobs: int | None = None,
     mcap: str | os.PathLike[str] | None = None,
     fault_model: tuple[float, float] | None = None,
+    relocalize_region: tuple[float, float, float, float] | None = None,
     on_total: Callable[[int | None], None] | None = None,
     on_frame: Callable[[FrameRecord], None] | None = None,
 ) -> int:
@@ -57,7 +59,9 @@ def replay(
     :func:`default_jobs`). ``mcap``: also write the run for Foxglove to this MCAP file
     (:mod:`tileviz.datasets.mcap_export`; finished even when a bad row stops the replay).
     ``fault_model``: the localizer's fault model (m/s, rad/s; ``LocalizerConfig.fault_speed``,
-    ``fault_yaw_rate``).
+    ``fault_yaw_rate``). ``relocalize_region``: (x0, y0, x1, y1), metres: whenever the localizer
+    is ``lost`` it restarts from "somewhere in this region" at the next frame
+    (``Localizer.relocalize``: candidate boxes, heading from the compass).
     ``on_total`` gets the frame count when known (None otherwise) before
     the first frame, ``on_frame`` every record. A bad row or image raises DatasetError (a
     ValueError) after every frame before it was written."""
@@ -69,6 +73,8 @@ def replay(
     if fault_model is not None:
         cfg = replace(cfg, localizer=replace(cfg.localizer, fault_speed=fault_model[0],
                                              fault_yaw_rate=fault_model[1]))
+    if relocalize_region is not None:
+        region_candidates(relocalize_region, cfg.floor.tile_size)  # too large: refused now
     csv_out = CsvOut(out, REPLAY_COLUMNS)
     eq = CsvOut(output_file, RESIDUAL_COLUMNS) if output_file else None
     loop = FrameLoop(cfg)
@@ -97,6 +103,10 @@ def replay(
             if eq is not None:
                 eq.row(residual_row(rec))
             n += 1
+            if relocalize_region is not None and rec.status == "lost":
+                primary = loop.primary
+                if primary is not None:
+                    primary.localizer.relocalize(relocalize_region)
             if on_frame is not None:
                 on_frame(rec)
     finally:

@@ -1,0 +1,146 @@
+"""What each part of the live page costs headless Chromium with software WebGL: one server, one
+browser, configurations measured in turn and interleaved (so the machine's load drifts over all of
+them alike).
+
+    python bench/bench_page_parts.py [--window 4] [--repeat 2] CONFIG [CONFIG ...]
+
+A CONFIG is ``full`` or ``+``-joined parts to leave out or change:
+``hide-LAYER`` (a scene layer: floor, grid, robot, footprint, truth, prediction, boxes, wedge,
+setpoint, path, trails, particles), ``no-images`` (camera and stage panels), ``no-inset``,
+``no-status`` (the readouts and controls the loop refreshes), ``no-follow`` (the view does not
+follow the robot), ``tex-N`` (a floor texture of N pixels a side instead of
+:data:`tileviz.app.scene.TEXTURE_PIXELS`). Example::
+
+    python bench/bench_page_parts.py full tex-512 hide-floor no-images+no-inset+no-status
+
+For each configuration: frames painted a second and the CPU time of Chromium's GPU process (where
+software WebGL draws) and of all its processes per painted frame, one figure per repeat. The
+server plays the default preset in real time, as ``python serve.py`` does. Read the figures side
+by side; on a loaded machine the rates of all configurations drop together.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+sys.path.insert(0, str(REPO / "bench"))
+
+from bench_page import ARGS, COUNT, _cpu, _descendants  # noqa: E402
+
+
+def _kind(pid: int) -> str:
+    """Chromium's process type of ``pid`` (``browser`` for the main process)."""
+    try:
+        m = re.search(rb"--type=([a-z-]+)", Path(f"/proc/{pid}/cmdline").read_bytes())
+    except OSError:
+        return "gone"
+    return m.group(1).decode() if m else "browser"
+
+
+class Parts:
+    """Switches parts of a running :class:`tileviz.app.server.App` on and off."""
+
+    def __init__(self, app: Any) -> None:
+        self.app = app
+        self.texture: int | None = None
+        self.saved: dict[str, tuple[object, str, Callable[..., Any]]] = {
+            "no-images": (app.panels, "show", app.panels.show),
+            "no-inset": (app.inset, "show", app.inset.show),
+            "no-status": (app.controls, "refresh", app.controls.refresh),
+            "no-follow": (app, "_follow", app._follow),
+        }
+
+    def apply(self, config: str) -> None:
+        from tileviz.app.scene import TEXTURE_PIXELS, floor_texture
+
+        parts = set() if config == "full" else set(config.split("+"))
+        unknown = {p for p in parts if p not in self.saved and not p.startswith(("hide-", "tex-"))}
+        if unknown:
+            raise SystemExit(f"unknown part(s) {sorted(unknown)} in {config!r}")
+        app = self.app
+        for part, (obj, attr, fn) in self.saved.items():
+            setattr(obj, attr, (lambda *a, **k: None) if part in parts else fn)
+        hidden = {p[5:] for p in parts if p.startswith("hide-")}
+        tex = next((int(p[4:]) for p in parts if p.startswith("tex-")), TEXTURE_PIXELS)
+        scene = app.scene
+        with app.server.atomic():
+            if tex != (self.texture or TEXTURE_PIXELS):
+                half = app.cfg.sim.room_half_size
+                scene.floor = app.server.scene.add_image(
+                    "/floor", floor_texture(app.cfg.floor, half, tex), 2 * half, 2 * half,
+                    format="jpeg", jpeg_quality=90, cast_shadow=False)
+                scene._nodes["floor"] = [scene.floor]
+                self.texture = tex
+            for name, nodes in scene._nodes.items():
+                for h in nodes:
+                    h.visible = name not in hidden and scene.layers.get(name, True)
+            for name, (_, outline) in scene.sets.items():
+                outline.visible = name not in hidden
+            for name in ("trails", "path"):
+                if name in hidden:
+                    for h in ([scene.trail_truth, scene.trail_est, scene.head_truth,
+                               scene.head_est] if name == "trails" else [scene.path]):
+                        if h is not None:
+                            h.visible = False
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("configs", nargs="+")
+    ap.add_argument("--window", type=float, default=4.0, help="seconds counted per measurement")
+    ap.add_argument("--repeat", type=int, default=2)
+    ap.add_argument("--warmup", type=float, default=6.0)
+    args = ap.parse_args()
+
+    import cv2
+    from playwright.sync_api import sync_playwright
+
+    from tileviz.app.server import App
+    from tileviz.app.session import SessionOptions
+    from tileviz.config import preset
+
+    cv2.setNumThreads(1)
+    app = App(preset("default"), SessionOptions(), port=0)
+    app.start()
+    parts = Parts(app)
+    results: dict[str, list[tuple[float, float, float]]] = {c: [] for c in args.configs}
+    try:
+        with sync_playwright() as p:
+            browser = p.chromium.launch(executable_path="/usr/bin/chromium", args=ARGS)
+            page = browser.new_page(viewport={"width": 1400, "height": 900})
+            page.goto(app.url)
+            page.wait_for_selector("canvas", timeout=120_000)
+            page.wait_for_timeout(args.warmup * 1000)
+            pids = [q for q in _descendants(os.getpid())
+                    if b"chrom" in Path(f"/proc/{q}/cmdline").read_bytes()[:200]]
+            gpu = [q for q in pids if _kind(q) == "gpu-process"]
+            for _ in range(args.repeat):
+                for config in args.configs:
+                    parts.apply(config)
+                    page.wait_for_timeout(1500)
+                    g0, a0 = _cpu(gpu), _cpu(pids)
+                    n, span = page.evaluate(COUNT, args.window * 1000)
+                    n = max(int(n), 1)
+                    results[config].append((n / span, 1e3 * (_cpu(gpu) - g0) / n,
+                                            1e3 * (_cpu(pids) - a0) / n))
+            browser.close()
+    finally:
+        app.stop()
+    width = max(len(c) for c in args.configs)
+    for config, rows in results.items():
+        print(f"{config:{width}s}  frames/s " + " ".join(f"{r[0]:5.1f}" for r in rows)
+              + "  | GPU process ms/frame " + " ".join(f"{r[1]:4.0f}" for r in rows)
+              + "  | all ms/frame " + " ".join(f"{r[2]:4.0f}" for r in rows))
+    print(f"load average {os.getloadavg()[0]:.1f}")
+
+
+if __name__ == "__main__":
+    main()

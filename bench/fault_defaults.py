@@ -1,0 +1,156 @@
+"""The fault model's default (issue 18): what turning it on costs and changes.
+
+    python bench/fault_defaults.py              # all three measures
+    python bench/fault_defaults.py --skip-dataset
+
+1. CPU: ``Localizer.step`` per frame, fault model off and on, on the drive of
+   ``bench/bench_localizer.py`` (both presets, mode autonomous, sensors within their bounds),
+   best of ``--repeats``.
+2. Clean runs: every output of every frame (both box sets bit for bit, status, flags) with the
+   model off and on, on those drives and on the recorded inputs of
+   ``tests/data/localizer_golden.npz`` (outlier views, missing compass readings and views, wide
+   heading bounds; some sequences also hold slips and kidnaps: those are expected to differ).
+3. The fault dataset of ``tests/fault_dataset.py`` (a 2 s slip of 0.15 m/s beyond the speed
+   bound, a kidnap of (0.37, -0.21) m, 0.3 rad, a 2 s dropout) replayed (``tileviz replay``) with
+   several fault models: longest run of vouched frames without the truth, ``lost`` frames from 20
+   frames after the slip to the kidnap, median hull width there, frames from the kidnap to
+   ``lost``, and the widest hull vouched as one box.
+
+The figures go to stdout (docs/faults.md quotes them with the command).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import statistics
+import sys
+import tempfile
+from dataclasses import replace
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import numpy as np  # noqa: E402
+from bench_localizer import make_run, time_step  # noqa: E402
+
+from tileviz.config import LocalizerConfig, preset, with_overrides  # noqa: E402
+from tileviz.core.localizer import Localizer  # noqa: E402
+from tileviz.types import Box, SensorBounds  # noqa: E402
+
+MODELS = ((0.0, 0.0), (0.1, 0.05), (0.2, 0.1), (0.3, 0.2), (0.5, 0.3))
+"""Fault models tried on the fault dataset (m/s, rad/s)."""
+
+
+def _with_model(c: LocalizerConfig, model: tuple[float, float]) -> LocalizerConfig:
+    return replace(c, fault_speed=model[0], fault_yaw_rate=model[1])
+
+
+def _outputs(cfg, run) -> list[tuple]:
+    bounds = SensorBounds(cfg.noise.speed_error, cfg.noise.yaw_rate_error, cfg.noise.compass_error)
+    from bench_localizer import initial_box
+
+    loc = Localizer(tile_size=cfg.floor.tile_size, camera_offset=cfg.camera.offset, bounds=bounds,
+                    config=cfg.localizer, initial=initial_box(cfg))
+    out = []
+    for f in run:
+        s = loc.step(f["odometry"], f["compass"], f["observation"], f["truth"])
+        out.append((s.status, s.predicted.boxes, s.updated.boxes, s.hulled, s.compass_rejected,
+                    s.rejections))
+    return out
+
+
+def cpu_and_clean(model: tuple[float, float], frames: int, repeats: int) -> None:
+    print(f"== CPU and clean drives ({frames} frames, model {model[0]} m/s, {model[1]} rad/s)")
+    for name in ("default", "seed"):
+        cfg = with_overrides(preset(name), localizer={"mode": "autonomous"})
+        cfg_off = replace(cfg, localizer=_with_model(cfg.localizer, (0.0, 0.0)))
+        cfg_on = replace(cfg, localizer=_with_model(cfg.localizer, model))
+        run = make_run(cfg, frames, 7)
+        off_us = time_step(cfg_off, run, repeats)
+        on_us = time_step(cfg_on, run, repeats)
+        same = _outputs(cfg_off, run) == _outputs(cfg_on, run)
+        print(f"   {name}: Localizer.step {off_us:.1f} us/frame off, {on_us:.1f} on "
+              f"(x{on_us / off_us:.2f}); outputs identical: {same}")
+
+
+def golden(model: tuple[float, float]) -> None:
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+    from test_localizer_golden import first_difference, load, run_localizer
+
+    print("== recorded inputs of tests/data/localizer_golden.npz, model off vs on")
+    for name, (setup, inputs, _) in load().items():
+        off = dict(setup, config=dict(setup["config"], fault_speed=0.0, fault_yaw_rate=0.0))
+        on = dict(setup, config=dict(setup["config"], fault_speed=model[0],
+                                     fault_yaw_rate=model[1]))
+        a, b = run_localizer(off, inputs), run_localizer(on, inputs)
+        counts = [np.bincount(x["scalars"][:, 0], minlength=4).tolist() for x in (a, b)]
+        diff = first_difference(a, b)
+        print(f"   {name:20s} {'identical' if diff is None else 'differs: ' + diff}; "
+              f"statuses (contracted, predicted, rejected, lost) off {counts[0]} on {counts[1]}")
+
+
+def dataset(models: tuple[tuple[float, float], ...]) -> None:
+    from tests.exact_truth import in_box
+    from tests.fault_dataset import FaultPlan, make_fault_dataset
+    from tileviz.pipeline.replay import replay
+
+    plan = FaultPlan()
+    print(f"== fault dataset ({plan.frames} frames: slip {plan.slip_at}-"
+          f"{plan.slip_at + plan.slip_frames - 1}, kidnap {plan.kidnap_at}, dropout "
+          f"{plan.dropout_at}-{plan.dropout_at + plan.dropout_frames - 1})")
+    with tempfile.TemporaryDirectory() as tmp:
+        ds = make_fault_dataset(Path(tmp) / "ds", plan)
+        with open(ds / "frames.csv", newline="") as f:
+            truth = [(float(r["x"]), float(r["y"]), float(r["theta"])) for r in csv.DictReader(f)]
+        for model in models:
+            out = Path(tmp) / "out.csv"
+            replay(ds, out=out, jobs=1, fault_model=model)
+            with open(out, newline="") as f:
+                rows = list(csv.DictReader(f))
+            streak = best = 0
+            one_box_width = 0.0
+            inside, status, width = [], [], []
+            for r, t in zip(rows, truth, strict=True):
+                box = Box(*(float(r[k]) for k in ("x_lo", "x_hi", "y_lo", "y_hi", "theta_lo",
+                                                   "theta_hi")))
+                ok = in_box(box, *t)
+                inside.append(ok)
+                status.append(r["status"])
+                width.append(max(box.x_hi - box.x_lo, box.y_hi - box.y_lo))
+                streak = streak + 1 if r["status"] != "lost" and not ok else 0
+                best = max(best, streak)
+                if r["status"] != "lost" and r["boxes"] == "1":
+                    one_box_width = max(one_box_width, width[-1])
+            a, b = plan.slip_at + plan.slip_frames + 20, plan.kidnap_at or plan.frames
+            lost = sum(s == "lost" for s in status[a:b])
+            med = statistics.median(width[a:b]) if lost < b - a else float("nan")
+            to_lost = next((k - plan.kidnap_at for k in range(plan.kidnap_at, plan.frames)
+                            if status[k] == "lost"), None) if plan.kidnap_at else None
+            wrong = sum(s != "lost" and not ok for s, ok in zip(status, inside, strict=True))
+            print(f"   model {model[0]:.2f} m/s {model[1]:.2f} rad/s: longest vouched run "
+                  f"without the truth {best}, vouched without the truth {wrong} frames in all; "
+                  f"lost {lost}/{b - a} from slip end + 20 to the kidnap, median width there "
+                  f"{100 * med:.1f} cm; kidnap -> lost in {to_lost} frames; widest one-box "
+                  f"vouched hull {100 * one_box_width:.1f} cm")
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--frames", type=int, default=2000)
+    ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--skip-dataset", action="store_true")
+    args = ap.parse_args()
+    model = (LocalizerConfig().fault_speed, LocalizerConfig().fault_yaw_rate)
+    if model == (0.0, 0.0):
+        model = (0.2, 0.1)
+    cpu_and_clean(model, args.frames, args.repeats)
+    golden(model)
+    if not args.skip_dataset:
+        dataset(MODELS)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
