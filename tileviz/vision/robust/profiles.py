@@ -11,8 +11,8 @@ import numpy as np
 
 from tileviz.vision.robust.state import PARTS, Line, RobustRun
 
-__all__ = ["centroid", "crossings", "dips", "light_grout", "measure", "nanmedian", "plateaus",
-           "select_lines", "view_spans"]
+__all__ = ["centroid", "crossings", "dips", "light_grout", "measure", "midpoints", "nanmedian",
+           "plateaus", "select_lines", "view_spans"]
 
 
 def light_grout(run: RobustRun, warped: np.ndarray, size: tuple[int, int],
