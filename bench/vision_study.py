@@ -126,8 +126,9 @@ def q(values: list[float], p: float) -> float:
 def report(rows: list[dict]) -> str:
     """The per-family Markdown table (clean views) and the corrupted-views table."""
     lines = ["| family | clean views (readable) | accepted | median err px / rad | "
-             "max err px / rad | median bound px / rad | outside own bound | top refusals |",
-             "|---|---|---|---|---|---|---|---|"]
+             "max err px / rad | median bound px / rad | max err / own bound px, rad | "
+             "outside own bound | top refusals |",
+             "|---|---|---|---|---|---|---|---|---|"]
     fams = list(dict.fromkeys(r["family"] for r in rows))
     tot_out = 0
     for fam in fams + ["all"]:
@@ -141,25 +142,30 @@ def report(rows: list[dict]) -> str:
         eh = [r["err_rad"] for r in sel if r["accepted"]]
         bp = [r["bound_px"] for r in sel if r["accepted"]]
         bh = [r["bound_rad"] for r in sel if r["accepted"]]
+        rp = [r["err_px"] / r["bound_px"] for r in sel if r["accepted"]]
+        rh = [r["err_rad"] / r["bound_rad"] for r in sel if r["accepted"]]
         reasons = collections.Counter(r["reason"] for r in rd if not r["accepted"])
         top = ", ".join(f"{k} {v}" for k, v in reasons.most_common(3))
         share = 100.0 * len(acc) / max(len(rd), 1)
         lines.append(
             f"| {fam} | {len(sel)} ({len(rd)}) | {len(acc)} ({share:.1f} %) | "
             f"{q(ep, 50):.3f} / {q(eh, 50):.4f} | {max(ep, default=math.nan):.3f} / "
-            f"{max(eh, default=math.nan):.4f} | {q(bp, 50):.3f} / {q(bh, 50):.4f} | {out} | "
+            f"{max(eh, default=math.nan):.4f} | {q(bp, 50):.3f} / {q(bh, 50):.4f} | "
+            f"{max(rp, default=math.nan):.2f}, {max(rh, default=math.nan):.2f} | {out} | "
             f"{top} |")
-    lines += ["", "| corruption | views | accepted | accepted outside own bound | top refusals |",
-              "|---|---|---|---|---|"]
+    lines += ["", "| corruption | views | accepted | max err / own bound px, rad | "
+              "accepted outside own bound | top refusals |", "|---|---|---|---|---|---|"]
     for kind in floorgen.CORRUPTIONS:
         sel = [r for r in rows if r["corruption"] == kind]
         if not sel:
             continue
         acc = [r for r in sel if r["accepted"]]
         bad = sum(1 for r in acc if not r["inside"])
+        rp = max((r["err_px"] / r["bound_px"] for r in acc), default=math.nan)
+        rh = max((r["err_rad"] / r["bound_rad"] for r in acc), default=math.nan)
         reasons = collections.Counter(r["reason"] for r in sel if not r["accepted"])
         top = ", ".join(f"{k} {v}" for k, v in reasons.most_common(3))
-        lines.append(f"| {kind} | {len(sel)} | {len(acc)} | {bad} | {top} |")
+        lines.append(f"| {kind} | {len(sel)} | {len(acc)} | {rp:.2f}, {rh:.2f} | {bad} | {top} |")
     return "\n".join(lines)
 
 

@@ -12,8 +12,9 @@ import numpy as np
 
 from tileviz.vision.robust.state import PARTS, Line, RobustRun
 
-__all__ = ["Projection", "centroid", "crossings", "dips", "light_grout", "measure", "nanmedian",
-           "measure_parts", "plateaus", "profiles", "project", "select_lines", "view_spans"]
+__all__ = ["Projection", "centroid", "crossings", "dips", "light_grout", "measure",
+           "measure_parts", "midpoints", "nanmedian", "plateaus", "profiles", "project",
+           "select_lines", "view_spans"]
 
 
 def light_grout(run: RobustRun, warped: np.ndarray,

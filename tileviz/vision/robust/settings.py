@@ -56,7 +56,7 @@ class RobustSettings:
     sigmas: float = 4.0
     """The fit's own standard errors times this must stay within the declared bounds."""
     prior_sigma: float = 1.5
-    """Prior scatter of a part's centroid at unit part length, px sqrt(px) (0.15 px for a
+    """Prior scatter of a part's position at unit part length, px sqrt(px) (0.15 px for a
     100 px part), weighing ``prior_dof`` degrees of freedom."""
     prior_dof: float = 2.0
     floor_px: float = 0.1
