@@ -58,6 +58,12 @@ def test_local_cluster_gives_the_same_tables_as_one_process(tmp_path, capsys):
 
 
 def test_a_killed_worker_has_its_runs_made_elsewhere_and_every_run_kept_once(tmp_path):
+    """Kill a worker making a run, from the first result's callback: the scheduler gives that run
+    to a worker again (the nanny starts a fresh one), as any finished result the worker still
+    held and the campaign had not read yet. Meanwhile this process's own Dask client (``spy``)
+    is the current one, as in a notebook: the campaign must wait on its own client's event loop
+    (it raised "bound to a different event loop" when a lost result was awaited again). Every
+    run is kept once."""
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
                                   dashboard_address=":0", silence_logs=40) as lc, \
             distributed.Client(lc) as spy:
@@ -69,8 +75,7 @@ def test_a_killed_worker_has_its_runs_made_elsewhere_and_every_run_kept_once(tmp
             store.add(res)
             if victim:
                 return
-            # kill a worker while it is making a run: the scheduler must give that run to a
-            # worker again (the nanny starts a fresh one)
+
             def busy() -> dict:
                 return {w: ks for w, ks in spy.processing().items() if ks}
 

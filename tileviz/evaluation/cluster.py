@@ -183,7 +183,10 @@ def run_on_cluster(
             futures = [client.submit(_run_one_on_worker, t, pure=False,
                                      key=f"tileviz-{t.scenario}-r{t.run}-s{t.seed}-{token}")
                        for t in tasks]
-            for fut in as_completed(futures):
+            # on this client's event loop: by default as_completed follows the current Dask
+            # client, and when that is another one (a caller's own client) a result lost with
+            # its worker and awaited again raised "bound to a different event loop"
+            for fut in as_completed(futures, loop=client.loop):
                 done(fut.result())
                 fut.release()
                 if workers:
