@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from tileviz.cliutil import (
+    EXTRACTOR_HELP,
     CliError,
     Parser,
     config_from_args,
@@ -136,7 +137,7 @@ def replay_parser() -> Parser:
     p.add_argument("--output-file", help="CSV of the six equivalence residuals per frame "
                    "(report table 6.1, corrected signs; needs ground truth)")
     p.add_argument("--extractor", choices=EXTRACTORS, default=None,
-                   help="vision extractor (default: the dataset's, else robust)")
+                   help=f"{EXTRACTOR_HELP} (default: the dataset's, else robust)")
     p.add_argument("--max-boxes", type=positive_int("--max-boxes"), default=None)
     p.add_argument("--fault-model", type=fault_model("--fault-model"), default=None,
                    metavar="SPEED,YAW_RATE",

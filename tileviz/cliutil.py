@@ -25,6 +25,13 @@ class Parser(argparse.ArgumentParser):
         raise SystemExit(2)
 
 
+EXTRACTOR_HELP = (
+    "vision extractor: robust (checks each view, declares its own bound) or faithful (the "
+    "original report's chain, kept for comparison: its views can fall outside their declared "
+    "bound, so the set can miss the truth)")
+"""The ``--extractor`` help of every command that takes it (docs/guarantees.md, H4)."""
+
+
 def positive_float(name: str) -> Callable[[str], float]:
     """argparse type: a finite float > 0, the error naming the option."""
 

@@ -526,7 +526,7 @@ def parser() -> Parser:
     p.add_argument("--mode", choices=MODES, default=None,
                    help="localizer mode (default autonomous)")
     p.add_argument("--extractor", choices=EXTRACTORS, default=None,
-                   help="vision extractor (default: the preset's or the dataset's)")
+                   help=f"{cliutil.EXTRACTOR_HELP} (default: the preset's or the dataset's)")
     p.add_argument("--interactive", action="store_true",
                    help="start paused; each Step advances one frame")
     p.add_argument("--start-frame", type=nonneg_int("--start-frame"), default=0, metavar="K",

@@ -26,7 +26,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from tileviz.cliutil import CliError, Parser, positive_float, run_cli
+from tileviz.cliutil import EXTRACTOR_HELP, CliError, Parser, positive_float, run_cli
 from tileviz.config import EXTRACTORS, PRESETS, Config, preset
 from tileviz.vision import VisionResult, extract
 
@@ -42,7 +42,8 @@ def _parser(prog: str) -> Parser:
                    help="pixels per metre on the floor")
     p.add_argument("--tile-size", type=positive_float("--tile-size"), default=None,
                    help="tile size L, metres")
-    p.add_argument("--extractor", choices=EXTRACTORS, default=None)
+    p.add_argument("--extractor", choices=EXTRACTORS, default=None,
+                   help=f"{EXTRACTOR_HELP} (default: the preset's)")
     p.add_argument("--json", action="store_true", help="one JSON object per image")
     p.add_argument("--stages", metavar="DIR", default=None, help="write every stage image here")
     p.add_argument("--camera-model", metavar="META", default=None,
