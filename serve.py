@@ -13,6 +13,6 @@ if __name__ == "__main__":
     if missing is not None:
         sys.stderr.write(missing + "\n")
         raise SystemExit(2)
-    from tileviz.app.server import main
+    from tileviz.app.serve_cli import main
 
     raise SystemExit(main("serve", sys.argv[1:]))

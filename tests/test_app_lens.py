@@ -11,7 +11,7 @@ import pytest
 
 from tileviz.app import commands as C
 from tileviz.app.panels import decode_jpeg
-from tileviz.app.server import options_from_args, parser, serve_config
+from tileviz.app.serve_cli import options_from_args, parser, serve_config
 from tileviz.app.session import Session, SessionOptions
 from tileviz.cliutil import CliError
 from tileviz.config import preset

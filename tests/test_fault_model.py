@@ -187,7 +187,7 @@ def test_replay_refuses_a_bad_fault_model_in_one_line(tmp_path: Path, capsys) ->
 
 def test_serve_passes_the_fault_model_to_the_localizer(tmp_path: Path) -> None:
     """``tileviz serve --fault-model`` (simulation or a dataset) sets the localizer's model."""
-    from tileviz.app.server import parser, serve_config
+    from tileviz.app.serve_cli import parser, serve_config
 
     cfg = serve_config(parser().parse_args(["--fault-model", "0.2,0.1"]))
     assert (cfg.localizer.fault_speed, cfg.localizer.fault_yaw_rate) == (0.2, 0.1)

@@ -192,7 +192,7 @@ def test_bad_options_give_one_line_and_exit_2(args, word):
 
 
 def test_table_6_1_options_reach_the_run(tmp_path):
-    from tileviz.app.server import options_from_args, parser, serve_config
+    from tileviz.app.serve_cli import options_from_args, parser, serve_config
 
     args = parser().parse_args(["--interactive", "--no-intervals", "--no-display", "--ppm", "150",
                                 "--tile-size", "0.5", "--output-file", "eq.csv", "--preset",

@@ -7,7 +7,7 @@ import importlib
 import sys
 
 COMMANDS: dict[str, tuple[str, str]] = {
-    "serve": ("tileviz.app.server", "start the live demo server (viser)"),
+    "serve": ("tileviz.app.serve_cli", "start the live demo server (viser)"),
     "record": ("tileviz.cli", "simulate a run and write a tileviz-dataset/1 folder"),
     "replay": ("tileviz.cli", "replay a dataset through vision and the localizer"),
     "extract": ("tileviz.vision.cli", "extract tile parameters from images"),

@@ -443,13 +443,7 @@ class Localizer:
                 hulled = hulled or h
                 reinflated = bool(out)
             else:
-                for b in boxes:
-                    got, p, h = contract_view(b, view, None, self._L, self._lever, cfg.passes,
-                                               cap)
-                    out.extend(got)
-                    if p > passes:
-                        passes = p
-                    view_hulled = view_hulled or h
+                out, passes, view_hulled = self._contract_all(boxes, view)
                 hulled = hulled or view_hulled
             if fault is not None:
                 # the set is taken from the fault set only when the view cuts it to a few
@@ -459,13 +453,7 @@ class Localizer:
                     # within slip_window frames of a noticed fault: the set is the fault set's
                     # contraction whenever the view fits it in a few boxes (a slip still going
                     # on is followed, not noticed again frames later)
-                    got_f: list[Box] = []
-                    f_hulled = False
-                    for b in fault:
-                        got, p, h = contract_view(b, view, None, self._L, self._lever,
-                                                   cfg.passes, cap)
-                        got_f.extend(got)
-                        f_hulled = f_hulled or h
+                    got_f, _, f_hulled = self._contract_all(fault, view)
                     hulled = hulled or f_hulled
                     if got_f:
                         fault = got_f
@@ -478,13 +466,7 @@ class Localizer:
                     if view_hulled or len(out) > cap:
                         out = []
                 else:
-                    got_f = []
-                    f_hulled = False
-                    for b in fault:
-                        got, p, h = contract_view(b, view, None, self._L, self._lever,
-                                                   cfg.passes, cap)
-                        got_f.extend(got)
-                        f_hulled = f_hulled or h
+                    got_f, _, f_hulled = self._contract_all(fault, view)
                     hulled = hulled or f_hulled
                     if got_f:
                         fault = got_f
@@ -588,11 +570,21 @@ class Localizer:
                 return [], 0, hulled  # the compass misses the slip candidates too
         if view is None:
             return grown, 0, hulled
+        out, passes, h = self._contract_all(grown, view)
+        return out, passes, hulled or h
+
+    def _contract_all(self, boxes: list[Box], view: Window) -> tuple[list[Box], int, bool]:
+        """Every box of ``boxes`` contracted by the view window ``view`` (:func:`view_window`):
+        (the pieces, the largest number of contraction passes, whether any piece was hulled)."""
+        cfg = self._cfg
         out: list[Box] = []
         passes = 0
-        for b in grown:
-            got, p, h = contract_view(b, view, None, self._L, self._lever, cfg.passes, cap)
+        hulled = False
+        for b in boxes:
+            got, p, h = contract_view(b, view, None, self._L, self._lever, cfg.passes,
+                                      cfg.max_boxes)
             out.extend(got)
-            passes = max(passes, p)
+            if p > passes:
+                passes = p
             hulled = hulled or h
         return out, passes, hulled
