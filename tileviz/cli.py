@@ -12,12 +12,11 @@ from tileviz.cliutil import (
     EXTRACTOR_HELP,
     CliError,
     Parser,
+    add_fault_options,
     config_from_args,
-    fault_model,
     float_in,
     int_in,
     positive_int,
-    region,
     run_cli,
 )
 from tileviz.config import (
@@ -139,18 +138,7 @@ def replay_parser() -> Parser:
     p.add_argument("--extractor", choices=EXTRACTORS, default=None,
                    help=f"{EXTRACTOR_HELP} (default: the dataset's, else robust)")
     p.add_argument("--max-boxes", type=positive_int("--max-boxes"), default=None)
-    p.add_argument("--fault-model", type=fault_model("--fault-model"), default=None,
-                   metavar="SPEED,YAW_RATE",
-                   help="how much faster than the odometry bounds a fault (wheel slip, push) may "
-                   "move the robot, m/s and rad/s: the localizer then tracks through such a fault "
-                   "and says lost beyond it (docs/faults.md); 0,0 turns it off (default 0.2,0.1)")
-    p.add_argument("--relocalize-region", type=region("--relocalize-region"), default=None,
-                   metavar="X0,Y0,X1,Y1",
-                   help="after lost, restart from 'somewhere in this region' (metres; heading "
-                   "from the compass): one candidate box per tile cell that fits the view, "
-                   "dropped as the robot's motion takes them out of the region; the robot must "
-                   "stay in it until one candidate is left (docs/guarantees.md); write "
-                   "--relocalize-region=-1,-1,2,2 when X0 is negative")
+    add_fault_options(p)
     p.add_argument("--mcap", default=None, metavar="OUT.mcap",
                    help="also write the run for Foxglove: camera images, truth, the sets as 3-D "
                    "cubes, status and box widths (needs the [ros] extra)")

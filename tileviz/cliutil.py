@@ -9,6 +9,8 @@ from collections.abc import Callable
 from dataclasses import replace
 from typing import TYPE_CHECKING, Any, NoReturn
 
+from tileviz.core.constants import LIMIT
+
 if TYPE_CHECKING:
     from tileviz.config import Config
 
@@ -77,6 +79,30 @@ def fault_model(name: str) -> Callable[[str], tuple[float, float]]:
     return parse
 
 
+def add_fault_options(p: argparse.ArgumentParser, *, relocalize: bool = True,
+                      note: str = "") -> None:
+    """Add ``--fault-model SPEED,YAW_RATE`` (m/s, rad/s) and, when ``relocalize``,
+    ``--relocalize-region X0,Y0,X1,Y1`` (metres) to ``p``: one definition for every command
+    that takes them (docs/faults.md, docs/guarantees.md). ``note`` ends the fault model's help."""
+    from tileviz.config import LocalizerConfig
+
+    loc = LocalizerConfig()
+    p.add_argument("--fault-model", type=fault_model("--fault-model"), default=None,
+                   metavar="SPEED,YAW_RATE",
+                   help="how much faster than the odometry bounds a fault (wheel slip, push) may "
+                   "move the robot, m/s and rad/s: the localizer then tracks through such a fault "
+                   "and says lost beyond it (docs/faults.md); 0,0 turns it off (default "
+                   f"{loc.fault_speed:g},{loc.fault_yaw_rate:g}){note}")
+    if relocalize:
+        p.add_argument("--relocalize-region", type=region("--relocalize-region"), default=None,
+                       metavar="X0,Y0,X1,Y1",
+                       help="after lost, restart from 'somewhere in this region' (metres; "
+                       "heading from the compass): one candidate box per tile cell that fits the "
+                       "view, dropped as the robot's motion takes them out of the region; the "
+                       "robot must stay in it until one candidate is left (docs/guarantees.md); "
+                       "write --relocalize-region=-1,-1,2,2 when X0 is negative")
+
+
 def region(name: str) -> Callable[[str], tuple[float, float, float, float]]:
     """argparse type: ``X0,Y0,X1,Y1`` (metres), four finite floats with x0 <= x1 and y0 <= y1:
     a re-localization region (``Localizer.relocalize``)."""
@@ -90,8 +116,8 @@ def region(name: str) -> Callable[[str], tuple[float, float, float, float]]:
         except ValueError:
             raise argparse.ArgumentTypeError(
                 f"{name} must be four numbers X0,Y0,X1,Y1 (metres), got {text!r}") from None
-        if not all(math.isfinite(v) and abs(v) <= 1e9 for v in (x0, y0, x1, y1)):
-            raise argparse.ArgumentTypeError(f"{name} must be finite numbers within 1e9, "
+        if not all(math.isfinite(v) and abs(v) <= LIMIT for v in (x0, y0, x1, y1)):
+            raise argparse.ArgumentTypeError(f"{name} must be finite numbers within {LIMIT:g}, "
                                              f"got {text!r}")
         if x0 > x1 or y0 > y1:
             raise argparse.ArgumentTypeError(f"{name} needs X0 <= X1 and Y0 <= Y1, got {text!r}")

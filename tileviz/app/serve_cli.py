@@ -33,13 +33,11 @@ from tileviz.app.session import Session, SessionOptions
 from tileviz.cliutil import (
     CliError,
     Parser,
-    fault_model,
     float_in,
     int_in,
     nonneg_int,
     positive_float,
     positive_int,
-    region,
     run_cli,
 )
 from tileviz.config import (
@@ -88,16 +86,7 @@ def parser() -> Parser:
                    help="draw the interval boxes (default on)")
     p.add_argument("--display", action=argparse.BooleanOptionalAction, default=True,
                    help="stream the pipeline stage images (default on)")
-    p.add_argument("--fault-model", type=fault_model("--fault-model"), default=None,
-                   metavar="SPEED,YAW_RATE",
-                   help="how much faster than the odometry bounds a fault (wheel slip, push) may "
-                   "move the robot, m/s and rad/s: the localizer tracks through such a fault "
-                   "(docs/guarantees.md); 0,0 turns it off (default 0.2,0.1)")
-    p.add_argument("--relocalize-region", type=region("--relocalize-region"), default=None,
-                   metavar="X0,Y0,X1,Y1",
-                   help="after lost, restart from 'somewhere in this region' (metres; heading "
-                   "from the compass; the robot must stay in it until one candidate is left); "
-                   "write --relocalize-region=-1,-1,2,2 when X0 is negative")
+    cliutil.add_fault_options(p)
     p.add_argument("--ppm", type=float_in("--ppm", *PPM_RANGE, lo_open=False),
                    help="pixels per metre")
     p.add_argument("--tile-size", type=float_in("--tile-size", *TILE_SIZE_RANGE, lo_open=False),

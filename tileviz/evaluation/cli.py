@@ -9,7 +9,7 @@ from pathlib import Path
 from tileviz.cliutil import (
     CliError,
     Parser,
-    fault_model,
+    add_fault_options,
     nonneg_float,
     positive_float,
     positive_int,
@@ -45,13 +45,8 @@ def _parser() -> Parser:
                    help="MCL particle injection rate per frame, 0..1, in the room (default 0)")
     p.add_argument("--mcl-sigma-scale", type=positive_float("--mcl-sigma-scale"), default=0.5,
                    help="MCL likelihood sigmas as a multiple of the declared bounds (default 0.5)")
-    p.add_argument("--fault-model", type=fault_model("--fault-model"), default=None,
-                   metavar="SPEED,YAW_RATE",
-                   help="the autonomous localizer's fault model: how much faster than its "
-                   "odometry bounds a fault may move the robot, m/s and rad/s; 0,0 turns it off "
-                   f"(default {LocalizerConfig().fault_speed:g},"
-                   f"{LocalizerConfig().fault_yaw_rate:g}); the recovery method uses max_slip "
-                   "instead")
+    add_fault_options(p, relocalize=False,
+                      note="; the interval-recovery method uses max_slip instead")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="run on a Dask cluster: tcp://host:8786 (a running scheduler) or "
                    "local:N (a local cluster of N worker processes); needs "
