@@ -12,7 +12,7 @@ under the same load) or ``+``-joined parts to leave out or change:
 setpoint, path, trails, particles), ``show-LAYER`` (a layer that is off by default, e.g.
 ``show-floor``: the floor texture), ``no-images`` (camera and stage panels), ``no-inset``,
 ``no-status`` (the readouts and controls the loop refreshes), ``no-follow`` (the view does not
-follow the robot), ``tex-N`` (a floor texture of N pixels a side instead of
+follow the robot), ``tex-N`` (with ``show-floor``: a floor texture of N pixels a side instead of
 :data:`tileviz.app.scene.TEXTURE_PIXELS`). Example::
 
     python bench/bench_page_parts.py full bare show-floor hide-grid no-images+no-inset+no-status

@@ -78,10 +78,9 @@ Z_MCL = 0.25
 Z_WEDGE = 0.29
 Z_TRUTH = 0.31
 TEXTURE_PIXELS = 1024
-"""Largest side of the floor texture, pixels. The browser samples this texture for every floor
-pixel of every frame it draws: without a GPU (software WebGL) a 1600-pixel texture cost about as
-much as the rest of the scene together (``bench/bench_page_parts.py``); 1024 keeps a 1 m tile of
-the default room at 85 texture pixels, grout lines included."""
+"""Largest side of the floor texture (the ``floor`` layer, off by default), pixels: a 1 m tile of
+the default room gets 85 texture pixels, grout lines included. Without a GPU the texture's cost
+is the view's pixels it covers more than its size (``bench/page_draw_profile.py``)."""
 PATH_KINDS = ("lissajous", "dataset")
 """Setpoint kinds (``set_world``) whose path is drawn: the Lissajous lap, a dataset's true path."""
 
