@@ -10,11 +10,12 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from tileviz.vision.robust import kernel
 from tileviz.vision.robust.state import PARTS, Line, RobustRun
 
 __all__ = ["Projection", "centroid", "crossings", "dips", "light_grout", "measure",
-           "measure_parts", "midpoints", "nanmedian", "plateaus", "profiles", "project",
-           "select_lines", "view_spans"]
+           "measure_parts", "midpoints", "nanmedian", "part_rows_numpy", "plateaus", "profiles",
+           "project", "select_lines", "view_spans"]
 
 
 def light_grout(run: RobustRun, warped: np.ndarray,
@@ -310,28 +311,11 @@ def measure_parts(
     pp = pp.transpose(0, 2, 1).reshape(m * PARTS, -1)  # row i * PARTS + j
     cj = np.repeat(c0, PARTS)
     hj = np.repeat(half, PARTS)
-    ll, lr = plateaus(pp, jf, cj, hj)
-    lev = ll[:, None] + (lr - ll)[:, None] * np.clip(jf[None, :] - cj[:, None] + 0.5, 0, 1)
-    dp = lev - pp
-    nearp = dp[:, r - 3 : r + 4]
-    nearp = np.where(np.isnan(nearp), -np.inf, nearp)
-    dpk = nearp.max(axis=1)
-    jp = np.argmax(nearp, axis=1) - 3
-    lv = np.concatenate([0.5 * dpk, 0.2 * dpk, 0.8 * dpk])
-    xl, xr = crossings(np.tile(dp, (3, 1)), jf, np.tile(jp, 3), lv)
-    nr = dp.shape[0]
-    width = (xr[:nr] - xl[:nr]).reshape(m, PARTS)
-    rise = (0.5 * ((xl[2 * nr :] - xl[nr : 2 * nr]) + (xr[nr : 2 * nr] - xr[2 * nr :])))
+    meas_rows = kernel.part_rows if kernel.AVAILABLE else part_rows_numpy
+    width, rise, contrast, cen, mids, msig = meas_rows(pp, jf, cj, hj, r)
+    width = width.reshape(m, PARTS)
     rise = rise.reshape(m, PARTS)
-    inside = (cj - hj - 4.0 >= -r) & (cj + hj + 4.0 <= r)
-    cen = centroid(pp, jf, cj, hj, ll, lr)
-    cen = np.where(inside & (np.abs(cen - cj) <= hj), cen, np.nan).reshape(m, PARTS)
-    # the position: the midpoint of the dip's 50 % crossings, each side against its own
-    # plateau and depth (texture beside the grout, a slope of the light or a shade step
-    # between the tiles pull the centroid, much less the edges); measured where the
-    # centroid's window is inside the profile
-    mids, msig = midpoints(pp, jf, np.where(np.isfinite(cen.ravel()), cen.ravel(), cj),
-                           cj, hj, ll, lr)
+    cen = cen.reshape(m, PARTS)
     mids = mids.reshape(3, m, PARTS)
     msig = msig.reshape(m, PARTS)
     pos50 = np.where(np.isfinite(cen), mids[0], np.nan)
@@ -341,7 +325,7 @@ def measure_parts(
     sp_ok = np.where(np.isfinite(spread) & np.isfinite(msig), spread, 0.5 * width + 0.5)
     # medians over the parts of each dip's width, rise and contrast, in one sort
     meds = nanmedian(np.concatenate(
-        (width.T, rise.T, (dpk / np.maximum(ll, lr)).reshape(m, PARTS).T), axis=1))
+        (width.T, rise.T, contrast.reshape(m, PARTS).T), axis=1))
     wmed, rmed, cmed = meds[:m], meds[m : 2 * m], meds[2 * m :]
     lo_lev = np.minimum(lev_l, lev_r)
     hi_lev = np.maximum(lev_l, lev_r)
@@ -369,6 +353,39 @@ def measure_parts(
             )
         )
     return out
+
+
+def part_rows_numpy(
+    pp: np.ndarray, jf: np.ndarray, cj: np.ndarray, hj: np.ndarray, r: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Every part profile's measurement (rows of ``pp`` over sample offsets ``jf`` = -r..r,
+    the dip's centre ``cj`` and half window ``hj`` per row): half-depth width, 20-80 % rise,
+    contrast (depth / brighter plateau), centroid (NaN where its window leaves the profile or
+    it strays beyond the half window), the 50/25/75 % midpoints (3, rows) and the 50 %
+    midpoint's standard error (:func:`midpoints`). :func:`~tileviz.vision.robust.kernel.
+    part_rows` is the same computation compiled (bit-identical); this one is used without
+    numba."""
+    ll, lr = plateaus(pp, jf, cj, hj)
+    lev = ll[:, None] + (lr - ll)[:, None] * np.clip(jf[None, :] - cj[:, None] + 0.5, 0, 1)
+    dp = lev - pp
+    nearp = dp[:, r - 3 : r + 4]
+    nearp = np.where(np.isnan(nearp), -np.inf, nearp)
+    dpk = nearp.max(axis=1)
+    jp = np.argmax(nearp, axis=1) - 3
+    lv = np.concatenate([0.5 * dpk, 0.2 * dpk, 0.8 * dpk])
+    xl, xr = crossings(np.tile(dp, (3, 1)), jf, np.tile(jp, 3), lv)
+    nr = dp.shape[0]
+    width = xr[:nr] - xl[:nr]
+    rise = 0.5 * ((xl[2 * nr :] - xl[nr : 2 * nr]) + (xr[nr : 2 * nr] - xr[2 * nr :]))
+    inside = (cj - hj - 4.0 >= -r) & (cj + hj + 4.0 <= r)
+    cen = centroid(pp, jf, cj, hj, ll, lr)
+    cen = np.where(inside & (np.abs(cen - cj) <= hj), cen, np.nan)
+    # the position: the midpoint of the dip's 50 % crossings, each side against its own
+    # plateau and depth (texture beside the grout, a slope of the light or a shade step
+    # between the tiles pull the centroid, much less the edges); measured where the
+    # centroid's window is inside the profile
+    mids, msig = midpoints(pp, jf, np.where(np.isfinite(cen), cen, cj), cj, hj, ll, lr)
+    return width, rise, dpk / np.maximum(ll, lr), cen, mids, msig
 
 
 def select_lines(run: RobustRun, lines: list[list[Line]]) -> list[list[Line]]:
