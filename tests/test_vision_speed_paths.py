@@ -96,23 +96,35 @@ def test_the_compiled_part_measurement_is_the_numpy_one_bit_for_bit(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     """Every part profile the extractor measures on every floor family gives the same bits
-    (width, rise, contrast, centroid, midpoints, standard error) from the compiled kernel as
-    from the numpy computation, and whole extractions agree field for field."""
+    (the profile from the integral image; its width, rise, contrast, centroid, midpoints,
+    standard error) from the compiled kernels as from the numpy computation, and whole
+    extractions agree field for field."""
     views = _floor_views(2)
     seen: list[tuple] = []
-    compiled = kernel.part_rows
+    seen_pp: list[tuple] = []
+    compiled, compiled_pp = kernel.part_rows, kernel.part_profiles
 
     def record(*args: object) -> tuple:
         seen.append(args)
         return compiled(*args)
 
+    def record_pp(*args: object) -> np.ndarray:
+        seen_pp.append(args)
+        return compiled_pp(*args)
+
     monkeypatch.setattr(kernel, "part_rows", record)
+    monkeypatch.setattr(kernel, "part_profiles", record_pp)
     fast = [extract(img, camera=cam, tile_size=ts, vision=ROBUST) for img, cam, ts in views]
     assert sum(res.accepted for res in fast) >= len(views) // 2
     assert sum(int(args[0].shape[0]) for args in seen) > 100
     for args in seen:
         for a, b in zip(compiled(*args), profiles.part_rows_numpy(*args), strict=True):
             assert _bits(a) == _bits(b)
+    assert len(seen_pp) == len(seen)
+    for flat, stride, *rest in seen_pp:
+        integ = flat.reshape(-1, stride)
+        assert _bits(compiled_pp(flat, stride, *rest)) == _bits(
+            profiles.part_profiles_numpy(integ, *rest))
     monkeypatch.setattr(kernel, "AVAILABLE", False)
     slow = [extract(img, camera=cam, tile_size=ts, vision=ROBUST) for img, cam, ts in views]
     for a, b in zip(fast, slow, strict=True):

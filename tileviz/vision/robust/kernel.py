@@ -28,7 +28,7 @@ try:
 except ImportError:  # numba is a dependency; an older environment keeps the numpy path
     numba = None  # type: ignore[assignment]
 
-__all__ = ["AVAILABLE", "part_rows"]
+__all__ = ["AVAILABLE", "part_profiles", "part_rows"]
 
 AVAILABLE = numba is not None
 
@@ -333,3 +333,39 @@ def part_rows(pp: np.ndarray, jf: np.ndarray, cj: np.ndarray, hj: np.ndarray, r:
         mids[1, k] = m3[1]
         mids[2, k] = m3[2]
     return width, rise, contrast, cen, mids, msig
+
+
+@_jit
+def part_profiles(flat: np.ndarray, stride: int, fam: np.ndarray, line: np.ndarray,
+                  idx: np.ndarray, mean: float, p0: np.ndarray) -> np.ndarray:
+    """:func:`~tileviz.vision.robust.profiles.part_profiles_numpy` compiled: the (m PARTS, W)
+    part profiles from the integral image (``flat``, rows of ``stride`` values)."""
+    m, nw = line.shape
+    parts = idx.shape[1] - 1
+    rows_i = flat.size // stride
+    hmax = rows_i - 1
+    wmax = stride - 1
+    pp = np.empty((m * parts, nw))
+    for i in range(m):
+        f1 = fam[i] == 0
+        umax = wmax if f1 else hmax
+        for w in range(nw):
+            qv = min(line[i, w], hmax - 1 if f1 else wmax - 1)
+            missing = math.isnan(p0[i, w])
+            for j in range(parts):
+                ua = min(idx[i, j], umax)
+                ub = min(idx[i, j + 1], umax)
+                if f1:
+                    lin0 = qv * stride
+                    lin1 = (qv + 1) * stride
+                    ka = ua
+                    kb = ub
+                else:
+                    lin0 = qv
+                    lin1 = qv + 1
+                    ka = ua * stride
+                    kb = ub * stride
+                s = flat[lin1 + kb] - flat[lin0 + kb] - flat[lin1 + ka] + flat[lin0 + ka]
+                v = s / (idx[i, j + 1] - idx[i, j]) + mean
+                pp[i * parts + j, w] = math.nan if missing else v
+    return pp

@@ -14,7 +14,8 @@ from tileviz.vision.robust import kernel
 from tileviz.vision.robust.state import PARTS, Line, RobustRun
 
 __all__ = ["Projection", "centroid", "crossings", "dips", "light_grout", "measure",
-           "measure_parts", "midpoints", "nanmedian", "part_rows_numpy", "plateaus", "profiles",
+           "measure_parts", "midpoints", "nanmedian", "part_profiles_numpy", "part_rows_numpy",
+           "plateaus", "profiles",
            "project", "select_lines", "view_spans"]
 
 
@@ -291,24 +292,10 @@ def measure_parts(
     count = np.diff(idx, axis=1)  # samples in each part, (m, PARTS)
     tpart = 0.5 * (idx[:, :-1] + idx[:, 1:] - 1) - along[:, None]
     line = np.clip(cols - proj.pad, 0, integ.shape[0] + integ.shape[1])  # warp row / column
-    # sums over the parts from the integral image: family 1 along rows (integ[line, idx]),
-    # family 2 along columns (integ[idx, line]), as flat indices
-    hmax, wmax = integ.shape[0] - 1, integ.shape[1] - 1
-    fam1 = (fam == 0)[:, None, None]
-    q = np.minimum(line[:, :, None], np.where(fam1, hmax - 1, wmax - 1))  # (m, W, 1)
-    umax = np.where(fam1, wmax, hmax)
-    ua = np.minimum(idx[:, None, :-1], umax)  # (m, 1, PARTS)
-    ub = np.minimum(idx[:, None, 1:], umax)
-    stride = integ.shape[1]
-    lin0 = np.where(fam1, q * stride, q)  # flat offset of line q and of line q + 1
-    lin1 = np.where(fam1, (q + 1) * stride, q + 1)
-    ka = np.where(fam1, ua, ua * stride)
-    kb = np.where(fam1, ub, ub * stride)
-    flat = integ.ravel()
-    part_sum = flat[lin1 + kb] - flat[lin0 + kb] - flat[lin1 + ka] + flat[lin0 + ka]
-    pp = part_sum / count[:, None, :] + mean  # (m, W, PARTS)
-    pp = np.where(np.isnan(p0)[:, :, None], np.nan, pp)
-    pp = pp.transpose(0, 2, 1).reshape(m * PARTS, -1)  # row i * PARTS + j
+    if kernel.AVAILABLE:
+        pp = kernel.part_profiles(integ.ravel(), integ.shape[1], fam, line, idx, mean, p0)
+    else:
+        pp = part_profiles_numpy(integ, fam, line, idx, mean, p0)
     cj = np.repeat(c0, PARTS)
     hj = np.repeat(half, PARTS)
     meas_rows = kernel.part_rows if kernel.AVAILABLE else part_rows_numpy
@@ -353,6 +340,37 @@ def measure_parts(
             )
         )
     return out
+
+
+def part_profiles_numpy(
+    integ: np.ndarray, fam: np.ndarray, line: np.ndarray, idx: np.ndarray, mean: float,
+    p0: np.ndarray
+) -> np.ndarray:
+    """The part profiles of m dips: row i * PARTS + j is part j of dip i, the mean gray level
+    of each warp row (family 1) or column (family 2) ``line[i]`` (m, W) over the stretch
+    [idx[i, j], idx[i, j + 1]) of the tangent axis, from the integral image ``integ``; NaN
+    where the whole profile ``p0`` (m, W) is. :func:`~tileviz.vision.robust.kernel.
+    part_profiles` is the same computation compiled (bit-identical)."""
+    m = fam.size
+    count = np.diff(idx, axis=1)  # samples in each part, (m, PARTS)
+    # sums over the parts from the integral image: family 1 along rows (integ[line, idx]),
+    # family 2 along columns (integ[idx, line]), as flat indices
+    hmax, wmax = integ.shape[0] - 1, integ.shape[1] - 1
+    fam1 = (fam == 0)[:, None, None]
+    q = np.minimum(line[:, :, None], np.where(fam1, hmax - 1, wmax - 1))  # (m, W, 1)
+    umax = np.where(fam1, wmax, hmax)
+    ua = np.minimum(idx[:, None, :-1], umax)  # (m, 1, PARTS)
+    ub = np.minimum(idx[:, None, 1:], umax)
+    stride = integ.shape[1]
+    lin0 = np.where(fam1, q * stride, q)  # flat offset of line q and of line q + 1
+    lin1 = np.where(fam1, (q + 1) * stride, q + 1)
+    ka = np.where(fam1, ua, ua * stride)
+    kb = np.where(fam1, ub, ub * stride)
+    flat = integ.ravel()
+    part_sum = flat[lin1 + kb] - flat[lin0 + kb] - flat[lin1 + ka] + flat[lin0 + ka]
+    pp = part_sum / count[:, None, :] + mean  # (m, W, PARTS)
+    pp = np.where(np.isnan(p0)[:, :, None], np.nan, pp)
+    return pp.transpose(0, 2, 1).reshape(m * PARTS, -1)  # row i * PARTS + j
 
 
 def part_rows_numpy(
