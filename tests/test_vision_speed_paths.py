@@ -97,8 +97,8 @@ def test_the_compiled_part_measurement_is_the_numpy_one_bit_for_bit(
 ) -> None:
     """Every part profile the extractor measures on every floor family gives the same bits
     (the profile from the integral image; its width, rise, contrast, centroid, midpoints,
-    standard error) from the compiled kernels as from the numpy computation, and whole
-    extractions agree field for field."""
+    standard error) from the compiled kernels as from the numpy computation, so does every
+    family's light-grout score, and whole extractions agree field for field."""
     views = _floor_views(2)
     seen: list[tuple] = []
     seen_pp: list[tuple] = []
@@ -112,8 +112,16 @@ def test_the_compiled_part_measurement_is_the_numpy_one_bit_for_bit(
         seen_pp.append(args)
         return compiled_pp(*args)
 
+    seen_grout: list[tuple] = []
+    compiled_grout = kernel.grout_score
+
+    def record_grout(*args: object) -> tuple:
+        seen_grout.append(args)
+        return compiled_grout(*args)
+
     monkeypatch.setattr(kernel, "part_rows", record)
     monkeypatch.setattr(kernel, "part_profiles", record_pp)
+    monkeypatch.setattr(kernel, "grout_score", record_grout)
     fast = [extract(img, camera=cam, tile_size=ts, vision=ROBUST) for img, cam, ts in views]
     assert sum(res.accepted for res in fast) >= len(views) // 2
     assert sum(int(args[0].shape[0]) for args in seen) > 100
@@ -125,6 +133,11 @@ def test_the_compiled_part_measurement_is_the_numpy_one_bit_for_bit(
         integ = flat.reshape(-1, stride)
         assert _bits(compiled_pp(flat, stride, *rest)) == _bits(
             profiles.part_profiles_numpy(integ, *rest))
+    assert sum(compiled_grout(*args)[0] for args in seen_grout) >= len(views)
+    for args in seen_grout:
+        used, value = compiled_grout(*args)
+        used_np, value_np = profiles.grout_score_numpy(*args)
+        assert used == used_np and (not used or value.hex() == value_np.hex())
     monkeypatch.setattr(kernel, "AVAILABLE", False)
     slow = [extract(img, camera=cam, tile_size=ts, vision=ROBUST) for img, cam, ts in views]
     for a, b in zip(fast, slow, strict=True):
@@ -159,3 +172,21 @@ def test_the_compiled_part_measurement_matches_numpy_on_any_profile(
         ref = profiles.part_rows_numpy(pp, jf, cj, hj, r)
     for a, b in zip(fast, ref, strict=True):
         assert _bits(a) == _bits(b)
+
+
+@pytest.mark.skipif(not kernel.AVAILABLE, reason="numba is not installed")
+@settings(max_examples=80, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), n=st.integers(1, 120),
+       closing=st.sampled_from([17, 35, 61]))
+def test_the_compiled_light_grout_score_matches_numpy_on_any_profile(
+    seed: int, n: int, closing: int
+) -> None:
+    """Random family sums and row lengths (some rows too short to count): the compiled
+    light-grout term and numpy / OpenCV's agree bit for bit."""
+    rng = np.random.default_rng(seed)
+    sums = rng.normal(0.0, 3000.0, n)
+    length = rng.uniform(0.0, 300.0, n)
+    used, value = kernel.grout_score(sums, length, closing)
+    used_np, value_np = profiles.grout_score_numpy(sums, length, closing)
+    assert used == used_np
+    assert not used or value.hex() == value_np.hex()

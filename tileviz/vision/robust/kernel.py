@@ -28,7 +28,7 @@ try:
 except ImportError:  # numba is a dependency; an older environment keeps the numpy path
     numba = None  # type: ignore[assignment]
 
-__all__ = ["AVAILABLE", "part_profiles", "part_rows"]
+__all__ = ["AVAILABLE", "grout_score", "part_profiles", "part_rows"]
 
 AVAILABLE = numba is not None
 
@@ -369,3 +369,64 @@ def part_profiles(flat: np.ndarray, stride: int, fam: np.ndarray, line: np.ndarr
                 v = s / (idx[i, j + 1] - idx[i, j]) + mean
                 pp[i * parts + j, w] = math.nan if missing else v
     return pp
+
+
+@_jit
+def _morph(a: np.ndarray, half: int, border: np.float32, bigger: bool) -> np.ndarray:
+    """cv2.dilate (``bigger``) or cv2.erode of a float32 row by a 1 x (2 half + 1) window,
+    constant ``border`` beyond the ends (exact: only comparisons)."""
+    n = a.size
+    out = np.empty(n, np.float32)
+    for x in range(n):
+        v = a[x]
+        for k in range(x - half, x + half + 1):
+            u = a[k] if 0 <= k < n else border
+            if (u > v) if bigger else (u < v):
+                v = u
+        out[x] = v
+    return out
+
+
+@_jit
+def grout_score(sums: np.ndarray, length: np.ndarray, closing: int) -> tuple[bool, float]:
+    """One family's term of :func:`~tileviz.vision.robust.profiles.light_grout` (whether the
+    family counts, and its peak height minus its dip depth), bit-identical to the numpy /
+    OpenCV computation there: the profile ``sums / length`` as float32 over the rows long
+    enough, its median as the border level, grey closing and opening by ``closing``
+    samples."""
+    lmax = length[0]
+    for v in length:
+        if v > lmax:
+            lmax = v
+    thr = 0.15 * lmax
+    thr = thr if thr > 8.0 else 8.0
+    n = 0
+    for v in length:
+        if v >= thr:
+            n += 1
+    if n < 8:
+        return False, 0.0
+    prof = np.empty(n, np.float32)
+    k = 0
+    for i in range(length.size):
+        if length[i] >= thr:
+            prof[k] = np.float32(sums[i] / length[i])
+            k += 1
+    srt = np.sort(prof)
+    if n % 2 == 1:
+        mid = srt[n // 2]
+    else:
+        mid = np.float32(np.float32(srt[n // 2 - 1] + srt[n // 2]) / np.float32(2.0))
+    half = closing // 2
+    close = _morph(_morph(prof, half, mid, True), half, mid, False)
+    opening = _morph(_morph(prof, half, mid, False), half, mid, True)
+    peak = np.float32(prof[0] - opening[0])
+    dip = np.float32(close[0] - prof[0])
+    for i in range(1, n):
+        v = np.float32(prof[i] - opening[i])
+        if v > peak:
+            peak = v
+        v = np.float32(close[i] - prof[i])
+        if v > dip:
+            dip = v
+    return True, np.float64(peak) - np.float64(dip)

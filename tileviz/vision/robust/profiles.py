@@ -13,10 +13,9 @@ import numpy as np
 from tileviz.vision.robust import kernel
 from tileviz.vision.robust.state import PARTS, Line, RobustRun
 
-__all__ = ["Projection", "centroid", "crossings", "dips", "light_grout", "measure",
-           "measure_parts", "midpoints", "nanmedian", "part_profiles_numpy", "part_rows_numpy",
-           "plateaus", "profiles",
-           "project", "select_lines", "view_spans"]
+__all__ = ["Projection", "centroid", "crossings", "dips", "grout_score_numpy", "light_grout",
+           "measure", "measure_parts", "midpoints", "nanmedian", "part_profiles_numpy",
+           "part_rows_numpy", "plateaus", "profiles", "project", "select_lines", "view_spans"]
 
 
 def light_grout(run: RobustRun, warped: np.ndarray,
@@ -25,27 +24,40 @@ def light_grout(run: RobustRun, warped: np.ndarray,
     """Whether the grout is lighter than the tiles: the family profiles (row and column
     means of the warped image, offsets from the mean) hold stronger narrow peaks (above a
     grey opening) than narrow dips (below a grey closing), summed over both families.
-    ``spans``: the in-view stretch of every row and column (:func:`view_spans`)."""
-    kern = np.ones((1, run.closing), np.uint8)
+    ``spans``: the in-view stretch of every row and column (:func:`view_spans`).
+    :func:`~tileviz.vision.robust.kernel.grout_score` computes a family's term compiled
+    (bit-identical)."""
+    term = kernel.grout_score if kernel.AVAILABLE else grout_score_numpy
     score = 0.0
     for k, axis in ((0, 1), (1, 0)):
         lo, hi = spans[k]
-        length = np.maximum(hi - lo, 0.0)
-        ok = length >= max(8.0, 0.15 * float(length.max()))
-        if int(ok.sum()) < 8:
-            continue
         sums = cv2.reduce(warped, axis, cv2.REDUCE_SUM, dtype=cv2.CV_64F).ravel()
-        prof = (sums[ok] / length[ok]).astype(np.float32)[None, :]
-        # beyond the view: the median level (the tiles'), so that a stretch of tile or a
-        # line cut by the border is neither a peak nor a dip
-        mid = float(np.median(prof))
-        bt = cv2.BORDER_CONSTANT
-        close = cv2.erode(cv2.dilate(prof, kern, borderType=bt, borderValue=mid), kern,
-                          borderType=bt, borderValue=mid)
-        opening = cv2.dilate(cv2.erode(prof, kern, borderType=bt, borderValue=mid), kern,
-                             borderType=bt, borderValue=mid)
-        score += float((prof - opening).max()) - float((close - prof).max())
+        used, value = term(sums, np.maximum(hi - lo, 0.0), run.closing)
+        if used:
+            score += value
     return score > 0.0
+
+
+def grout_score_numpy(sums: np.ndarray, length: np.ndarray, closing: int) -> tuple[bool, float]:
+    """One family's term of :func:`light_grout`: whether the family has 8 rows long enough
+    (at least 8 px and 15 % of the longest), and then the highest narrow peak of its profile
+    (``sums / length`` over those rows, float32) above a grey opening minus the deepest
+    narrow dip below a grey closing, both ``closing`` samples wide. :func:`~tileviz.vision.
+    robust.kernel.grout_score` is the same computation compiled (bit-identical)."""
+    ok = length >= max(8.0, 0.15 * float(length.max()))
+    if int(ok.sum()) < 8:
+        return False, 0.0
+    prof = (sums[ok] / length[ok]).astype(np.float32)[None, :]
+    # beyond the view: the median level (the tiles'), so that a stretch of tile or a line cut
+    # by the border is neither a peak nor a dip
+    mid = float(np.median(prof))
+    kern = np.ones((1, closing), np.uint8)
+    bt = cv2.BORDER_CONSTANT
+    close = cv2.erode(cv2.dilate(prof, kern, borderType=bt, borderValue=mid), kern,
+                      borderType=bt, borderValue=mid)
+    opening = cv2.dilate(cv2.erode(prof, kern, borderType=bt, borderValue=mid), kern,
+                         borderType=bt, borderValue=mid)
+    return True, float((prof - opening).max()) - float((close - prof).max())
 
 
 @dataclass
