@@ -97,47 +97,44 @@ def test_the_compiled_part_measurement_is_the_numpy_one_bit_for_bit(
 ) -> None:
     """Every part profile the extractor measures on every floor family gives the same bits
     (the profile from the integral image; its width, rise, contrast, centroid, midpoints,
-    standard error) from the compiled kernels as from the numpy computation, so does every
-    family's light-grout score, and whole extractions agree field for field."""
+    standard error) from the compiled kernels as from the numpy computation, so do every
+    family's light-grout score and every profile's darkness, noise and dips, and whole
+    extractions agree field for field."""
     views = _floor_views(2)
-    seen: list[tuple] = []
-    seen_pp: list[tuple] = []
-    compiled, compiled_pp = kernel.part_rows, kernel.part_profiles
+    names = ("part_rows", "part_profiles", "grout_score", "profile_dips")
+    compiled = {name: getattr(kernel, name) for name in names}
+    seen: dict[str, list[tuple]] = {name: [] for name in names}
 
-    def record(*args: object) -> tuple:
-        seen.append(args)
-        return compiled(*args)
+    def recorder(name: str) -> object:
+        def record(*args: object) -> object:
+            seen[name].append(args)
+            return compiled[name](*args)
+        return record
 
-    def record_pp(*args: object) -> np.ndarray:
-        seen_pp.append(args)
-        return compiled_pp(*args)
-
-    seen_grout: list[tuple] = []
-    compiled_grout = kernel.grout_score
-
-    def record_grout(*args: object) -> tuple:
-        seen_grout.append(args)
-        return compiled_grout(*args)
-
-    monkeypatch.setattr(kernel, "part_rows", record)
-    monkeypatch.setattr(kernel, "part_profiles", record_pp)
-    monkeypatch.setattr(kernel, "grout_score", record_grout)
+    for name in names:
+        monkeypatch.setattr(kernel, name, recorder(name))
     fast = [extract(img, camera=cam, tile_size=ts, vision=ROBUST) for img, cam, ts in views]
     assert sum(res.accepted for res in fast) >= len(views) // 2
-    assert sum(int(args[0].shape[0]) for args in seen) > 100
-    for args in seen:
-        for a, b in zip(compiled(*args), profiles.part_rows_numpy(*args), strict=True):
+    assert sum(int(args[0].shape[0]) for args in seen["part_rows"]) > 100
+    for args in seen["part_rows"]:
+        for a, b in zip(compiled["part_rows"](*args), profiles.part_rows_numpy(*args),
+                        strict=True):
             assert _bits(a) == _bits(b)
-    assert len(seen_pp) == len(seen)
-    for flat, stride, *rest in seen_pp:
+    assert len(seen["part_profiles"]) == len(seen["part_rows"])
+    for flat, stride, *rest in seen["part_profiles"]:
         integ = flat.reshape(-1, stride)
-        assert _bits(compiled_pp(flat, stride, *rest)) == _bits(
+        assert _bits(compiled["part_profiles"](flat, stride, *rest)) == _bits(
             profiles.part_profiles_numpy(integ, *rest))
-    assert sum(compiled_grout(*args)[0] for args in seen_grout) >= len(views)
-    for args in seen_grout:
-        used, value = compiled_grout(*args)
+    assert sum(compiled["grout_score"](*args)[0] for args in seen["grout_score"]) >= len(views)
+    for args in seen["grout_score"]:
+        used, value = compiled["grout_score"](*args)
         used_np, value_np = profiles.grout_score_numpy(*args)
         assert used == used_np and (not used or value.hex() == value_np.hex())
+    assert len(seen["profile_dips"]) >= len(views)
+    for args in seen["profile_dips"]:
+        for a, b in zip(compiled["profile_dips"](*args), profiles.profile_dips_numpy(*args),
+                        strict=True):
+            assert a.dtype == b.dtype and _bits(a) == _bits(b)
     monkeypatch.setattr(kernel, "AVAILABLE", False)
     slow = [extract(img, camera=cam, tile_size=ts, vision=ROBUST) for img, cam, ts in views]
     for a, b in zip(fast, slow, strict=True):

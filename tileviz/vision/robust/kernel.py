@@ -28,7 +28,7 @@ try:
 except ImportError:  # numba is a dependency; an older environment keeps the numpy path
     numba = None  # type: ignore[assignment]
 
-__all__ = ["AVAILABLE", "grout_score", "part_profiles", "part_rows"]
+__all__ = ["AVAILABLE", "grout_score", "part_profiles", "part_rows", "profile_dips"]
 
 AVAILABLE = numba is not None
 
@@ -430,3 +430,79 @@ def grout_score(sums: np.ndarray, length: np.ndarray, closing: int) -> tuple[boo
         if v > dip:
             dip = v
     return True, np.float64(peak) - np.float64(dip)
+
+
+@_jit
+def profile_dips(prof: np.ndarray, mean: float, closing: int, min_depth: float
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`~tileviz.vision.robust.profiles.profile_dips_numpy` compiled (bit-identical):
+    the darkness below the grey closing of both family profiles (rows of ``prof``, NaN where
+    missing), each family's profile noise (NaN when it has fewer than 8 samples) and the
+    dips (family, deepest sample) in order."""
+    fams, size = prof.shape
+    half = closing // 2
+    dark = np.empty((fams, size))
+    noise = np.full(fams, math.nan)
+    fam_out = np.empty(fams * size, np.intp)
+    peak_out = np.empty(fams * size, np.intp)
+    found = 0
+    filled = np.empty(size, np.float32)
+    dil = np.empty(size, np.float32)
+    diffs = np.empty(size)
+    for k in range(fams):
+        row = prof[k]
+        for x in range(size):
+            filled[x] = np.float32(mean) if math.isnan(row[x]) else np.float32(row[x])
+        for x in range(size):  # grey dilation, the ends replicated
+            v = filled[x]
+            for t in range(x - half, x + half + 1):
+                u = filled[min(max(t, 0), size - 1)]
+                if u > v:
+                    v = u
+            dil[x] = v
+        for x in range(size):  # then erosion
+            v = dil[x]
+            for t in range(x - half, x + half + 1):
+                u = dil[min(max(t, 0), size - 1)]
+                if u < v:
+                    v = u
+            dark[k, x] = np.float64(v) - row[x]
+        nok = 0
+        nd = 0
+        prev = 0.0
+        for x in range(size):
+            if not math.isnan(row[x]):
+                if nok > 0:
+                    diffs[nd] = abs(row[x] - prev)
+                    nd += 1
+                prev = row[x]
+                nok += 1
+        if nok < 8:
+            continue
+        srt = np.sort(diffs[:nd])
+        sig = 1.4826 * srt[nd // 2] / math.sqrt(2.0)
+        noise[k] = sig
+        thr = 5.0 * sig
+        if not thr > 0.5 * min_depth:
+            thr = 0.5 * min_depth
+        x = 0
+        while x < size:
+            dk = dark[k, x] if not math.isnan(row[x]) else -math.inf
+            if not dk > thr:
+                x += 1
+                continue
+            best = dk
+            at = x
+            x += 1
+            while x < size:
+                dk = dark[k, x] if not math.isnan(row[x]) else -math.inf
+                if not dk > thr:
+                    break
+                if dk > best:
+                    best = dk
+                    at = x
+                x += 1
+            fam_out[found] = k
+            peak_out[found] = at
+            found += 1
+    return dark, noise, fam_out[:found].copy(), peak_out[:found].copy()

@@ -15,7 +15,8 @@ from tileviz.vision.robust.state import PARTS, Line, RobustRun
 
 __all__ = ["Projection", "centroid", "crossings", "dips", "grout_score_numpy", "light_grout",
            "measure", "measure_parts", "midpoints", "nanmedian", "part_profiles_numpy",
-           "part_rows_numpy", "plateaus", "profiles", "project", "select_lines", "view_spans"]
+           "part_rows_numpy", "plateaus", "profile_dips_numpy", "profiles", "project",
+           "select_lines", "view_spans"]
 
 
 def light_grout(run: RobustRun, warped: np.ndarray,
@@ -184,27 +185,48 @@ def profiles(
         total[k, r : r + n] = length
         valid = length >= max(8.0, 0.15 * float(length.max()))
         prof[k, r : r + n] = np.where(valid, sums[k] / length + mean, np.nan)
-    # baseline: a grey closing (max then min filter, along each row) removes dips narrower
-    # than its window
+    dips_of = kernel.profile_dips if kernel.AVAILABLE else profile_dips_numpy
+    dark, noise, fam, peak = dips_of(prof, mean, run.closing, run.st.min_depth)
+    for sig in noise.tolist():
+        if math.isfinite(sig):
+            run.details["profile_noise"] = max(run.details.get("profile_noise", 0.0), sig)
+    return Projection(
+        y3=y3, integ=integ, pad=r, prof=prof, dark=dark, lo=lo, hi=hi, total=total,
+        fam=fam, peak=peak,
+    )
+
+
+def profile_dips_numpy(
+    prof: np.ndarray, mean: float, closing: int, min_depth: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The dips of both family profiles (rows of ``prof``, NaN where there is no data): the
+    darkness ``dark`` below a grey closing of ``closing`` samples (max then min filter along
+    each row, removing dips narrower than its window; missing data read as ``mean``), each
+    family's profile noise (robust std of its sample-to-sample steps; NaN when the family
+    has fewer than 8 samples), and the dips: the deepest sample of every run of samples
+    darker than 5 x the noise (at least ``min_depth`` / 2), as (family, padded index)
+    arrays. :func:`~tileviz.vision.robust.kernel.profile_dips` is the same computation
+    compiled (bit-identical)."""
     missing = np.isnan(prof)
     filled = np.where(missing, mean, prof).astype(np.float32)
-    kern = np.ones((1, run.closing), np.uint8)
+    kern = np.ones((1, closing), np.uint8)
     base = cv2.erode(
         cv2.dilate(filled, kern, borderType=cv2.BORDER_REPLICATE),
         kern,
         borderType=cv2.BORDER_REPLICATE,
     )
     dark = base - prof  # NaN where no data
+    noise = np.full(prof.shape[0], np.nan)
     peaks: list[tuple[int, int]] = []
-    for k in range(2):
+    for k in range(prof.shape[0]):
         ok = ~missing[k]
         if int(ok.sum()) < 8:
             continue
         diffs = np.abs(np.diff(prof[k][ok]))
         kth = diffs.size // 2
         sig = 1.4826 * float(np.partition(diffs, kth)[kth]) / math.sqrt(2.0)
-        run.details["profile_noise"] = max(run.details.get("profile_noise", 0.0), sig)
-        thr = max(0.5 * run.st.min_depth, 5.0 * sig)
+        noise[k] = sig
+        thr = max(0.5 * min_depth, 5.0 * sig)
         dk = np.where(ok, dark[k], -np.inf)
         above = dk > thr
         if not above.any():
@@ -214,11 +236,8 @@ def profiles(
         ends = np.flatnonzero(edges == -1)
         for s0, s1 in zip(starts.tolist(), ends.tolist(), strict=True):
             peaks.append((k, s0 + int(np.argmax(dk[s0:s1]))))
-    return Projection(
-        y3=y3, integ=integ, pad=r, prof=prof, dark=dark, lo=lo, hi=hi, total=total,
-        fam=np.array([k for k, _ in peaks], np.intp),
-        peak=np.array([p for _, p in peaks], np.intp),
-    )
+    return (dark, noise, np.array([k for k, _ in peaks], np.intp),
+            np.array([p for _, p in peaks], np.intp))
 
 
 def dips(run: RobustRun, proj: Projection, *, every: bool = False) -> list[list[Line]]:
