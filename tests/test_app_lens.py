@@ -49,6 +49,11 @@ def test_the_lens_camera_shows_raw_and_rectified_images_first(lens_run) -> None:
     assert shapes["rectified"][:2] == shapes["camera"][:2] == (cam.height, cam.width)
     rec = s.shown_entry().record
     assert rec.truth_inside() and rec.status == "contracted"
+    # shown: the colour view (vision read the gray one); the extractor's input is gray
+    images = {name: decode_jpeg(data).astype(int) for name, data in s.shown_entry().images}
+    for name in ("camera", "rectified"):
+        assert abs(images[name][..., 0] - images[name][..., 2]).mean() > 10
+    assert abs(images["input"][..., 0] - images["input"][..., 2]).mean() < 2
     # without the stage images, none of them is kept
     s.apply(C.SetDisplay(False))
     s.apply(C.Step())

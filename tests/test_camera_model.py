@@ -19,12 +19,24 @@ from hypothesis import strategies as st
 from tileviz.__main__ import main as tileviz_main
 from tileviz.app.sources import DatasetReplay
 from tileviz.config import preset
-from tileviz.datasets import DatasetError, DatasetMeta, DatasetSource, read_meta
-from tileviz.datasets.camera_model import CameraModel, Rectifier, view_margin
+from tileviz.datasets import (
+    DatasetError,
+    DatasetMeta,
+    DatasetSource,
+    read_meta,
+    replay_config,
+)
+from tileviz.datasets.camera_model import (
+    TABLE_STEP,
+    CameraModel,
+    Rectifier,
+    rectified_floor_points,
+    view_margin,
+)
 from tileviz.sim.camera import FloorRenderer
 from tileviz.sim.lens import LensRenderer, mounted_camera, webcam_model
 from tileviz.types import Pose
-from tileviz.vision import extract
+from tileviz.vision import extract, to_gray
 from tileviz.vision.geometry import observation_error
 
 CFG = preset("default")
@@ -143,7 +155,7 @@ def test_rectified_views_are_within_the_widened_bound() -> None:
     used = 0
     for _ in range(25):
         pose = Pose(*rng.uniform(-5, 5, 2), rng.uniform(-math.pi, math.pi))
-        res = extract(rect(renderer.render(pose, rng=rng)), camera=cfg.camera,
+        res = extract(rect.gray(renderer.render(pose, rng=rng)), camera=cfg.camera,
                       tile_size=cfg.floor.tile_size, vision=cfg.vision)
         if res.observation is None:
             continue
@@ -164,6 +176,59 @@ def test_rectified_image_matches_the_orthographic_render() -> None:
     assert raw.shape == (480, 640, 3)
     diff = np.abs(rect(raw).astype(int) - ortho.astype(int))
     assert np.median(diff) <= 3
+    diff = np.abs(rect.gray(raw).astype(int) - to_gray(ortho).astype(int))
+    assert np.median(diff) <= 3
+
+
+def _bilinear(gray: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Bilinear interpolation of ``gray`` at raw points (u, v) in float64, rounded half to
+    even; neighbours outside the image count as 0 (OpenCV's constant border)."""
+    g = np.pad(gray.astype(np.float64), 1)
+    iu, iv = np.floor(u).astype(int), np.floor(v).astype(int)
+    fu, fv = u - iu, v - iv
+    iu, iv = iu + 1, iv + 1
+    top = g[iv, iu] + fu * (g[iv, iu + 1] - g[iv, iu])
+    bottom = g[iv + 1, iu] + fu * (g[iv + 1, iu + 1] - g[iv + 1, iu])
+    return np.clip(np.rint(top + fv * (bottom - top)), 0, 255).astype(np.uint8)
+
+
+def test_the_gray_view_is_the_exact_bilinear_sample_on_every_machine() -> None:
+    """Vision's view of a raw image: its gray levels interpolated at the model's source points
+    (to 1/512 px), exactly: OpenCV's single-precision remap gives the value of exact arithmetic,
+    so no machine (fused multiply-add or not, any vector width) gives other pixels."""
+    meta = replace(DatasetMeta.from_config(CFG), camera_model=MODEL)
+    rect = meta.rectifier()
+    floor = rectified_floor_points(CFG.camera.ppm, CFG.camera.width, CFG.camera.height,
+                                   CFG.camera.offset)
+    exact, seen = MODEL.floor_to_raw(floor.reshape(-1, 2))
+    assert seen.all() and rect.valid.all()
+    table = np.dstack([rect.map_x, rect.map_y]).reshape(-1, 2).astype(np.float64)
+    assert np.abs(table - exact).max() <= TABLE_STEP / 2 + 1e-9
+    renderer = LensRenderer(CFG.floor, CFG.camera, MODEL)
+    rng = np.random.default_rng(3)
+    for _ in range(3):
+        raw = renderer.render(Pose(*rng.uniform(-5, 5, 2), rng.uniform(-3, 3)), rng=rng)
+        view = rect.gray(raw)
+        assert view.shape == (CFG.camera.height, CFG.camera.width) and view.dtype == np.uint8
+        assert np.array_equal(view, rect.gray(to_gray(raw)))  # colour or gray raw: same view
+        assert np.array_equal(view, _bilinear(to_gray(raw), rect.map_x.astype(np.float64),
+                                              rect.map_y.astype(np.float64)))
+
+
+def test_gray_then_remap_is_remap_then_gray_up_to_rounding() -> None:
+    """Gray conversion and bilinear interpolation are both linear: converting the raw image
+    first (what vision reads) or the rectified colour view (what the demo shows) differs by
+    rounding only, at most one gray level (docs/dataset-format.md)."""
+    meta = replace(DatasetMeta.from_config(CFG), camera_model=MODEL)
+    rect = meta.rectifier()
+    renderer = LensRenderer(CFG.floor, CFG.camera, MODEL)
+    rng = np.random.default_rng(4)
+    u, v = rect.map_x.astype(np.float64), rect.map_y.astype(np.float64)
+    for _ in range(3):
+        raw = renderer.render(Pose(*rng.uniform(-5, 5, 2), rng.uniform(-3, 3)), rng=rng)
+        colour = np.dstack([_bilinear(raw[..., c], u, v) for c in range(3)])
+        diff = np.abs(rect.gray(raw).astype(int) - to_gray(colour).astype(int))
+        assert diff.max() <= 1 and diff.mean() < 0.5
 
 
 def _rows(path: Path) -> list[list[str]]:
@@ -211,9 +276,44 @@ def test_server_dataset_source_rectifies_as_replay_does(lens_run: Path) -> None:
     frame = next(source)
     assert np.array_equal(frame.image, next(iter(DatasetSource(lens_run, rectify=False))).image)
     assert source.rectifier is not None
-    view = source.rectifier(frame.image)
-    assert view.shape == (CFG.camera.height, CFG.camera.width, 3)
+    view = source.rectifier.gray(frame.image)
+    assert view.shape == (CFG.camera.height, CFG.camera.width)
     assert np.array_equal(view, next(iter(DatasetSource(lens_run))).image)
+
+
+def test_replay_the_server_and_extract_give_the_same_observations(
+        lens_run: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """One camera_model dataset through the three entry points: ``replay`` (one process and
+    its workers), the server's dataset replay and ``extract --camera-model``: vision reads the
+    same gray view everywhere, so every frame's observation is the same to the last bit."""
+    from tileviz.app import commands as C
+    from tileviz.app.session import Session, SessionOptions
+    from tileviz.pipeline.replay import replay
+
+    frames = 6
+    by_replay: dict[str, list[dict]] = {}
+    for jobs in (1, 2):
+        got: list[dict] = []
+        replay(lens_run, out=tmp_path / f"r{jobs}.csv", jobs=jobs,
+               on_frame=lambda rec, got=got: got.append(rec.vision.as_dict()))
+        by_replay[str(jobs)] = got[:frames]
+    s = Session(replay_config(read_meta(lens_run)),
+                SessionOptions(out_dir=tmp_path, interactive=True, dataset=lens_run))
+    served = []
+    for _ in range(frames):
+        s.apply(C.Step())
+        served.append(s.shown_entry().record.vision.as_dict())
+    s.close()
+    names = [r[2] for r in _rows(lens_run / "frames.csv")[:frames]]
+    capsys.readouterr()
+    assert tileviz_main(["extract", *(str(lens_run / n) for n in names), "--json",
+                         "--camera-model", str(lens_run / "meta.json")]) == 0
+    extracted = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    keys = ("y1", "y2", "y3", "accepted", "reason", "lines", "position_error", "heading_error")
+    assert sum(d["accepted"] for d in extracted) >= frames - 1
+    for results in (by_replay["1"], by_replay["2"], served):
+        assert [{k: d[k] for k in keys} for d in results] == [
+            {k: d[k] for k in keys} for d in extracted]
 
 
 def test_a_raw_image_of_the_wrong_size_names_the_row(lens_run: Path, tmp_path: Path) -> None:

@@ -317,12 +317,19 @@ class Session:
         self._record(frame)  # a lens camera's raw image, as a robot logs it
         lens_stages: dict[str, np.ndarray] | None = None
         try:
-            if self.source.rectifier is not None:
+            shown = None
+            rect = self.source.rectifier
+            if rect is not None:
+                # vision reads the gray view, as replay does; the colour view only when shown
                 raw = frame.image
-                frame = replace(frame, image=self.source.rectifier(raw))
-                if self.runner.keep_stages:
-                    lens_stages = {"raw": raw, "rectified": frame.image}
+                frame = replace(frame, image=rect.gray(raw))
+                if self.display:
+                    shown = rect(raw)
+                    if self.runner.keep_stages:
+                        lens_stages = {"raw": raw, "rectified": shown}
             rec = self.runner.process(frame)
+            if shown is not None:  # the camera panel shows the colour view
+                rec = replace(rec, image=shown)
         except Exception as e:  # noqa: BLE001
             self._frame_failed(frame.index, str(e), missed=True)
             return None

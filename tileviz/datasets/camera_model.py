@@ -7,7 +7,9 @@ undistorted pixel is the same ray in the ideal pinhole image with ``camera_matri
 the orthographic image of ``image_width`` x ``image_height`` pixels at ``ppm`` pixels a metre
 centred on ``camera_offset`` (image up = forward, image left = left).
 
-:class:`Rectifier` computes its remap tables once; each frame then costs one ``cv2.remap``.
+:class:`Rectifier` computes its remap tables once; each frame then costs one ``cv2.remap``: of
+the gray image for vision (:meth:`Rectifier.gray`, one channel), of the colour image only where
+it is shown (:meth:`Rectifier.__call__`).
 :func:`view_margin` says how much the rectification may move a grout line in the rectified view,
 the amount the declared view bound grows by (``docs/dataset-format.md``, "Rectification and the
 view bound"). No viser, no pymunk here.
@@ -40,6 +42,12 @@ drawn from the raw samples either side of each rectified pixel's source point)."
 REPROJECTION_FACTOR = 3.0
 """The calibration's systematic error is taken as at most this many times its RMS reprojection
 error (the RMS is a mean; three of it covers the worst corners of a good calibration)."""
+TABLE_STEP = 1.0 / 256.0
+"""The gray view's remap tables hold source points rounded to this many raw pixels (a sample
+moves by at most half of it). Bilinear interpolation of 8-bit gray levels at such points is
+exact in single precision (every product and sum fits in 24 bits), so OpenCV's float remap
+gives the same pixels with or without fused multiply-add and at any vector width: on every
+machine."""
 MAX_MAGNITUDE = 1e9
 """Largest magnitude of a number in the block (as for the rest of meta.json)."""
 
@@ -210,9 +218,13 @@ class Rectifier:
     """Turns a stored raw image into the orthographic view (``width`` x ``height`` pixels at
     ``ppm`` px/m centred on ``camera_offset``, metres, robot frame).
 
-    The remap tables are computed here, once. Rectified pixels the camera does not see are
-    invalid (``valid`` False there): they are filled with the mean colour of the valid ones, a
-    flat area without edges, so they carry no evidence of a grout line.
+    The remap tables are computed here, once. :meth:`gray` is the view vision reads: the raw
+    image's gray levels (as :func:`tileviz.vision.to_gray` converts them) sampled bilinearly,
+    one channel. Calling the rectifier on a colour image gives the colour view, for display
+    only: its gray conversion may differ from :meth:`gray` by rounding (one gray level).
+    Rectified pixels the camera does not see are invalid (``valid`` False there): they are
+    filled with the mean level (colour) of the valid ones, a flat area without edges, so they
+    carry no evidence of a grout line.
     """
 
     def __init__(self, model: CameraModel, *, ppm: float, width: int, height: int,
@@ -221,28 +233,62 @@ class Rectifier:
         self.width, self.height = int(width), int(height)
         floor = rectified_floor_points(ppm, self.width, self.height, camera_offset)
         raw, seen = model.floor_to_raw(floor.reshape(-1, 2))
-        raw = raw.reshape(self.height, self.width, 2).astype(np.float32)
+        raw = raw.reshape(self.height, self.width, 2)
         self.valid = seen.reshape(self.height, self.width)
         raw[~self.valid] = -10.0  # outside: the border value, then filled
-        self._map1, self._map2 = cv2.convertMaps(raw[..., 0], raw[..., 1], cv2.CV_16SC2)
-        self._invalid = None if self.valid.all() else ~self.valid
+        self.scale = _max_scale(raw.astype(np.float32), self.valid)
+        """The largest number of rectified pixels one raw pixel spans (over the valid view)."""
+        table = (np.round(raw / TABLE_STEP) * TABLE_STEP).astype(np.float32)
+        # one float table per coordinate: OpenCV's fastest bilinear remap of one 8-bit channel
+        self.map_x = np.ascontiguousarray(table[..., 0])
+        """(height, width) float32: the raw column each rectified pixel samples, on the
+        :data:`TABLE_STEP` grid (-10 where invalid)."""
+        self.map_y = np.ascontiguousarray(table[..., 1])
+        """(height, width) float32: the raw row each rectified pixel samples (as ``map_x``)."""
+        self._fixed: tuple[np.ndarray, np.ndarray] | None = None  # colour: made on first use
+        invalid = np.flatnonzero(~self.valid)
+        self._invalid = invalid if invalid.size else None
         self._valid_u8 = self.valid.astype(np.uint8)
         self.seen_fraction = float(self.valid.mean())
-        self.scale = _max_scale(raw, self.valid)
-        """The largest number of rectified pixels one raw pixel spans (over the valid view)."""
 
-    def __call__(self, image: np.ndarray) -> np.ndarray:
-        """The rectified view (height x width, same channels and dtype) of a raw image of
-        ``raw_width`` x ``raw_height``; ValueError names a wrong size."""
+    def _check(self, image: np.ndarray) -> None:
         h, w = image.shape[:2]
         if (w, h) != (self.model.raw_width, self.model.raw_height):
             raise ValueError(f"raw image is {w}x{h}, camera_model says "
                              f"{self.model.raw_width}x{self.model.raw_height}")
-        out = cv2.remap(image, self._map1, self._map2, cv2.INTER_LINEAR,
+
+    def gray(self, image: np.ndarray) -> np.ndarray:
+        """The rectified gray view (height x width uint8), the pixels vision reads, of a raw
+        uint8 image of ``raw_width`` x ``raw_height``: HxW gray, or HxWx3 RGB / HxWx4 RGBA
+        converted first as :func:`tileviz.vision.to_gray` does. ValueError names a wrong size."""
+        self._check(image)
+        if image.ndim == 3 and image.shape[2] == 1:
+            image = image[..., 0]
+        if image.ndim == 3:
+            code = cv2.COLOR_RGB2GRAY if image.shape[2] == 3 else cv2.COLOR_RGBA2GRAY
+            image = cv2.cvtColor(np.ascontiguousarray(image), code)
+        out = cv2.remap(image, self.map_x, self.map_y, cv2.INTER_LINEAR,
                         borderMode=cv2.BORDER_CONSTANT)
+        return self._fill(out)
+
+    def __call__(self, image: np.ndarray) -> np.ndarray:
+        """The rectified view (height x width, same channels and dtype) of a raw image of
+        ``raw_width`` x ``raw_height``, for display (a gray image: :meth:`gray`); ValueError
+        names a wrong size."""
+        if image.ndim == 2 or (image.ndim == 3 and image.shape[2] == 1):
+            return self.gray(image)
+        self._check(image)
+        if self._fixed is None:  # fixed-point tables: OpenCV's faster path for colour
+            self._fixed = cv2.convertMaps(self.map_x, self.map_y, cv2.CV_16SC2)
+        out = cv2.remap(image, self._fixed[0], self._fixed[1], cv2.INTER_LINEAR,
+                        borderMode=cv2.BORDER_CONSTANT)
+        return self._fill(out)
+
+    def _fill(self, out: np.ndarray) -> np.ndarray:
         if self._invalid is not None:
             mean = cv2.mean(out, mask=self._valid_u8)
-            out[self._invalid] = mean[0] if out.ndim == 2 else mean[: out.shape[2]]
+            c = 1 if out.ndim == 2 else out.shape[2]
+            out.reshape(-1, c)[self._invalid] = mean[:c]
         return out
 
 

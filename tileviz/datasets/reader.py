@@ -45,7 +45,9 @@ class _Row:
 class DatasetSource:
     """Read a dataset as :class:`FrameInput` objects, validating every row as it goes.
 
-    Images may be PNG or JPEG with any names; they are returned as HxWx3 uint8 RGB.
+    Images may be PNG or JPEG with any names; they are returned as HxWx3 uint8 RGB, except
+    those of a dataset with a ``camera_model`` when ``rectify``: the rectified gray view (HxW
+    uint8, :meth:`~tileviz.datasets.camera_model.Rectifier.gray`), the pixels vision reads.
     """
 
     def __init__(self, folder: str | os.PathLike[str], *, prefetch: int = 0,
@@ -53,8 +55,8 @@ class DatasetSource:
         """``prefetch``: images decoded ahead of the frame being delivered, on a background
         thread (OpenCV's decoder releases the GIL, so decoding overlaps the caller's vision);
         0 decodes each image when its frame is asked for. Errors still arrive in row order.
-        ``rectify``: with a ``camera_model``, deliver the rectified view (True) or the raw
-        images as stored (False: the caller rectifies, e.g. to show both)."""
+        ``rectify``: with a ``camera_model``, deliver the rectified gray view (True) or the
+        raw images as stored (False: the caller rectifies, e.g. to show both)."""
         if not isinstance(prefetch, int) or prefetch < 0:
             raise ValueError(f"prefetch must be an integer >= 0, got {prefetch!r}")
         self.prefetch = prefetch
@@ -159,7 +161,8 @@ class DatasetSource:
                 yield _Row(lineno, index, t, rec["image"], speed, yaw_rate, compass, truth)
 
     def load_image(self, name: str, where: str) -> np.ndarray:
-        """Read one image as HxWx3 RGB uint8; errors name the row and the file."""
+        """Read one image as HxWx3 RGB uint8 (rectified: HxW gray, see the class docstring);
+        errors name the row and the file."""
         path = (self.folder / name)
         if not path.is_file():
             raise DatasetError(f"{where}: image {name!r} is missing")
@@ -180,7 +183,7 @@ class DatasetSource:
         if cm is not None and self.rectify:  # to the orthographic view; tables made once
             if self._rectifier is None:
                 self._rectifier = self.meta.rectifier()
-            image = self._rectifier(image)  # type: ignore[misc]
+            image = self._rectifier.gray(image)  # type: ignore[union-attr]
         return image
 
     def _jobs(self) -> Iterator[tuple[_Row, Odometry | None, str]]:

@@ -134,8 +134,8 @@ def main(command: str, argv: list[str]) -> int:
         for path in args.images:
             try:
                 image = read_image(path)
-                if rectify is not None:
-                    image = rectify(image)
+                if rectify is not None:  # the gray view, as replay and the server read it
+                    image = rectify.gray(image)
                 cfg = _config(args, image, base)
                 h, w = image.shape[:2]
                 if (w, h) != (cfg.camera.width, cfg.camera.height):
