@@ -1,18 +1,24 @@
-"""The per-part measurement of :func:`~tileviz.vision.robust.profiles.measure_parts` compiled with
-numba: one loop per part profile instead of some two hundred numpy passes over all of them.
+"""The robust extractor's loops over profile samples, compiled with numba: one loop per dip or
+per part profile instead of many numpy passes over all of them. Each kernel computes exactly (bit
+for bit) what its numpy counterpart in :mod:`~tileviz.vision.robust.profiles` computes:
+:func:`part_rows` (``part_rows_numpy``: plateaus, crossings, centroid and midpoints of every part
+profile), :func:`part_profiles` (``part_profiles_numpy``: the part profiles from the integral
+image), :func:`grout_score` (``grout_score_numpy``: a family's term of the light-grout test),
+and :func:`profile_dips` (``profile_dips_numpy``: darkness, noise and dips of the family
+profiles).
 
-:func:`part_rows` returns exactly (bit for bit) what
-:func:`~tileviz.vision.robust.profiles.part_rows_numpy` returns: every operation is the numpy
-one in the same order, sums over a profile are numpy's pairwise sums (:func:`_pairwise`, the
-order ``ndarray.sum`` adds a contiguous row in), medians sort the finite values, ``argmax``
-takes the first maximum, ``np.minimum`` / ``np.maximum`` / ``np.clip`` propagate NaN. Division
-follows numpy's error model (x / 0 is inf or NaN, no exception), as under the extractor's
-``np.errstate``. ``tests/test_vision_speed_paths.py`` checks the equality on every floor
-family.
+Every operation is the numpy one in the same order: sums over a profile are numpy's pairwise
+sums (:func:`_pairwise`, the order ``ndarray.sum`` adds a contiguous row in), medians sort the
+finite values, ``argmax`` takes the first maximum, ``np.minimum`` / ``np.maximum`` / ``np.clip``
+propagate NaN, float32 stays float32 where numpy keeps it. Division follows numpy's error model
+(x / 0 is inf or NaN, no exception), as under the extractor's ``np.errstate``.
+``tests/test_vision_speed_paths.py`` checks the equality on every floor family and on random
+profiles.
 
-Without numba (``AVAILABLE`` false) the extractor uses the numpy version; the results are the
-same. The compiled code is cached next to this module (``cache=True``): only the first call
-in a fresh checkout pays the compile time (a few seconds).
+Without numba (``AVAILABLE`` false) the extractor uses the numpy versions; the results are the
+same. The compiled code is cached next to this module (``cache=True``): only the first robust
+extraction after an install (or after a change of this file) compiles the kernels, which takes
+seconds of CPU; a later process loads them from the cache.
 """
 
 from __future__ import annotations
