@@ -61,11 +61,12 @@ def variant(text: str) -> tuple[str, MclConfig]:
         return text, calibrated_config()
     name, _, kv = text.partition(":")
     cfg = calibrated_config()
+    changes = {}
     for item in filter(None, kv.split(",")):
         k, _, v = item.partition("=")
         cur = getattr(cfg, k)
-        cfg = replace(cfg, **{k: type(cur)(float(v)) if not isinstance(cur, str) else v})
-    return name, cfg
+        changes[k] = type(cur)(float(v)) if not isinstance(cur, str) else v
+    return name, replace(cfg, **changes)
 
 
 def main() -> None:

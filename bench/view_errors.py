@@ -6,7 +6,8 @@ For each preset and run (simulator seed 100 + r, so not the evaluation's seeds 0
 drives as in ``tileviz evaluate``; every frame's view (the configured extractor, robust by
 default) is compared with the exact view of the true pose (``tileviz.vision.observation_error``)
 and normalised by its declared bound. Prints the error percentiles, the share outside the bound,
-the lag-1 correlation over consecutive frames and the fitted Student-t
+the lag-1 correlation over consecutive frames, the slow part of the autocorrelation (share and
+decay, ``fit_slow_component``) and the fitted Student-t
 (``tileviz.baselines.errormodel``); ``--write`` stores the model where the calibrated MCL reads
 it (``tileviz/baselines/view_error_model.json``). Rerun with ``--write`` whenever the extractor
 changes.
@@ -76,10 +77,11 @@ def main() -> None:
         return f"Student-t nu = {s.nu:g}, scale = {s.scale:.4f}"
 
     print(f"fit over {model.samples} views ({time.perf_counter() - t0:.0f} s):")
-    print(f"  position: {t(model.position)}; lag-1 correlation {model.correlation_position:.3f} "
-          f"(variance x {model.inflation('position'):.2f})")
-    print(f"  heading:  {t(model.heading)}; lag-1 correlation {model.correlation_heading:.3f} "
-          f"(variance x {model.inflation('heading'):.2f})")
+    for which in ("position", "heading"):
+        a, r = getattr(model, f"slow_{which}")
+        print(f"  {which}: {t(getattr(model, which))}; lag-1 correlation "
+              f"{getattr(model, f'correlation_{which}'):.3f}; slow part: share {a:.3f}, decay "
+              f"{r:.4f} a frame (variance of the mean x {model.inflation(which):.2f})")
     print(f"  outlier probability {model.outlier_probability:.4f}")
     gauss = [math.sqrt(np.nanmean(np.concatenate([r[:, i] for r in runs]) ** 2)) for i in (0, 2)]
     print(f"  (Gaussian rms: position {gauss[0]:.4f}, heading {gauss[1]:.4f})")

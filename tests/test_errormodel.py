@@ -1,4 +1,5 @@
-"""The measured view error model: Student-t fit, lag-1 correlation, its file."""
+"""The measured view error model: Student-t fit, lag-1 correlation, the slow part of the
+autocorrelation and its variance factor, its file."""
 
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ from tileviz.baselines.errormodel import (
     MIN_OUTLIER_PROBABILITY,
     StudentT,
     ViewErrorModel,
+    fit_slow_component,
     fit_student_t,
     fit_view_errors,
     lag1_correlation,
@@ -64,6 +66,35 @@ def test_lag1_correlation_of_an_ar1_sequence(rho, seed):
     assert lag1_correlation(runs) == pytest.approx(rho, abs=0.05)
 
 
+@settings(max_examples=5, deadline=None)
+@given(st.floats(0.3, 0.9), st.floats(0.9, 0.98), st.integers(0, 2**32 - 1))
+def test_slow_part_of_white_noise_plus_a_drifting_bias(share, decay, seed):
+    """Errors = white noise + a slowly drifting bias (an AR(1) of decay r carrying the share a
+    of the variance), as the extractor's are: the fit finds (a, r), and the variance factor is
+    that of the mean of such a sequence, far above the AR(1) factor of the lag-1 correlation."""
+    rng = np.random.default_rng(seed)
+    runs = []
+    for _ in range(20):
+        n = 3000
+        b = np.empty(n)
+        b[0] = rng.normal()
+        for k in range(1, n):
+            b[k] = decay * b[k - 1] + math.sqrt(1 - decay * decay) * rng.normal()
+        runs.append(math.sqrt(share) * b + math.sqrt(1 - share) * rng.normal(size=n))
+    a, r = fit_slow_component(runs)
+    assert a == pytest.approx(share, abs=0.08)
+    assert r == pytest.approx(decay, abs=0.01)
+    z = np.stack([np.stack([e, e, e], axis=1) for e in runs])
+    m = fit_view_errors(list(0.05 * z))
+    expected = (1 - share) + share * (1 + decay) / (1 - decay)
+    assert m.inflation("position") == pytest.approx(expected, rel=0.3)
+    # the batch-means variance of long blocks agrees with the factor
+    blocks = np.concatenate([e.reshape(-1, 1000).mean(axis=1) for e in runs])
+    assert 1000 * float(np.mean(blocks ** 2)) == pytest.approx(expected, rel=0.35)
+    rho = lag1_correlation(runs)
+    assert m.inflation("position") > 1.5 * (1 + rho) / (1 - rho)
+
+
 def test_fit_counts_views_outside_the_bound_as_outliers_and_widens_for_correlation():
     rng = np.random.default_rng(1)
     run = rng.normal(0.0, 0.1, (5000, 3))
@@ -73,6 +104,7 @@ def test_fit_counts_views_outside_the_bound_as_outliers_and_widens_for_correlati
     assert m.outlier_probability == pytest.approx(0.02, abs=0.002)
     assert m.position.scale == pytest.approx(0.1, rel=0.05)
     assert m.inflation("position") == pytest.approx(1.0, abs=0.1)  # independent frames
+    assert m.slow_position is not None and m.slow_position[0] < 0.05
     clean = fit_view_errors([rng.normal(0.0, 0.1, (2000, 3))])
     assert clean.outlier_probability == MIN_OUTLIER_PROBABILITY
 
@@ -82,7 +114,16 @@ def test_model_file_round_trip_and_bad_files(tmp_path):
     p = tmp_path / "m.json"
     p.write_text(m.to_json())
     assert load_view_error_model(p) == m
-    assert m.inflation("position") == pytest.approx(19.0)
+    assert m.inflation("position") == pytest.approx(19.0)  # no slow part: AR(1) of rho = 0.9
+    slow = ViewErrorModel(StudentT(20.0, 0.03), StudentT(math.inf, 0.03), 0.01, 0.8, 0.7, 7,
+                          "y", slow_position=(0.7, 0.98), slow_heading=(0.5, 0.9))
+    p.write_text(slow.to_json())
+    assert load_view_error_model(p) == slow
+    assert slow.inflation("position") == pytest.approx(0.3 + 0.7 * 99.0)
+    assert slow.inflation("heading") == pytest.approx(0.5 + 0.5 * 19.0)
+    with pytest.raises(ValueError, match="slow_position"):
+        ViewErrorModel(StudentT(20.0, 0.03), StudentT(math.inf, 0.03), 0.01,
+                       slow_position=(0.7, 1.0))
     with pytest.raises(ValueError, match="cannot read the view error model"):
         load_view_error_model(tmp_path / "missing.json")
     p.write_text('{"position": {"nu": 3}}')

@@ -112,7 +112,7 @@ def parser() -> Parser:
                    help="also run the Monte Carlo Localization baseline, calibrated to the "
                         "views' measured errors (orange particles)")
     p.add_argument("--particles", type=_int_range("--particles", 10, 100_000), default=1000,
-                   help="MCL's largest particle count (it keeps 100 to this many; default 1000)")
+                   help="MCL's largest particle count (it keeps 500 to this many; default 1000)")
     return p
 
 

@@ -16,13 +16,23 @@ One :meth:`MCL.step` per frame, in the localizer's order (:mod:`tileviz.pipeline
    theta' = theta + w dt, (x, y)' = (x, y) + v dt sinc(w dt / 2) (cos, sin)(theta + w dt / 2)
    (the exact chord of the arc; the interval prediction of docs/method.md encloses it).
 2. **Injection** (optional recovery, ``inject_rate`` > 0): that share of the particles, picked at
-   random, is replaced by new poses with the mean weight. Each is drawn uniformly in the
-   ``region`` box given to the constructor (for example the room, heading in [-pi, pi)); when the
-   frame has a view it is then moved onto the view (sensor resetting, Lenser and Veloso 2000):
-   heading y3 + m pi/2 (m the branch nearest the compass, or random without one), camera centre
-   R(m pi/2) (y1, y2) on the lattice copy nearest the drawn pose's camera centre, both plus the
-   view's Gaussian noise, robot point behind it through the lever arm. Uniform draws alone almost
-   never land within the view's few millimetres, so they would not recover from a kidnap.
+   random, is replaced by new poses with the mean weight. Each starts from an anchor: with
+   ``inject_anchor = "region"`` a pose drawn uniformly in the ``region`` box given to the
+   constructor (for example the room, heading in [-pi, pi)), with ``"cloud"`` the replaced
+   particle itself. When the frame has a view it is then moved onto the view (sensor resetting,
+   Lenser and Veloso 2000): heading y3 + m pi/2 (m the branch nearest the compass for region
+   anchors, or random without one; the branch nearest the particle's heading for cloud anchors),
+   camera centre R(m pi/2) (y1, y2) on the lattice copy nearest the anchor's camera centre, both
+   plus noise drawn from the view likelihood of step 4, robot point behind it through the lever
+   arm. Uniform draws alone almost never land within the view's few millimetres, so they would
+   not recover from a kidnap. The view is periodic (position modulo L, heading modulo pi/2): a
+   region anchor lands on any lattice copy of the view in the region, equally likely, which is
+   AMCL's global recovery but throws away which cell the cloud was in; a cloud anchor keeps the
+   cell (each particle goes to the copy nearest it), so it recovers from a kidnap of less than
+   half a tile and a view-less stretch, and follows the wrong copy after a larger kidnap. A
+   particle moved by a cloud anchor keeps the prior's say over the cell: its weight is
+   multiplied by the cloud's density ratio between its new and old place, mixed with the
+   injection probability (``MCL._moved_log_weight``).
 3. **Compass** likelihood: Gaussian in the heading residual wrapped to [-pi, pi), sigma =
    ``sigma_scale`` x ``compass_error`` (``likelihood = "measured"``: ``compass_error`` / sqrt 3).
 4. **Tile observation** likelihood, from the lattice residuals of the observation model
@@ -47,25 +57,44 @@ One :meth:`MCL.step` per frame, in the localizer's order (:mod:`tileviz.pipeline
    2003): then particles are drawn independently from the weights until their count n satisfies
    the KLD bound of the k histogram bins (``kld_bin``) they occupy, n in [``min_particles``,
    ``particles``]. Optional roughening (``roughening`` = K > 0, default off): Gaussian jitter
-   after resampling against sample impoverishment (Gordon et al. 1993). Optional AMCL recovery
-   (``alpha_slow`` < ``alpha_fast``, default off): on every frame with a view, w_avg, the view
-   likelihood (relative to its peak) averaged over the particles' prior weights, updates the
-   averages w_slow += alpha_slow (w_avg - w_slow) and w_fast += alpha_fast (w_avg - w_fast);
-   after resampling, each particle is replaced with probability max(0, 1 - w_fast / w_slow) by a
-   pose drawn as in step 2 (Thrun, Burgard and Fox, Probabilistic Robotics, table 8.3).
+   after resampling against sample impoverishment (Gordon et al. 1993), on frames with a view
+   only (the jitter is proportional to the cloud's spread, so without a view to pull the cloud
+   together it would grow the cloud geometrically, frame after frame, until it covers
+   neighbouring lattice cells). Optional AMCL recovery
+   (``alpha_slow`` < ``alpha_fast``, default off): on every frame with a view, w_avg updates the
+   averages w_slow += alpha_slow (w_avg - w_slow) and w_fast += alpha_fast (w_avg - w_fast)
+   (both start at 1 and restart at 1 on the first view the cloud explains, w_avg >= 1/2, since
+   the misfit before it was the initial box's width, not a kidnap); after resampling, each
+   particle is replaced with probability max(0, 1 - w_fast / w_slow) by a pose drawn as in
+   step 2 (Thrun, Burgard and Fox, Probabilistic Robotics, table 8.3). w_avg is the share of
+   the view the cloud explains: the probability that the view is an inlier,
+   (1 - eps) l_in / ((1 - eps) l_in + eps u) of the mixture of step 4, averaged over the
+   particles' prior weights, in [0, 1] (about 1 while the cloud tracks, about 0 when no
+   particle is near any lattice copy of the view). AMCL averages
+   the raw likelihood instead; with a likelihood a few tenths of a millimetre wide that average
+   swings by orders of magnitude between views that fit equally well, and a cloud that starts
+   wider than the likelihood (the initial box, a kidnap) would set w_slow to a value that never
+   triggers recovery, so such a filter never locks on.
 
 Calibration (:func:`calibrated_config`, what ``tileviz evaluate`` calls ``mcl``; ``MclConfig()``
 is the untuned filter, ``mcl-untuned``): the view likelihood of step 4 uses the *measured* error
 distribution of the extractor (``likelihood = "measured"``, :mod:`tileviz.baselines.errormodel`:
 a Student-t per coordinate fitted to views of simulated runs, scales in units of the declared
-bounds, widened by the variance factor (1 + rho) / (1 - rho) of the lag-1 correlation rho of
-consecutive views' errors, since the same tile edges give nearly the same error frame after
-frame; its outlier weight is the measured share of views outside their bound, at least 1 %), the
-compass likelihood the standard deviation bound / sqrt(3) of its uniform error, resampling every
-frame with roughening K = 0.2, KLD-sampling (epsilon 0.05, delta 0.01, bins 5 mm x 5 mm x
-0.005 rad, 100 to ``particles`` particles) and AMCL recovery (alpha_slow 0.001, alpha_fast 0.1,
-AMCL's recommended values). ``bench/view_errors.py --write`` refits the model after a change of
-the extractor; ``bench/mcl_calibration.py`` prints the calibration table.
+bounds, widened by the long-run variance factor of the correlated errors of consecutive views:
+the same tile edges give nearly the same error frame after frame, and the errors' autocorrelation
+is a white part plus a slow part (share about 0.7-0.8) that decays over seconds, so a filter
+that multiplies the views' likelihoods as if independent averages a bias it cannot see; its
+outlier weight is the measured share of views outside their bound, at least 1 %), the compass
+likelihood the standard deviation bound / sqrt(3) of its uniform error, resampling every frame
+with roughening K = 0.2, KLD-sampling (epsilon 0.05, delta 0.01, bins 5 mm x 5 mm x 0.005 rad,
+:data:`CAL_MIN_PARTICLES` to ``particles`` particles) and AMCL recovery (alpha_slow 0.001,
+alpha_fast 0.1, AMCL's recommended values) with cloud anchors (sensor resetting in place, step 2,
+the moved particles weighted by the cloud's density: global injection would put the cloud on
+another lattice copy of the view, since every copy fits it equally well). The measured errors
+are a few hundredths of the declared bound, so the likelihood is narrower than one frame's
+odometry spread: recovery is what locks a cloud as wide as the initial box onto the view.
+``python bench/view_errors.py --write`` refits the model after a change of the extractor;
+``python bench/mcl_calibration.py`` prints the calibration table.
 
 Coverage (how the evaluation scores it): a frame is *covered* when the true (x, y) lies inside the
 95 % confidence ellipse of the particle mean and covariance in (x, y): the squared Mahalanobis
@@ -93,20 +122,29 @@ from tileviz.baselines.errormodel import (
 from tileviz.core.constants import HALF_PI, TWO_PI
 from tileviz.types import Box, Observation, Odometry, SensorBounds
 
-__all__ = ["CALIBRATION_LEVELS", "CHI2_2D_95", "LIKELIHOODS", "MCL", "MOTION_NOISES", "MclConfig",
+__all__ = ["CALIBRATION_LEVELS", "CAL_MIN_PARTICLES", "CHI2_2D_95", "INJECT_ANCHORS", "LIKELIHOODS",
+           "MCL", "MOTION_NOISES", "MclConfig",
            "MclEstimate", "calibrated_config", "chi2_2d"]
 
 CHI2_2D_95 = -2.0 * math.log(0.05)
 """The 95 % quantile of the chi-square distribution with 2 degrees of freedom (5.991)."""
 MOTION_NOISES = ("uniform", "gaussian")
+INJECT_ANCHORS = ("region", "cloud")
 LIKELIHOODS = ("declared", "measured")
 CALIBRATION_LEVELS = (0.5, 0.9, 0.95, 0.99)
 """Nominal levels of the calibration table (the share of frames whose level ellipse holds the
 truth should match each)."""
+KDE_POINTS = 256
+"""At most this many particles make the kernel density of :meth:`MCL._moved_log_ratio`."""
 KLD_CHUNK = 256
 """KLD-sampling draws particles in chunks of at least this many (then doubling)."""
 CAL_ROUGHENING = 0.2
 """Roughening K of :func:`calibrated_config`."""
+CAL_MIN_PARTICLES = 500
+"""The fewest particles :func:`calibrated_config` keeps (KLD-sampling's ``min_particles``): with
+fewer, the cloud's covariance, estimated from a few tens of effective particles under a
+likelihood a few tenths of a millimetre wide, is too noisy for its ellipses to hold the truth
+as often as they say."""
 MIN_POSITION_SIGMA = 1e-4
 """Floor on the position likelihood sigma, metres (a declared bound of 0 would divide by 0)."""
 MIN_HEADING_SIGMA = 1e-4
@@ -180,6 +218,12 @@ class MclConfig:
     ``inject_rate``; needs a region) with probability max(0, 1 - w_fast / w_slow)."""
     alpha_fast: float = 0.0
     """AMCL recovery: smoothing rate of the short-term average, > ``alpha_slow``."""
+    inject_anchor: str = "region"
+    """Where injected poses (``inject_rate`` and AMCL recovery) are drawn before they are moved
+    onto the view: ``region``, uniformly in the constructor's region (AMCL's global injection;
+    on a periodic floor it lands on every lattice copy of the view); ``cloud``, each replaced
+    particle itself (sensor resetting in place: the view's lattice copy and heading branch
+    nearest the particle, so the cloud keeps the cells it believes in; no region needed)."""
     seed: int = 0
     """Seed of the filter's random generator."""
 
@@ -204,6 +248,9 @@ class MclConfig:
             raise ValueError(f"inject_rate must be in [0, 1], got {self.inject_rate!r}")
         if isinstance(self.seed, bool) or int(self.seed) != self.seed or self.seed < 0:
             raise ValueError(f"seed must be an integer >= 0, got {self.seed!r}")
+        if self.inject_anchor not in INJECT_ANCHORS:
+            raise ValueError(f"inject_anchor must be one of {INJECT_ANCHORS}, "
+                             f"got {self.inject_anchor!r}")
         if self.likelihood not in LIKELIHOODS:
             raise ValueError(f"likelihood must be one of {LIKELIHOODS}, got {self.likelihood!r}")
         if self.view_model is not None and not isinstance(self.view_model, ViewErrorModel):
@@ -233,11 +280,13 @@ class MclConfig:
 def calibrated_config(particles: int = 2000, seed: int = 0,
                       view_model: ViewErrorModel | None = None) -> MclConfig:
     """The calibrated MCL (module docstring, "Calibration"): the measured view likelihood,
-    roughening, KLD-sampling between 100 and ``particles`` particles and AMCL recovery."""
+    roughening, KLD-sampling between :data:`CAL_MIN_PARTICLES` and ``particles`` particles and
+    AMCL recovery with cloud anchors."""
     return MclConfig(particles=particles, likelihood="measured", view_model=view_model,
                      resample_threshold=1.0, roughening=CAL_ROUGHENING,
-                     kld_epsilon=0.05, kld_delta=0.01, min_particles=100,
-                     alpha_slow=0.001, alpha_fast=0.1, seed=seed)
+                     kld_epsilon=0.05, kld_delta=0.01,
+                     min_particles=min(CAL_MIN_PARTICLES, particles),
+                     alpha_slow=0.001, alpha_fast=0.1, inject_anchor="cloud", seed=seed)
 
 
 @dataclass(frozen=True)
@@ -335,11 +384,14 @@ class MCL:
                 raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
             self.config = replace(self.config, seed=int(seed))
         self.region = _box_array("region", region) if region is not None else None
-        if self.config.inject_rate > 0 and self.region is None:
-            raise ValueError("inject_rate > 0 needs a region box to draw injected particles in")
         cfg = self.config
-        if cfg.recovery and self.region is None:
-            raise ValueError("alpha_slow > 0 needs a region box to draw injected particles in")
+        if cfg.inject_anchor == "region" and self.region is None:
+            if cfg.inject_rate > 0:
+                raise ValueError(
+                    "inject_rate > 0 needs a region box to draw injected particles in")
+            if cfg.recovery:
+                raise ValueError(
+                    "alpha_slow > 0 needs a region box to draw injected particles in")
         self.rng = np.random.default_rng(cfg.seed)
         self.view_model: ViewErrorModel | None = None
         if cfg.likelihood == "measured":
@@ -365,7 +417,8 @@ class MCL:
         self._particles = self._uniform(b, self.n)
         self._logw = np.full(self.n, -math.log(self.n))
         self._ref_heading = 0.5 * (b[4] + b[5])
-        self._w_slow = self._w_fast = 0.0
+        self._w_slow = self._w_fast = 1.0
+        self._locked = False
 
     @property
     def particles(self) -> np.ndarray:
@@ -415,14 +468,21 @@ class MCL:
         injected = 0
         cfg = self.config
         view = (y1, y2, y3, ep, eh) if observation is not None else None
-        if cfg.inject_rate > 0 and self.region is not None:
+        if cfg.inject_rate > 0:
             injected = int(self.rng.binomial(self.n, cfg.inject_rate))
             if injected:
                 idx = self.rng.choice(self.n, size=injected, replace=False)
                 p = p.copy()
-                p[idx] = self._injected(injected, view, compass)
+                new = self._injected(p[idx], view, compass)
                 logw = logw.copy()
                 logw[idx] = -math.log(self.n)  # the mean weight (weights are normalised)
+                if cfg.inject_anchor == "cloud" and view is not None:
+                    wts = np.exp(logw - logw.max())
+                    pick = self.rng.choice(self.n, size=min(self.n, KDE_POINTS),
+                                           p=wts / wts.sum())
+                    logw[idx] += self._moved_log_weight(
+                        p[pick], p[idx], new, cfg.inject_rate if self._locked else 0.0)
+                p[idx] = new
         if compass is not None:
             bound = self.bounds.compass_error
             sc = max(bound / math.sqrt(3.0) if cfg.likelihood == "measured"
@@ -431,9 +491,9 @@ class MCL:
             logw = logw - 0.5 * (r / sc) ** 2
         if observation is not None:
             ll = self._view_loglik(p, y1, y2, y3, ep, eh)
-            if cfg.recovery:
-                # the view likelihood's average over the prior weights, relative to its peak
-                self._average_likelihood(float(_logsumexp(self._logw + ll)))
+            # the view's inlier probability averaged over the prior weights
+            p_out = np.exp(np.minimum(self._log_uniform - self._view_top - ll, 0.0))
+            self._average_likelihood(float(np.dot(np.exp(self._logw), 1.0 - p_out)))
             logw = logw + ll
 
         # normalise (log-sum-exp), estimate, resample
@@ -446,9 +506,13 @@ class MCL:
         # (1 resamples every frame, even when all weights are equal)
         resampled = cfg.resample_threshold >= 1.0 or ess < cfg.resample_threshold * self.n
         if resampled:
-            p, injected = self._resample(p, w_, view, compass, injected)
+            p, injected, adj = self._resample(p, w_, view, compass, injected)
             w_ = np.full(self.n, 1.0 / self.n)
             self._logw = np.full(self.n, -math.log(self.n))
+            if adj is not None:
+                lw = self._logw + adj
+                top_w = float(lw.max())
+                self._logw = lw - (top_w + math.log(float(np.exp(lw - top_w).sum())))
         else:
             self._logw = logw - (top + math.log(total))
         p.flags.writeable = False
@@ -459,16 +523,20 @@ class MCL:
         return MclEstimate(mean=mean, cov=cov, particles=p, weights=w_, ess=ess,
                            resampled=bool(resampled), injected=injected)
 
-    def _average_likelihood(self, log_avg: float) -> None:
-        """AMCL's short- and long-term averages of the view likelihood (``log_avg``: log of this
-        frame's average over the particles, relative to the likelihood's peak, so <= ~0)."""
-        w_avg = math.exp(log_avg)
+    def _average_likelihood(self, w_avg: float) -> None:
+        """AMCL's short- and long-term averages of ``w_avg``, this frame's share of the view the
+        cloud explains (module docstring, step 6)."""
         cfg = self.config
-        if self._w_slow == 0.0:
-            self._w_slow = self._w_fast = w_avg
-        else:
-            self._w_slow += cfg.alpha_slow * (w_avg - self._w_slow)
-            self._w_fast += cfg.alpha_fast * (w_avg - self._w_fast)
+        if not self._locked and w_avg >= 0.5:
+            # the first view the cloud explains: the misfit before it was the initial box's
+            # width, not a kidnap, so the averages restart
+            self._locked = True
+            self._w_slow = self._w_fast = 1.0
+            return
+        if not cfg.recovery:
+            return
+        self._w_slow += cfg.alpha_slow * (w_avg - self._w_slow)
+        self._w_fast += cfg.alpha_fast * (w_avg - self._w_fast)
 
     @property
     def injection_probability(self) -> float:
@@ -480,10 +548,12 @@ class MCL:
 
     def _resample(self, p: np.ndarray, w: np.ndarray,
                   view: tuple[float, float, float, float, float] | None,
-                  compass: float | None, injected: int) -> tuple[np.ndarray, int]:
+                  compass: float | None, injected: int
+                  ) -> tuple[np.ndarray, int, np.ndarray | None]:
         """Resampling (module docstring, step 6): systematic, KLD-sampling of the count,
-        roughening, AMCL recovery injection. Sets ``self.n``; returns the new particles and the
-        number injected this step."""
+        roughening, AMCL recovery injection. Sets ``self.n``; returns the new particles, the
+        number injected this step and the injected particles' log-weight corrections (cloud
+        anchors, :meth:`_moved_log_weight`; None when there are none)."""
         cfg = self.config
         if cfg.kld_epsilon > 0:
             # independent draws, in chunks, until the KLD bound of the bins seen so far is met
@@ -504,16 +574,57 @@ class MCL:
             idx = self._systematic(w, n)
         self.n = n
         q = p[idx]
-        if cfg.roughening > 0:
+        if cfg.roughening > 0 and view is not None:
             q = self._roughen(q)
         prob = self.injection_probability
+        adj = None
         if prob > 0:
             k = int(self.rng.binomial(n, prob))
             if k:
                 q = q.copy() if not q.flags.writeable else q
-                q[self.rng.choice(n, size=k, replace=False)] = self._injected(k, view, compass)
+                idx = self.rng.choice(n, size=k, replace=False)
+                new = self._injected(q[idx], view, compass)
+                if cfg.inject_anchor == "cloud" and view is not None:
+                    adj = np.zeros(n)
+                    adj[idx] = self._moved_log_weight(q, q[idx], new,
+                                                      prob if self._locked else 0.0)
+                q[idx] = new
                 injected += k
-        return q, injected
+        return q, injected, adj
+
+    def _moved_log_weight(self, cloud: np.ndarray, old: np.ndarray, new: np.ndarray,
+                          prob: float) -> np.ndarray:
+        """Log-weight factor of particles moved by sensor resetting in place from ``old`` to
+        ``new``: log((1 - prob) p(new) / p(old) + prob), p a Gaussian kernel density of
+        ``cloud`` (equally weighted; at most :data:`KDE_POINTS` of them), bandwidth per
+        coordinate Scott's n^(-1/7) x the cloud's standard deviation (floored at 0.1 mm,
+        0.1 mrad), ``prob`` the injection probability once the cloud has explained a view
+        (w_avg >= 1/2, module docstring step 6) since the reset, 0 before: until then the cloud
+        is the initial box, the only knowledge of which cell the robot is in. The moved
+        particle's prior is a mixture: with probability 1 - prob the cloud was right, and a
+        particle moved onto a lattice copy of the view where the cloud had no mass (outside the
+        initial box, say) keeps almost no weight, as under the prior it was drawn from
+        (Mixture MCL weights its dual samples by the prior: Thrun, Fox, Burgard and Dellaert
+        2001); with probability prob the robot was moved (a kidnap) and the view's copy is as
+        good as the particle's place."""
+        m = cloud.shape[0]
+        if m > KDE_POINTS:
+            cloud = cloud[self.rng.choice(m, size=KDE_POINTS, replace=False)]
+        floor = np.array([MIN_POSITION_SIGMA, MIN_POSITION_SIGMA, MIN_HEADING_SIGMA])
+        h = np.maximum(cloud.std(axis=0), floor) * cloud.shape[0] ** (-1.0 / 7.0)
+
+        def log_density(x: np.ndarray) -> np.ndarray:
+            d = (x[:, None, :] - cloud[None, :, :]) / h
+            e = -0.5 * np.sum(d * d, axis=2)
+            top = e.max(axis=1)
+            return top + np.log(np.exp(e - top[:, None]).sum(axis=1))
+
+        lr = log_density(new) - log_density(old)
+        if prob <= 0.0:
+            return lr
+        if prob >= 1.0:
+            return np.zeros_like(lr)
+        return np.logaddexp(math.log1p(-prob) + lr, math.log(prob))
 
     def _kld_count(self, q: np.ndarray) -> int:
         """KLD-sampling (Fox 2003): the smallest n >= ``min_particles`` such that the first n of
@@ -537,43 +648,71 @@ class MCL:
         ok = np.flatnonzero((count >= need) & (count >= min(cfg.min_particles, q.shape[0])))
         return int(ok[0]) + 1 if ok.size else int(q.shape[0])
 
-    def _injected(self, k: int, view: tuple[float, float, float, float, float] | None,
+    def _injected(self, replaced: np.ndarray,
+                  view: tuple[float, float, float, float, float] | None,
                   compass: float | None) -> np.ndarray:
-        """k poses for injection (module docstring, step 2): uniform in the region, then, when
-        there is a view, moved onto it (sensor resetting)."""
-        q = self._uniform(self.region, k).copy()  # type: ignore[arg-type]
+        """New poses for the particles ``replaced`` ((k, 3)) (module docstring, step 2): anchors
+        uniform in the region (``inject_anchor = "region"``) or the replaced particles themselves
+        (``"cloud"``), then, when there is a view, moved onto it (sensor resetting): onto the
+        view's lattice copy nearest the anchor's camera centre, with the heading branch nearest
+        the compass (region anchors; random without a compass) or the anchor's own heading (cloud
+        anchors), plus noise drawn from the view likelihood's own distribution."""
+        k = replaced.shape[0]
+        cloud = self.config.inject_anchor == "cloud"
+        q = replaced.copy() if cloud else self._uniform(self.region, k).copy()  # type: ignore
         if view is None:
             return q
         y1, y2, y3, ep, eh = view
-        cfg = self.config
-        sp = max(cfg.sigma_scale * ep, MIN_POSITION_SIGMA)
-        sh = max(cfg.sigma_scale * eh, MIN_HEADING_SIGMA)
-        if compass is not None:
+        (nu_p, sp), (nu_h, sh) = self._view_scales(ep, eh)
+        if cloud:
+            m = np.round((q[:, 2] - y3) / HALF_PI).astype(np.int64) & 3
+        elif compass is not None:
             m = np.full(k, round((compass - y3) / HALF_PI) & 3)
         else:
             m = self.rng.integers(0, 4, size=k)
-        th = y3 + HALF_PI * m + sh * self.rng.standard_normal(k)
+        th = y3 + HALF_PI * m + sh * self._noise(nu_h, k)
         # the view's camera centre R(m pi/2) (y1, y2) on the lattice copy nearest the camera
-        # centre of the uniform draw, plus the view's noise; the robot point behind it
+        # centre of the anchor, plus the view's noise; the robot point behind it
         u1 = np.array([y1, -y2, -y1, y2])[m]
         u2 = np.array([y2, y1, -y2, -y1])[m]
         f, left = self.offset
         ct, st = np.cos(th), np.sin(th)
         cx = q[:, 0] + f * np.cos(q[:, 2]) - left * np.sin(q[:, 2])
         cy = q[:, 1] + f * np.sin(q[:, 2]) + left * np.cos(q[:, 2])
-        noise = sp * self.rng.standard_normal((2, k))
-        cx = cx - _wrap(cx - u1, self.L) + noise[0]
-        cy = cy - _wrap(cy - u2, self.L) + noise[1]
+        cx = cx - _wrap(cx - u1, self.L) + sp * self._noise(nu_p, k)
+        cy = cy - _wrap(cy - u2, self.L) + sp * self._noise(nu_p, k)
         q[:, 0] = cx - (f * ct - left * st)
         q[:, 1] = cy - (f * st + left * ct)
         q[:, 2] = th + TWO_PI * np.round((q[:, 2] - th) / TWO_PI)
         return q
 
+    def _noise(self, nu: float, k: int) -> np.ndarray:
+        """k standard draws of the Student-t of ``nu`` degrees of freedom (inf: normal)."""
+        if math.isinf(nu):
+            return self.rng.standard_normal(k)
+        return self.rng.standard_t(nu, size=k)
+
+    def _view_scales(self, ep: float, eh: float) -> tuple[tuple[float, float],
+                                                           tuple[float, float]]:
+        """((nu, scale m), (nu, scale rad)) of the view likelihood's position and heading
+        densities for a view of declared bounds ``ep`` m, ``eh`` rad (module docstring, step 4;
+        nu = inf: Gaussian)."""
+        if self.view_model is None:
+            cfg = self.config
+            return ((math.inf, max(cfg.sigma_scale * ep, MIN_POSITION_SIGMA)),
+                    (math.inf, max(cfg.sigma_scale * eh, MIN_HEADING_SIGMA)))
+        (nu_p, s_p), (nu_h, s_h) = self._t_pos, self._t_head
+        return ((nu_p, max(s_p * ep, MIN_POSITION_SIGMA)), (nu_h, max(s_h * eh, MIN_HEADING_SIGMA)))
+
     def _roughen(self, p: np.ndarray) -> np.ndarray:
         """Roughening after resampling (Gordon, Salmond and Smith 1993): Gaussian jitter of sigma
-        K E N^(-1/3) per coordinate, E = max - min of the resampled particles (so a few particles
-        far away, e.g. injected, blow the jitter up: use it without injection)."""
-        spread = p.max(axis=0) - p.min(axis=0)
+        K E N^(-1/3) per coordinate, E = max - min of the resampled particles, positions taken
+        modulo the tile about their median (a cloud on two lattice copies of the view jitters by
+        the spread of each copy's particles, not by the distance between the copies; a few
+        particles far away, e.g. injected from a region, still blow the jitter up)."""
+        d = p - np.median(p, axis=0)
+        d[:, :2] = _wrap(d[:, :2], self.L)
+        spread = d.max(axis=0) - d.min(axis=0)
         sigma = self.config.roughening * spread * self.n ** (-1.0 / 3.0)
         return p + sigma * self.rng.standard_normal(p.shape)
 
@@ -633,9 +772,7 @@ class MCL:
             q = -0.5 * ((r1 * r1 + r2 * r2) * (1.0 / (sp * sp)) + (r3 * r3) * (1.0 / (sh * sh)))
             peak = -1.5 * math.log(TWO_PI) - 2.0 * math.log(sp) - math.log(sh)
         else:
-            (nu_p, s_p), (nu_h, s_h) = self._t_pos, self._t_head
-            sp = max(s_p * ep, MIN_POSITION_SIGMA)
-            sh = max(s_h * eh, MIN_HEADING_SIGMA)
+            (nu_p, sp), (nu_h, sh) = self._view_scales(ep, eh)
             q = (student_t_logpdf(r1, nu_p, sp) + student_t_logpdf(r2, nu_p, sp)
                  + student_t_logpdf(r3, nu_h, sh))
             zero = np.zeros(1)
@@ -644,7 +781,8 @@ class MCL:
             q = q - peak
         qmax = q.max(axis=1)
         log_inlier = qmax + np.log(np.exp(q - qmax[:, None]).sum(axis=1)) + peak
-        top = np.logaddexp(self._log_inlier + peak, self._log_uniform)
+        top = float(np.logaddexp(self._log_inlier + peak, self._log_uniform))
+        self._view_top = top
         return np.logaddexp(self._log_inlier + log_inlier, self._log_uniform) - top
 
     def _estimate(self, p: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -668,13 +806,6 @@ class MCL:
         c[-1] = 1.0
         u = (self.rng.random() + np.arange(n)) / n
         return np.searchsorted(c, u, side="right").clip(0, w.size - 1)
-
-
-def _logsumexp(a: np.ndarray) -> float:
-    top = float(np.max(a))
-    if not math.isfinite(top):
-        return top
-    return top + math.log(float(np.exp(a - top).sum()))
 
 
 def _box_array(name: str, box: Box) -> np.ndarray:

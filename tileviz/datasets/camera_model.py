@@ -46,8 +46,8 @@ TABLE_STEP = 1.0 / 256.0
 """The gray view's remap tables hold source points rounded to this many raw pixels (a sample
 moves by at most half of it). Bilinear interpolation of 8-bit gray levels at such points is
 exact in single precision (every product and sum fits in 24 bits), so OpenCV's float remap
-gives the same pixels with or without fused multiply-add and at any vector width: on every
-machine."""
+(4.11 or later) gives the same pixels with or without fused multiply-add and at any vector
+width: on every machine."""
 MAX_MAGNITUDE = 1e9
 """Largest magnitude of a number in the block (as for the rest of meta.json)."""
 

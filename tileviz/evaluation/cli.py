@@ -6,6 +6,7 @@ import os
 import sys
 from pathlib import Path
 
+from tileviz.baselines.mcl import CAL_MIN_PARTICLES
 from tileviz.cliutil import (
     CliError,
     Parser,
@@ -122,7 +123,8 @@ def main(command: str, argv: list[str]) -> int:
         notes = [f"MCL (untuned): {args.particles} particles, likelihood sigma = "
                  f"{args.mcl_sigma_scale} x the declared bounds, injection rate "
                  f"{args.mcl_inject}; MCL (calibrated): the measured view error model, "
-                 f"roughening, KLD-sampling of 100 to {args.particles} particles, AMCL recovery "
+                 f"roughening, KLD-sampling of {min(CAL_MIN_PARTICLES, args.particles)} to "
+                 f"{args.particles} particles, AMCL recovery with sensor resetting in place "
                  f"(tileviz/baselines/mcl.py); "
                  f"{args.runs} run(s) of {args.duration:g} s per scenario, seeds {args.seed}.."
                  f"{args.seed + args.runs - 1}.",

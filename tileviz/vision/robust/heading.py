@@ -9,7 +9,7 @@ import numpy as np
 
 from tileviz.vision.robust.state import Fail, RobustRun
 
-__all__ = ["first_heading"]
+__all__ = ["first_heading", "lattice_headings", "lattice_power"]
 
 
 def first_heading(run: RobustRun, dx: np.ndarray, dy: np.ndarray) -> float:
@@ -50,3 +50,54 @@ def first_heading(run: RobustRun, dx: np.ndarray, dy: np.ndarray) -> float:
     run.details["orientation_share"] = float(wn.sum() / max(float(wgt.sum()), 1e-9))
     # gradient directions are normal to the lines: 4 (a + pi/2) = 4 a (mod 2 pi)
     return math.atan2(float(np.dot(wn, np.sin(an))), float(np.dot(wn, np.cos(an)))) / 4.0
+
+
+def lattice_power(img: np.ndarray, period: float, angles: np.ndarray, *, detrend: bool = True
+                  ) -> np.ndarray:
+    """How strongly ``img`` (float32, its mean removed) repeats with ``period`` (px) along the two
+    directions of each of ``angles`` (rad): the row and the column means of the image turned by
+    the angle, over the central square that every turn keeps inside the view, projected on the
+    first four harmonics of the period (summed power of both); with ``detrend``, blind to a
+    quadratic trend of the light across the square."""
+    h, w = img.shape
+    side = int(min(w, h) / math.sqrt(2.0)) - 2
+    cx, cy = (w - 1) / 2.0, (h - 1) / 2.0
+    x0 = (side - 1) / 2.0
+    n = np.arange(side) - x0
+    ks = np.arange(1, 5)[:, None] * (2.0 * math.pi / period) * n[None, :]
+    basis = np.concatenate([np.cos(ks), np.sin(ks)])  # (8, side)
+    # blind to a slope and a bow of the light across the square (a lighting gradient,
+    # vignetting): the harmonics' part along 1, n, n^2 is removed
+    if detrend:
+        q, _ = np.linalg.qr(np.stack([np.ones(side), n, n * n], axis=1))
+        basis = basis - (basis @ q) @ q.T
+    basis = basis.astype(np.float32)
+    out = np.empty(angles.size)
+    for i, a in enumerate(angles.tolist()):
+        ca, sa = math.cos(a), math.sin(a)
+        m = np.array([[ca, -sa, cx - x0 * ca + x0 * sa], [sa, ca, cy - x0 * sa - x0 * ca]])
+        turned = cv2.warpAffine(img, m, (side, side), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP)
+        pr = basis @ turned.mean(axis=1)
+        pc = basis @ turned.mean(axis=0)
+        out[i] = float(pr @ pr) + float(pc @ pc)
+    return out
+
+
+def lattice_headings(run: RobustRun) -> list[float]:
+    """Headings (rad, modulo pi/2) at which the view repeats most strongly with the tile
+    period in both directions (:func:`lattice_power`), blind to a trend of the light and not:
+    every 0.01 rad on the image at half size, then every 0.002 rad around the best at full
+    size. Used when the gradient directions of :func:`first_heading` lead to no lattice
+    (texture can outvote the grout, blur and uneven light can hide it)."""
+    img = run.gray.astype(np.float32)
+    img -= float(img.mean())
+    small = cv2.resize(img, None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA)
+    coarse = np.arange(-0.25 * math.pi, 0.25 * math.pi, 0.01)
+    out = []
+    for detrend in (True, False):
+        pw = lattice_power(small, 0.5 * run.lp, coarse, detrend=detrend)
+        best = float(coarse[int(np.argmax(pw))])
+        fine = best + np.arange(-0.012, 0.0121, 0.002)
+        pw = lattice_power(img, run.lp, fine, detrend=detrend)
+        out.append(float(fine[int(np.argmax(pw))]))
+    return out
