@@ -4,14 +4,18 @@ them alike).
 
     python bench/bench_page_parts.py [--window 4] [--repeat 2] CONFIG [CONFIG ...]
 
-A CONFIG is ``full`` or ``+``-joined parts to leave out or change:
+A CONFIG is ``full``, ``bare`` (not the live page: a bare viser page whose one lit box moves 20
+times a second, as ``bench/bench_page.py --bare --box noenv --moving`` measures it, loaded in the
+same browser tab in turn with the live page: the reference to read the live page's rate against
+under the same load) or ``+``-joined parts to leave out or change:
 ``hide-LAYER`` (a scene layer: floor, grid, robot, footprint, truth, prediction, boxes, wedge,
-setpoint, path, trails, particles), ``no-images`` (camera and stage panels), ``no-inset``,
+setpoint, path, trails, particles), ``show-LAYER`` (a layer that is off by default, e.g.
+``show-floor``: the floor texture), ``no-images`` (camera and stage panels), ``no-inset``,
 ``no-status`` (the readouts and controls the loop refreshes), ``no-follow`` (the view does not
-follow the robot), ``tex-N`` (a floor texture of N pixels a side instead of
+follow the robot), ``tex-N`` (with ``show-floor``: a floor texture of N pixels a side instead of
 :data:`tileviz.app.scene.TEXTURE_PIXELS`). Example::
 
-    python bench/bench_page_parts.py full tex-512 hide-floor no-images+no-inset+no-status
+    python bench/bench_page_parts.py full bare show-floor hide-grid no-images+no-inset+no-status
 
 For each configuration: frames painted a second and the CPU time of Chromium's GPU process (where
 software WebGL draws) and of all its processes per painted frame, one figure per repeat. The
@@ -22,6 +26,7 @@ by side; on a loaded machine the rates of all configurations drop together.
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import re
 import sys
@@ -62,13 +67,15 @@ class Parts:
         from tileviz.app.scene import TEXTURE_PIXELS, floor_texture
 
         parts = set() if config == "full" else set(config.split("+"))
-        unknown = {p for p in parts if p not in self.saved and not p.startswith(("hide-", "tex-"))}
+        unknown = {p for p in parts
+                   if p not in self.saved and not p.startswith(("hide-", "show-", "tex-"))}
         if unknown:
             raise SystemExit(f"unknown part(s) {sorted(unknown)} in {config!r}")
         app = self.app
         for part, (obj, attr, fn) in self.saved.items():
             setattr(obj, attr, (lambda *a, **k: None) if part in parts else fn)
         hidden = {p[5:] for p in parts if p.startswith("hide-")}
+        shown = {p[5:] for p in parts if p.startswith("show-")}
         tex = next((int(p[4:]) for p in parts if p.startswith("tex-")), TEXTURE_PIXELS)
         scene = app.scene
         with app.server.atomic():
@@ -81,7 +88,8 @@ class Parts:
                 self.texture = tex
             for name, nodes in scene._nodes.items():
                 for h in nodes:
-                    h.visible = name not in hidden and scene.layers.get(name, True)
+                    h.visible = name not in hidden and (name in shown
+                                                        or scene.layers.get(name, True))
             for name, (_, outline) in scene.sets.items():
                 outline.visible = name not in hidden
             for name in ("trails", "path"):
@@ -90,6 +98,34 @@ class Parts:
                                scene.head_est] if name == "trails" else [scene.path]):
                         if h is not None:
                             h.visible = False
+
+
+class BarePage:
+    """A bare viser page: one lit box (no environment map) moving 20 times a second."""
+
+    def __init__(self) -> None:
+        import threading
+
+        import viser
+
+        self.server = viser.ViserServer(port=0, verbose=False)
+        self.server.scene.configure_default_lights(enabled=True, cast_shadow=False)
+        self.server.scene.configure_environment_map(None)
+        box = self.server.scene.add_box("/box", color=(200, 100, 100), dimensions=(0.5, 0.3, 0.1))
+        self._stop = threading.Event()
+
+        def move() -> None:
+            k = 0
+            while not self._stop.wait(0.05):
+                k += 1
+                box.position = (0.5 * math.sin(k / 20.0), 0.0, 0.0)
+
+        threading.Thread(target=move, daemon=True).start()
+        self.url = f"http://127.0.0.1:{self.server.get_port()}/"
+
+    def stop(self) -> None:
+        self._stop.set()
+        self.server.stop()
 
 
 def main() -> None:
@@ -110,6 +146,7 @@ def main() -> None:
     cv2.setNumThreads(1)
     app = App(preset("default"), SessionOptions(), port=0)
     app.start()
+    bare = BarePage() if "bare" in args.configs else None
     parts = Parts(app)
     results: dict[str, list[tuple[float, float, float]]] = {c: [] for c in args.configs}
     try:
@@ -124,21 +161,39 @@ def main() -> None:
             gpu = [q for q in pids if _kind(q) == "gpu-process"]
             for _ in range(args.repeat):
                 for config in args.configs:
-                    parts.apply(config)
-                    page.wait_for_timeout(1500)
+                    if config == "bare":
+                        page.goto(bare.url)
+                        page.wait_for_selector("canvas", timeout=120_000)
+                        page.wait_for_timeout(args.warmup * 1000)
+                    else:
+                        parts.apply(config)
+                        page.wait_for_timeout(1500)
                     g0, a0 = _cpu(gpu), _cpu(pids)
                     n, span = page.evaluate(COUNT, args.window * 1000)
                     n = max(int(n), 1)
                     results[config].append((n / span, 1e3 * (_cpu(gpu) - g0) / n,
                                             1e3 * (_cpu(pids) - a0) / n))
+                    if config == "bare":
+                        page.goto(app.url)
+                        page.wait_for_selector("canvas", timeout=120_000)
+                        page.wait_for_timeout(args.warmup * 1000)
             browser.close()
     finally:
         app.stop()
+        if bare is not None:
+            bare.stop()
     width = max(len(c) for c in args.configs)
     for config, rows in results.items():
         print(f"{config:{width}s}  frames/s " + " ".join(f"{r[0]:5.1f}" for r in rows)
               + "  | GPU process ms/frame " + " ".join(f"{r[1]:4.0f}" for r in rows)
               + "  | all ms/frame " + " ".join(f"{r[2]:4.0f}" for r in rows))
+    if "bare" in results:
+        ref = sum(r[0] for r in results["bare"]) / len(results["bare"])
+        for config, rows in results.items():
+            if config != "bare":
+                mean = sum(r[0] for r in rows) / len(rows)
+                print(f"{config:{width}s}  {mean:5.1f} frames/s = {mean / ref:.2f} x the bare "
+                      f"page's {ref:.1f}")
     print(f"load average {os.getloadavg()[0]:.1f}")
 
 

@@ -9,7 +9,15 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from tileviz.app.scene import SceneView, floor_texture, yaw_wxyz
+from tileviz.app.scene import (
+    TRAIL_WIDTH,
+    SceneView,
+    floor_texture,
+    grid_colour,
+    ribbon_centreline,
+    tile_grid,
+    yaw_wxyz,
+)
 from tileviz.config import CameraConfig, FloorConfig, preset
 from tileviz.sim.camera import FloorRenderer, floor_point
 from tileviz.types import Box, BoxSet, Pose
@@ -72,6 +80,29 @@ def test_camera_footprint_is_the_image_outline_on_the_floor(server):
     assert corners == want
 
 
+def test_the_tile_grid_draws_the_grout_lines_across_the_room(server):
+    cfg = preset("default")
+    half, size = cfg.sim.room_half_size, cfg.floor.tile_size
+    seg = tile_grid(size, half, 0.002)
+    n = len(seg) // 2
+    ks = np.arange(-half, half + size / 2, size)
+    assert np.allclose(seg[:n, 0, 0], ks) and np.allclose(seg[:n, 1, 0], ks)  # x = kL
+    assert np.allclose(seg[:n, :, 1], [-half, half])  # ... across the room
+    assert np.allclose(seg[n:, 0, 1], ks) and np.allclose(seg[n:, :, 0], [-half, half])
+    assert np.allclose(seg[:, :, 2], 0.002)
+    # a tile size that does not divide the room: the lines inside it only
+    odd = tile_grid(0.7, 2.0, 0.0)
+    assert np.allclose(odd[: len(odd) // 2, 0, 0], [-1.4, -0.7, 0.0, 0.7, 1.4])
+    # drawn as one node in the grout colour, or in the tile colour when the grout is the lighter
+    view = SceneView(server.scene, pool=1)
+    view.set_world(cfg, path=[(0.0, 0.0), (1.0, 1.0)], waypoints=[(1.0, 1.0)],
+                   setpoint_kind="lissajous")
+    assert np.allclose(view.grid.points, seg)
+    assert grid_colour(cfg.floor) == cfg.floor.grout_rgb
+    light = FloorConfig(tile_rgb=(96, 92, 86), grout_rgb=(228, 226, 220))
+    assert grid_colour(light) == (96, 92, 86)
+
+
 TRUTH = Pose(1.0, 2.0, 0.5)
 
 
@@ -132,14 +163,45 @@ def test_hidden_layers_stay_hidden(server):
     assert boxes[0].visible and outline.visible and view.body.visible
 
 
+def _cross(a: np.ndarray, b: np.ndarray) -> float:
+    """z of the cross product of two vectors' (x, y) parts."""
+    return float(a[0] * b[1] - a[1] * b[0])
+
+
 def test_trails_follow_the_past_positions(server):
     view = SceneView(server.scene, pool=1)
     truth = np.array([[0.0, 0.0], [1.0, 0.0], [np.nan, np.nan], [1.0, 1.0], [2.0, 1.0]])
     est = truth + 0.01
     view.show(record(BoxSet((Box(0, 1, 0, 1, 0, 0.1),))), truth, est)
-    seg = np.asarray(view.trail_truth.points, float)
-    drawn = [(tuple(a[:2]), tuple(b[:2])) for a, b in seg if not np.allclose(a, b)]
-    assert drawn == [((0.0, 0.0), (1.0, 0.0)), ((1.0, 1.0), (2.0, 1.0))]  # NaN breaks the line
+    v = np.asarray(view.trail_truth.vertices, float)
+    seg = ribbon_centreline(v)
+    want = np.array([[[0.0, 0.0], [1.0, 0.0]], [[1.0, 1.0], [2.0, 1.0]]])
+    drawn = np.array([s[:, :2] for s in seg if not np.allclose(s[0], s[1])])
+    assert np.allclose(drawn, want, atol=1e-6)  # NaN breaks the line
+    # each drawn segment is a flat quad TRAIL_WIDTH wide across its direction, facing up
+    quads = v.reshape(-1, 4, 3)
+    drawn_quads = [q for q, (a, b) in zip(quads, seg, strict=True) if not np.allclose(a, b)]
+    for q in drawn_quads:
+        assert np.hypot(*(q[3, :2] - q[0, :2])) == pytest.approx(TRAIL_WIDTH, abs=1e-6)
+        assert _cross(q[1] - q[0], q[2] - q[0]) > 0  # counter-clockwise seen from above
+    # the unused quads have no area (nothing drawn), and the head follows the newest segments
+    areas = [abs(_cross(q[1] - q[0], q[2] - q[0])) for q in quads]
+    assert sum(a > 0 for a in areas) == 2
+    head = ribbon_centreline(view.head_truth.vertices)
+    assert np.allclose([s[:, :2] for s in head if not np.allclose(s[0], s[1])], want, atol=1e-6)
+
+
+def test_box_outlines_draw_the_shown_boxes_edges_only(server):
+    view = SceneView(server.scene, pool=8)
+    trail = np.zeros((2, 2))
+    two = BoxSet((Box(0.0, 0.1, 0.0, 0.1, 0, 0.1), Box(1.0, 1.2, 1.0, 1.1, 0, 0.1)))
+    view.show(record(two), trail, trail)
+    _, outline = view.sets["boxes"]
+    seg = np.asarray(outline.points, float)
+    assert seg.shape == (8, 2, 3)  # 4 edges a box shown, not 4 x the pool
+    corners = {tuple(np.round(p[:2], 6)) for p in seg.reshape(-1, 3)}
+    assert corners == {(0.0, 0.0), (0.1, 0.0), (0.1, 0.1), (0.0, 0.1),
+                       (1.0, 1.0), (1.2, 1.0), (1.2, 1.1), (1.0, 1.1)}
 
 
 def test_a_click_ray_meets_the_floor_where_the_target_goes():

@@ -323,12 +323,13 @@ def test_the_mcl_baseline_runs_beside_and_its_particles_are_kept_per_frame(cfg, 
     s.close()
 
 
-def test_the_tile_grid_is_on_when_the_floor_texture_cannot_show_the_grout(tmp_path):
-    small = make(preset("seed"), tmp_path)  # 0.166 m tiles over a 24 m room
-    large = make(preset("default"), tmp_path)  # 1 m tiles over 12 m
-    assert small.layers["grid"] and not large.layers["grid"]
-    small.close()
-    large.close()
+def test_the_floor_is_its_tile_grid_and_the_texture_a_layer_to_switch_on(tmp_path):
+    for name in ("seed", "default"):
+        s = make(preset(name), tmp_path)
+        assert s.layers["grid"] and not s.layers["floor"]
+        s.apply(C.SetLayer("floor", True))
+        assert s.layers["floor"]
+        s.close()
 
 
 def test_a_lost_localizer_stays_lost_when_the_settings_change(cfg, tmp_path):

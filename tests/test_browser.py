@@ -10,6 +10,7 @@ import cv2
 import numpy as np
 import pytest
 
+from tileviz.app.scene import grid_colour
 from tileviz.app.server import App
 from tileviz.app.session import SessionOptions
 from tileviz.config import preset
@@ -30,10 +31,14 @@ wrong)."""
 
 
 def _floor_drawn(shot: np.ndarray) -> bool:
-    """Not blank: the textured floor fills the middle of the page with many shades."""
+    """Not blank: the floor's tile grid (grout-coloured lines) crosses the middle of the page,
+    with the robot and the other shapes in many shades."""
     h, w = shot.shape[:2]
     middle = shot[h // 4: 3 * h // 4, 400: w - 400]
-    return middle.std() > 8 and len(np.unique(middle.reshape(-1, 3), axis=0)) > 500
+    grout = np.array(grid_colour(preset("default").floor)[::-1])  # BGR
+    lines = (np.abs(middle.astype(int) - grout).max(axis=2) < 40).sum()
+    return (middle.std() > 8 and len(np.unique(middle.reshape(-1, 3), axis=0)) > 500
+            and lines > 500)
 
 
 def test_page_shows_the_scene_steps_and_has_the_controls(tmp_path):
@@ -66,8 +71,8 @@ def test_page_shows_the_scene_steps_and_has_the_controls(tmp_path):
             expect(page.get_by_text("frame 1,")).to_be_visible(timeout=HANG_S * 1000)
             assert (app.session.history.last, app.session.shown) == (1, 1)
 
-            # the software renderer draws the frame when it gets the CPU: wait for the textured
-            # floor (however long a loaded machine takes; the timeout only guards a hang)
+            # the software renderer draws the frame when it gets the CPU: wait for the floor's
+            # grid (however long a loaded machine takes; the timeout only guards a hang)
             for _ in range(HANG_S):
                 png = page.screenshot()
                 shot = cv2.imdecode(np.frombuffer(png, np.uint8), cv2.IMREAD_COLOR)

@@ -49,7 +49,8 @@ FAULTS = ODOMETRY_FAULTS + FAULT_KINDS
 camera's."""
 
 HELP = """
-**The scene.** The tiled floor, the robot (grey) and its camera's footprint (yellow). The **pink
+**The scene.** The tiled floor as its grout lines (the photo-like floor texture is a layer to
+switch on: slow without a GPU), the robot (grey) and its camera's footprint (yellow). The **pink
 arrow** is the true pose: only the simulator (or a dataset's ground truth) knows it.
 
 **The boxes.** **Green**: the *prediction*, every pose the odometry and the compass allow before
@@ -78,7 +79,8 @@ Orange: the Monte Carlo Localization baseline, calibrated to the views' measured
 """The page's "How to read this page" text (markdown)."""
 
 LAYER_TITLES = {
-    "floor": "Floor", "grid": "Tile grid", "robot": "Robot", "footprint": "Camera footprint",
+    "floor": "Floor texture (slow without a GPU)", "grid": "Tile grid", "robot": "Robot",
+    "footprint": "Camera footprint",
     "truth": "True pose (pink)", "prediction": "Prediction (green)",
     "boxes": "Contracted boxes (blue)", "wedge": "Heading interval", "setpoint": "Setpoint (red)",
     "path": "Path", "trails": "Trails", "particles": "MCL particles (orange)",

@@ -2,10 +2,19 @@
 
 World frame (``docs/dataset-format.md``): metres, x east, y north, z up (viser's default up
 direction). Every node is made once, with a fixed name, and then updated in place: a fixed pool
-of box nodes for the interval sets (unused ones hidden), fixed-size line-segment nodes for the
-trails and outlines, a fixed-size mesh for the heading wedge. Nothing is created per frame.
+of box nodes for the interval sets (unused ones hidden), fixed-size ribbon meshes for the trails,
+line-segment nodes for the outlines, a fixed-size mesh for the heading wedge. Nothing is created
+per frame.
 
-Layers (drawing heights, metres): floor texture z = 0, tile grid 0.002, path 0.004, trails 0.006,
+The long polylines (trails, path, waypoint loop) are flat ribbon meshes, one quad a segment, not
+viser line segments: the browser draws a line-segment node as one instance a segment, and
+without a GPU (software WebGL) each instance costs tens of microseconds a frame, so two
+1000-segment trails alone cost more than the rest of the scene's geometry
+(``bench/page_draw_profile.py``); a mesh is one draw whatever its length. Line segments remain
+for the few short outlines (footprint, arrows, box outlines: as many segments as boxes shown).
+
+Layers (drawing heights, metres): floor texture z = 0 (off by default: see
+:func:`tile_grid`), tile grid 0.002, path 0.004, trails 0.006,
 camera footprint 0.008, robot up to ~0.2, MCL particles 0.25, interval boxes above the robot at
 0.26-0.28 (the boxes of a localized robot are centimetres wide and would hide under its body),
 heading wedge 0.29, true pose arrow 0.31.
@@ -25,9 +34,9 @@ from tileviz.types import Box, BoxSet, Pose
 if TYPE_CHECKING:
     from viser import (
         BoxHandle,
-        GridHandle,
         ImageHandle,
         LineSegmentsHandle,
+        MeshHandle,
         SceneApi,
         SceneNodeHandle,
     )
@@ -35,7 +44,8 @@ if TYPE_CHECKING:
     from tileviz.app.history import ParticleView
     from tileviz.pipeline import FrameRecord
 
-__all__ = ["COLOURS", "SceneView", "floor_texture", "texture_pixels_per_tile", "yaw_wxyz"]
+__all__ = ["COLOURS", "SceneView", "floor_texture", "grid_colour", "ribbon_centreline",
+           "tile_grid", "yaw_wxyz"]
 
 COLOURS: dict[str, tuple[int, int, int]] = {
     "truth": (255, 64, 160),  # pink
@@ -54,6 +64,10 @@ COLOURS: dict[str, tuple[int, int, int]] = {
 
 TRAIL_SEGMENTS = 1000
 """Segments in each trail (the last TRAIL_SEGMENTS + 1 frames up to the shown one)."""
+TRAIL_WIDTH = 0.02
+"""Width of the trail ribbons, metres."""
+PATH_WIDTH = 0.015
+"""Width of the path and waypoint-loop ribbons, metres."""
 TRAIL_HEAD = 64
 """Segments of the trails' heads: the newest frames, re-sent with every frame shown, while the
 long trails are re-sent only now and then (``show(..., full=True)``)."""
@@ -64,10 +78,9 @@ Z_MCL = 0.25
 Z_WEDGE = 0.29
 Z_TRUTH = 0.31
 TEXTURE_PIXELS = 1024
-"""Largest side of the floor texture, pixels. The browser samples this texture for every floor
-pixel of every frame it draws: without a GPU (software WebGL) a 1600-pixel texture cost about as
-much as the rest of the scene together (``bench/bench_page_parts.py``); 1024 keeps a 1 m tile of
-the default room at 85 texture pixels, grout lines included."""
+"""Largest side of the floor texture (the ``floor`` layer, off by default), pixels: a 1 m tile of
+the default room gets 85 texture pixels, grout lines included. Without a GPU the texture's cost
+is the view's pixels it covers more than its size (``bench/page_draw_profile.py``)."""
 PATH_KINDS = ("lissajous", "dataset")
 """Setpoint kinds (``set_world``) whose path is drawn: the Lissajous lap, a dataset's true path."""
 
@@ -75,11 +88,6 @@ PATH_KINDS = ("lissajous", "dataset")
 def yaw_wxyz(theta: float) -> tuple[float, float, float, float]:
     """Quaternion (w, x, y, z) of a rotation by ``theta`` rad about +z."""
     return (math.cos(theta / 2.0), 0.0, 0.0, math.sin(theta / 2.0))
-
-
-def texture_pixels_per_tile(cfg: Config, max_pixels: int = TEXTURE_PIXELS) -> float:
-    """How many texture pixels one tile gets in :func:`floor_texture` over the room."""
-    return min(max_pixels / (2.0 * cfg.sim.room_half_size), 256.0) * cfg.floor.tile_size
 
 
 def floor_texture(floor: FloorConfig, half_size: float,
@@ -102,6 +110,31 @@ def floor_texture(floor: FloorConfig, half_size: float,
     # A camera at the origin heading north sees north up and east right (docs/dataset-format.md).
     north_up = FloorRenderer(floor, cam).floor_image(Pose(0.0, 0.0, math.pi / 2))
     return np.clip(north_up[::-1], 0, 255).astype(np.uint8)
+
+
+def tile_grid(tile_size: float, half_size: float, z: float) -> np.ndarray:
+    """The grout lines' centre lines x = kL and y = kL (L = ``tile_size``) across the room
+    [-half_size, half_size]^2 at height z, metres: segments (n, 2, 3), the lines of constant x
+    first. A few dozen line segments: the browser draws them for next to nothing, where a
+    full-room floor (a texture, or viser's grid shader) costs software WebGL about as much
+    as the rest of the page (``bench/page_draw_profile.py``)."""
+    k = np.arange(math.ceil(-half_size / tile_size - 1e-9),
+                  math.floor(half_size / tile_size + 1e-9) + 1)
+    c = k * tile_size
+    seg = np.zeros((2 * len(c), 2, 3), np.float32)
+    seg[: len(c), :, 0] = c[:, None]
+    seg[: len(c), 0, 1], seg[: len(c), 1, 1] = -half_size, half_size
+    seg[len(c):, :, 1] = c[:, None]
+    seg[len(c):, 0, 0], seg[len(c):, 1, 0] = -half_size, half_size
+    seg[:, :, 2] = z
+    return seg
+
+
+def grid_colour(floor: FloorConfig) -> tuple[int, int, int]:
+    """The tile grid's colour: the darker of the floor's grout and tile colours (the grid is
+    drawn on the page's light background, where light grout would not show)."""
+    r, g, b = min((floor.grout_rgb, floor.tile_rgb), key=lambda c: sum(c))
+    return (int(r), int(g), int(b))
 
 
 def _box_outline(b: Box, z: float) -> np.ndarray:
@@ -130,6 +163,34 @@ def _polyline_segments(points: np.ndarray, n: int, z: float) -> np.ndarray:
         seg[: len(a), 0, :2] = a
         seg[: len(a), 1, :2] = b
     return seg
+
+
+def _quad_faces(n: int) -> np.ndarray:
+    """Faces of :func:`_ribbon`'s n quads: (2n, 3) vertex indices, counter-clockwise seen from
+    above (+z), so the ribbon's front faces up."""
+    q = 4 * np.arange(n, dtype=np.uint32)[:, None]
+    return np.concatenate([q + np.array([0, 1, 2], np.uint32), q + np.array([0, 2, 3], np.uint32)])
+
+
+def _ribbon(seg: np.ndarray, width: float) -> np.ndarray:
+    """Segments (n, 2, 3) as n flat quads of ``width`` metres, one a segment: vertices (4n, 3),
+    segment k's quad at rows 4k..4k+3 (start right, end right, end left, start left of its
+    direction; faces :func:`_quad_faces`). A segment of zero length is a quad of zero area."""
+    a, b = seg[:, 0, :], seg[:, 1, :]
+    d = (b - a)[:, :2].astype(np.float64)
+    norm = np.hypot(d[:, 0], d[:, 1])
+    left = np.zeros_like(a)
+    ok = norm > 0
+    left[ok, 0] = -d[ok, 1] / norm[ok] * (width / 2.0)
+    left[ok, 1] = d[ok, 0] / norm[ok] * (width / 2.0)
+    return np.stack([a - left, b - left, b + left, a + left], axis=1).reshape(-1, 3).astype(
+        np.float32)
+
+
+def ribbon_centreline(vertices: np.ndarray) -> np.ndarray:
+    """The segments (n, 2, 3) a :func:`_ribbon` mesh's vertices (4n, 3) draw (its centre line)."""
+    q = np.asarray(vertices, np.float64).reshape(-1, 4, 3)
+    return np.stack([(q[:, 0] + q[:, 3]) / 2.0, (q[:, 1] + q[:, 2]) / 2.0], axis=1)
 
 
 class SceneView:
@@ -213,9 +274,10 @@ class SceneView:
                                         position=(0.0, 0.0, 0.07))
         self._layer("setpoint", self.setpoint)
 
-        def trail(name: str, n: int, colour: str) -> LineSegmentsHandle:
-            return s.add_line_segments(name, np.zeros((n, 2, 3), np.float32), COLOURS[colour],
-                                       thickness=2.0, thickness_units="screen")
+        def trail(name: str, n: int, colour: str) -> MeshHandle:
+            return s.add_mesh_simple(name, np.zeros((4 * n, 3), np.float32), _quad_faces(n),
+                                     color=COLOURS[colour], cast_shadow=False,
+                                     receive_shadow=False)
 
         self.trail_truth = trail("/trails/truth", TRAIL_SEGMENTS, "truth")
         self.trail_est = trail("/trails/estimate", TRAIL_SEGMENTS, "estimate")
@@ -232,9 +294,9 @@ class SceneView:
                                            thickness_units="screen", visible=False)
         self._mcl_nodes = (self.particles, self.ellipse)
         self.floor: ImageHandle | None = None
-        self.grid: GridHandle | None = None
-        self.path: LineSegmentsHandle | None = None
-        self.waypoints: LineSegmentsHandle | None = None
+        self.grid: LineSegmentsHandle | None = None
+        self.path: MeshHandle | None = None
+        self.waypoints: MeshHandle | None = None
         self._setpoint_kind = "lissajous"
         self._unknown: set[str] = set()
         """Layers hidden on the shown frame because it does not know their value (a dataset
@@ -254,25 +316,17 @@ class SceneView:
             self.floor = s.add_image("/floor", tex, 2 * half, 2 * half, format="jpeg",
                                      jpeg_quality=90, position=(0.0, 0.0, 0.0),
                                      cast_shadow=False, receive_shadow=0.3)
-            r, gr, b = cfg.floor.grout_rgb
-            g = (int(r), int(gr), int(b))
-            self.grid = s.add_grid("/grid", width=2 * half, height=2 * half,
-                                   cell_size=cfg.floor.tile_size,
-                                   section_size=cfg.floor.tile_size, cell_color=g,
-                                   section_color=g, position=(0.0, 0.0, 0.002),
-                                   shadow_opacity=0.0)
+            self.grid = s.add_line_segments(
+                "/grid", tile_grid(cfg.floor.tile_size, half, 0.002), grid_colour(cfg.floor),
+                thickness=1.5, thickness_units="screen")
             self._nodes["floor"] = [self.floor]
             self._nodes["grid"] = [self.grid]
             self._floor_key = floor_key
         pts = (np.asarray(list(path) + (list(path[:1]) if closed else []), np.float64)
                if path else np.zeros((0, 2)))
-        self.path = s.add_line_segments("/path", _polyline_segments(pts, max(len(pts) - 1, 1),
-                                                                    0.004),
-                                        COLOURS["path"], thickness=1.5, thickness_units="screen")
+        self.path = self._polyline_mesh("/path", pts, 0.004, COLOURS["path"])
         wp = np.asarray(list(waypoints) + list(waypoints[:1]), np.float64)
-        self.waypoints = s.add_line_segments(
-            "/waypoints", _polyline_segments(wp, max(len(wp) - 1, 1), 0.005),
-            COLOURS["waypoints"], thickness=2.0, thickness_units="screen")
+        self.waypoints = self._polyline_mesh("/waypoints", wp, 0.005, COLOURS["waypoints"])
         self._setpoint_kind = setpoint_kind
         cam = cfg.camera
         fw, lw = cam.height / cam.ppm, cam.width / cam.ppm  # forward and left extents, m
@@ -284,6 +338,14 @@ class SceneView:
             w.position = (0.0, sgn * cfg.sim.wheel_base / 2, 0.08)
         self.body.dimensions = (0.5, max(cfg.sim.wheel_base - 0.08, 0.1), 0.1)
         self.apply_layers(self.layers, force=True)
+
+    def _polyline_mesh(self, name: str, pts: np.ndarray, z: float,
+                       colour: tuple[int, int, int]) -> MeshHandle:
+        """A static polyline through ``pts`` (M, 2) as a ribbon mesh at height z."""
+        n = max(len(pts) - 1, 1)
+        return self.scene.add_mesh_simple(
+            name, _ribbon(_polyline_segments(pts, n, z), PATH_WIDTH), _quad_faces(n),
+            color=colour, cast_shadow=False, receive_shadow=False)
 
     # ------------------------------------------------------------------ layers
     def apply_layers(self, layers: dict[str, bool], force: bool = False) -> None:
@@ -348,13 +410,16 @@ class SceneView:
         if rec.setpoint is not None:
             self.setpoint.position = (rec.setpoint[0], rec.setpoint[1], 0.07)
         if self.layers.get("trails", True):
+            w = TRAIL_WIDTH
             if full:
-                self.trail_truth.points = _polyline_segments(trail_truth, TRAIL_SEGMENTS, 0.006)
-                self.trail_est.points = _polyline_segments(trail_est, TRAIL_SEGMENTS, 0.007)
-            self.head_truth.points = _polyline_segments(trail_truth[-TRAIL_HEAD - 1:],
-                                                        TRAIL_HEAD, 0.006)
-            self.head_est.points = _polyline_segments(trail_est[-TRAIL_HEAD - 1:], TRAIL_HEAD,
-                                                      0.007)
+                self.trail_truth.vertices = _ribbon(
+                    _polyline_segments(trail_truth, TRAIL_SEGMENTS, 0.006), w)
+                self.trail_est.vertices = _ribbon(
+                    _polyline_segments(trail_est, TRAIL_SEGMENTS, 0.007), w)
+            self.head_truth.vertices = _ribbon(
+                _polyline_segments(trail_truth[-TRAIL_HEAD - 1:], TRAIL_HEAD, 0.006), w)
+            self.head_est.vertices = _ribbon(
+                _polyline_segments(trail_est[-TRAIL_HEAD - 1:], TRAIL_HEAD, 0.007), w)
 
     def _show_mcl(self, mcl: ParticleView | None) -> None:
         on = mcl is not None and self.layers.get("particles", True)
@@ -387,9 +452,8 @@ class SceneView:
                 seg[4 * i: 4 * i + 4] = _box_outline(b, z + 0.005)
             else:
                 node.visible = False
-                if items:
-                    seg[4 * i: 4 * i + 4] = seg[0, 0]
-        outline.points = seg
+        # only the shown boxes' edges: the browser draws every segment sent, used or not
+        outline.points = seg[: 4 * max(len(items), 1)]
 
     def _show_wedge(self, hull: Box | None) -> None:
         k = WEDGE_STEPS

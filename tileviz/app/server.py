@@ -154,6 +154,10 @@ class App:
                 self.plots = Plots(server.gui)
         panel.dock_left()
         panel.set_width(380)
+        # the controls docked at the right edge, not floating over the scene: the 3-D view gets
+        # only the window's middle, which it does not share, and without a GPU every pixel of
+        # the view costs the browser on every frame (bench/bench_page_parts.py)
+        server.gui.main_panel.dock_right()
         self._panel_view = s.panel
         view_of_label = {label: view for view, label in VIEW_LABELS.items()}
 

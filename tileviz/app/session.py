@@ -32,7 +32,6 @@ import numpy as np
 from tileviz.app import commands as C
 from tileviz.app.history import Encoder, Entry, History, ParticleView
 from tileviz.app.outputs import output_path, sanitize_name
-from tileviz.app.scene import texture_pixels_per_tile
 from tileviz.config import Config, LocalizerConfig, NoiseConfig, with_floor_style
 from tileviz.pipeline import FrameLoop, FrameRecord, initial_box
 from tileviz.sim.camera import FAULT_KINDS
@@ -151,8 +150,10 @@ class Session:
         self.ended: str | None = None
         """Why the source has no more frames (a replay's end or bad row), or None."""
         self._build(cfg)
-        # the tile grid, when the floor texture is too coarse to show the grout lines
-        self.layers["grid"] = texture_pixels_per_tile(self.cfg) < 24.0
+        # the floor as its tile grid; the textured floor is a layer to switch on: without a GPU
+        # (software WebGL) a floor filling the view costs the browser as much as the rest of
+        # the page together (bench/bench_page_parts.py)
+        self.layers["floor"] = False
         if not self.source.simulator:
             self.layers["setpoint"] = False  # a dataset has none
         if o.output_file is not None:
