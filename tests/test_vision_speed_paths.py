@@ -1,6 +1,7 @@
 """The robust extractor's shortcuts change nothing: reusing one heading's warp and profiles when
 a wide grout band asks for a wider window, and measuring in parts only the dips that can be
-kept as lines, give the same result, field for field, as the full computation."""
+kept as lines, give the same result, field for field, as the full computation; the compiled
+part measurement (:mod:`tileviz.vision.robust.kernel`) gives numpy's bits."""
 
 from __future__ import annotations
 
@@ -8,12 +9,14 @@ from dataclasses import fields
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from tileviz.config import FLOOR_STYLES, VisionConfig, floor_style, preset
 from tileviz.sim.camera import FloorRenderer
 from tileviz.types import Pose
 from tileviz.vision import extract
-from tileviz.vision.robust import extractor, profiles
+from tileviz.vision.robust import extractor, kernel, profiles
 
 ROBUST = VisionConfig(extractor="robust")
 
@@ -57,3 +60,130 @@ def test_the_shortcuts_give_the_full_computation(
         for f in fields(a):
             if f.name != "timings":
                 assert _same(getattr(a, f.name), getattr(b, f.name)), (style, f.name)
+
+
+def _floor_views(n: int) -> list[tuple[np.ndarray, object, float]]:
+    """``n`` clean views of every floor family of ``bench/floorgen.py``."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
+    import floorgen
+
+    from tileviz.config import CameraConfig
+
+    out = []
+    for fam in floorgen.FAMILIES:
+        for i in range(n):
+            rng = np.random.default_rng([i, 31, len(fam)])
+            spec = floorgen.draw_floor(fam, rng)
+            img = floorgen.render(spec, *floorgen.draw_view(rng), rng)
+            cam = CameraConfig(ppm=spec.ppm, width=spec.width, height=spec.height,
+                               offset=(0.0, 0.0))
+            out.append((img, cam, spec.tile_size))
+    return out
+
+
+def _bits(a: np.ndarray) -> bytes:
+    """The array's bytes, every NaN as numpy's own (0 / 0 and math.nan differ in sign)."""
+    a = np.array(a, np.float64)
+    a[np.isnan(a)] = np.nan
+    return a.tobytes()
+
+
+@pytest.mark.skipif(not kernel.AVAILABLE, reason="numba is not installed")
+def test_the_compiled_part_measurement_is_the_numpy_one_bit_for_bit(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Every part profile the extractor measures on every floor family gives the same bits
+    (the profile from the integral image; its width, rise, contrast, centroid, midpoints,
+    standard error) from the compiled kernels as from the numpy computation, so do every
+    family's light-grout score and every profile's darkness, noise and dips, and whole
+    extractions agree field for field."""
+    views = _floor_views(2)
+    names = ("part_rows", "part_profiles", "grout_score", "profile_dips")
+    compiled = {name: getattr(kernel, name) for name in names}
+    seen: dict[str, list[tuple]] = {name: [] for name in names}
+
+    def recorder(name: str) -> object:
+        def record(*args: object) -> object:
+            seen[name].append(args)
+            return compiled[name](*args)
+        return record
+
+    for name in names:
+        monkeypatch.setattr(kernel, name, recorder(name))
+    fast = [extract(img, camera=cam, tile_size=ts, vision=ROBUST) for img, cam, ts in views]
+    assert sum(res.accepted for res in fast) >= len(views) // 2
+    assert sum(int(args[0].shape[0]) for args in seen["part_rows"]) > 100
+    for args in seen["part_rows"]:
+        for a, b in zip(compiled["part_rows"](*args), profiles.part_rows_numpy(*args),
+                        strict=True):
+            assert _bits(a) == _bits(b)
+    assert len(seen["part_profiles"]) == len(seen["part_rows"])
+    for flat, stride, *rest in seen["part_profiles"]:
+        integ = flat.reshape(-1, stride)
+        assert _bits(compiled["part_profiles"](flat, stride, *rest)) == _bits(
+            profiles.part_profiles_numpy(integ, *rest))
+    assert sum(compiled["grout_score"](*args)[0] for args in seen["grout_score"]) >= len(views)
+    for args in seen["grout_score"]:
+        used, value = compiled["grout_score"](*args)
+        used_np, value_np = profiles.grout_score_numpy(*args)
+        assert used == used_np and (not used or value.hex() == value_np.hex())
+    assert len(seen["profile_dips"]) >= len(views)
+    for args in seen["profile_dips"]:
+        for a, b in zip(compiled["profile_dips"](*args), profiles.profile_dips_numpy(*args),
+                        strict=True):
+            assert a.dtype == b.dtype and _bits(a) == _bits(b)
+    monkeypatch.setattr(kernel, "AVAILABLE", False)
+    slow = [extract(img, camera=cam, tile_size=ts, vision=ROBUST) for img, cam, ts in views]
+    for a, b in zip(fast, slow, strict=True):
+        for f in fields(a):
+            if f.name != "timings":
+                assert _same(getattr(a, f.name), getattr(b, f.name)), f.name
+
+
+@pytest.mark.skipif(not kernel.AVAILABLE, reason="numba is not installed")
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), r=st.sampled_from([12, 20, 37, 69]),
+       nan_share=st.sampled_from([0.0, 0.05, 0.3]))
+def test_the_compiled_part_measurement_matches_numpy_on_any_profile(
+    seed: int, r: int, nan_share: float
+) -> None:
+    """Random dips (any depth, width, offset, plateau step, noise, missing samples, windows
+    up to the widest): the compiled kernel and numpy agree bit for bit."""
+    rng = np.random.default_rng(seed)
+    rows = 12
+    jf = np.arange(-r, r + 1, dtype=np.float64)
+    cj = rng.uniform(-4.0, 4.0, rows)
+    hj = rng.uniform(1.5, 0.6 * r, rows)
+    wid = rng.uniform(0.5, 8.0, rows)[:, None]
+    step = rng.uniform(-40.0, 40.0, rows)[:, None]
+    pp = (120.0 + step * (jf[None, :] > cj[:, None])
+          - rng.uniform(0.0, 80.0, rows)[:, None]
+          * np.exp(-0.5 * ((jf[None, :] - cj[:, None]) / wid) ** 2)
+          + rng.normal(0.0, rng.uniform(0.0, 6.0), (rows, jf.size)))
+    pp[rng.random(pp.shape) < nan_share] = np.nan
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        fast = kernel.part_rows(pp, jf, cj, hj, r)
+        ref = profiles.part_rows_numpy(pp, jf, cj, hj, r)
+    for a, b in zip(fast, ref, strict=True):
+        assert _bits(a) == _bits(b)
+
+
+@pytest.mark.skipif(not kernel.AVAILABLE, reason="numba is not installed")
+@settings(max_examples=80, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), n=st.integers(1, 120),
+       closing=st.sampled_from([17, 35, 61]))
+def test_the_compiled_light_grout_score_matches_numpy_on_any_profile(
+    seed: int, n: int, closing: int
+) -> None:
+    """Random family sums and row lengths (some rows too short to count): the compiled
+    light-grout term and numpy / OpenCV's agree bit for bit."""
+    rng = np.random.default_rng(seed)
+    sums = rng.normal(0.0, 3000.0, n)
+    length = rng.uniform(0.0, 300.0, n)
+    used, value = kernel.grout_score(sums, length, closing)
+    used_np, value_np = profiles.grout_score_numpy(sums, length, closing)
+    assert used == used_np
+    assert not used or value.hex() == value_np.hex()

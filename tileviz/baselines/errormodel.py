@@ -220,13 +220,13 @@ class ViewErrorModel:
             d = json.loads(text)
             parts = {k: StudentT(float(d[k]["nu"]), float(d[k]["scale"]))
                      for k in ("position", "heading")}
-            slow = {k: (float(d[k][0]), float(d[k][1])) if d.get(k) is not None else None
-                    for k in ("slow_position", "slow_heading")}
+            slow_p, slow_h = ((float(d[k][0]), float(d[k][1])) if d.get(k) is not None
+                              else None for k in ("slow_position", "slow_heading"))
             return cls(**parts, outlier_probability=float(d["outlier_probability"]),
                        correlation_position=float(d.get("correlation_position", 0.0)),
                        correlation_heading=float(d.get("correlation_heading", 0.0)),
                        samples=int(d.get("samples", 0)), source=str(d.get("source", "")),
-                       **slow)
+                       slow_position=slow_p, slow_heading=slow_h)
         except (KeyError, TypeError, IndexError, json.JSONDecodeError) as e:
             raise ValueError(f"bad view error model: {e}") from None
 

@@ -667,9 +667,9 @@ class MCL:
         if cloud:
             m = np.round((q[:, 2] - y3) / HALF_PI).astype(np.int64) & 3
         elif compass is not None:
-            m = np.full(k, round((compass - y3) / HALF_PI) & 3)
+            m = np.full(k, round((compass - y3) / HALF_PI) & 3, dtype=np.int64)
         else:
-            m = self.rng.integers(0, 4, size=k)
+            m = self.rng.integers(0, 4, size=(k,))
         th = y3 + HALF_PI * m + sh * self._noise(nu_h, k)
         # the view's camera centre R(m pi/2) (y1, y2) on the lattice copy nearest the camera
         # centre of the anchor, plus the view's noise; the robot point behind it

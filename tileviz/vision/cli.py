@@ -19,9 +19,9 @@ import argparse
 import json
 import os
 import sys
-from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
@@ -29,6 +29,9 @@ import numpy as np
 from tileviz.cliutil import EXTRACTOR_HELP, CliError, Parser, positive_float, run_cli
 from tileviz.config import EXTRACTORS, PRESETS, Config, preset
 from tileviz.vision import VisionResult, extract
+
+if TYPE_CHECKING:
+    from tileviz.datasets.camera_model import Rectifier
 
 __all__ = ["main"]
 
@@ -51,7 +54,7 @@ def _parser(prog: str) -> Parser:
     return p
 
 
-def _camera_model(path: str, base: Config) -> tuple[Config, Callable[[np.ndarray], np.ndarray]]:
+def _camera_model(path: str, base: Config) -> tuple[Config, Rectifier]:
     """The configuration (over ``base``) and the rectification of a meta.json's camera model;
     CliError naming the file when it has none or is not valid."""
     from tileviz.datasets import DatasetMeta

@@ -88,7 +88,7 @@ def clear_of_lattice(run: RobustRun, seg: np.ndarray) -> np.ndarray:
 
     def offsets(px: float, py: float) -> tuple[float, float]:
         return tuple(n[0] * (px - cx) + n[1] * (py - cy) + sh
-                     for n, sh in zip(normals, shift, strict=True))  # type: ignore[return-value]
+                     for n, sh in zip(normals, shift, strict=True))
 
     near = cv2.dilate(run.edges, np.ones((3, 3), np.uint8))
     share = edge_share(run, seg)

@@ -10,10 +10,12 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from tileviz.vision.robust import kernel
 from tileviz.vision.robust.state import PARTS, Line, RobustRun
 
-__all__ = ["Projection", "centroid", "crossings", "dips", "light_grout", "measure",
-           "measure_parts", "midpoints", "nanmedian", "plateaus", "profiles", "project",
+__all__ = ["Projection", "centroid", "crossings", "dips", "grout_score_numpy", "light_grout",
+           "measure", "measure_parts", "midpoints", "nanmedian", "part_profiles_numpy",
+           "part_rows_numpy", "plateaus", "profile_dips_numpy", "profiles", "project",
            "select_lines", "view_spans"]
 
 
@@ -23,27 +25,40 @@ def light_grout(run: RobustRun, warped: np.ndarray,
     """Whether the grout is lighter than the tiles: the family profiles (row and column
     means of the warped image, offsets from the mean) hold stronger narrow peaks (above a
     grey opening) than narrow dips (below a grey closing), summed over both families.
-    ``spans``: the in-view stretch of every row and column (:func:`view_spans`)."""
-    kern = np.ones((1, run.closing), np.uint8)
+    ``spans``: the in-view stretch of every row and column (:func:`view_spans`).
+    :func:`~tileviz.vision.robust.kernel.grout_score` computes a family's term compiled
+    (bit-identical)."""
+    term = kernel.grout_score if kernel.AVAILABLE else grout_score_numpy
     score = 0.0
     for k, axis in ((0, 1), (1, 0)):
         lo, hi = spans[k]
-        length = np.maximum(hi - lo, 0.0)
-        ok = length >= max(8.0, 0.15 * float(length.max()))
-        if int(ok.sum()) < 8:
-            continue
         sums = cv2.reduce(warped, axis, cv2.REDUCE_SUM, dtype=cv2.CV_64F).ravel()
-        prof = (sums[ok] / length[ok]).astype(np.float32)[None, :]
-        # beyond the view: the median level (the tiles'), so that a stretch of tile or a
-        # line cut by the border is neither a peak nor a dip
-        mid = float(np.median(prof))
-        bt = cv2.BORDER_CONSTANT
-        close = cv2.erode(cv2.dilate(prof, kern, borderType=bt, borderValue=mid), kern,
-                          borderType=bt, borderValue=mid)
-        opening = cv2.dilate(cv2.erode(prof, kern, borderType=bt, borderValue=mid), kern,
-                             borderType=bt, borderValue=mid)
-        score += float((prof - opening).max()) - float((close - prof).max())
+        used, value = term(sums, np.maximum(hi - lo, 0.0), run.closing)
+        if used:
+            score += value
     return score > 0.0
+
+
+def grout_score_numpy(sums: np.ndarray, length: np.ndarray, closing: int) -> tuple[bool, float]:
+    """One family's term of :func:`light_grout`: whether the family has 8 rows long enough
+    (at least 8 px and 15 % of the longest), and then the highest narrow peak of its profile
+    (``sums / length`` over those rows, float32) above a grey opening minus the deepest
+    narrow dip below a grey closing, both ``closing`` samples wide. :func:`~tileviz.vision.
+    robust.kernel.grout_score` is the same computation compiled (bit-identical)."""
+    ok = length >= max(8.0, 0.15 * float(length.max()))
+    if int(ok.sum()) < 8:
+        return False, 0.0
+    prof = (sums[ok] / length[ok]).astype(np.float32)[None, :]
+    # beyond the view: the median level (the tiles'), so that a stretch of tile or a line cut
+    # by the border is neither a peak nor a dip
+    mid = float(np.median(prof))
+    kern = np.ones((1, closing), np.uint8)
+    bt = cv2.BORDER_CONSTANT
+    close = cv2.erode(cv2.dilate(prof, kern, borderType=bt, borderValue=mid), kern,
+                      borderType=bt, borderValue=mid)
+    opening = cv2.dilate(cv2.erode(prof, kern, borderType=bt, borderValue=mid), kern,
+                         borderType=bt, borderValue=mid)
+    return True, float((prof - opening).max()) - float((close - prof).max())
 
 
 @dataclass
@@ -170,27 +185,48 @@ def profiles(
         total[k, r : r + n] = length
         valid = length >= max(8.0, 0.15 * float(length.max()))
         prof[k, r : r + n] = np.where(valid, sums[k] / length + mean, np.nan)
-    # baseline: a grey closing (max then min filter, along each row) removes dips narrower
-    # than its window
+    dips_of = kernel.profile_dips if kernel.AVAILABLE else profile_dips_numpy
+    dark, noise, fam, peak = dips_of(prof, mean, run.closing, run.st.min_depth)
+    for sig in noise.tolist():
+        if math.isfinite(sig):
+            run.details["profile_noise"] = max(run.details.get("profile_noise", 0.0), sig)
+    return Projection(
+        y3=y3, integ=integ, pad=r, prof=prof, dark=dark, lo=lo, hi=hi, total=total,
+        fam=fam, peak=peak,
+    )
+
+
+def profile_dips_numpy(
+    prof: np.ndarray, mean: float, closing: int, min_depth: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The dips of both family profiles (rows of ``prof``, NaN where there is no data): the
+    darkness ``dark`` below a grey closing of ``closing`` samples (max then min filter along
+    each row, removing dips narrower than its window; missing data read as ``mean``), each
+    family's profile noise (robust std of its sample-to-sample steps; NaN when the family
+    has fewer than 8 samples), and the dips: the deepest sample of every run of samples
+    darker than 5 x the noise (at least ``min_depth`` / 2), as (family, padded index)
+    arrays. :func:`~tileviz.vision.robust.kernel.profile_dips` is the same computation
+    compiled (bit-identical)."""
     missing = np.isnan(prof)
     filled = np.where(missing, mean, prof).astype(np.float32)
-    kern = np.ones((1, run.closing), np.uint8)
+    kern = np.ones((1, closing), np.uint8)
     base = cv2.erode(
         cv2.dilate(filled, kern, borderType=cv2.BORDER_REPLICATE),
         kern,
         borderType=cv2.BORDER_REPLICATE,
     )
     dark = base - prof  # NaN where no data
+    noise = np.full(prof.shape[0], np.nan)
     peaks: list[tuple[int, int]] = []
-    for k in range(2):
+    for k in range(prof.shape[0]):
         ok = ~missing[k]
         if int(ok.sum()) < 8:
             continue
         diffs = np.abs(np.diff(prof[k][ok]))
         kth = diffs.size // 2
         sig = 1.4826 * float(np.partition(diffs, kth)[kth]) / math.sqrt(2.0)
-        run.details["profile_noise"] = max(run.details.get("profile_noise", 0.0), sig)
-        thr = max(0.5 * run.st.min_depth, 5.0 * sig)
+        noise[k] = sig
+        thr = max(0.5 * min_depth, 5.0 * sig)
         dk = np.where(ok, dark[k], -np.inf)
         above = dk > thr
         if not above.any():
@@ -200,11 +236,8 @@ def profiles(
         ends = np.flatnonzero(edges == -1)
         for s0, s1 in zip(starts.tolist(), ends.tolist(), strict=True):
             peaks.append((k, s0 + int(np.argmax(dk[s0:s1]))))
-    return Projection(
-        y3=y3, integ=integ, pad=r, prof=prof, dark=dark, lo=lo, hi=hi, total=total,
-        fam=np.array([k for k, _ in peaks], np.intp),
-        peak=np.array([p for _, p in peaks], np.intp),
-    )
+    return (dark, noise, np.array([k for k, _ in peaks], np.intp),
+            np.array([p for _, p in peaks], np.intp))
 
 
 def dips(run: RobustRun, proj: Projection, *, every: bool = False) -> list[list[Line]]:
@@ -290,48 +323,17 @@ def measure_parts(
     count = np.diff(idx, axis=1)  # samples in each part, (m, PARTS)
     tpart = 0.5 * (idx[:, :-1] + idx[:, 1:] - 1) - along[:, None]
     line = np.clip(cols - proj.pad, 0, integ.shape[0] + integ.shape[1])  # warp row / column
-    # sums over the parts from the integral image: family 1 along rows (integ[line, idx]),
-    # family 2 along columns (integ[idx, line]), as flat indices
-    hmax, wmax = integ.shape[0] - 1, integ.shape[1] - 1
-    fam1 = (fam == 0)[:, None, None]
-    q = np.minimum(line[:, :, None], np.where(fam1, hmax - 1, wmax - 1))  # (m, W, 1)
-    umax = np.where(fam1, wmax, hmax)
-    ua = np.minimum(idx[:, None, :-1], umax)  # (m, 1, PARTS)
-    ub = np.minimum(idx[:, None, 1:], umax)
-    stride = integ.shape[1]
-    lin0 = np.where(fam1, q * stride, q)  # flat offset of line q and of line q + 1
-    lin1 = np.where(fam1, (q + 1) * stride, q + 1)
-    ka = np.where(fam1, ua, ua * stride)
-    kb = np.where(fam1, ub, ub * stride)
-    flat = integ.ravel()
-    part_sum = flat[lin1 + kb] - flat[lin0 + kb] - flat[lin1 + ka] + flat[lin0 + ka]
-    pp = part_sum / count[:, None, :] + mean  # (m, W, PARTS)
-    pp = np.where(np.isnan(p0)[:, :, None], np.nan, pp)
-    pp = pp.transpose(0, 2, 1).reshape(m * PARTS, -1)  # row i * PARTS + j
+    if kernel.AVAILABLE:
+        pp = kernel.part_profiles(integ.ravel(), integ.shape[1], fam, line, idx, mean, p0)
+    else:
+        pp = part_profiles_numpy(integ, fam, line, idx, mean, p0)
     cj = np.repeat(c0, PARTS)
     hj = np.repeat(half, PARTS)
-    ll, lr = plateaus(pp, jf, cj, hj)
-    lev = ll[:, None] + (lr - ll)[:, None] * np.clip(jf[None, :] - cj[:, None] + 0.5, 0, 1)
-    dp = lev - pp
-    nearp = dp[:, r - 3 : r + 4]
-    nearp = np.where(np.isnan(nearp), -np.inf, nearp)
-    dpk = nearp.max(axis=1)
-    jp = np.argmax(nearp, axis=1) - 3
-    lv = np.concatenate([0.5 * dpk, 0.2 * dpk, 0.8 * dpk])
-    xl, xr = crossings(np.tile(dp, (3, 1)), jf, np.tile(jp, 3), lv)
-    nr = dp.shape[0]
-    width = (xr[:nr] - xl[:nr]).reshape(m, PARTS)
-    rise = (0.5 * ((xl[2 * nr :] - xl[nr : 2 * nr]) + (xr[nr : 2 * nr] - xr[2 * nr :])))
+    meas_rows = kernel.part_rows if kernel.AVAILABLE else part_rows_numpy
+    width, rise, contrast, cen, mids, msig = meas_rows(pp, jf, cj, hj, r)
+    width = width.reshape(m, PARTS)
     rise = rise.reshape(m, PARTS)
-    inside = (cj - hj - 4.0 >= -r) & (cj + hj + 4.0 <= r)
-    cen = centroid(pp, jf, cj, hj, ll, lr)
-    cen = np.where(inside & (np.abs(cen - cj) <= hj), cen, np.nan).reshape(m, PARTS)
-    # the position: the midpoint of the dip's 50 % crossings, each side against its own
-    # plateau and depth (texture beside the grout, a slope of the light or a shade step
-    # between the tiles pull the centroid, much less the edges); measured where the
-    # centroid's window is inside the profile
-    mids, msig = midpoints(pp, jf, np.where(np.isfinite(cen.ravel()), cen.ravel(), cj),
-                           cj, hj, ll, lr)
+    cen = cen.reshape(m, PARTS)
     mids = mids.reshape(3, m, PARTS)
     msig = msig.reshape(m, PARTS)
     pos50 = np.where(np.isfinite(cen), mids[0], np.nan)
@@ -341,7 +343,7 @@ def measure_parts(
     sp_ok = np.where(np.isfinite(spread) & np.isfinite(msig), spread, 0.5 * width + 0.5)
     # medians over the parts of each dip's width, rise and contrast, in one sort
     meds = nanmedian(np.concatenate(
-        (width.T, rise.T, (dpk / np.maximum(ll, lr)).reshape(m, PARTS).T), axis=1))
+        (width.T, rise.T, contrast.reshape(m, PARTS).T), axis=1))
     wmed, rmed, cmed = meds[:m], meds[m : 2 * m], meds[2 * m :]
     lo_lev = np.minimum(lev_l, lev_r)
     hi_lev = np.maximum(lev_l, lev_r)
@@ -369,6 +371,70 @@ def measure_parts(
             )
         )
     return out
+
+
+def part_profiles_numpy(
+    integ: np.ndarray, fam: np.ndarray, line: np.ndarray, idx: np.ndarray, mean: float,
+    p0: np.ndarray
+) -> np.ndarray:
+    """The part profiles of m dips: row i * PARTS + j is part j of dip i, the mean gray level
+    of each warp row (family 1) or column (family 2) ``line[i]`` (m, W) over the stretch
+    [idx[i, j], idx[i, j + 1]) of the tangent axis, from the integral image ``integ``; NaN
+    where the whole profile ``p0`` (m, W) is. :func:`~tileviz.vision.robust.kernel.
+    part_profiles` is the same computation compiled (bit-identical)."""
+    m = fam.size
+    count = np.diff(idx, axis=1)  # samples in each part, (m, PARTS)
+    # sums over the parts from the integral image: family 1 along rows (integ[line, idx]),
+    # family 2 along columns (integ[idx, line]), as flat indices
+    hmax, wmax = integ.shape[0] - 1, integ.shape[1] - 1
+    fam1 = (fam == 0)[:, None, None]
+    q = np.minimum(line[:, :, None], np.where(fam1, hmax - 1, wmax - 1))  # (m, W, 1)
+    umax = np.where(fam1, wmax, hmax)
+    ua = np.minimum(idx[:, None, :-1], umax)  # (m, 1, PARTS)
+    ub = np.minimum(idx[:, None, 1:], umax)
+    stride = integ.shape[1]
+    lin0 = np.where(fam1, q * stride, q)  # flat offset of line q and of line q + 1
+    lin1 = np.where(fam1, (q + 1) * stride, q + 1)
+    ka = np.where(fam1, ua, ua * stride)
+    kb = np.where(fam1, ub, ub * stride)
+    flat = integ.ravel()
+    part_sum = flat[lin1 + kb] - flat[lin0 + kb] - flat[lin1 + ka] + flat[lin0 + ka]
+    pp = part_sum / count[:, None, :] + mean  # (m, W, PARTS)
+    pp = np.where(np.isnan(p0)[:, :, None], np.nan, pp)
+    return pp.transpose(0, 2, 1).reshape(m * PARTS, -1)  # row i * PARTS + j
+
+
+def part_rows_numpy(
+    pp: np.ndarray, jf: np.ndarray, cj: np.ndarray, hj: np.ndarray, r: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Every part profile's measurement (rows of ``pp`` over sample offsets ``jf`` = -r..r,
+    the dip's centre ``cj`` and half window ``hj`` per row): half-depth width, 20-80 % rise,
+    contrast (depth / brighter plateau), centroid (NaN where its window leaves the profile or
+    it strays beyond the half window), the 50/25/75 % midpoints (3, rows) and the 50 %
+    midpoint's standard error (:func:`midpoints`). :func:`~tileviz.vision.robust.kernel.
+    part_rows` is the same computation compiled (bit-identical); this one is used without
+    numba."""
+    ll, lr = plateaus(pp, jf, cj, hj)
+    lev = ll[:, None] + (lr - ll)[:, None] * np.clip(jf[None, :] - cj[:, None] + 0.5, 0, 1)
+    dp = lev - pp
+    nearp = dp[:, r - 3 : r + 4]
+    nearp = np.where(np.isnan(nearp), -np.inf, nearp)
+    dpk = nearp.max(axis=1)
+    jp = np.argmax(nearp, axis=1) - 3
+    lv = np.concatenate([0.5 * dpk, 0.2 * dpk, 0.8 * dpk])
+    xl, xr = crossings(np.tile(dp, (3, 1)), jf, np.tile(jp, 3), lv)
+    nr = dp.shape[0]
+    width = xr[:nr] - xl[:nr]
+    rise = 0.5 * ((xl[2 * nr :] - xl[nr : 2 * nr]) + (xr[nr : 2 * nr] - xr[2 * nr :]))
+    inside = (cj - hj - 4.0 >= -r) & (cj + hj + 4.0 <= r)
+    cen = centroid(pp, jf, cj, hj, ll, lr)
+    cen = np.where(inside & (np.abs(cen - cj) <= hj), cen, np.nan)
+    # the position: the midpoint of the dip's 50 % crossings, each side against its own
+    # plateau and depth (texture beside the grout, a slope of the light or a shade step
+    # between the tiles pull the centroid, much less the edges); measured where the
+    # centroid's window is inside the profile
+    mids, msig = midpoints(pp, jf, np.where(np.isfinite(cen), cen, cj), cj, hj, ll, lr)
+    return width, rise, dpk / np.maximum(ll, lr), cen, mids, msig
 
 
 def select_lines(run: RobustRun, lines: list[list[Line]]) -> list[list[Line]]:
