@@ -5,7 +5,9 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-from collections.abc import Callable
+import threading
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import replace
 from typing import TYPE_CHECKING, Any, NoReturn
 
@@ -182,6 +184,21 @@ def nonneg_int(name: str) -> Callable[[str], int]:
 def positive_int(name: str) -> Callable[[str], int]:
     """argparse type: an integer >= 1, the error naming the option."""
     return int_at_least(name, 1)
+
+
+@contextmanager
+def notice_if_slow(message: str, after: float = 3.0) -> Iterator[None]:
+    """Print ``message`` (one line, standard error) if the block is still running ``after``
+    seconds (wall clock) after it started; nothing when it ends sooner. For a start that is slow
+    only once (the vision kernels compile on the first run after an install), so a user waiting
+    knows why."""
+    timer = threading.Timer(after, lambda: print(message, file=sys.stderr, flush=True))
+    timer.daemon = True
+    timer.start()
+    try:
+        yield
+    finally:
+        timer.cancel()
 
 
 def run_cli(prog: str, body: Callable[[], int]) -> int:

@@ -36,6 +36,7 @@ from tileviz.cliutil import (
     float_in,
     int_in,
     nonneg_int,
+    notice_if_slow,
     positive_float,
     positive_int,
     run_cli,
@@ -244,7 +245,9 @@ def main(command: str = "serve", argv: list[str] | None = None) -> int:
         previous_int = signal.signal(signal.SIGINT, on_term)
         status = 0
         try:
-            app.start()
+            with notice_if_slow("tileviz serve: still starting: the first run after an install "
+                                "compiles the vision kernels (up to a minute, once)"):
+                app.start()
             if port != 0 and app.port != port:
                 print(f"tileviz serve: port {port} is busy; serving on port {app.port} instead",
                       flush=True)
