@@ -103,9 +103,9 @@ def parser() -> Parser:
     p.add_argument("--push-rate", type=_in_range("--push-rate", 1.0, 60.0), default=20.0,
                    help="scene updates sent per second at most (default 20: one per simulated "
                    "frame at real time)")
-    p.add_argument("--image-rate", type=_in_range("--image-rate", 1.0, 60.0), default=10.0,
+    p.add_argument("--image-rate", type=_in_range("--image-rate", 1.0, 60.0), default=5.0,
                    help="camera and stage image updates per second at most while playing "
-                   "(default 10; a paused or stepped frame always shows its images)")
+                   "(default 5; a paused or stepped frame always shows its images)")
     p.add_argument("--speed", type=_in_range("--speed", 0.01, C.MAX_SPEED_FACTOR), default=1.0,
                    help="playback speed, x real time (default 1)")
     p.add_argument("--max-speed", action="store_true", help="run as fast as possible")

@@ -68,7 +68,7 @@ class App:
 
     def __init__(self, cfg: Config, options: SessionOptions | None = None, *,
                  host: str = "127.0.0.1", port: int = 8080, strict_port: bool = False,
-                 push_rate: float = 20.0, image_rate: float = 10.0, plot_rate: float = 4.0,
+                 push_rate: float = 20.0, image_rate: float = 5.0, plot_rate: float = 4.0,
                  readout_rate: float = 5.0,
                  plot_window: int = 1000, verbose: bool = False,
                  frames: int | None = None) -> None:
