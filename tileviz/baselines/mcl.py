@@ -132,10 +132,10 @@ from tileviz.baselines.mcl_config import (
     MOTION_NOISES,
     MclConfig,
     MclEstimate,
-    _number,
-    _wrap,
     calibrated_config,
     chi2_2d,
+    finite_float,
+    wrap_centred,
 )
 from tileviz.core.constants import HALF_PI, TWO_PI
 from tileviz.types import Box, Observation, Odometry, SensorBounds
@@ -165,17 +165,17 @@ class MCL:
         seed: int | None = None,
         region: Box | None = None,
     ) -> None:
-        self.L = _number("tile_size", tile_size)
+        self.L = finite_float("tile_size", tile_size)
         if self.L <= 0:
             raise ValueError(f"tile_size must be > 0, got {tile_size!r}")
         if len(camera_offset) != 2:
             raise ValueError(f"camera_offset must be (forward, left), got {camera_offset!r}")
-        self.offset = (_number("camera_offset[0]", camera_offset[0]),
-                       _number("camera_offset[1]", camera_offset[1]))
+        self.offset = (finite_float("camera_offset[0]", camera_offset[0]),
+                       finite_float("camera_offset[1]", camera_offset[1]))
         self.bounds = SensorBounds(
-            _number("speed_error", bounds.speed_error, nonneg=True),
-            _number("yaw_rate_error", bounds.yaw_rate_error, nonneg=True),
-            _number("compass_error", bounds.compass_error, nonneg=True),
+            finite_float("speed_error", bounds.speed_error, nonneg=True),
+            finite_float("yaw_rate_error", bounds.yaw_rate_error, nonneg=True),
+            finite_float("compass_error", bounds.compass_error, nonneg=True),
         )
         self.config = config if config is not None else MclConfig()
         if not isinstance(self.config, MclConfig):
@@ -251,16 +251,17 @@ class MCL:
         ``observation`` (or None), estimate, resample when the ESS is low. Raises ValueError
         naming the quantity on NaN/inf or a negative dt/bound (the state is then unchanged)."""
         if odometry is not None:
-            v = _number("odometry.speed", odometry.speed)
-            w = _number("odometry.yaw_rate", odometry.yaw_rate)
-            dt = _number("odometry.dt", odometry.dt, nonneg=True)
+            v = finite_float("odometry.speed", odometry.speed)
+            w = finite_float("odometry.yaw_rate", odometry.yaw_rate)
+            dt = finite_float("odometry.dt", odometry.dt, nonneg=True)
         if compass is not None:
-            compass = _number("compass", compass)
+            compass = finite_float("compass", compass)
         if observation is not None:
             o = observation
-            y1, y2, y3 = (_number(f"observation.{k}", getattr(o, k)) for k in ("y1", "y2", "y3"))
-            ep = _number("observation.position_error", o.position_error, nonneg=True)
-            eh = _number("observation.heading_error", o.heading_error, nonneg=True)
+            y1, y2, y3 = (finite_float(f"observation.{k}", getattr(o, k))
+                          for k in ("y1", "y2", "y3"))
+            ep = finite_float("observation.position_error", o.position_error, nonneg=True)
+            eh = finite_float("observation.heading_error", o.heading_error, nonneg=True)
 
         p = self._particles
         if odometry is not None:
@@ -288,7 +289,7 @@ class MCL:
             bound = self.bounds.compass_error
             sc = max(bound / math.sqrt(3.0) if cfg.likelihood == "measured"
                      else cfg.sigma_scale * bound, MIN_HEADING_SIGMA)
-            r = _wrap(p[:, 2] - compass, TWO_PI)
+            r = wrap_centred(p[:, 2] - compass, TWO_PI)
             logw = logw - 0.5 * (r / sc) ** 2
         if observation is not None:
             ll = self._view_loglik(p, y1, y2, y3, ep, eh)
@@ -433,7 +434,7 @@ class MCL:
         n >= (k - 1) / (2 eps) (1 - 2 / (9 (k - 1)) + sqrt(2 / (9 (k - 1))) z_(1 - delta))^3;
         all of ``q`` when no prefix satisfies it."""
         cfg = self.config
-        b = np.floor(np.column_stack([q[:, 0], q[:, 1], _wrap(q[:, 2], TWO_PI)])
+        b = np.floor(np.column_stack([q[:, 0], q[:, 1], wrap_centred(q[:, 2], TWO_PI)])
                      / np.asarray(cfg.kld_bin)).astype(np.int64)
         key = (b[:, 0] * 73856093) ^ (b[:, 1] * 19349663) ^ (b[:, 2] * 83492791)
         _, first = np.unique(key, return_index=True)
@@ -480,8 +481,8 @@ class MCL:
         ct, st = np.cos(th), np.sin(th)
         cx = q[:, 0] + f * np.cos(q[:, 2]) - left * np.sin(q[:, 2])
         cy = q[:, 1] + f * np.sin(q[:, 2]) + left * np.cos(q[:, 2])
-        cx = cx - _wrap(cx - u1, self.L) + sp * self._noise(nu_p, k)
-        cy = cy - _wrap(cy - u2, self.L) + sp * self._noise(nu_p, k)
+        cx = cx - wrap_centred(cx - u1, self.L) + sp * self._noise(nu_p, k)
+        cy = cy - wrap_centred(cy - u2, self.L) + sp * self._noise(nu_p, k)
         q[:, 0] = cx - (f * ct - left * st)
         q[:, 1] = cy - (f * st + left * ct)
         q[:, 2] = th + TWO_PI * np.round((q[:, 2] - th) / TWO_PI)
@@ -512,7 +513,7 @@ class MCL:
         the spread of each copy's particles, not by the distance between the copies; a few
         particles far away, e.g. injected from a region, still blow the jitter up)."""
         d = p - np.median(p, axis=0)
-        d[:, :2] = _wrap(d[:, :2], self.L)
+        d[:, :2] = wrap_centred(d[:, :2], self.L)
         spread = d.max(axis=0) - d.min(axis=0)
         sigma = self.config.roughening * spread * self.n ** (-1.0 / 3.0)
         return p + sigma * self.rng.standard_normal(p.shape)
@@ -543,11 +544,11 @@ class MCL:
         if p.ndim != 2 or p.shape[1] != 3:
             raise ValueError(f"poses must be an (N, 3) array, got shape {p.shape}")
         o = observation
-        y1, y2, y3 = (_number(f"observation.{k}", getattr(o, k)) for k in ("y1", "y2", "y3"))
+        y1, y2, y3 = (finite_float(f"observation.{k}", getattr(o, k)) for k in ("y1", "y2", "y3"))
         return self._view_loglik(
             p, y1, y2, y3,
-            _number("observation.position_error", o.position_error, nonneg=True),
-            _number("observation.heading_error", o.heading_error, nonneg=True))
+            finite_float("observation.position_error", o.position_error, nonneg=True),
+            finite_float("observation.heading_error", o.heading_error, nonneg=True))
 
     def _view_loglik(self, p: np.ndarray, y1: float, y2: float, y3: float, ep: float,
                      eh: float) -> np.ndarray:
@@ -564,9 +565,9 @@ class MCL:
         u1 = np.array([y1, -y2, -y1, y2])
         u2 = np.array([y2, y1, -y2, -y1])
         h = y3 + HALF_PI * np.arange(4)
-        r1 = _wrap(cx[:, None] - u1, L)
-        r2 = _wrap(cy[:, None] - u2, L)
-        r3 = _wrap(p[:, 2, None] - h, TWO_PI)
+        r1 = wrap_centred(cx[:, None] - u1, L)
+        r2 = wrap_centred(cy[:, None] - u2, L)
+        r3 = wrap_centred(p[:, 2, None] - h, TWO_PI)
         if self.view_model is None:
             sp = max(cfg.sigma_scale * ep, MIN_POSITION_SIGMA)
             sh = max(cfg.sigma_scale * eh, MIN_HEADING_SIGMA)
@@ -596,7 +597,7 @@ class MCL:
         d = np.empty_like(p)
         d[:, 0] = p[:, 0] - mx
         d[:, 1] = p[:, 1] - my
-        d[:, 2] = _wrap(p[:, 2] - a, TWO_PI)
+        d[:, 2] = wrap_centred(p[:, 2] - a, TWO_PI)
         cov = (d.T * w) @ d
         return np.array([mx, my, a]), cov
 
@@ -612,7 +613,7 @@ class MCL:
 def _box_array(name: str, box: Box) -> np.ndarray:
     if not isinstance(box, Box):
         raise ValueError(f"{name} must be a Box, got {type(box).__name__}")
-    b = np.array([_number(f"{name}.{k}", getattr(box, k))
+    b = np.array([finite_float(f"{name}.{k}", getattr(box, k))
                   for k in ("x_lo", "x_hi", "y_lo", "y_hi", "t_lo", "t_hi")])
     for axis, i in zip("xyt", (0, 2, 4), strict=True):
         if b[i] > b[i + 1]:

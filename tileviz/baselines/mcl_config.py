@@ -53,7 +53,7 @@ def chi2_2d(level: float) -> float:
     return -2.0 * math.log1p(-level)
 
 
-def _number(name: str, v: object, *, nonneg: bool = False) -> float:
+def finite_float(name: str, v: object, *, nonneg: bool = False) -> float:
     """``v`` as a float; ValueError naming ``name`` when it is not a finite number (or negative,
     with ``nonneg``)."""
     if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
@@ -63,7 +63,7 @@ def _number(name: str, v: object, *, nonneg: bool = False) -> float:
     return float(v)
 
 
-def _wrap(v: np.ndarray, period: float) -> np.ndarray:
+def wrap_centred(v: np.ndarray, period: float) -> np.ndarray:
     """v wrapped to [-period/2, period/2), elementwise."""
     return v - period * np.floor(v / period + 0.5)
 
@@ -128,17 +128,17 @@ class MclConfig:
         if self.motion_noise not in MOTION_NOISES:
             raise ValueError(f"motion_noise must be one of {MOTION_NOISES}, "
                              f"got {self.motion_noise!r}")
-        if _number("sigma_scale", self.sigma_scale) <= 0:
+        if finite_float("sigma_scale", self.sigma_scale) <= 0:
             raise ValueError(f"sigma_scale must be > 0, got {self.sigma_scale!r}")
-        if not 0.0 <= _number("outlier_probability", self.outlier_probability) < 1.0:
+        if not 0.0 <= finite_float("outlier_probability", self.outlier_probability) < 1.0:
             raise ValueError(
                 f"outlier_probability must be in [0, 1), got {self.outlier_probability!r}")
-        if not 0.0 <= _number("resample_threshold", self.resample_threshold) <= 1.0:
+        if not 0.0 <= finite_float("resample_threshold", self.resample_threshold) <= 1.0:
             raise ValueError(
                 f"resample_threshold must be in [0, 1], got {self.resample_threshold!r}")
-        if _number("roughening", self.roughening) < 0:
+        if finite_float("roughening", self.roughening) < 0:
             raise ValueError(f"roughening must be >= 0, got {self.roughening!r}")
-        if not 0.0 <= _number("inject_rate", self.inject_rate) <= 1.0:
+        if not 0.0 <= finite_float("inject_rate", self.inject_rate) <= 1.0:
             raise ValueError(f"inject_rate must be in [0, 1], got {self.inject_rate!r}")
         if isinstance(self.seed, bool) or int(self.seed) != self.seed or self.seed < 0:
             raise ValueError(f"seed must be an integer >= 0, got {self.seed!r}")
@@ -149,17 +149,17 @@ class MclConfig:
             raise ValueError(f"likelihood must be one of {LIKELIHOODS}, got {self.likelihood!r}")
         if self.view_model is not None and not isinstance(self.view_model, ViewErrorModel):
             raise ValueError("view_model must be a ViewErrorModel")
-        if not 0.0 <= _number("kld_epsilon", self.kld_epsilon) < 1.0:
+        if not 0.0 <= finite_float("kld_epsilon", self.kld_epsilon) < 1.0:
             raise ValueError(f"kld_epsilon must be in [0, 1), got {self.kld_epsilon!r}")
-        if not 0.0 < _number("kld_delta", self.kld_delta) < 1.0:
+        if not 0.0 < finite_float("kld_delta", self.kld_delta) < 1.0:
             raise ValueError(f"kld_delta must be in (0, 1), got {self.kld_delta!r}")
-        if len(self.kld_bin) != 3 or any(_number("kld_bin", b) <= 0 for b in self.kld_bin):
+        if len(self.kld_bin) != 3 or any(finite_float("kld_bin", b) <= 0 for b in self.kld_bin):
             raise ValueError(f"kld_bin must be three numbers > 0, got {self.kld_bin!r}")
         if isinstance(self.min_particles, bool) or int(self.min_particles) != self.min_particles \
                 or self.min_particles < 1:
             raise ValueError(f"min_particles must be an integer >= 1, got {self.min_particles!r}")
-        a_s = _number("alpha_slow", self.alpha_slow)
-        a_f = _number("alpha_fast", self.alpha_fast)
+        a_s = finite_float("alpha_slow", self.alpha_slow)
+        a_f = finite_float("alpha_fast", self.alpha_fast)
         if not (0.0 <= a_s <= 1.0 and 0.0 <= a_f <= 1.0) or (a_s > 0) != (a_f > 0) \
                 or (a_s > 0 and a_f <= a_s):
             raise ValueError(f"alpha_slow and alpha_fast must both be 0, or 0 < alpha_slow < "
