@@ -38,13 +38,23 @@ def test_each_floor_family_is_read_within_its_declared_bound(family: str) -> Non
         ("degraded", 39, "blur, JPEG and a strong lighting gradient: the first heading is 0.75 "
                          "rad off"),
         ("degraded", 33, "blur of 1.6 px: grout edges rise over 3.4 px"),
+        ("degraded", 30, "light grout under vignetting and a lighting gradient: the lines' "
+                         "depth over the inverted tiles' level differs by 1.9 x"),
+        ("shade_steps", 54, "a bright tile cut by the border reads as a narrow peak: the "
+                            "dark grout was taken for lighter grout"),
+        ("shade_steps", 24, "a line next to a dark tile at the border: the level beyond the "
+                            "view (the image mean) hid its edge"),
+        ("wide_grout", 92, "a flat-bottomed 19 px band whose deepest sample is at its edge"),
     ],
 )
 def test_views_once_refused_are_read_within_their_bound(family: str, seed: int, why: str) -> None:
     """Readable clean views the extractor used to refuse (``foreign line``, ``low contrast``,
-    ``no lines``, ``blurred``; ``why``): texture is told from a foreign object's edge, the
-    heading is sought from the view's periodicity when the lines at the first heading fail
-    their checks, and a blurred view is read with the wider bound its softer edges give."""
+    ``no lines``, ``blurred``, ``inconsistent spacing``, ``one family``; ``why``): texture is
+    told from a foreign object's edge, the heading is sought from the view's periodicity when
+    the lines at the first heading fail their checks, and then the other polarity of the
+    grout; a blurred view is read with the wider bound its softer edges give; lighter grout's
+    lines are compared in depth over the grout's own level too; the profile beyond the view
+    continues its last level; a wide band is measured centred on itself."""
     r = run_view(seed, family, None)
     assert r["readable"] and r["accepted"], (why, r)
     assert r["err_px"] <= r["bound_px"] and r["err_rad"] <= r["bound_rad"], (why, r)

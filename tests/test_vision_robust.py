@@ -206,3 +206,31 @@ def test_normalise_keeps_the_view(y1: float, y2: float, y3: float) -> None:
     pose = Pose(y1 - 0.3 * math.cos(y3), y2 - 0.3 * math.sin(y3), y3)
     e = observation_error((z1, z2, z3), pose, 1.0, (0.3, 0.0))
     assert max(abs(e[0]), abs(e[1])) < 1e-9 and abs(e[2]) < 1e-9
+
+
+def test_missing_profile_samples_continue_the_nearest_level() -> None:
+    """Beyond the view a profile continues its own last level (not the image mean): a dark
+    tile at the border neither becomes a dip nor hides the edge of the grout next to it."""
+    from tileviz.vision.robust import kernel
+    from tileviz.vision.robust.profiles import fill_ends, profile_dips_numpy
+
+    nan = np.nan
+    prof = np.array([[nan, nan, 50.0, 50.0, 20.0, 50.0, 60.0, nan, nan],
+                     [nan] * 9])
+    out = fill_ends(prof, 99.0)
+    assert out[0].tolist() == [50, 50, 50, 50, 20, 50, 60, 60, 60]
+    assert out[1].tolist() == [99.0] * 9
+    # a dark tile (level 60) ends the view right after a grout line (20) between brighter
+    # tiles (150): the line is one dip, its darkness measured against the tiles beside it
+    row = np.full(80, nan)
+    row[10:60] = 150.0
+    row[44:48] = 20.0
+    row[48:60] = 60.0
+    prof = np.vstack([row, row])
+    dark, _, fam, peak = profile_dips_numpy(prof, 140.0, 21, 15.0)
+    assert sorted(set(peak.tolist())) == [44]
+    assert np.all(dark[0, 48:60] == 0.0)
+    if kernel.AVAILABLE:
+        kd, _, kf, kp = kernel.profile_dips(prof, 140.0, 21, 15.0)
+        assert np.array_equal(kd, dark, equal_nan=True)
+        assert kp.tolist() == peak.tolist() and kf.tolist() == fam.tolist()

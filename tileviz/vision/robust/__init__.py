@@ -34,8 +34,9 @@ How it measures (vectorised numpy/OpenCV; timings in ``bench/bench_vision.py``):
    (edges too soft), ``step edge`` (a line with a different level on each side),
    ``inconsistent angle`` (a line not straight, or the two families not perpendicular within
    their errors), ``foreign line`` (a line unlike the others in width or contrast: grout lines
-   share both), ``inconsistent spacing`` (line offsets not multiples of L apart, or a
-   well-visible lattice line missing), ``too few segments`` (too little line length per
+   share both; lighter grout may instead agree in depth over the grout's own level),
+   ``inconsistent spacing`` (line offsets not multiples of L apart, or a well-visible
+   lattice line missing), ``too few segments`` (too little line length per
    family), ``imprecise`` (the view's own bound, :mod:`.bound`, exceeds the largest bounds
    the configuration allows), then
    ``foreign line`` / ``step edge`` again for a long straight edge that is not on the lattice

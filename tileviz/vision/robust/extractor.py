@@ -85,22 +85,36 @@ def execute(run: RobustRun) -> None:
         # the tile period decides then; its lines must pass every check as before.
         if first.reason not in RETRY_REASONS:
             raise
-        tried = [y0]
+        tried = [(y0, run.inverted)]
         for alt in lattice_headings(run):
             t = run.lap("heading", t)
-            if any(abs(math.remainder(alt - y, QUARTER)) < 0.004 for y in tried):
+            if any(abs(math.remainder(alt - y, QUARTER)) < 0.004 for y, _ in tried):
                 continue
-            tried.append(alt)
             run.mean, run.window, run.inverted = start
-            run.details["heading_retry"] = float(len(tried) - 1)
+            run.details["heading_retry"] = float(len(tried))
             lines, y3, t = read_lines(run, alt, t)
+            tried.append((alt, run.inverted))
             try:
                 check_lines(run, lines)
                 break
             except Fail:
                 continue
         else:
-            raise first from None
+            # The grout's polarity can be misjudged too (a bright tile cut by the border of
+            # a view of strongly shaded tiles is a narrow peak): each heading is read again
+            # with the other polarity; its lines must pass every check as before.
+            for y, inverted in tried:
+                run.mean, run.window, run.inverted = start
+                run.force_inverted = not inverted
+                run.details["polarity_retry"] = 1.0
+                lines, y3, t = read_lines(run, y, t)
+                try:
+                    check_lines(run, lines)
+                    break
+                except Fail:
+                    continue
+            else:
+                raise first from None
     t = run.lap("checks", t)
     lattice_offsets(run, lines, y3)
     t = run.lap("lattice", t)

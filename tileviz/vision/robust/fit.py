@@ -109,12 +109,26 @@ def check_lines(run: RobustRun, lines: list[list[Line]]) -> None:
     # Grout lines of both families share one width and one colour: a line unlike the
     # others (a cable along the grout direction, a seam) is foreign.
     widths = [ln.width for ln in every if math.isfinite(ln.width)]
-    contrasts = [ln.contrast for ln in every]
     run.details["width_spread"] = max(widths) / min(widths) if widths else math.inf
+    contrasts = [ln.contrast for ln in every]
     run.details["contrast_spread"] = max(contrasts) / max(min(contrasts), 1e-9)
+    if run.inverted:
+        # lighter grout: the lines agree in depth over the tiles' inverted level (shade
+        # steps between the tiles move it little) or over the grout's own level (light
+        # falling off across the view cancels); a line unlike the others differs in both
+        run.details["contrast_spread"] = min(
+            run.details["contrast_spread"], spread([ln.contrast_grout for ln in every]))
     if (
         not widths
         or max(widths) > st.width_ratio * min(widths) + st.width_slack
         or run.details["contrast_spread"] > st.contrast_ratio
     ):
         raise Fail("foreign line")
+
+
+def spread(values: list[float]) -> float:
+    """max / min of positive ``values`` (inf when one is not finite: no evidence of
+    agreement)."""
+    if not values or not all(math.isfinite(v) for v in values):
+        return math.inf
+    return max(values) / max(min(values), 1e-9)

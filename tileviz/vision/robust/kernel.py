@@ -457,8 +457,18 @@ def profile_dips(prof: np.ndarray, mean: float, closing: int, min_depth: float
     diffs = np.empty(size)
     for k in range(fams):
         row = prof[k]
+        # missing samples: the nearest valid one before, else after (profiles.fill_ends)
+        last = math.nan
         for x in range(size):
-            filled[x] = np.float32(mean) if math.isnan(row[x]) else np.float32(row[x])
+            if not math.isnan(row[x]):
+                last = row[x]
+                break
+        if math.isnan(last):
+            last = mean
+        for x in range(size):
+            if not math.isnan(row[x]):
+                last = row[x]
+            filled[x] = np.float32(last)
         for x in range(size):  # grey dilation, the ends replicated
             v = filled[x]
             for t in range(x - half, x + half + 1):

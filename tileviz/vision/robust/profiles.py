@@ -88,11 +88,7 @@ def measure(
     later attempt, with a wider window, reuses them unless ``reuse`` is false); on the first
     attempt, this also decides the grout's polarity. ``every``: see :func:`dips`."""
     proj = run.projection if reuse else None
-    # An inverted view (light grout) is not reused: a later attempt subtracts the inverted
-    # image's mean from the gray levels before inverting, so its profile levels differ from
-    # the first attempt's by 255 - 2 x the gray mean (reported to the extractor's owners;
-    # kept as it is so that this reuse changes no observation).
-    if attempt == 0 or proj is None or proj.y3 != y3 or run.inverted:
+    if attempt == 0 or proj is None or proj.y3 != y3:
         proj = project(run, y3, attempt)
         run.projection = proj
     return dips(run, proj, every=every)
@@ -111,7 +107,10 @@ def project(run: RobustRun, y3: float, attempt: int) -> Projection:
     # family-1 lines (s1 = -(Y - Y0)) and columns family-2 lines (s2 = -(X - X0)).
     m = np.array([[c, -s, cx - x0 * c + y0 * s], [s, c, cy - x0 * s - y0 * c]])
     src = run.gray.astype(np.float32)
-    src -= np.float32(run.mean)  # outside the view reads 0, i.e. the mean level
+    # outside the view reads 0, i.e. the mean level; an inverted view's ``run.mean`` is the
+    # inverted image's mean (255 - the gray mean), so the gray mean is 255 - run.mean: the
+    # profile levels are then 255 - gray on every attempt, not only on the first
+    src -= np.float32(255.0 - run.mean if run.inverted else run.mean)
     warped = cv2.warpAffine(
         src,
         m,
@@ -124,7 +123,8 @@ def project(run: RobustRun, y3: float, attempt: int) -> Projection:
         view_spans(run, np.arange(ho) - y0, c, s, along_rows=True),
         view_spans(run, np.arange(wo) - x0, c, s, along_rows=False),
     )
-    if attempt == 0 and light_grout(run, warped, spans):
+    if attempt == 0 and (light_grout(run, warped, spans) if run.force_inverted is None
+                         else run.force_inverted):
         # lighter grout: measure the inverted image (255 - gray), whose offset from its
         # mean is -warped; every later step then sees dark lines on brighter tiles
         run.inverted = True
@@ -201,14 +201,14 @@ def profile_dips_numpy(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The dips of both family profiles (rows of ``prof``, NaN where there is no data): the
     darkness ``dark`` below a grey closing of ``closing`` samples (max then min filter along
-    each row, removing dips narrower than its window; missing data read as ``mean``), each
-    family's profile noise (robust std of its sample-to-sample steps; NaN when the family
-    has fewer than 8 samples), and the dips: the deepest sample of every run of samples
-    darker than 5 x the noise (at least ``min_depth`` / 2), as (family, padded index)
-    arrays. :func:`~tileviz.vision.robust.kernel.profile_dips` is the same computation
-    compiled (bit-identical)."""
+    each row, removing dips narrower than its window; missing data read as the nearest valid
+    sample of its row, :func:`fill_ends`), each family's profile noise (robust std of its
+    sample-to-sample steps; NaN when the family has fewer than 8 samples), and the dips:
+    the deepest sample of every run of samples darker than 5 x the noise (at least
+    ``min_depth`` / 2), as (family, padded index) arrays. :func:`~tileviz.vision.robust.
+    kernel.profile_dips` is the same computation compiled (bit-identical)."""
     missing = np.isnan(prof)
-    filled = np.where(missing, mean, prof).astype(np.float32)
+    filled = fill_ends(prof, mean).astype(np.float32)
     kern = np.ones((1, closing), np.uint8)
     base = cv2.erode(
         cv2.dilate(filled, kern, borderType=cv2.BORDER_REPLICATE),
@@ -240,6 +240,24 @@ def profile_dips_numpy(
             np.array([p for _, p in peaks], np.intp))
 
 
+def fill_ends(prof: np.ndarray, mean: float) -> np.ndarray:
+    """``prof`` (rows of samples, NaN where missing) with each missing sample replaced by the
+    nearest valid sample of its row before it, or else after it (``mean`` in a row with none):
+    a row's valid data is one stretch, so its ends are replicated outward. A level beyond the
+    view unlike the tiles at its border (the image mean next to a dark tile) would make a
+    dip of that tile's border, or hide a grout line's edge next to it."""
+    out = prof.copy()
+    for k in range(prof.shape[0]):
+        ok = np.flatnonzero(~np.isnan(prof[k]))
+        if ok.size == 0:
+            out[k] = mean
+            continue
+        idx = np.clip(np.searchsorted(ok, np.arange(prof.shape[1]), side="right") - 1, 0,
+                      ok.size - 1)
+        out[k] = prof[k, ok[idx]]
+    return out
+
+
 def dips(run: RobustRun, proj: Projection, *, every: bool = False) -> list[list[Line]]:
     """The lines of both families from the dips of their profiles (:func:`profiles`): each
     dip is measured in PARTS equal stretches of the part of its line that every sample of its
@@ -258,16 +276,27 @@ def dips(run: RobustRun, proj: Projection, *, every: bool = False) -> list[list[
     pk = proj.peak
     jj = np.arange(-r, r + 1)
     jf = jj.astype(np.float64)
-    cols = pk[:, None] + jj[None, :]  # padded profile index
-    at = fam[:, None] * proj.prof.shape[1] + cols  # flat index into the (2, size) arrays
-    # the whole profile: depth, half-depth crossings, width, window and plateau levels
-    p0 = proj.prof.ravel()[at]
-    d0 = proj.dark.ravel()[at]
-    near = d0[:, r - 2 : r + 3]
-    near = np.where(np.isnan(near), -np.inf, near)
-    depth = near.max(axis=1)
-    hl, hr = crossings(d0, jf, np.argmax(near, axis=1) - 2, 0.5 * depth)
-    c0 = 0.5 * (hl + hr)
+    for again in (True, False):
+        cols = pk[:, None] + jj[None, :]  # padded profile index
+        at = fam[:, None] * proj.prof.shape[1] + cols  # flat index into the (2, size) arrays
+        # the whole profile: depth, half-depth crossings, width, window and plateau levels
+        p0 = proj.prof.ravel()[at]
+        d0 = proj.dark.ravel()[at]
+        near = d0[:, r - 2 : r + 3]
+        near = np.where(np.isnan(near), -np.inf, near)
+        depth = near.max(axis=1)
+        hl, hr = crossings(d0, jf, np.argmax(near, axis=1) - 2, 0.5 * depth)
+        c0 = 0.5 * (hl + hr)
+        # The deepest sample of a wide, flat-bottomed band may lie at either of its edges,
+        # half the band off its centre, where the band's far edge and plateau fall outside
+        # the window (its parts could not be measured, :func:`part_rows_numpy`): such a dip
+        # is measured again centred on its half-depth crossings.
+        reach = np.abs(c0) + 1.5 * (hr - hl) + 1.5 + 4.0
+        off = np.where(np.isfinite(reach) & (reach > r), np.rint(c0), 0.0).astype(np.intp)
+        if not again or not off.any():
+            break
+        # (kept within the profile's data, so the window stays within its padding)
+        pk = np.clip(pk + off, proj.pad, proj.prof.shape[1] - 1 - proj.pad)
     half = 1.5 * (hr - hl) + 1.5
     # the parts: PARTS equal stretches of the window's common in-view stretch
     # (over the samples a part's centroid and plateaus use: c0 +- (half + 4))
@@ -310,8 +339,8 @@ def measure_parts(
     mean = run.mean
     integ = proj.integ
     fam = proj.fam[rows]
-    pk = proj.peak[rows]
     cols = cols[rows]
+    pk = cols[:, r]  # each dip's centre sample (padded index)
     p0, c0, half, depth = p0[rows], c0[rows], half[rows], depth[rows]
     u_lo, step = u_lo[rows], step[rows]
     m = rows.size
@@ -345,6 +374,9 @@ def measure_parts(
     meds = nanmedian(np.concatenate(
         (width.T, rise.T, contrast.reshape(m, PARTS).T), axis=1))
     wmed, rmed, cmed = meds[:m], meds[m : 2 * m], meds[2 * m :]
+    gmed = np.full(m, np.nan)
+    if run.inverted:
+        gmed = nanmedian(grout_contrast(pp, jf, cj, hj, contrast).reshape(m, PARTS).T)
     lo_lev = np.minimum(lev_l, lev_r)
     hi_lev = np.maximum(lev_l, lev_r)
     stepr = (hi_lev - lo_lev) / np.maximum(hi_lev, 1e-9)
@@ -362,6 +394,7 @@ def measure_parts(
                 rise=float(rmed[i]),
                 step=float(stepr[i]),
                 contrast=float(cmed[i]),
+                contrast_grout=float(gmed[i]),
                 chord=float(proj.total[fam[i], pk[i]]),
                 parts=parts[i],
                 tpart=tpart[i],
@@ -435,6 +468,23 @@ def part_rows_numpy(
     # centroid's window is inside the profile
     mids, msig = midpoints(pp, jf, np.where(np.isfinite(cen), cen, cj), cj, hj, ll, lr)
     return width, rise, dpk / np.maximum(ll, lr), cen, mids, msig
+
+
+def grout_contrast(pp: np.ndarray, jf: np.ndarray, cj: np.ndarray, hj: np.ndarray,
+                   contrast: np.ndarray) -> np.ndarray:
+    """Each part's depth over the grout's own level in the gray image, for an inverted view
+    (lighter grout; rows of ``pp`` are 255 - gray over sample offsets ``jf``, the dip's centre
+    ``cj`` and half window ``hj`` per row, ``contrast`` its depth / brighter plateau as
+    :func:`part_rows_numpy` gives it). Light falling off across the view (vignetting, a
+    gradient) scales the grout's level and the depth alike, so this ratio is the same for
+    every line of one grout colour wherever the light is; the depth over the plateau of the
+    inverted image (the tiles' 255 - gray) is not, but is less moved by tiles of strongly
+    different shades."""
+    ll, lr = plateaus(pp, jf, cj, hj)
+    depth = contrast * np.maximum(ll, lr)
+    core = np.abs(jf[None, :] - cj[:, None]) <= 3.0
+    bottom = np.where(core & ~np.isnan(pp), pp, np.inf).min(axis=1)
+    return depth / np.maximum(255.0 - bottom, 1.0)
 
 
 def select_lines(run: RobustRun, lines: list[list[Line]]) -> list[list[Line]]:

@@ -44,6 +44,9 @@ class Line:
     spread: np.ndarray  # (PARTS,) largest distance of its 25 / 75 % midpoints from the 50 %, px
     infl: np.ndarray = field(default_factory=lambda: np.zeros(0))
     # d pos / d(position of every part of the fit), px per px (set by the fit)
+    # lighter grout (an inverted view) only: depth / the grout's own level in the gray image
+    # (light falling off across the view cancels), median over the parts; NaN otherwise
+    contrast_grout: float = math.nan
     pos: float = math.nan  # at tangent coordinate 0, after the common tilt fit
     var: float = math.inf  # variance of pos from the fit's scatter, px^2
 
@@ -103,6 +106,8 @@ class RobustRun:
         # wide; a wider band measures again with a window up to closing + 8 (see execute)
         self.window = min(20, self.closing + 8)
         self.inverted = False  # grout lighter than the tiles: the gray levels are inverted
+        # the grout's polarity imposed (True: lighter) instead of decided from the profiles
+        self.force_inverted: bool | None = None
         self.projection: Any = None  # the last profiles.Projection (reused by a wider window)
 
     def lap(self, name: str, t0: float) -> float:
