@@ -102,7 +102,9 @@ def execute(run: RobustRun) -> None:
         else:
             # The grout's polarity can be misjudged too (a bright tile cut by the border of
             # a view of strongly shaded tiles is a narrow peak): each heading is read again
-            # with the other polarity; its lines must pass every check as before.
+            # with the other polarity; its lines must pass every check as before. When all
+            # fail, the result shows the lines read before (as without this retry).
+            kept = snapshot(run)
             for y, inverted in tried:
                 run.mean, run.window, run.inverted = start
                 run.force_inverted = not inverted
@@ -114,12 +116,34 @@ def execute(run: RobustRun) -> None:
                 except Fail:
                     continue
             else:
+                restore(run, kept)
+                run.details["polarity_retry"] = 1.0
                 raise first from None
     t = run.lap("checks", t)
     lattice_offsets(run, lines, y3)
     t = run.lap("lattice", t)
     foreign_edges(run)
     run.lap("foreign", t)
+
+
+_READ_STATE = ("lines", "y3", "mean", "window", "inverted", "projection", "warped", "centre",
+               "part_bound", "force_inverted")
+"""The attributes of a RobustRun that reading the lines at one heading sets."""
+
+
+def snapshot(run: RobustRun) -> dict[str, object]:
+    """What reading the lines has set on ``run`` (for :func:`restore`)."""
+    out: dict[str, object] = {k: getattr(run, k) for k in _READ_STATE}
+    out["details"] = dict(run.details)
+    return out
+
+
+def restore(run: RobustRun, state: dict[str, object]) -> None:
+    """Put back what :func:`snapshot` took."""
+    for k in _READ_STATE:
+        setattr(run, k, state[k])
+    run.details.clear()
+    run.details.update(state["details"])  # type: ignore[call-overload]
 
 
 RETRY_REASONS = frozenset(
