@@ -100,6 +100,8 @@ def execute(run: RobustRun) -> None:
             except Fail:
                 continue
         else:
+            if first.reason not in POLARITY_REASONS:
+                raise first from None
             # The grout's polarity can be misjudged too (a bright tile cut by the border of
             # a view of strongly shaded tiles is a narrow peak): each heading is read again
             # with the other polarity; its lines must pass every check as before. When all
@@ -125,6 +127,11 @@ def execute(run: RobustRun) -> None:
     foreign_edges(run)
     run.lap("foreign", t)
 
+
+POLARITY_REASONS = frozenset({"no lines", "low contrast", "one family"})
+"""Refusals (at the first heading) after which, every heading having failed, the lines are
+read again with the grout's other polarity: reading dark grout as lighter (or the reverse)
+finds no line, or only shallow ones."""
 
 _READ_STATE = ("lines", "y3", "mean", "window", "inverted", "projection", "warped", "centre",
                "part_bound", "force_inverted")
