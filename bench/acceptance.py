@@ -36,12 +36,14 @@ import numpy as np
 from tileviz.config import FLOOR_STYLES, Config, preset, with_floor_style
 from tileviz.datasets import DatasetMeta, DatasetSource, DatasetWriter, replay_config
 from tileviz.pipeline import FrameLoop, FrameRecord
+from tileviz.pipeline.heap import keep_freed_memory
 from tileviz.pipeline.outputs import replay_row
 from tileviz.pipeline.replay import replay
 from tileviz.sim.source import SimSource
 from tileviz.vision import extract, set_opencv_threads
 
 set_opencv_threads()  # as every tileviz entry point (workers re-run this on import)
+keep_freed_memory()  # as the replay command and its workers: the bare calls get it too
 
 
 def record(cfg: Config, folder: Path, frames: int) -> None:

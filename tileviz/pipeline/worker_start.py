@@ -1,6 +1,8 @@
 """What the replay's fork server loads before it forks any vision worker
-(:mod:`tileviz.pipeline.workers`): importing this module imports everything a worker runs and
-extracts one synthetic tiled view with each extractor, on one OpenCV thread, so that the robust
+(:mod:`tileviz.pipeline.workers`): importing this module sets the allocator to keep freed memory
+(:func:`tileviz.pipeline.heap.keep_freed_memory`, inherited by every worker), imports everything
+a worker runs and extracts one synthetic tiled view with each extractor, on one OpenCV thread,
+so that the robust
 extractor's compiled kernels (:mod:`tileviz.vision.robust.kernel`) are loaded once in the server
 and every worker forked from it starts with them. A worker computes exactly what it computes
 without this: the warm-up's results are dropped, and nothing it touches is a result cache.
@@ -16,6 +18,7 @@ import numpy as np
 
 import tileviz.pipeline.workers  # noqa: F401 - what a worker runs, imported once in the server
 from tileviz.config import Config
+from tileviz.pipeline.heap import keep_freed_memory
 from tileviz.vision import extract, set_opencv_threads
 
 __all__ = ["synthetic_view", "warm_up"]
@@ -50,4 +53,5 @@ def warm_up() -> None:
             continue
 
 
+keep_freed_memory()
 warm_up()

@@ -31,6 +31,7 @@ import cv2
 
 from tileviz.config import Config
 from tileviz.datasets import DatasetSource
+from tileviz.pipeline.heap import keep_freed_memory
 from tileviz.pipeline.parallel import results_in_order
 from tileviz.types import FrameInput
 from tileviz.vision import VisionResult, extract, set_opencv_threads
@@ -65,6 +66,7 @@ def _init(folder: str, cfg: Config, threads: int) -> None:
     # OpenCV's thread count as in the calling process (the entry point set one): Canny's edges
     # depend on it, and a replay must give the same sets whatever --jobs
     set_opencv_threads(threads)
+    keep_freed_memory()  # (already so when forked from the fork server)
     _worker = (DatasetSource(folder), cfg)
 
 
