@@ -378,18 +378,45 @@ def part_profiles(flat: np.ndarray, stride: int, fam: np.ndarray, line: np.ndarr
 
 
 @_jit
+def _running(ext: np.ndarray, width: int, bigger: bool, out: np.ndarray) -> None:
+    """out[x] = max (``bigger``) or min of ext[x : x + width] for every x < out.size, in O(n)
+    (van Herk / Gil-Werman: within blocks of ``width`` samples, running extremes from each
+    block's start and from its end; a window spans the end of one block and the start of the
+    next). Exact: only comparisons (the extreme of a set does not depend on the order)."""
+    n = ext.size
+    fwd = np.empty(n, ext.dtype)
+    bwd = np.empty(n, ext.dtype)
+    for b0 in range(0, n, width):
+        b1 = min(b0 + width, n)
+        v = ext[b0]
+        fwd[b0] = v
+        for i in range(b0 + 1, b1):
+            u = ext[i]
+            if (u > v) if bigger else (u < v):
+                v = u
+            fwd[i] = v
+        v = ext[b1 - 1]
+        bwd[b1 - 1] = v
+        for i in range(b1 - 2, b0 - 1, -1):
+            u = ext[i]
+            if (u > v) if bigger else (u < v):
+                v = u
+            bwd[i] = v
+    for x in range(out.size):
+        a = bwd[x]
+        b = fwd[x + width - 1]
+        out[x] = b if ((b > a) if bigger else (b < a)) else a
+
+
+@_jit
 def _morph(a: np.ndarray, half: int, border: np.float32, bigger: bool) -> np.ndarray:
     """cv2.dilate (``bigger``) or cv2.erode of a float32 row by a 1 x (2 half + 1) window,
     constant ``border`` beyond the ends (exact: only comparisons)."""
     n = a.size
+    ext = np.full(n + 2 * half, border, np.float32)
+    ext[half : half + n] = a
     out = np.empty(n, np.float32)
-    for x in range(n):
-        v = a[x]
-        for k in range(x - half, x + half + 1):
-            u = a[k] if 0 <= k < n else border
-            if (u > v) if bigger else (u < v):
-                v = u
-        out[x] = v
+    _running(ext, 2 * half + 1, bigger, out)
     return out
 
 
@@ -454,25 +481,27 @@ def profile_dips(prof: np.ndarray, mean: float, closing: int, min_depth: float
     found = 0
     filled = np.empty(size, np.float32)
     dil = np.empty(size, np.float32)
+    ero = np.empty(size, np.float32)
+    closing_w = 2 * half + 1
+    ext = np.empty(size + 2 * half, np.float32)
     diffs = np.empty(size)
     for k in range(fams):
         row = prof[k]
         for x in range(size):
             filled[x] = np.float32(mean) if math.isnan(row[x]) else np.float32(row[x])
-        for x in range(size):  # grey dilation, the ends replicated
-            v = filled[x]
-            for t in range(x - half, x + half + 1):
-                u = filled[min(max(t, 0), size - 1)]
-                if u > v:
-                    v = u
-            dil[x] = v
-        for x in range(size):  # then erosion
-            v = dil[x]
-            for t in range(x - half, x + half + 1):
-                u = dil[min(max(t, 0), size - 1)]
-                if u < v:
-                    v = u
-            dark[k, x] = np.float64(v) - row[x]
+        # grey dilation then erosion, the ends replicated
+        for x in range(half):
+            ext[x] = filled[0]
+            ext[half + size + x] = filled[size - 1]
+        ext[half : half + size] = filled
+        _running(ext, closing_w, True, dil)
+        for x in range(half):
+            ext[x] = dil[0]
+            ext[half + size + x] = dil[size - 1]
+        ext[half : half + size] = dil
+        _running(ext, closing_w, False, ero)
+        for x in range(size):
+            dark[k, x] = np.float64(ero[x]) - row[x]
         nok = 0
         nd = 0
         prev = 0.0
