@@ -4,8 +4,9 @@ for bit) what its numpy counterpart in :mod:`~tileviz.vision.robust.profiles` co
 :func:`part_rows` (``part_rows_numpy``: plateaus, crossings, centroid and midpoints of every part
 profile), :func:`part_profiles` (``part_profiles_numpy``: the part profiles from the integral
 image), :func:`grout_score` (``grout_score_numpy``: a family's term of the light-grout test),
-and :func:`profile_dips` (``profile_dips_numpy``: darkness, noise and dips of the family
-profiles).
+:func:`profile_dips` (``profile_dips_numpy``: darkness, noise and dips of the family
+profiles) and :func:`dip_rows` (``dip_rows_numpy``: every dip's depth, centre, window, parts
+and plateaus on its whole profile).
 
 Every operation is the numpy one in the same order: sums over a profile are numpy's pairwise
 sums (:func:`_pairwise`, the order ``ndarray.sum`` adds a contiguous row in), medians sort the
@@ -29,12 +30,14 @@ from typing import Any
 
 import numpy as np
 
+from tileviz.vision.robust.state import PARTS
+
 try:
     import numba
 except ImportError:  # numba is a dependency; an older environment keeps the numpy path
     numba = None  # type: ignore[assignment]
 
-__all__ = ["AVAILABLE", "grout_score", "part_profiles", "part_rows", "profile_dips"]
+__all__ = ["AVAILABLE", "dip_rows", "grout_score", "part_profiles", "part_rows", "profile_dips"]
 
 AVAILABLE = numba is not None
 
@@ -541,3 +544,66 @@ def profile_dips(prof: np.ndarray, mean: float, closing: int, min_depth: float
             peak_out[found] = at
             found += 1
     return dark, noise, fam_out[:found].copy(), peak_out[:found].copy()
+
+
+@_jit
+def dip_rows(prof: np.ndarray, dark: np.ndarray, lo: np.ndarray, hi: np.ndarray,
+             fam: np.ndarray, peak: np.ndarray, r: int
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                        np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`~tileviz.vision.robust.profiles.dip_rows_numpy` compiled (bit-identical): every
+    dip's profile, depth, centre, half window, parts (start, length) and plateau levels."""
+    size = prof.shape[1]
+    pf = prof.ravel()
+    df = dark.ravel()
+    lf = lo.ravel()
+    hf = hi.ravel()
+    m = fam.size
+    n = 2 * r + 1
+    jf = np.empty(n)
+    for t in range(n):
+        jf[t] = float(t - r)
+    p0 = np.empty((m, n))
+    depth = np.empty(m)
+    c0 = np.empty(m)
+    half = np.empty(m)
+    u_lo = np.empty(m)
+    step = np.empty(m)
+    lev_l = np.empty(m)
+    lev_r = np.empty(m)
+    d0 = np.empty(n)
+    buf = np.empty(n)
+    for i in range(m):
+        at = fam[i] * size + peak[i] - r  # flat index of the window's first sample
+        for t in range(n):
+            p0[i, t] = pf[at + t]
+            d0[t] = df[at + t]
+        best = -math.inf
+        jp = -2
+        for t in range(r - 2, r + 3):
+            v = d0[t]
+            if math.isnan(v):
+                v = -math.inf
+            if t == r - 2 or v > best:  # np.argmax: the first maximum
+                best = v
+                jp = t - r
+        depth[i] = best
+        hl, hr = _crossings(d0, jf, float(jp), 0.5 * best)
+        c = 0.5 * (hl + hr)
+        h = 1.5 * (hr - hl) + 1.5
+        c0[i] = c
+        half[i] = h
+        cu = 0.0 if math.isnan(c) else c
+        hu = (0.0 if math.isnan(h) else h) + 5.0
+        a = -math.inf
+        b = math.inf
+        for t in range(n):
+            if abs(jf[t] - cu) <= hu:
+                if lf[at + t] > a:
+                    a = lf[at + t]
+                if hf[at + t] < b:
+                    b = hf[at + t]
+        u_lo[i] = a + 1.0
+        step[i] = ((b - 1.0) - (a + 1.0)) / PARTS
+        lev_l[i], lev_r[i] = _plateaus(p0[i], jf, c, h, buf)
+    return p0, depth, c0, half, u_lo, step, lev_l, lev_r

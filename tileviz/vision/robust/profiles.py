@@ -13,10 +13,10 @@ import numpy as np
 from tileviz.vision.robust import kernel
 from tileviz.vision.robust.state import PARTS, Line, RobustRun
 
-__all__ = ["Projection", "centroid", "crossings", "dips", "grout_score_numpy", "light_grout",
-           "measure", "measure_parts", "midpoints", "nanmedian", "part_profiles_numpy",
-           "part_rows_numpy", "plateaus", "profile_dips_numpy", "profiles", "project",
-           "select_lines", "view_spans"]
+__all__ = ["Projection", "centroid", "crossings", "dip_rows_numpy", "dips", "grout_score_numpy",
+           "light_grout", "measure", "measure_parts", "midpoints", "nanmedian",
+           "part_profiles_numpy", "part_rows_numpy", "plateaus", "profile_dips_numpy", "profiles",
+           "project", "select_lines", "view_spans"]
 
 
 def light_grout(run: RobustRun, warped: np.ndarray,
@@ -254,15 +254,47 @@ def dips(run: RobustRun, proj: Projection, *, every: bool = False) -> list[list[
     if proj.peak.size == 0:
         return [[], []]
     r = run.window
-    fam = proj.fam
     pk = proj.peak
     jj = np.arange(-r, r + 1)
     jf = jj.astype(np.float64)
     cols = pk[:, None] + jj[None, :]  # padded profile index
-    at = fam[:, None] * proj.prof.shape[1] + cols  # flat index into the (2, size) arrays
+    rows_of = kernel.dip_rows if kernel.AVAILABLE else dip_rows_numpy
+    p0, depth, c0, half, u_lo, step, lev_l, lev_r = rows_of(
+        proj.prof, proj.dark, proj.lo, proj.hi, proj.fam, pk, r)
+    usable = np.flatnonzero(np.isfinite(c0) & (step >= run.st.min_part / 2.0))
+    if usable.size == 0:
+        return [[], []]
+    # every row is measured on its own: a subset of the rows gives the same lines
+    top = float(depth[usable].max())
+    strong = usable if every else usable[depth[usable] >= run.st.rel_depth * top]
+    meas = (p0, c0, half, depth, u_lo, step, lev_l, lev_r)
+    out = measure_parts(run, proj, strong, cols, jf, *meas)
+    if not any(ln.depth == top for fam_lines in out for ln in fam_lines):
+        # the deepest dip gave no line: shallower ones may pass select_lines
+        out = measure_parts(run, proj, usable, cols, jf, *meas)
+    return out
+
+
+def dip_rows_numpy(
+    prof: np.ndarray, dark: np.ndarray, lo: np.ndarray, hi: np.ndarray, fam: np.ndarray,
+    peak: np.ndarray, r: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+           np.ndarray, np.ndarray]:
+    """Every dip's measurement on its whole profile (the arrays of a :class:`Projection`;
+    dip i of family ``fam[i]`` at padded index ``peak[i]``, sample offsets -r..r): the
+    profile ``p0`` (m, 2 r + 1), its depth (deepest darkness within 2 samples of the peak),
+    its half-depth centre ``c0`` and half window ``half`` (1.5 x the half-depth width + 1.5),
+    the start ``u_lo`` and the length ``step`` of each of its PARTS parts (the in-view
+    stretch that every sample within ``half`` + 5 of the centre sees, 1 px in from each end),
+    and its plateau levels on both sides (:func:`plateaus`). :func:`~tileviz.vision.robust.
+    kernel.dip_rows` is the same computation compiled (bit-identical)."""
+    jj = np.arange(-r, r + 1)
+    jf = jj.astype(np.float64)
+    cols = peak[:, None] + jj[None, :]  # padded profile index
+    at = fam[:, None] * prof.shape[1] + cols  # flat index into the (2, size) arrays
     # the whole profile: depth, half-depth crossings, width, window and plateau levels
-    p0 = proj.prof.ravel()[at]
-    d0 = proj.dark.ravel()[at]
+    p0 = prof.ravel()[at]
+    d0 = dark.ravel()[at]
     near = d0[:, r - 2 : r + 3]
     near = np.where(np.isnan(near), -np.inf, near)
     depth = near.max(axis=1)
@@ -274,21 +306,11 @@ def dips(run: RobustRun, proj: Projection, *, every: bool = False) -> list[list[
     used = np.abs(jf[None, :] - np.where(np.isnan(c0), 0.0, c0)[:, None]) <= (
         np.where(np.isnan(half), 0.0, half)[:, None] + 5.0
     )
-    u_lo = np.where(used, proj.lo.ravel()[at], -np.inf).max(axis=1) + 1.0
-    u_hi = np.where(used, proj.hi.ravel()[at], np.inf).min(axis=1) - 1.0
+    u_lo = np.where(used, lo.ravel()[at], -np.inf).max(axis=1) + 1.0
+    u_hi = np.where(used, hi.ravel()[at], np.inf).min(axis=1) - 1.0
     step = (u_hi - u_lo) / PARTS
-    usable = np.flatnonzero(np.isfinite(c0) & (step >= run.st.min_part / 2.0))
-    if usable.size == 0:
-        return [[], []]
-    # every row is measured on its own: a subset of the rows gives the same lines
-    top = float(depth[usable].max())
-    strong = usable if every else usable[depth[usable] >= run.st.rel_depth * top]
-    meas = (p0, c0, half, depth, u_lo, step)
-    out = measure_parts(run, proj, strong, cols, jf, *meas)
-    if not any(ln.depth == top for fam_lines in out for ln in fam_lines):
-        # the deepest dip gave no line: shallower ones may pass select_lines
-        out = measure_parts(run, proj, usable, cols, jf, *meas)
-    return out
+    lev_l, lev_r = plateaus(p0, jf, c0, half)
+    return p0, depth, c0, half, u_lo, step, lev_l, lev_r
 
 
 def measure_parts(
@@ -303,6 +325,8 @@ def measure_parts(
     depth: np.ndarray,
     u_lo: np.ndarray,
     step: np.ndarray,
+    lev_l: np.ndarray,
+    lev_r: np.ndarray,
 ) -> list[list[Line]]:
     """The lines of the dips ``rows`` (indices into the dips of ``proj``), measured in parts
     (see :func:`dips`; the per-dip arrays are those :func:`dips` computed for every dip)."""
@@ -314,8 +338,8 @@ def measure_parts(
     cols = cols[rows]
     p0, c0, half, depth = p0[rows], c0[rows], half[rows], depth[rows]
     u_lo, step = u_lo[rows], step[rows]
+    lev_l, lev_r = lev_l[rows], lev_r[rows]
     m = rows.size
-    lev_l, lev_r = plateaus(p0, jf, c0, half)
     x0, y0 = run.centre
     along = np.where(fam == 0, x0, y0)  # warp coordinate of u = 0
     edges_u = u_lo[:, None] + step[:, None] * np.arange(PARTS + 1)[None, :]
