@@ -99,10 +99,11 @@ def test_the_compiled_part_measurement_is_the_numpy_one_bit_for_bit(
     (the profile from the integral image; its width, rise, contrast, centroid, midpoints,
     standard error) from the compiled kernels as from the numpy computation, so do every
     family's light-grout score, every profile's darkness, noise and dips, every dip's
-    measurement on its whole profile, and whole
+    measurement on its whole profile, the profiles and in-view spans of every warp, and whole
     extractions agree field for field."""
     views = _floor_views(2)
-    names = ("part_rows", "part_profiles", "grout_score", "profile_dips", "dip_rows")
+    names = ("part_rows", "part_profiles", "grout_score", "profile_dips", "dip_rows",
+             "view_spans", "profile_arrays")
     compiled = {name: getattr(kernel, name) for name in names}
     seen: dict[str, list[tuple]] = {name: [] for name in names}
 
@@ -141,6 +142,23 @@ def test_the_compiled_part_measurement_is_the_numpy_one_bit_for_bit(
         for a, b in zip(compiled["dip_rows"](*args), profiles.dip_rows_numpy(*args),
                         strict=True):
             assert a.shape == b.shape and _bits(a) == _bits(b)
+    assert len(seen["profile_arrays"]) >= len(views)
+    for args in seen["profile_arrays"]:
+        for a, b in zip(compiled["profile_arrays"](*args), profiles.profile_arrays_numpy(*args),
+                        strict=True):
+            assert a.shape == b.shape and _bits(a) == _bits(b)
+    assert len(seen["view_spans"]) >= 2 * len(views)
+    for n, off, c, s, w, h, along in seen["view_spans"]:
+
+        class Run:  # the view size view_spans reads
+            pass
+
+        run = Run()
+        run.w, run.h = w, h  # type: ignore[attr-defined]
+        ref = profiles.view_spans(run, np.arange(n) - off, c, s,  # type: ignore[arg-type]
+                                  along_rows=along)
+        for a, b in zip(compiled["view_spans"](n, off, c, s, w, h, along), ref, strict=True):
+            assert _bits(a) == _bits(b)
     monkeypatch.setattr(kernel, "AVAILABLE", False)
     slow = [extract(img, camera=cam, tile_size=ts, vision=ROBUST) for img, cam, ts in views]
     for a, b in zip(fast, slow, strict=True):

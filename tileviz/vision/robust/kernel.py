@@ -5,8 +5,9 @@ for bit) what its numpy counterpart in :mod:`~tileviz.vision.robust.profiles` co
 profile), :func:`part_profiles` (``part_profiles_numpy``: the part profiles from the integral
 image), :func:`grout_score` (``grout_score_numpy``: a family's term of the light-grout test),
 :func:`profile_dips` (``profile_dips_numpy``: darkness, noise and dips of the family
-profiles) and :func:`dip_rows` (``dip_rows_numpy``: every dip's depth, centre, window, parts
-and plateaus on its whole profile).
+profiles), :func:`dip_rows` (``dip_rows_numpy``: every dip's depth, centre, window, parts
+and plateaus on its whole profile), :func:`view_spans` and :func:`profile_arrays` (the in-view
+spans and the profiles of both families).
 
 Every operation is the numpy one in the same order: sums over a profile are numpy's pairwise
 sums (:func:`_pairwise`, the order ``ndarray.sum`` adds a contiguous row in), medians sort the
@@ -37,7 +38,8 @@ try:
 except ImportError:  # numba is a dependency; an older environment keeps the numpy path
     numba = None  # type: ignore[assignment]
 
-__all__ = ["AVAILABLE", "dip_rows", "grout_score", "part_profiles", "part_rows", "profile_dips"]
+__all__ = ["AVAILABLE", "dip_rows", "grout_score", "part_profiles", "part_rows", "profile_arrays",
+           "profile_dips", "view_spans"]
 
 AVAILABLE = numba is not None
 
@@ -607,3 +609,73 @@ def dip_rows(prof: np.ndarray, dark: np.ndarray, lo: np.ndarray, hi: np.ndarray,
         step[i] = ((b - 1.0) - (a + 1.0)) / PARTS
         lev_l[i], lev_r[i] = _plateaus(p0[i], jf, c, h, buf)
     return p0, depth, c0, half, u_lo, step, lev_l, lev_r
+
+
+@_jit
+def view_spans(n: int, off: float, c: float, s: float, w: int, h: int, along_rows: bool
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`~tileviz.vision.robust.profiles.view_spans` compiled (bit-identical) for the
+    ``n`` warp rows (``along_rows``) or columns at offsets ``i - off`` from the warp centre, in
+    a ``w`` x ``h`` view turned by (cos, sin) = (``c``, ``s``)."""
+    cx = (w - 1) / 2.0
+    cy = (h - 1) / 2.0
+    if along_rows:
+        a, b, e, f = c, -s, s, c
+    else:
+        a, b, e, f = -s, c, c, s
+    lo = np.empty(n)
+    hi = np.empty(n)
+    for i in range(n):
+        q = float(i) - off
+        vlo = -math.inf
+        vhi = math.inf
+        for axis in range(2):
+            coef = a if axis == 0 else e
+            base = (cx + b * q) if axis == 0 else (cy + f * q)
+            size = w if axis == 0 else h
+            if abs(coef) < 1e-12:
+                if not ((base >= -0.5) and (base <= size - 0.5)):
+                    vlo = math.inf
+                continue
+            u1 = (-0.5 - base) / coef
+            u2 = (size - 0.5 - base) / coef
+            vlo = _max(vlo, _min(u1, u2))
+            vhi = _min(vhi, _max(u1, u2))
+        lo[i] = vlo
+        hi[i] = vhi
+    return lo, hi
+
+
+@_jit
+def profile_arrays(sums0: np.ndarray, sums1: np.ndarray, lo0: np.ndarray, hi0: np.ndarray,
+                   lo1: np.ndarray, hi1: np.ndarray, r: int, mean: float
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`~tileviz.vision.robust.profiles.profile_arrays_numpy` compiled (bit-identical):
+    the profiles, spans and lengths of both families as (2, size) arrays."""
+    size = max(sums0.size, sums1.size) + 2 * r
+    prof = np.full((2, size), math.nan)
+    lo = np.full((2, size), math.inf)
+    hi = np.full((2, size), -math.inf)
+    total = np.zeros((2, size))
+    for k in range(2):
+        sums = sums0 if k == 0 else sums1
+        slo = lo0 if k == 0 else lo1
+        shi = hi0 if k == 0 else hi1
+        n = sums.size
+        lmax = -math.inf
+        for i in range(n):
+            lo[k, r + i] = slo[i]
+            hi[k, r + i] = shi[i]
+            length = _max(shi[i] - slo[i], 0.0)
+            total[k, r + i] = length
+            if math.isnan(length) or math.isnan(lmax):
+                lmax = math.nan
+            elif length > lmax:
+                lmax = length
+        v = 0.15 * lmax
+        thr = v if v > 8.0 else 8.0  # Python's max(8.0, v): NaN gives 8.0
+        for i in range(n):
+            length = total[k, r + i]
+            if length >= thr:
+                prof[k, r + i] = sums[i] / length + mean
+    return prof, lo, hi, total

@@ -15,7 +15,8 @@ from tileviz.vision.robust.state import PARTS, Line, RobustRun
 
 __all__ = ["Projection", "centroid", "crossings", "dip_rows_numpy", "dips", "grout_score_numpy",
            "light_grout", "measure", "measure_parts", "midpoints", "nanmedian",
-           "part_profiles_numpy", "part_rows_numpy", "plateaus", "profile_dips_numpy", "profiles",
+           "part_profiles_numpy", "part_rows_numpy", "plateaus", "profile_arrays_numpy",
+           "profile_dips_numpy", "profiles",
            "project", "select_lines", "view_spans"]
 
 
@@ -120,10 +121,14 @@ def project(run: RobustRun, y3: float, attempt: int) -> Projection:
         borderMode=cv2.BORDER_CONSTANT,
         borderValue=0,
     )
-    spans = (
-        view_spans(run, np.arange(ho) - y0, c, s, along_rows=True),
-        view_spans(run, np.arange(wo) - x0, c, s, along_rows=False),
-    )
+    if kernel.AVAILABLE:
+        spans = (kernel.view_spans(ho, y0, c, s, w, h, True),
+                 kernel.view_spans(wo, x0, c, s, w, h, False))
+    else:
+        spans = (
+            view_spans(run, np.arange(ho) - y0, c, s, along_rows=True),
+            view_spans(run, np.arange(wo) - x0, c, s, along_rows=False),
+        )
     if attempt == 0 and light_grout(run, warped, spans):
         # lighter grout: measure the inverted image (255 - gray), whose offset from its
         # mean is -warped; every later step then sees dark lines on brighter tiles
@@ -144,7 +149,8 @@ def view_spans(
 ) -> tuple[np.ndarray, np.ndarray]:
     """The in-view stretch [lo, hi] of each warped row (``along_rows``) or column at offset
     ``q`` from the warp centre, in the tangent coordinate u (relative to the centre); empty
-    where hi <= lo."""
+    where hi <= lo. :func:`~tileviz.vision.robust.kernel.view_spans` is the same computation
+    compiled (bit-identical)."""
     cx, cy = (run.w - 1) / 2.0, (run.h - 1) / 2.0
     lo = np.full(q.shape, -np.inf)
     hi = np.full(q.shape, np.inf)
@@ -172,7 +178,32 @@ def profiles(
     in-view ``spans``), their baselines and their dips."""
     r = run.closing + 8  # the widest window (see execute)
     mean = run.mean
-    size = max(sums[0].size, sums[1].size) + 2 * r
+    build = kernel.profile_arrays if kernel.AVAILABLE else profile_arrays_numpy
+    prof, lo, hi, total = build(sums[0], sums[1], spans[0][0], spans[0][1], spans[1][0],
+                                spans[1][1], r, mean)
+    dips_of = kernel.profile_dips if kernel.AVAILABLE else profile_dips_numpy
+    dark, noise, fam, peak = dips_of(prof, mean, run.closing, run.st.min_depth)
+    for sig in noise.tolist():
+        if math.isfinite(sig):
+            run.details["profile_noise"] = max(run.details.get("profile_noise", 0.0), sig)
+    return Projection(
+        y3=y3, integ=integ, pad=r, prof=prof, dark=dark, lo=lo, hi=hi, total=total,
+        fam=fam, peak=peak,
+    )
+
+
+def profile_arrays_numpy(
+    sums0: np.ndarray, sums1: np.ndarray, lo0: np.ndarray, hi0: np.ndarray, lo1: np.ndarray,
+    hi1: np.ndarray, r: int, mean: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The (2, size) arrays of a :class:`Projection` (family k in row k, samples shifted by
+    ``r``): the profile (``sums`` / in-view length + ``mean``, NaN beyond the data and where a
+    row or column is shorter than 8 px or 15 % of the family's longest), the in-view spans
+    ``lo``, ``hi`` (inf, -inf beyond the data) and their length. :func:`~tileviz.vision.
+    robust.kernel.profile_arrays` is the same computation compiled (bit-identical)."""
+    sums = (sums0, sums1)
+    spans = ((lo0, hi0), (lo1, hi1))
+    size = max(sums0.size, sums1.size) + 2 * r
     # family k in row k; columns shifted by r; missing data NaN
     prof = np.full((2, size), np.nan)
     lo = np.full((2, size), np.inf)
@@ -185,15 +216,7 @@ def profiles(
         total[k, r : r + n] = length
         valid = length >= max(8.0, 0.15 * float(length.max()))
         prof[k, r : r + n] = np.where(valid, sums[k] / length + mean, np.nan)
-    dips_of = kernel.profile_dips if kernel.AVAILABLE else profile_dips_numpy
-    dark, noise, fam, peak = dips_of(prof, mean, run.closing, run.st.min_depth)
-    for sig in noise.tolist():
-        if math.isfinite(sig):
-            run.details["profile_noise"] = max(run.details.get("profile_noise", 0.0), sig)
-    return Projection(
-        y3=y3, integ=integ, pad=r, prof=prof, dark=dark, lo=lo, hi=hi, total=total,
-        fam=fam, peak=peak,
-    )
+    return prof, lo, hi, total
 
 
 def profile_dips_numpy(
