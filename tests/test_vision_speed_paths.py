@@ -103,7 +103,7 @@ def test_the_compiled_part_measurement_is_the_numpy_one_bit_for_bit(
     extractions agree field for field."""
     views = _floor_views(2)
     names = ("part_rows", "part_profiles", "grout_score", "profile_dips", "dip_rows",
-             "view_spans", "profile_arrays")
+             "view_spans", "profile_arrays", "part_summary")
     compiled = {name: getattr(kernel, name) for name in names}
     seen: dict[str, list[tuple]] = {name: [] for name in names}
 
@@ -140,6 +140,11 @@ def test_the_compiled_part_measurement_is_the_numpy_one_bit_for_bit(
     assert sum(int(args[4].size) for args in seen["dip_rows"]) > 100
     for args in seen["dip_rows"]:
         for a, b in zip(compiled["dip_rows"](*args), profiles.dip_rows_numpy(*args),
+                        strict=True):
+            assert a.shape == b.shape and _bits(a) == _bits(b)
+    assert len(seen["part_summary"]) == len(seen["part_rows"])
+    for args in seen["part_summary"]:
+        for a, b in zip(compiled["part_summary"](*args), profiles.part_summary_numpy(*args),
                         strict=True):
             assert a.shape == b.shape and _bits(a) == _bits(b)
     assert len(seen["profile_arrays"]) >= len(views)

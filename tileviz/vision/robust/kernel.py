@@ -7,7 +7,7 @@ image), :func:`grout_score` (``grout_score_numpy``: a family's term of the light
 :func:`profile_dips` (``profile_dips_numpy``: darkness, noise and dips of the family
 profiles), :func:`dip_rows` (``dip_rows_numpy``: every dip's depth, centre, window, parts
 and plateaus on its whole profile), :func:`view_spans` and :func:`profile_arrays` (the in-view
-spans and the profiles of both families).
+spans and the profiles of both families), :func:`part_summary` (each line's medians and parts).
 
 Every operation is the numpy one in the same order: sums over a profile are numpy's pairwise
 sums (:func:`_pairwise`, the order ``ndarray.sum`` adds a contiguous row in), medians sort the
@@ -38,8 +38,8 @@ try:
 except ImportError:  # numba is a dependency; an older environment keeps the numpy path
     numba = None  # type: ignore[assignment]
 
-__all__ = ["AVAILABLE", "dip_rows", "grout_score", "part_profiles", "part_rows", "profile_arrays",
-           "profile_dips", "view_spans"]
+__all__ = ["AVAILABLE", "dip_rows", "grout_score", "part_profiles", "part_rows", "part_summary",
+           "profile_arrays", "profile_dips", "view_spans"]
 
 AVAILABLE = numba is not None
 
@@ -679,3 +679,49 @@ def profile_arrays(sums0: np.ndarray, sums1: np.ndarray, lo0: np.ndarray, hi0: n
             if length >= thr:
                 prof[k, r + i] = sums[i] / length + mean
     return prof, lo, hi, total
+
+
+@_jit
+def part_summary(width: np.ndarray, rise: np.ndarray, contrast: np.ndarray, cen: np.ndarray,
+                 mids: np.ndarray, msig: np.ndarray, count: np.ndarray, base: np.ndarray,
+                 lev_l: np.ndarray, lev_r: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                            np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`~tileviz.vision.robust.profiles.part_summary_numpy` compiled (bit-identical):
+    the lines' medians, plateau steps and per-part positions, lengths, errors and spreads."""
+    m = count.shape[0]
+    wmed = np.empty(m)
+    rmed = np.empty(m)
+    cmed = np.empty(m)
+    stepr = np.empty(m)
+    parts = np.empty((m, PARTS))
+    wpart = np.empty((m, PARTS))
+    sigma = np.empty((m, PARTS))
+    spread = np.empty((m, PARTS))
+    buf = np.empty(PARTS)
+    for i in range(m):
+        for j in range(PARTS):
+            k = i * PARTS + j
+            m0 = mids[0, k]
+            pos = m0 if math.isfinite(cen[k]) else math.nan
+            sp = _max(abs(mids[1, k] - m0), abs(mids[2, k] - m0))
+            if not (math.isfinite(sp) and math.isfinite(msig[k])):
+                sp = 0.5 * width[k] + 0.5
+            ok = math.isfinite(pos)
+            wpart[i, j] = float(count[i, j]) if ok else 0.0
+            parts[i, j] = float(base[i]) + pos if ok else math.nan
+            sigma[i, j] = msig[k] if (ok and math.isfinite(msig[k])) else 0.0
+            spread[i, j] = sp if ok else 0.0
+        for j in range(PARTS):
+            buf[j] = width[i * PARTS + j]
+        wmed[i] = _median_finite(buf, PARTS)
+        for j in range(PARTS):
+            buf[j] = rise[i * PARTS + j]
+        rmed[i] = _median_finite(buf, PARTS)
+        for j in range(PARTS):
+            buf[j] = contrast[i * PARTS + j]
+        cmed[i] = _median_finite(buf, PARTS)
+        lo_lev = _min(lev_l[i], lev_r[i])
+        hi_lev = _max(lev_l[i], lev_r[i])
+        stepr[i] = (hi_lev - lo_lev) / _max(hi_lev, 1e-9)
+    return wmed, rmed, cmed, stepr, parts, wpart, sigma, spread

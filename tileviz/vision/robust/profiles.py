@@ -15,9 +15,9 @@ from tileviz.vision.robust.state import PARTS, Line, RobustRun
 
 __all__ = ["Projection", "centroid", "crossings", "dip_rows_numpy", "dips", "grout_score_numpy",
            "light_grout", "measure", "measure_parts", "midpoints", "nanmedian",
-           "part_profiles_numpy", "part_rows_numpy", "plateaus", "profile_arrays_numpy",
-           "profile_dips_numpy", "profiles",
-           "project", "select_lines", "view_spans"]
+           "part_profiles_numpy", "part_rows_numpy", "part_summary_numpy", "plateaus",
+           "profile_arrays_numpy", "profile_dips_numpy", "profiles", "project", "select_lines",
+           "view_spans"]
 
 
 def light_grout(run: RobustRun, warped: np.ndarray,
@@ -362,7 +362,6 @@ def measure_parts(
     p0, c0, half, depth = p0[rows], c0[rows], half[rows], depth[rows]
     u_lo, step = u_lo[rows], step[rows]
     lev_l, lev_r = lev_l[rows], lev_r[rows]
-    m = rows.size
     x0, y0 = run.centre
     along = np.where(fam == 0, x0, y0)  # warp coordinate of u = 0
     edges_u = u_lo[:, None] + step[:, None] * np.arange(PARTS + 1)[None, :]
@@ -378,6 +377,43 @@ def measure_parts(
     hj = np.repeat(half, PARTS)
     meas_rows = kernel.part_rows if kernel.AVAILABLE else part_rows_numpy
     width, rise, contrast, cen, mids, msig = meas_rows(pp, jf, cj, hj, r)
+    summary = kernel.part_summary if kernel.AVAILABLE else part_summary_numpy
+    wmed, rmed, cmed, stepr, parts, wpart, sigma, spread = summary(
+        width, rise, contrast, cen, mids, msig, count, pk - proj.pad, lev_l, lev_r)
+    out: list[list[Line]] = [[], []]
+    for i in np.flatnonzero(np.isfinite(parts).any(axis=1)).tolist():
+        out[int(fam[i])].append(
+            Line(
+                depth=float(depth[i]),
+                width=float(wmed[i]),
+                rise=float(rmed[i]),
+                step=float(stepr[i]),
+                contrast=float(cmed[i]),
+                chord=float(proj.total[fam[i], pk[i]]),
+                parts=parts[i],
+                tpart=tpart[i],
+                wpart=wpart[i],
+                sigma=sigma[i],
+                spread=spread[i],
+            )
+        )
+    return out
+
+
+def part_summary_numpy(
+    width: np.ndarray, rise: np.ndarray, contrast: np.ndarray, cen: np.ndarray,
+    mids: np.ndarray, msig: np.ndarray, count: np.ndarray, base: np.ndarray,
+    lev_l: np.ndarray, lev_r: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+           np.ndarray]:
+    """m dips' lines from their part measurements (:func:`part_rows_numpy`, row i * PARTS + j
+    is part j of dip i; ``count`` (m, PARTS) samples per part, ``base`` each dip's peak in
+    profile coordinates, ``lev_l``, ``lev_r`` its plateau levels): the medians over the parts
+    of width, rise and contrast, the step between the plateaus, and per part (m, PARTS) the
+    position (NaN where not measured), the length (0 there), the standard error and the
+    spread of the 25 / 75 % midpoints (0 there). :func:`~tileviz.vision.robust.kernel.
+    part_summary` is the same computation compiled (bit-identical)."""
+    m = count.shape[0]
     width = width.reshape(m, PARTS)
     rise = rise.reshape(m, PARTS)
     cen = cen.reshape(m, PARTS)
@@ -397,27 +433,10 @@ def measure_parts(
     stepr = (hi_lev - lo_lev) / np.maximum(hi_lev, 1e-9)
     ok = np.isfinite(pos50)
     wpart = np.where(ok, count, 0).astype(np.float64)
-    parts = np.where(ok, (pk - proj.pad)[:, None] + pos50, np.nan)
+    parts = np.where(ok, base[:, None] + pos50, np.nan)
     sigma = np.where(ok & np.isfinite(msig), msig, 0.0)
     spread = np.where(ok, sp_ok, 0.0)
-    out: list[list[Line]] = [[], []]
-    for i in np.flatnonzero(ok.any(axis=1)).tolist():
-        out[int(fam[i])].append(
-            Line(
-                depth=float(depth[i]),
-                width=float(wmed[i]),
-                rise=float(rmed[i]),
-                step=float(stepr[i]),
-                contrast=float(cmed[i]),
-                chord=float(proj.total[fam[i], pk[i]]),
-                parts=parts[i],
-                tpart=tpart[i],
-                wpart=wpart[i],
-                sigma=sigma[i],
-                spread=spread[i],
-            )
-        )
-    return out
+    return wmed, rmed, cmed, stepr, parts, wpart, sigma, spread
 
 
 def part_profiles_numpy(
