@@ -431,9 +431,10 @@ class App:
             said = s.ended is not None and any(n.text.startswith(s.ended) for n in recent)
             notes.append(f"replaying <code>{html.escape(s.source.describe())}</code>"
                          + (f": <b>{html.escape(s.ended)}</b>" if s.ended and not said else ""))
-        if s.recording is not None:
-            notes.append(f"recording to <code>{html.escape(str(s.recording_path))}</code> "
-                         f"({s.recording.count} frames)")
+        writer = s.recorder.writer
+        if writer is not None:
+            notes.append(f"recording to <code>{html.escape(str(s.recorder.path))}</code> "
+                         f"({writer.count} frames)")
         if s.degraded:
             notes.append("<b>a frame failed: the set may miss the truth (Relocalize or "
                          "Reset)</b>")

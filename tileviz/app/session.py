@@ -18,9 +18,7 @@ the source's frame index. They differ only after a frame failed (a gap in frame 
 from __future__ import annotations
 
 import math
-import os
 import sys
-import threading
 import time
 from collections import deque
 from dataclasses import dataclass, field, replace
@@ -32,11 +30,11 @@ import numpy as np
 from tileviz.app import commands as C
 from tileviz.app.history import Encoder, Entry, History, ParticleView
 from tileviz.app.outputs import output_path, sanitize_name
+from tileviz.app.recorder import McapJob, Recorder
 from tileviz.config import Config, LocalizerConfig, NoiseConfig, with_floor_style
 from tileviz.pipeline import FrameLoop, FrameRecord, initial_box
 from tileviz.sim.camera import FAULT_KINDS
 from tileviz.summary import RunTally
-from tileviz.types import FrameInput
 
 if TYPE_CHECKING:
     from tileviz.app.sources import LiveSimulator
@@ -127,13 +125,8 @@ class Session:
         """Bumped when the static scene (floor, path, waypoints) changes."""
         self.shown = -1
         """History position of the frame shown (-1: none yet)."""
-        self.recording: Any = None
-        self.recording_path: Path | None = None
-        self._record_pending: Path | None = None
-        self.last_recording: Path | None = None
-        """The last finished recording with at least one frame (what Export MCAP exports)."""
-        self.export: McapJob | None = None
-        """The MCAP export running in the background, if any."""
+        self.recorder = Recorder(self.note)
+        """The dataset being recorded, the last one recorded and its MCAP export."""
         self.csv: Any = None
         self.csv_path: Path | None = None
         self._kidnap_rng = np.random.default_rng(np.random.SeedSequence([cfg.sim.seed, 0xC1D]))
@@ -194,9 +187,7 @@ class Session:
 
     def _new_run_files(self) -> None:
         """A new run (reset/restart): close the recording; start a fresh residual CSV."""
-        if self.recording is not None:
-            self._stop_recording("the run restarted")
-        self._record_pending = None
+        self.recorder.cancel("the run restarted")
         if self.csv is not None:
             self.csv.close()
             self.csv = None
@@ -206,10 +197,7 @@ class Session:
         """Close every file being written and stop the encoder thread (idempotent); waits for an
         MCAP export in progress."""
         self.encoder.close()
-        if self.export is not None:
-            self.export.join()
-        if self.recording is not None:
-            self._stop_recording("the server stopped")
+        self.recorder.close()
         if self.csv is not None:
             self.csv.close()
             self.csv = None
@@ -315,7 +303,8 @@ class Session:
         except Exception as e:  # noqa: BLE001 - the loop must survive any frame
             self._frame_failed(before, f"simulator: {e}", missed=self.source.index != before)
             return None
-        self._record(frame)  # a lens camera's raw image, as a robot logs it
+        # a lens camera's raw image, as a robot logs it
+        self.recorder.write(frame, self.cfg, self.source.rectifier)
         lens_stages: dict[str, np.ndarray] | None = None
         try:
             shown = None
@@ -412,49 +401,21 @@ class Session:
     @property
     def recording_active(self) -> bool:
         """True while recording or waiting for the next new frame to start a recording."""
-        return self.recording is not None or self._record_pending is not None
+        return self.recorder.active
 
-    def _record(self, frame: FrameInput) -> None:
-        if self._record_pending is not None:
-            self._open_recording(frame)
-        if self.recording is None:
-            return
-        try:
-            self.recording.write(frame)
-        except (OSError, ValueError) as e:
-            self._stop_recording(f"write failed: {e}", level="error")
+    @property
+    def last_recording(self) -> Path | None:
+        """The last finished recording with at least one frame (what Export MCAP exports)."""
+        return self.recorder.last
 
-    def _open_recording(self, frame: FrameInput) -> None:
-        from tileviz.datasets import DatasetMeta, DatasetWriter
+    @property
+    def export(self) -> McapJob | None:
+        """The MCAP export running in the background, if any."""
+        return self.recorder.export
 
-        folder = self._record_pending
-        assert folder is not None
-        self._record_pending = None
-        meta = DatasetMeta.from_config(self.cfg, name=f"tileviz live run ({folder.name})")
-        if self.source.rectifier is not None:  # raw images: replay rectifies them
-            meta = replace(meta, camera_model=self.source.rectifier.model)
-        if frame.truth is not None:
-            # the run may be under way: the dataset starts at this frame's true pose, known within
-            # the configured initial error (docs/dataset-format.md: initial_pose +-
-            # initial_pose_error)
-            meta = replace(meta, initial_pose=frame.truth.as_tuple())
-        try:
-            self.recording = DatasetWriter(folder, meta)
-        except (OSError, ValueError) as e:
-            self.note(f"cannot record to {folder}: {e}", "error")
-            return
-        self.recording_path = folder
-        self.note(f"recording to {folder}")
-
-    def _stop_recording(self, why: str = "", level: str = "info") -> None:
-        w, self.recording = self.recording, None
-        if w is None:
-            return
-        w.close()
-        if w.count > 0:
-            self.last_recording = self.recording_path
-        tail = f" ({why})" if why else ""
-        self.note(f"recorded {w.count} frames to {self.recording_path}{tail}", level)
+    def poll(self) -> None:
+        """Note what background work finished since the last call (the loop calls this)."""
+        self.recorder.poll()
 
     # ------------------------------------------------------------------ commands
     def apply(self, cmd: C.Command) -> None:
@@ -529,11 +490,12 @@ class Session:
                 self._simulator.inject(kind, frames=frames)
                 self.note(f"fault {kind} injected")
             case C.StartRecording():
-                self._start_recording(cmd)
+                self.recorder.ask(output_path(self.options.out_dir, sanitize_name(cmd.name)),
+                                  self.playing)
             case C.StopRecording():
-                self._stop_recording_cmd()
+                self.recorder.stop_asked()
             case C.ExportMcap():
-                self._export_mcap()
+                self.recorder.export_mcap()
             case C.Report(text=text, level=level):
                 self.note(text, level)
             case C.SetFollow(on=on):
@@ -662,8 +624,7 @@ class Session:
         self._reconfigure(replace(self.cfg, noise=noise))
         if self.mcl is not None:
             self.mcl.mcl.bounds = self.runner.bounds  # its motion noise and compass likelihood
-        if self.recording is not None:
-            self._stop_recording("the declared bounds changed; its meta.json would be wrong")
+        self.recorder.stop("the declared bounds changed; its meta.json would be wrong")
 
     def _set_inflation(self, cmd: C.SetInflation) -> None:
         loc: LocalizerConfig = replace(self.cfg.localizer,
@@ -677,72 +638,3 @@ class Session:
         self._reconfigure(replace(self.cfg, localizer=loc),
                           f"fault model {speed:g} m/s, {yaw_rate:g} rad/s" if cmd.on
                           else "fault model off")
-
-    def _start_recording(self, cmd: C.StartRecording) -> None:
-        if self.recording is not None or self._record_pending is not None:
-            raise ValueError("already recording; stop the current recording first")
-        self._record_pending = output_path(self.options.out_dir, sanitize_name(cmd.name))
-        when = "the next new frame" if self.playing else "the next new frame (press Play or Step)"
-        self.note(f"will record from {when} to {self._record_pending}")
-
-    def _export_mcap(self) -> None:
-        """Start exporting :attr:`last_recording` on a background thread (a long recording must
-        not freeze the loop); :meth:`poll` notes its end."""
-        if self.export is not None:
-            raise ValueError(f"an MCAP export is already running ({self.export.out})")
-        if self.last_recording is None:
-            what = ("stop the recording first" if self.recording_active
-                    else "record a run first (Start recording, then Stop recording)")
-            raise ValueError(f"nothing to export: {what}")
-        self.export = McapJob(self.last_recording)
-        self.note(f"exporting {self.last_recording} to {self.export.out} ...")
-
-    def poll(self) -> None:
-        """Note what background work finished since the last call (the loop calls this)."""
-        job = self.export
-        if job is None or job.running:
-            return
-        self.export = None
-        if job.error is not None:
-            self.note(f"MCAP export of {job.dataset} failed: {job.error}", "error")
-        else:
-            self.note(f"exported {job.frames} frames to {job.out} (open it in Foxglove)")
-
-    def _stop_recording_cmd(self) -> None:
-        if self._record_pending is not None and self.recording is None:
-            self.note(f"nothing recorded: no new frame was made after Start recording (press "
-                      f"Play or Step while recording); {self._record_pending} was not written")
-        self._record_pending = None
-        self._stop_recording()
-
-
-
-class McapJob:
-    """The MCAP export of a recorded dataset folder on a background thread: ``dataset`` replayed
-    as ``python -m tileviz replay DATASET --mcap`` does, written to ``DATASET.mcap`` beside it.
-    ``frames``: frames written; ``error``: one line when it failed (the file may be partial)."""
-
-    def __init__(self, dataset: Path) -> None:
-        self.dataset = dataset
-        self.out = dataset.with_name(dataset.name + ".mcap")
-        self.frames = 0
-        self.error: str | None = None
-        self._thread = threading.Thread(target=self._run, name="tileviz-mcap", daemon=True)
-        self._thread.start()
-
-    def _run(self) -> None:
-        from tileviz.pipeline.replay import replay
-
-        try:
-            # the replay table is not kept: the MCAP file is what was asked for
-            self.frames = replay(self.dataset, out=os.devnull, mcap=self.out, jobs=1)
-        except Exception as e:  # noqa: BLE001 - reported as one line by Session.poll
-            self.error = f"{type(e).__name__}: {e}" if not isinstance(e, (OSError, ValueError)) \
-                else str(e)
-
-    @property
-    def running(self) -> bool:
-        return self._thread.is_alive()
-
-    def join(self, timeout: float | None = None) -> None:
-        self._thread.join(timeout)

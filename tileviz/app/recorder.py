@@ -1,0 +1,184 @@
+"""Recording the live run as a dataset, and exporting the last recording to MCAP.
+
+:class:`Recorder` belongs to one :class:`tileviz.app.session.Session` and, like it, is only
+called from the app's loop thread. A recording asked for starts at the next *new* frame (a frame
+computed, not one stepped back to), so its first row and its meta's initial pose agree; every
+row is flushed as it is written (``tileviz.datasets.DatasetWriter``), so a recording stopped by
+an error keeps what it had. The MCAP export runs on its own thread (:class:`McapJob`) and
+:meth:`Recorder.poll` notes its end.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+from collections.abc import Callable
+from dataclasses import replace
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from tileviz.config import Config
+from tileviz.types import FrameInput
+
+if TYPE_CHECKING:
+    from tileviz.datasets import DatasetWriter
+    from tileviz.vision.rectify import Rectifier
+
+__all__ = ["McapJob", "Recorder"]
+
+Note = Callable[[str, str], None]
+"""``note(text, level)``: a one-line message for the GUI (level ``info`` or ``error``)."""
+
+
+class Recorder:
+    """The dataset being recorded (if any), the one asked for, the last finished one and the
+    MCAP export in progress. ``note`` reports every change in one line."""
+
+    def __init__(self, note: Note) -> None:
+        self._note = note
+        self.writer: DatasetWriter | None = None
+        """The dataset being written, or None."""
+        self.path: Path | None = None
+        """Its folder (kept after it stops, for the last message)."""
+        self.pending: Path | None = None
+        """The folder of a recording asked for and not started yet (no new frame since)."""
+        self.last: Path | None = None
+        """The last finished recording with at least one frame (what Export MCAP exports)."""
+        self.export: McapJob | None = None
+        """The MCAP export running in the background, if any."""
+
+    @property
+    def active(self) -> bool:
+        """True while recording or waiting for the next new frame to start a recording."""
+        return self.writer is not None or self.pending is not None
+
+    def ask(self, folder: Path, playing: bool) -> None:
+        """Record from the next new frame to ``folder``; ValueError if already recording."""
+        if self.active:
+            raise ValueError("already recording; stop the current recording first")
+        self.pending = folder
+        when = "the next new frame" if playing else "the next new frame (press Play or Step)"
+        self._note(f"will record from {when} to {folder}", "info")
+
+    def write(self, frame: FrameInput, cfg: Config, rectifier: Rectifier | None) -> None:
+        """Record one new frame (starting the recording asked for, with ``cfg``'s meta; a raw
+        image of a lens camera also stores its ``camera_model``). A failed write stops the
+        recording with an error note; the rows already written stay."""
+        if self.pending is not None:
+            self._open(frame, cfg, rectifier)
+        if self.writer is None:
+            return
+        try:
+            self.writer.write(frame)
+        except (OSError, ValueError) as e:
+            self.stop(f"write failed: {e}", level="error")
+
+    def _open(self, frame: FrameInput, cfg: Config, rectifier: Rectifier | None) -> None:
+        from tileviz.datasets import DatasetMeta, DatasetWriter
+
+        folder = self.pending
+        assert folder is not None
+        self.pending = None
+        meta = DatasetMeta.from_config(cfg, name=f"tileviz live run ({folder.name})")
+        if rectifier is not None:  # raw images: replay rectifies them
+            meta = replace(meta, camera_model=rectifier.model)
+        if frame.truth is not None:
+            # the run may be under way: the dataset starts at this frame's true pose, known within
+            # the configured initial error (docs/dataset-format.md: initial_pose +-
+            # initial_pose_error)
+            meta = replace(meta, initial_pose=frame.truth.as_tuple())
+        try:
+            self.writer = DatasetWriter(folder, meta)
+        except (OSError, ValueError) as e:
+            self._note(f"cannot record to {folder}: {e}", "error")
+            return
+        self.path = folder
+        self._note(f"recording to {folder}", "info")
+
+    def stop(self, why: str = "", level: str = "info") -> None:
+        """Close the recording (if any) and say how many frames it kept and why it stopped; a
+        recording asked for and not started is kept asked for (see :meth:`cancel`)."""
+        w, self.writer = self.writer, None
+        if w is None:
+            return
+        w.close()
+        if w.count > 0:
+            self.last = self.path
+        tail = f" ({why})" if why else ""
+        self._note(f"recorded {w.count} frames to {self.path}{tail}", level)
+
+    def cancel(self, why: str) -> None:
+        """The run restarted or the server stops: stop the recording and forget one asked for."""
+        self.stop(why)
+        self.pending = None
+
+    def stop_asked(self) -> None:
+        """The user's Stop recording: stop, or say that nothing was recorded when no new frame
+        came after Start recording."""
+        if self.pending is not None and self.writer is None:
+            self._note(f"nothing recorded: no new frame was made after Start recording (press "
+                       f"Play or Step while recording); {self.pending} was not written", "info")
+        self.pending = None
+        self.stop()
+
+    def export_mcap(self) -> None:
+        """Start exporting :attr:`last` on a background thread (a long recording must not freeze
+        the loop); ValueError naming why when there is nothing to export or an export runs."""
+        if self.export is not None:
+            raise ValueError(f"an MCAP export is already running ({self.export.out})")
+        if self.last is None:
+            what = ("stop the recording first" if self.active
+                    else "record a run first (Start recording, then Stop recording)")
+            raise ValueError(f"nothing to export: {what}")
+        self.export = McapJob(self.last)
+        self._note(f"exporting {self.last} to {self.export.out} ...", "info")
+
+    def poll(self) -> None:
+        """Note an MCAP export that finished since the last call."""
+        job = self.export
+        if job is None or job.running:
+            return
+        self.export = None
+        if job.error is not None:
+            self._note(f"MCAP export of {job.dataset} failed: {job.error}", "error")
+        else:
+            self._note(f"exported {job.frames} frames to {job.out} (open it in Foxglove)", "info")
+
+    def close(self) -> None:
+        """Wait for an MCAP export in progress, then close the recording (idempotent)."""
+        if self.export is not None:
+            self.export.join()
+        self.cancel("the server stopped")
+
+
+class McapJob:
+    """The MCAP export of a recorded dataset folder on a background thread: ``dataset`` replayed
+    as ``python -m tileviz replay DATASET --mcap`` does, written to ``DATASET.mcap`` beside it.
+    ``frames``: frames written; ``error``: one line when it failed (the file may be partial)."""
+
+    def __init__(self, dataset: Path) -> None:
+        self.dataset = dataset
+        self.out = dataset.with_name(dataset.name + ".mcap")
+        self.frames = 0
+        self.error: str | None = None
+        self._thread = threading.Thread(target=self._run, name="tileviz-mcap", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        from tileviz.pipeline.replay import replay
+
+        try:
+            # the replay table is not kept: the MCAP file is what was asked for
+            self.frames = replay(self.dataset, out=os.devnull, mcap=self.out, jobs=1)
+        except Exception as e:  # noqa: BLE001 - reported as one line by Recorder.poll
+            self.error = f"{type(e).__name__}: {e}" if not isinstance(e, (OSError, ValueError)) \
+                else str(e)
+
+    @property
+    def running(self) -> bool:
+        """True while the export thread runs."""
+        return self._thread.is_alive()
+
+    def join(self, timeout: float | None = None) -> None:
+        """Wait for the export (at most ``timeout`` seconds; None: until it ends)."""
+        self._thread.join(timeout)
