@@ -31,8 +31,13 @@ def foreign_edges(run: RobustRun) -> None:
     draw_lattice_mask(free, run.y, run.ppm, run.tile_size, thick)
     run.free_edges = free
     minlen = max(25.0, run.st.foreign_length * run.side)
+    votes = int(0.5 * minlen)
+    # a segment needs that many votes, at most one per edge pixel: with fewer free edge
+    # pixels (a clean view: every edge lies on the grout) the search finds none
+    if cv2.countNonZero(free) < votes:
+        return
     seg = cv2.HoughLinesP(
-        free, 1.0, math.pi / 180.0, int(0.5 * minlen), minLineLength=minlen, maxLineGap=3.0
+        free, 1.0, math.pi / 180.0, votes, minLineLength=minlen, maxLineGap=3.0
     )
     if seg is None:
         return
