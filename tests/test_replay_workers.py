@@ -15,7 +15,8 @@ from tileviz.pipeline.workers import worker_context
 from tileviz.vision import extract
 from tileviz.vision.robust import kernel
 
-KERNELS = ("grout_score", "part_profiles", "part_rows", "profile_dips")
+KERNELS = ("dip_rows", "grout_score", "part_profiles", "part_rows", "part_summary",
+           "profile_arrays", "profile_dips", "view_spans")
 
 
 def _loaded_kernels() -> dict[str, int]:
