@@ -7,9 +7,10 @@ gravel on the tiles) and the seed preset), it records a simulated run of ``--min
 as a dataset, replays it in autonomous and odometry modes and
 prints: share of frames whose truth is inside the reported set, count of each status, median and
 p95 box widths (x, y in cm, heading in degrees). Then it times, on the same images, the replay per
-frame (PNG decode + vision + localizer, as ``replay`` runs it, and its parts) against the bare
-OpenCV calls of the original pipeline with its constants (cvtColor, Laplacian, Canny, close,
-dilate, HoughLinesP).
+frame (``replay`` itself, with 2 worker processes and with 1, and the CPU time of each of its
+steps: reading rows, PNG decoding, vision, localizer and loop, output) against the bare OpenCV
+calls of the original pipeline with its constants (cvtColor, Laplacian, Canny, close, dilate,
+HoughLinesP) on the same images, decoded and in memory, in the same run (:func:`timing`).
 
     python bench/acceptance.py --minutes 10            # the issue's figures
     python bench/acceptance.py --minutes 1 --cases default default:photo
@@ -20,6 +21,10 @@ from __future__ import annotations
 import argparse
 import itertools
 import math
+import os
+import shutil
+import subprocess
+import sys
 import tempfile
 import time
 from dataclasses import replace
@@ -29,13 +34,16 @@ import cv2
 import numpy as np
 
 from tileviz.config import FLOOR_STYLES, Config, preset, with_floor_style
-from tileviz.datasets import DatasetMeta, DatasetSource, DatasetWriter
-from tileviz.pipeline import FrameLoop
-from tileviz.pipeline.workers import vision_ahead
+from tileviz.datasets import DatasetMeta, DatasetSource, DatasetWriter, replay_config
+from tileviz.pipeline import FrameLoop, FrameRecord
+from tileviz.pipeline.heap import keep_freed_memory
+from tileviz.pipeline.outputs import replay_row
+from tileviz.pipeline.replay import replay
 from tileviz.sim.source import SimSource
 from tileviz.vision import extract, set_opencv_threads
 
 set_opencv_threads()  # as every tileviz entry point (workers re-run this on import)
+keep_freed_memory()  # as the replay command and its workers: the bare calls get it too
 
 
 def record(cfg: Config, folder: Path, frames: int) -> None:
@@ -93,82 +101,180 @@ def bare_opencv(rgb: np.ndarray) -> object:
     return cv2.HoughLinesP(dil, 1, np.pi / 180, 60, minLineLength=100, maxLineGap=50)
 
 
-def timing(folder: Path, repeats: int = 3, limit: int = 600) -> dict[str, float]:
-    """Wall ms per frame over the first ``limit`` frames, best of ``repeats`` passes, the
-    cases interleaved so they see the same load:
+def first_frames(folder: Path, limit: int, into: Path) -> Path:
+    """A dataset of the first ``limit`` frames of ``folder`` under ``into`` (its meta.json and
+    the first rows of frames.csv; the images read from ``folder``'s through a link), so the
+    timed replays are the product's own ``replay``."""
+    into.mkdir(parents=True, exist_ok=True)
+    shutil.copy(folder / "meta.json", into / "meta.json")
+    with open(folder / "frames.csv", encoding="utf-8") as f:
+        lines = f.readlines()[:limit + 1]
+    (into / "frames.csv").write_text("".join(lines), encoding="utf-8")
+    for entry in {line.split(",")[2].split("/")[0] for line in lines[1:]}:
+        if not (into / entry).exists():
+            (into / entry).symlink_to((folder / entry).resolve())
+    return into
 
-    - ``jobs2``: ``python -m tileviz replay --jobs 2`` (decode + vision in 2 worker processes,
-      the localizer in order in this one; ``replay``'s default on a 2-core machine), from its
-      first frame on: the workers' start-up
-      (``jobs2_startup_s``, seconds, once per replay) is left out, as it is spread over
-      12000 frames in a 10-minute replay;
-    - ``replay``: what ``python -m tileviz replay --jobs 1`` does (images decoded ahead on a
-      thread);
-    - ``serial``: the same with every image decoded when its frame is asked for;
-    - ``decode``: reading and decoding the images alone;
-    - ``bare``: the bare OpenCV calls of the original pipeline on the decoded images, with
-      OpenCV on its default thread count (one per CPU, as the original ran; tileviz runs it on
-      one thread, see tileviz.vision);
-    - ``bare1``: the same bare calls with OpenCV on one thread (its CPU time is the work of
-      the original chain, without the idle spinning of OpenCV's thread pool);
-    - ``vision``: the extractor alone on the decoded images.
 
-    Each ``<case>_cpu`` (all but jobs2) is the same pass in CPU time of this process (all its
-    threads, ``time.process_time``): the work a frame costs, which a loaded machine does not
-    inflate as it does wall time."""
-    cfg = DatasetSource(folder).meta.to_config()
-    names = [f.image_name for f in itertools.islice(DatasetSource(folder), limit)]
-    images = [f.image for f in itertools.islice(DatasetSource(folder), limit)]
-    keys = ("jobs2", "jobs2_startup_s", "replay", "serial", "decode", "bare", "bare1", "vision")
-    best = dict.fromkeys(keys + tuple(f"{k}_cpu" for k in keys[2:]), math.inf)
+def worker_cpu() -> float:
+    """CPU seconds so far of the live vision workers of this process's replay: the processes
+    whose parent is this process or its multiprocessing fork server (Linux ``/proc``)."""
+    from multiprocessing import forkserver
 
-    def clocked(key: str, work: object) -> None:
-        t0 = time.perf_counter()
-        c0 = time.process_time()
-        work()  # type: ignore[operator]
-        c1 = time.process_time()
-        best[key] = min(best[key], (time.perf_counter() - t0) / len(images) * 1e3)
-        best[f"{key}_cpu"] = min(best[f"{key}_cpu"], (c1 - c0) / len(images) * 1e3)
-
-    def vision() -> None:
-        for g in images:
-            extract(g, camera=cfg.camera, tile_size=cfg.floor.tile_size, vision=cfg.vision)
-
-    def replay(prefetch: int) -> None:
-        for _rec in FrameLoop(cfg).run(
-                itertools.islice(DatasetSource(folder, prefetch=prefetch), limit)):
-            pass
-
-    def parallel() -> None:
-        src = DatasetSource(folder)
-        runner = FrameLoop(cfg)
-        t0 = time.perf_counter()
-        first = 0.0
-        for k, (frame, vision) in enumerate(itertools.islice(vision_ahead(src, cfg, 2), limit)):
-            if k == 0:
-                first = time.perf_counter()
-            runner.process(frame, vision)
-        end = time.perf_counter()
-        best["jobs2"] = min(best["jobs2"], (end - first) / (len(images) - 1) * 1e3)
-        best["jobs2_startup_s"] = min(best["jobs2_startup_s"], first - t0)
-
-    def bare() -> None:
-        tileviz_threads = cv2.getNumThreads()
-        cv2.setNumThreads(cv2.getNumberOfCPUs())  # OpenCV's default
+    parents = {os.getpid(), getattr(forkserver._forkserver, "_forkserver_pid", None)}
+    tick = os.sysconf("SC_CLK_TCK")
+    total = 0.0
+    for stat in Path("/proc").glob("[0-9]*/stat"):
         try:
-            clocked("bare", lambda: [bare_opencv(g) for g in images])
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:  # gone meanwhile
+            continue
+        if int(fields[1]) in parents:  # ppid; then utime, stime at fields 11, 12
+            total += (int(fields[11]) + int(fields[12])) / tick
+    return total
+
+
+def timing(folder: Path, repeats: int = 3, limit: int = 600) -> dict[str, float]:
+    """Per-frame costs in milliseconds over the first ``limit`` frames (a dataset of those
+    frames, :func:`first_frames`), best of ``repeats`` passes, the cases interleaved so they see
+    the same load. Wall clock:
+
+    - ``jobs2``: ``python -m tileviz replay --jobs 2`` (:func:`tileviz.pipeline.replay.replay`,
+      its output CSV written; decoding and vision in 2 worker processes, the localizer in
+      order in this one; ``replay``'s default on a 2-core machine), from its first frame on:
+      the workers' start-up (``jobs2_startup_s``, seconds, once per replay) is left out;
+    - ``command1_s``, ``command2_s``: seconds of the whole command ``python -m tileviz replay``
+      with ``--jobs 1``, ``--jobs 2`` on the first 8 frames, in a new process (its start-up, as
+      a user sees it: imports, the workers, the compiled kernels loaded);
+    - ``jobs1``: the same with ``--jobs 1`` (images decoded ahead on a thread);
+    - ``bare``: the bare OpenCV calls of the original pipeline on the decoded images (already
+      in memory: no file is read), with OpenCV on its default thread count (one per CPU, as
+      the original ran; tileviz runs it on one thread, see tileviz.vision).
+
+    CPU time (``*_cpu``; the work a frame costs, which a loaded machine inflates less than
+    wall time):
+
+    - ``jobs2_cpu``: ``--jobs 2``, this process and its 2 workers together (the workers'
+      start-up included: forked from a fork server that loaded the vision code once, a few
+      milliseconds; the fork server's own start-up, once per process, is in the first
+      ``jobs2_startup_s``);
+    - ``jobs2_main_cpu``: the part of it in this process (reading rows, taking the workers'
+      results, the localizer, the output);
+    - ``rows``, ``decode``, ``vision``, ``loop``, ``output``: one pass of the replay's steps on
+      one thread, each step clocked in the same pass (``time.thread_time``): reading and
+      checking frames.csv's rows; reading, checking and decoding the PNG as replay does
+      (``DatasetSource.load_image``); the extractor; the frame loop with the vision result
+      given (the localizer's step, the record, the equivalence residuals); the output rows;
+    - ``parts``: their sum, the work of a replay on one thread;
+    - ``bare1``: the bare OpenCV calls with OpenCV on one thread (the work of the original
+      chain, without the idle spinning of OpenCV's thread pool)."""
+    with tempfile.TemporaryDirectory(prefix="tileviz-timing-") as tmp:
+        return _timing(folder, Path(tmp), repeats, limit)
+
+
+def _timing(folder: Path, tmp: Path, repeats: int, limit: int) -> dict[str, float]:
+    data = first_frames(folder, limit, tmp / "frames")
+    src = DatasetSource(data)
+    cfg = replay_config(src.meta)
+    n = sum(1 for _ in src.frames_without_images())
+    images = [f.image for f in src]
+    out = tmp / "out.csv"
+    parts = ("rows", "decode", "vision", "loop", "output")
+    best: dict[str, float] = {}
+
+    def keep(key: str, ms: float) -> None:
+        best[key] = min(best.get(key, math.inf), ms)
+
+    def replay_wall(jobs: int) -> tuple[float, float]:
+        """(ms per frame from the first frame on, seconds to the first frame)."""
+        first: list[float] = []
+
+        def on_frame(_rec: FrameRecord) -> None:
+            if not first:
+                first.append(time.perf_counter())
+
+        t0 = time.perf_counter()
+        replay(data, out=out, jobs=jobs, on_frame=on_frame)
+        end = time.perf_counter()
+        return (end - first[0]) / (n - 1) * 1e3, first[0] - t0
+
+    def replay_cpu() -> tuple[float, float]:
+        """(this process, its workers) CPU ms per frame of a --jobs 2 replay, the workers' read
+        at the last frame (still alive then; forked from the warm fork server, their start-up
+        is a few milliseconds), this process's over the whole replay."""
+        seen: list[float] = []
+
+        def on_frame(rec: FrameRecord) -> None:
+            if rec.index == n - 1:
+                seen.append(worker_cpu())
+
+        c0 = time.process_time()
+        replay(data, out=out, jobs=2, on_frame=on_frame)
+        return (time.process_time() - c0) / n * 1e3, seen[0] / n * 1e3
+
+    eight = first_frames(folder, 8, tmp / "eight")
+
+    def command(jobs: int) -> float:
+        t0 = time.perf_counter()
+        subprocess.run([sys.executable, "-m", "tileviz", "replay", str(eight), "--out",
+                        str(tmp / "eight.csv"), "--jobs", str(jobs), "--quiet"], check=True,
+                       stdout=subprocess.DEVNULL)
+        return time.perf_counter() - t0
+
+    def one_thread() -> None:
+        """The replay's steps on one thread, each clocked."""
+        source = DatasetSource(data)
+        loop = FrameLoop(cfg)
+        spent = dict.fromkeys(parts, 0.0)
+        clock = time.thread_time
+        jobs = source.frames_without_images()
+        while True:
+            c0 = clock()
+            try:
+                frame, where = next(jobs)
+            except StopIteration:
+                break
+            c1 = clock()
+            image = source.load_image(frame.image_name, where)
+            c2 = clock()
+            vision = extract(image, camera=cfg.camera, tile_size=cfg.floor.tile_size,
+                             vision=cfg.vision)
+            c3 = clock()
+            rec = loop.process(replace(frame, image=image), vision)
+            c4 = clock()
+            replay_row(rec)
+            c5 = clock()
+            for key, a, b in zip(parts, (c0, c1, c2, c3, c4), (c1, c2, c3, c4, c5), strict=True):
+                spent[key] += b - a
+        for key in parts:
+            keep(f"{key}_cpu", spent[key] / n * 1e3)
+        keep("parts_cpu", sum(spent.values()) / n * 1e3)
+
+    def bare(threads: int) -> tuple[float, float]:
+        """(wall, CPU) ms per frame of the bare OpenCV calls on ``threads`` threads."""
+        tileviz_threads = cv2.getNumThreads()
+        cv2.setNumThreads(threads)
+        try:
+            c0, t0 = time.process_time(), time.perf_counter()
+            for g in images:
+                bare_opencv(g)
+            return (time.perf_counter() - t0) / n * 1e3, (time.process_time() - c0) / n * 1e3
         finally:
             cv2.setNumThreads(tileviz_threads)
 
     for _ in range(repeats):
-        parallel()
-        clocked("replay", lambda: replay(8))
-        clocked("serial", lambda: replay(0))
-        clocked("decode", lambda: [cv2.imdecode(np.fromfile(folder / n, np.uint8),
-                                                cv2.IMREAD_COLOR) for n in names])
-        clocked("vision", vision)
-        clocked("bare1", lambda: [bare_opencv(g) for g in images])
-        bare()
+        wall, startup = replay_wall(2)
+        keep("jobs2", wall)
+        keep("jobs2_startup_s", startup)
+        keep("jobs1", replay_wall(1)[0])
+        keep("command1_s", command(1))
+        keep("command2_s", command(2))
+        main, workers = replay_cpu()
+        keep("jobs2_cpu", main + workers)
+        keep("jobs2_main_cpu", main)
+        one_thread()
+        keep("bare1_cpu", bare(1)[1])
+        keep("bare", bare(cv2.getNumberOfCPUs())[0])  # OpenCV's default
     return best
 
 
@@ -205,21 +311,24 @@ def main() -> None:
             print(f"{mode:>10}: " + "  ".join(
                 f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in s.items()))
         tm = timing(folder)
-        print(f"replay --jobs 2 {tm['jobs2']:.3f} ms/frame once started (ratio to the bare "
-              f"calls {tm['jobs2'] / tm['bare']:.2f}; start-up {tm['jobs2_startup_s']:.2f} s)")
-        print(f"replay --jobs 1 (decode+vision+localizer) {tm['replay']:.3f} ms/frame "
-              f"({tm['serial']:.3f} without decoding ahead; decoding alone "
-              f"{tm['decode']:.3f}); bare OpenCV calls of the original pipeline "
-              f"{tm['bare']:.3f} ms/frame; ratio {tm['replay'] / tm['bare']:.2f}")
+        bare = tm["bare"]
+        print(f"replay --jobs 2 {tm['jobs2']:.3f} ms/frame once started (start-up in this "
+              f"process {tm['jobs2_startup_s']:.2f} s; the command on 8 frames "
+              f"{tm['command2_s']:.2f} s, with --jobs 1 {tm['command1_s']:.2f} s), "
+              f"replay --jobs 1 {tm['jobs1']:.3f} ms/frame; "
+              f"bare OpenCV calls of the original pipeline {bare:.3f} ms/frame (OpenCV on its "
+              f"default threads); ratios {tm['jobs2'] / bare:.2f}, {tm['jobs1'] / bare:.2f}")
         # CPU time: the work per frame; with 2 workers, decoding and vision split over two
         # processes and the localizer stays in order in this one
-        loc = max(tm["replay_cpu"] - tm["decode_cpu"] - tm["vision_cpu"], 0.0)
-        two = max(0.5 * (tm["decode_cpu"] + tm["vision_cpu"]), loc)
-        print(f"CPU ms/frame: replay --jobs 1 {tm['replay_cpu']:.3f} (decoding "
-              f"{tm['decode_cpu']:.3f}, vision {tm['vision_cpu']:.3f}, localizer and loop "
-              f"{loc:.3f}); bare OpenCV calls on one thread {tm['bare1_cpu']:.3f}; ratio "
-              f"{tm['replay_cpu'] / tm['bare1_cpu']:.2f}; with 2 workers on 2 idle cores at "
-              f"best {two:.3f} ms/frame, ratio {two / tm['bare1_cpu']:.2f}")
+        bare1 = tm["bare1_cpu"]
+        two = max(0.5 * tm["jobs2_cpu"], tm["jobs2_main_cpu"])
+        print(f"CPU ms/frame: replay's steps on one thread {tm['parts_cpu']:.3f} (rows "
+              f"{tm['rows_cpu']:.3f}, PNG decoding {tm['decode_cpu']:.3f}, vision "
+              f"{tm['vision_cpu']:.3f}, localizer and loop {tm['loop_cpu']:.3f}, output "
+              f"{tm['output_cpu']:.3f}), ratio {tm['parts_cpu'] / bare1:.2f}; "
+              f"replay --jobs 2 {tm['jobs2_cpu']:.3f} in all (this process "
+              f"{tm['jobs2_main_cpu']:.3f}), on 2 idle cores at best {two:.3f} ms/frame, ratio "
+              f"{two / bare1:.2f}; bare OpenCV calls on one thread {bare1:.3f}")
     print(f"\n(datasets in {root}; timings are the best of 3 passes; wall clock unless "
           "marked CPU)")
 

@@ -33,6 +33,12 @@ def test_each_floor_family_is_read_within_its_declared_bound(family: str) -> Non
         ("wood", 15, "a chance alignment of the wavy grain's edges along a straight band"),
         ("photo", 63, "a chance alignment of the gravel photograph's edges"),
         ("photo", 65, "straight edges of the gravel photograph inside the tiles"),
+        ("photo", 12, "the brick photograph's mortar lines run into the grout and stop there "
+                      "(was a step edge)"),
+        ("photo", 54, "the brick photograph's mortar lines run into the grout and stop there "
+                      "(was a step edge)"),
+        ("photo", 148, "the brick photograph's mortar lines run into the grout and stop there "
+                       "(was a foreign line)"),
         ("terrazzo", 5, "chips outvote the grout in the gradient directions"),
         ("wood", 24, "the grain outvotes the grout in the gradient directions"),
         ("degraded", 39, "blur, JPEG and a strong lighting gradient: the first heading is 0.75 "
@@ -48,10 +54,11 @@ def test_each_floor_family_is_read_within_its_declared_bound(family: str) -> Non
     ],
 )
 def test_views_once_refused_are_read_within_their_bound(family: str, seed: int, why: str) -> None:
-    """Readable clean views the extractor used to refuse (``foreign line``, ``low contrast``,
-    ``no lines``, ``blurred``, ``inconsistent spacing``, ``one family``; ``why``): texture is
-    told from a foreign object's edge, the heading is sought from the view's periodicity when
-    the lines at the first heading fail their checks, and then the other polarity of the
+    """Readable clean views the extractor used to refuse (``foreign line``, ``step edge``,
+    ``low contrast``, ``no lines``, ``blurred``, ``inconsistent spacing``, ``one family``;
+    ``why``): texture is told from a foreign object's edge (an edge that stops at the grout
+    leaves the grout alike on both sides), the heading is sought from the view's periodicity
+    when the lines at the first heading fail their checks, and then the other polarity of the
     grout; a blurred view is read with the wider bound its softer edges give; lighter grout's
     lines are compared in depth over the grout's own level too; the profile beyond the view
     continues its last level; a wide band is measured centred on itself."""

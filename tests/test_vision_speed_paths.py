@@ -98,10 +98,12 @@ def test_the_compiled_part_measurement_is_the_numpy_one_bit_for_bit(
     """Every part profile the extractor measures on every floor family gives the same bits
     (the profile from the integral image; its width, rise, contrast, centroid, midpoints,
     standard error) from the compiled kernels as from the numpy computation, so do every
-    family's light-grout score and every profile's darkness, noise and dips, and whole
+    family's light-grout score, every profile's darkness, noise and dips, every dip's
+    measurement on its whole profile, the profiles and in-view spans of every warp, and whole
     extractions agree field for field."""
     views = _floor_views(2)
-    names = ("part_rows", "part_profiles", "grout_score", "profile_dips")
+    names = ("part_rows", "part_profiles", "grout_score", "profile_dips", "dip_rows",
+             "view_spans", "profile_arrays", "part_summary")
     compiled = {name: getattr(kernel, name) for name in names}
     seen: dict[str, list[tuple]] = {name: [] for name in names}
 
@@ -135,6 +137,33 @@ def test_the_compiled_part_measurement_is_the_numpy_one_bit_for_bit(
         for a, b in zip(compiled["profile_dips"](*args), profiles.profile_dips_numpy(*args),
                         strict=True):
             assert a.dtype == b.dtype and _bits(a) == _bits(b)
+    assert sum(int(args[4].size) for args in seen["dip_rows"]) > 100
+    for args in seen["dip_rows"]:
+        for a, b in zip(compiled["dip_rows"](*args), profiles.dip_rows_numpy(*args),
+                        strict=True):
+            assert a.shape == b.shape and _bits(a) == _bits(b)
+    assert len(seen["part_summary"]) == len(seen["part_rows"])
+    for args in seen["part_summary"]:
+        for a, b in zip(compiled["part_summary"](*args), profiles.part_summary_numpy(*args),
+                        strict=True):
+            assert a.shape == b.shape and _bits(a) == _bits(b)
+    assert len(seen["profile_arrays"]) >= len(views)
+    for args in seen["profile_arrays"]:
+        for a, b in zip(compiled["profile_arrays"](*args), profiles.profile_arrays_numpy(*args),
+                        strict=True):
+            assert a.shape == b.shape and _bits(a) == _bits(b)
+    assert len(seen["view_spans"]) >= 2 * len(views)
+    for n, off, c, s, w, h, along in seen["view_spans"]:
+
+        class Run:  # the view size view_spans reads
+            pass
+
+        run = Run()
+        run.w, run.h = w, h  # type: ignore[attr-defined]
+        ref = profiles.view_spans(run, np.arange(n) - off, c, s,  # type: ignore[arg-type]
+                                  along_rows=along)
+        for a, b in zip(compiled["view_spans"](n, off, c, s, w, h, along), ref, strict=True):
+            assert _bits(a) == _bits(b)
     monkeypatch.setattr(kernel, "AVAILABLE", False)
     slow = [extract(img, camera=cam, tile_size=ts, vision=ROBUST) for img, cam, ts in views]
     for a, b in zip(fast, slow, strict=True):

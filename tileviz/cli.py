@@ -155,8 +155,11 @@ def replay(argv: list[str]) -> int:
     args = replay_parser().parse_args(argv)
 
     def body() -> int:
+        from tileviz.pipeline.heap import keep_freed_memory
         from tileviz.pipeline.replay import replay as run_replay
         from tileviz.summary import RunTally
+
+        keep_freed_memory()  # vision's image-sized arrays reuse the heap (--jobs 1)
 
         bar = None
         tally = RunTally()

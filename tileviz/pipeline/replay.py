@@ -63,7 +63,8 @@ def replay(
     is ``lost`` it restarts from "somewhere in this region" at the next frame
     (``Localizer.relocalize``: candidate boxes, heading from the compass).
     ``on_total`` gets the frame count when known (None otherwise) before
-    the first frame, ``on_frame`` every record. A bad row or image raises DatasetError (a
+    the first frame, ``on_frame`` every record (its ``residuals`` computed only with
+    ``output_file``). A bad row or image raises DatasetError (a
     ValueError) after every frame before it was written."""
     # images decode on a background thread while the previous frame's vision runs
     source = DatasetSource(dataset, prefetch=8)
@@ -77,7 +78,7 @@ def replay(
         region_candidates(relocalize_region, cfg.floor.tile_size)  # too large: refused now
     csv_out = CsvOut(out, REPLAY_COLUMNS)
     eq = CsvOut(output_file, RESIDUAL_COLUMNS) if output_file else None
-    loop = FrameLoop(cfg)
+    loop = FrameLoop(cfg, residuals=eq is not None)  # residuals: for output_file only
     if on_total is not None:
         on_total(source.row_count() or None)
     n = 0

@@ -3,7 +3,11 @@ observations extracted on ``jobs`` processes, handed back in frame order.
 
 Vision of one frame does not depend on any other frame, so a replay (a batch job) can run it for
 several frames at once; the localizer, which does depend on the previous frame, stays in the
-calling process and takes the frames in order. Each worker runs OpenCV with the calling process's
+calling process and takes the frames in order. Where the platform has it, the workers are forked
+from a fork server (:func:`worker_context`) that imported the vision code and loaded the robust
+extractor's compiled kernels once (:mod:`tileviz.pipeline.worker_start`), rather than each
+worker importing and loading them again before its first frame; the server serves every later
+replay of the calling process too. Each worker runs OpenCV with the calling process's
 thread count (one, as every entry point sets it, unless the caller changed it: OpenCV's
 multi-threaded Canny gives edges that depend on the count), so the results are bit for bit those
 of :func:`tileviz.vision.extract` in the calling process;
@@ -19,6 +23,7 @@ from __future__ import annotations
 import multiprocessing
 from collections.abc import Iterator
 from concurrent.futures import ProcessPoolExecutor
+from multiprocessing.context import BaseContext
 from pathlib import Path
 from typing import TypeVar
 
@@ -26,11 +31,12 @@ import cv2
 
 from tileviz.config import Config
 from tileviz.datasets import DatasetSource
+from tileviz.pipeline.heap import keep_freed_memory
 from tileviz.pipeline.parallel import results_in_order
 from tileviz.types import FrameInput
 from tileviz.vision import VisionResult, extract, set_opencv_threads
 
-__all__ = ["CHUNK", "vision_ahead"]
+__all__ = ["CHUNK", "vision_ahead", "worker_context"]
 
 CHUNK = 8
 """Frames per task handed to a worker: one task per frame cost each side about 0.2-0.4 ms of
@@ -42,11 +48,25 @@ _worker: tuple[DatasetSource, Config] | None = None
 """The dataset and configuration of this worker process (set by :func:`_init`)."""
 
 
+def worker_context() -> BaseContext:
+    """The multiprocessing context of the vision workers: ``forkserver`` with
+    :mod:`tileviz.pipeline.worker_start` loaded in the server before it forks (a fresh,
+    single-threaded process: no fork of a process that runs OpenCV's or anyone's threads),
+    else ``spawn``."""
+    if "forkserver" in multiprocessing.get_all_start_methods():
+        ctx = multiprocessing.get_context("forkserver")
+        # (takes effect when the server starts: at the first pool of this process)
+        ctx.set_forkserver_preload(["tileviz.pipeline.worker_start"])
+        return ctx
+    return multiprocessing.get_context("spawn")
+
+
 def _init(folder: str, cfg: Config, threads: int) -> None:
     global _worker
     # OpenCV's thread count as in the calling process (the entry point set one): Canny's edges
     # depend on it, and a replay must give the same sets whatever --jobs
     set_opencv_threads(threads)
+    keep_freed_memory()  # (already so when forked from the fork server)
     _worker = (DatasetSource(folder), cfg)
 
 
@@ -102,8 +122,7 @@ def vision_ahead(source: DatasetSource, cfg: Config, jobs: int,
     if not isinstance(jobs, int) or jobs < 1:
         raise ValueError(f"jobs must be an integer >= 1, got {jobs!r}")
     ahead = 2 * jobs if window is None else max(1, int(window))
-    ctx = multiprocessing.get_context("spawn")  # no fork of a process with OpenCV threads
-    with ProcessPoolExecutor(jobs, mp_context=ctx, initializer=_init,
+    with ProcessPoolExecutor(jobs, mp_context=worker_context(), initializer=_init,
                              initargs=(str(Path(source.folder)), cfg, cv2.getNumThreads()),
                              ) as pool:
         for chunk, results in results_in_order(

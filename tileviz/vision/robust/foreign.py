@@ -31,8 +31,13 @@ def foreign_edges(run: RobustRun) -> None:
     draw_lattice_mask(free, run.y, run.ppm, run.tile_size, thick)
     run.free_edges = free
     minlen = max(25.0, run.st.foreign_length * run.side)
+    votes = int(0.5 * minlen)
+    # a segment needs that many votes, at most one per edge pixel: with fewer free edge
+    # pixels (a clean view: every edge lies on the grout) the search finds none
+    if cv2.countNonZero(free) < votes:
+        return
     seg = cv2.HoughLinesP(
-        free, 1.0, math.pi / 180.0, int(0.5 * minlen), minLineLength=minlen, maxLineGap=3.0
+        free, 1.0, math.pi / 180.0, votes, minLineLength=minlen, maxLineGap=3.0
     )
     if seg is None:
         return
@@ -61,14 +66,16 @@ def clear_of_lattice(run: RobustRun, seg: np.ndarray) -> np.ndarray:
       line would, whatever the lines were taken for): the mortar of a brick photograph, a
       plank's edge, a cable or a shadow along the grout in the middle of a tile;
     - an edge whose object stops, on both sides, before or at the grout lines (:func:`ends`):
-      its line, extended from each end, runs mostly over pixels with no edge at the search's
-      own thresholds (edges weaker than those are not searched at all) before the next band,
-      or beyond it. A straight edge inside a tile (the mortar of a brick photograph, a
-      plank's end) touches the grout's plateaus as any texture does; an object crossing a
-      grout line (a cable, a box or shadow edge) shows on both sides of it.
+      its line, followed from each end, sees the edge on at most half the steps to the next
+      band, or runs into the grout and neither goes on beyond the band nor changes the grout's
+      gray level beside it (:func:`straddle`). A straight edge inside a tile (the mortar of a
+      brick photograph, a plank's end) touches the grout's plateaus as any texture does; an
+      object crossing a grout line (a cable, a box or shadow edge) shows on both sides of it
+      and across the grout.
 
-    Assumed: an object whose straight edge ends inside a grout band without crossing it is
-    not told from texture there."""
+    Assumed: an object whose straight edge ends inside a grout band without crossing it, or
+    crosses the grout with the grout's own gray level, is not told from texture there
+    (:func:`ends`)."""
     assert run.y is not None
     out = np.zeros(len(seg), bool)
     proj = run.projection
@@ -90,7 +97,6 @@ def clear_of_lattice(run: RobustRun, seg: np.ndarray) -> np.ndarray:
         return tuple(n[0] * (px - cx) + n[1] * (py - cy) + sh
                      for n, sh in zip(normals, shift, strict=True))
 
-    near = cv2.dilate(run.edges, np.ones((3, 3), np.uint8))
     share = edge_share(run, seg)
     for i, (x1, y1, x2, y2) in enumerate(seg.tolist()):
         if share[i] < TEXTURE_SHARE:
@@ -109,7 +115,7 @@ def clear_of_lattice(run: RobustRun, seg: np.ndarray) -> np.ndarray:
             continue
         d = ((x2 - x1) / ln, (y2 - y1) / ln)
         out[i] = all(
-            ends(run, near, px, py, sx * d[0], sx * d[1], band, offsets)
+            ends(run, px, py, sx * d[0], sx * d[1], band, normals, shift)
             for px, py, sx in ((x2, y2, 1.0), (x1, y1, -1.0))
         )
     return out
@@ -124,33 +130,41 @@ sample of their profiles (:func:`clear_of_lattice`)."""
 def edge_share(run: RobustRun, seg: np.ndarray) -> np.ndarray:
     """For each straight edge (rows of ``seg``: x1, y1, x2, y2, px), the share of the points
     along it (1 px apart) within 1 px of an edge pixel whose gradient is normal to it within
-    :data:`NORMAL_TOLERANCE`: about 1 for the edge of one object (a cable, a box, a shadow),
-    much less for a chance alignment of a texture's edges (grains, chips, a wavy grain), whose
-    directions scatter."""
-    assert run.edges is not None and run.dxy is not None
-    dx, dy = run.dxy
+    :data:`NORMAL_TOLERANCE` (:func:`oriented_hits`): about 1 for the edge of one object (a
+    cable, a box, a shadow), much less for a chance alignment of a texture's edges (grains,
+    chips, a wavy grain), whose directions scatter."""
     out = np.zeros(len(seg))
-    cos_tol = math.cos(NORMAL_TOLERANCE)
     for i, (x1, y1, x2, y2) in enumerate(seg.tolist()):
         ln = math.hypot(x2 - x1, y2 - y1)
         if ln < 1.0:
             continue
-        nx, ny = -(y2 - y1) / ln, (x2 - x1) / ln
         t = np.arange(0.0, ln + 0.5, 1.0) / ln
         xs = np.rint(x1 + t * (x2 - x1)).astype(np.intp)
         ys = np.rint(y1 + t * (y2 - y1)).astype(np.intp)
-        good = np.zeros(t.size, bool)
-        for ox in (-1, 0, 1):
-            for oy in (-1, 0, 1):
-                xx = np.clip(xs + ox, 0, run.w - 1)
-                yy = np.clip(ys + oy, 0, run.h - 1)
-                gx = dx[yy, xx].astype(np.float64)
-                gy = dy[yy, xx].astype(np.float64)
-                g = np.hypot(gx, gy)
-                along = np.abs(gx * nx + gy * ny) >= cos_tol * g
-                good |= (run.edges[yy, xx] > 0) & along & (g > 0)
-        out[i] = float(good.mean())
+        out[i] = float(oriented_hits(run, xs, ys, -(y2 - y1) / ln, (x2 - x1) / ln).mean())
     return out
+
+
+def oriented_hits(run: RobustRun, xs: np.ndarray, ys: np.ndarray, nx: float, ny: float
+                  ) -> np.ndarray:
+    """Whether each pixel (xs, ys) lies within 1 px (its 3 x 3 neighbourhood) of an edge pixel
+    of ``run.edges`` whose gradient is within :data:`NORMAL_TOLERANCE` of the unit normal
+    (nx, ny), of either sign: the points where a straight edge with that normal is seen."""
+    assert run.edges is not None and run.dxy is not None
+    dx, dy = run.dxy
+    # the 3 x 3 neighbours of every pixel at once (rows: the 9 offsets), as flat indices
+    xx = np.clip(xs[None, :] + _NX[:, None], 0, run.w - 1)
+    yy = np.clip(ys[None, :] + _NY[:, None], 0, run.h - 1)
+    flat = yy * run.w + xx
+    gx = dx.ravel()[flat].astype(np.float64)
+    gy = dy.ravel()[flat].astype(np.float64)
+    g = np.hypot(gx, gy)
+    along = np.abs(gx * nx + gy * ny) >= math.cos(NORMAL_TOLERANCE) * g
+    return ((run.edges.ravel()[flat] > 0) & along & (g > 0)).any(axis=0)
+
+
+_NX = np.array([-1, -1, -1, 0, 0, 0, 1, 1, 1], np.intp)
+_NY = np.array([-1, 0, 1, -1, 0, 1, -1, 0, 1], np.intp)
 
 
 TEXTURE_SHARE = 0.75
@@ -189,43 +203,122 @@ def grout_like(run: RobustRun, proj: object, e: tuple[float, float, float, float
     return dark.size > 0 and float(dark.max()) >= 0.25 * grout
 
 
-def ends(run: RobustRun, near: np.ndarray, px: float, py: float, dx: float, dy: float,
-         band: float, offsets: object) -> bool:
-    """Whether the object of an edge ending at (px, py) stops short of the grout lines in
-    direction (dx, dy), followed in 1 px steps: it stops before the next band (most of the
-    steps to it land on no edge: ``near`` holds the edges dilated by 1 px), or it runs into a
-    band but does not go on beyond it (most of the first 20 steps past the band land on no
-    edge). An object crossing a grout line shows on both sides of it. True when the border of
-    the view comes first; False when it comes fewer than 6 steps past a band."""
+def ends(run: RobustRun, px: float, py: float, dx: float, dy: float, band: float,
+         normals: tuple[tuple[float, float], tuple[float, float]],
+         shift: tuple[float, float]) -> bool:
+    """Whether the object of a straight edge ending at (px, py) stops short of the grout lines
+    in direction (dx, dy) (a unit vector), followed in 1 px steps to the border of the view
+    (``band``: :func:`measurement_band`; ``normals``, ``shift``: each family's unit normal and
+    offset, px, so that its lines lie where ``n . (p - centre) + shift`` is a multiple of the
+    tile period). A step *sees the edge* when it lies within 1 px of an edge pixel whose
+    gradient is normal to the edge (:func:`oriented_hits`; a texture's edges across it do not
+    count).
 
-    def in_band(qx: float, qy: float) -> bool:
-        return any(abs(math.remainder(o, run.lp)) < band
-                   for o in offsets(qx, qy))  # type: ignore[operator]
+    - The border of the view comes before any band: True.
+    - At least 4 steps lead to the next band and at most half of them see the edge: it ends
+      inside the tile (True).
+    - Beyond the band, up to the next band (at least 6 steps in view), at least half the
+      steps see the edge: the object goes on across the grout (False).
+    - Otherwise, where the line meets the grout's centre line, the grout's gray level on the
+      two sides of the line (:func:`straddle`) tells: an object crossing the grout covers it
+      on one side (a cable, a box) or darkens it (a shadow), so the two sides differ by more
+      than :data:`STRADDLE_SIGMAS` x the image noise + :data:`STRADDLE_LEVELS` (False); a
+      texture's edge stops at the grout and leaves it alike on both sides (True).
+    - The line does not reach the grout's core in the view, or the two sides cannot be read
+      (the crossing is at the border of the view, or the line runs along the grout): True
+      when the far side was seen (6 steps or more), else False.
 
-    def inside(qx: float, qy: float) -> bool:
-        return 0 <= round(qx) < run.w and 0 <= round(qy) < run.h
-
-    def hit(qx: float, qy: float) -> int:
-        return int(near[int(round(qy)), int(round(qx))] > 0)
-
-    t, steps, hits = 1.0, 0, 0
-    while inside(px + t * dx, py + t * dy) and not in_band(px + t * dx, py + t * dy):
-        steps += 1
-        hits += hit(px + t * dx, py + t * dy)
-        t += 1.0
-    if not inside(px + t * dx, py + t * dy):
+    Assumed: an object whose gray level matches the grout's where it crosses it, and whose
+    continuation beyond the band is hidden by texture edges along it (fewer than half the
+    steps) or out of the view, is not told from texture at that end."""
+    # the steps to the border: t = 1 .. tmax, inside [-0.5, W - 0.5) x [-0.5, H - 0.5)
+    lim = []
+    for p, d, size in ((px, dx, run.w), (py, dy, run.h)):
+        if d > 1e-12:
+            lim.append((size - 0.5 - p) / d)
+        elif d < -1e-12:
+            lim.append((-0.5 - p) / d)
+    tmax = int(math.floor(min(lim) - 1e-9)) if lim else 0
+    if tmax < 1:
         return True
-    if steps >= 4 and hits <= 0.5 * steps:
+    t = np.arange(1.0, tmax + 1.0)
+    xs = np.rint(px + t * dx).astype(np.intp)
+    ys = np.rint(py + t * dy).astype(np.intp)
+    keep = (xs >= 0) & (xs < run.w) & (ys >= 0) & (ys < run.h)
+    xs, ys = xs[keep], ys[keep]
+    if xs.size == 0:
+        return True
+    cx, cy = (run.w - 1) / 2.0, (run.h - 1) / 2.0
+    # distance of each step to the nearest line of each family (px), from the offsets
+    dk = []
+    for n, sh in zip(normals, shift, strict=True):
+        o = n[0] * (xs - cx) + n[1] * (ys - cy) + sh
+        dk.append(np.abs(o - run.lp * np.rint(o / run.lp)))
+    dist = np.minimum(dk[0], dk[1])
+    inb = dist < band
+    i0 = int(np.argmax(inb)) if inb.any() else xs.size
+    if i0 == xs.size:
+        return True  # the border comes first
+    if i0 >= 4 and int(oriented_hits(run, xs[:i0], ys[:i0], -dy, dx).sum()) <= 0.5 * i0:
         return True  # it ends inside the tile
-    while inside(px + t * dx, py + t * dy) and in_band(px + t * dx, py + t * dy):
-        t += 1.0
-    steps, hits = 0, 0
-    while (steps < 20 and inside(px + t * dx, py + t * dy)
-           and not in_band(px + t * dx, py + t * dy)):
-        steps += 1
-        hits += hit(px + t * dx, py + t * dy)
-        t += 1.0
-    return steps >= 6 and hits < 0.5 * steps
+    out = np.flatnonzero(~inb[i0:])
+    i1 = i0 + int(out[0]) if out.size else xs.size
+    back = np.flatnonzero(inb[i1:])
+    i2 = i1 + int(back[0]) if back.size else xs.size
+    n2 = i2 - i1
+    far = n2 >= 6 and int(oriented_hits(run, xs[i1:i2], ys[i1:i2], -dy, dx).sum()) >= 0.5 * n2
+    if far:
+        return False  # seen beyond the band
+    k = 0 if float(dk[0][i0:i1].min()) <= float(dk[1][i0:i1].min()) else 1
+    if float(dk[k][i0:i1].min()) >= 0.5 * run.details["width"]:
+        # the line does not reach the grout of this band in the view
+        if i1 == xs.size:
+            return True
+        return n2 >= 6
+    diff = straddle(run, px, py, dx, dy, normals[k], shift[k])
+    if diff is None:
+        return n2 >= 6
+    return diff <= STRADDLE_SIGMAS * run.details["noise_sigma"] + STRADDLE_LEVELS
+
+
+STRADDLE_SIGMAS = 3.0
+STRADDLE_LEVELS = 4.0
+"""An edge crosses the grout when the grout's gray level differs on its two sides
+(:func:`straddle`) by more than this many times the image's noise plus this many levels."""
+
+
+def straddle(run: RobustRun, px: float, py: float, dx: float, dy: float,
+             n: tuple[float, float], sh: float) -> float | None:
+    """How much the grout's gray level varies where the line through (px, py) along (dx, dy)
+    crosses the grout's centre line (the next line ahead of the family with unit normal
+    ``n`` and offset ``sh``, px): the range of the centre line's gray levels (bilinear,
+    median of 3 neighbours) at 0..9 px from the line on both sides (at most 60 px along the
+    grout). An object crossing the grout covers it (a cable, a box) or darkens it (a shadow)
+    near the line; a texture's edge that stops at the grout leaves it alike. None when the
+    line runs within 0.15 rad of the grout, or a side has fewer than 3 samples in the view."""
+    cx, cy = (run.w - 1) / 2.0, (run.h - 1) / 2.0
+    nd = n[0] * dx + n[1] * dy
+    if abs(nd) < 0.15:
+        return None
+    o = n[0] * (px - cx) + n[1] * (py - cy) + sh
+    # the next grout centre line ahead: o + t nd = m lp
+    m = math.floor(o / run.lp) + (1 if nd > 0 else 0)
+    t = (m * run.lp - o) / nd
+    qx, qy = px + t * dx, py + t * dy
+    g = (-n[1], n[0])
+    # distance from the line of a point s px along the grout: s |(segment normal) . g| = s |nd|
+    s = np.arange(-9.0, 10.0) / abs(nd)
+    xs = qx + s * g[0]
+    ys = qy + s * g[1]
+    ok = (xs >= 0) & (xs <= run.w - 1) & (ys >= 0) & (ys <= run.h - 1)
+    if int(ok[:9].sum()) < 3 or int(ok[10:].sum()) < 3:
+        return None
+    v = cv2.remap(run.gray, xs[ok].astype(np.float32).reshape(1, -1),
+                  ys[ok].astype(np.float32).reshape(1, -1), cv2.INTER_LINEAR).ravel()
+    v = v.astype(np.float64)
+    if v.size >= 3:
+        v = np.median(np.stack([v[:-2], v[1:-1], v[2:]]), axis=0)
+    return float(v.max() - v.min())
 
 
 def classify_edge(run: RobustRun, seg: np.ndarray) -> str:

@@ -59,28 +59,53 @@ def lattice_power(img: np.ndarray, period: float, angles: np.ndarray, *, detrend
     the angle, over the central square that every turn keeps inside the view, projected on the
     first four harmonics of the period (summed power of both); with ``detrend``, blind to a
     quadratic trend of the light across the square."""
-    h, w = img.shape
-    side = int(min(w, h) / math.sqrt(2.0)) - 2
-    cx, cy = (w - 1) / 2.0, (h - 1) / 2.0
-    x0 = (side - 1) / 2.0
-    n = np.arange(side) - x0
-    ks = np.arange(1, 5)[:, None] * (2.0 * math.pi / period) * n[None, :]
-    basis = np.concatenate([np.cos(ks), np.sin(ks)])  # (8, side)
-    # blind to a slope and a bow of the light across the square (a lighting gradient,
-    # vignetting): the harmonics' part along 1, n, n^2 is removed
-    if detrend:
+    return _Turns(img, period).power(angles, detrend)
+
+
+class _Turns:
+    """The row and column means of ``img`` turned by each angle asked for (see
+    :func:`lattice_power`), kept per angle: both variants of the search (blind to a trend of
+    the light and not) read the same turns."""
+
+    def __init__(self, img: np.ndarray, period: float) -> None:
+        self.img = img
+        h, w = img.shape
+        side = int(min(w, h) / math.sqrt(2.0)) - 2
+        self.side = side
+        self.cx, self.cy = (w - 1) / 2.0, (h - 1) / 2.0
+        self.x0 = (side - 1) / 2.0
+        n = np.arange(side) - self.x0
+        ks = np.arange(1, 5)[:, None] * (2.0 * math.pi / period) * n[None, :]
+        basis = np.concatenate([np.cos(ks), np.sin(ks)])  # (8, side)
+        # blind to a slope and a bow of the light across the square (a lighting gradient,
+        # vignetting): the harmonics' part along 1, n, n^2 is removed
         q, _ = np.linalg.qr(np.stack([np.ones(side), n, n * n], axis=1))
-        basis = basis - (basis @ q) @ q.T
-    basis = basis.astype(np.float32)
-    out = np.empty(angles.size)
-    for i, a in enumerate(angles.tolist()):
-        ca, sa = math.cos(a), math.sin(a)
-        m = np.array([[ca, -sa, cx - x0 * ca + x0 * sa], [sa, ca, cy - x0 * sa - x0 * ca]])
-        turned = cv2.warpAffine(img, m, (side, side), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP)
-        pr = basis @ turned.mean(axis=1)
-        pc = basis @ turned.mean(axis=0)
-        out[i] = float(pr @ pr) + float(pc @ pc)
-    return out
+        self.basis = {False: basis.astype(np.float32),
+                      True: (basis - (basis @ q) @ q.T).astype(np.float32)}
+        self.means: dict[float, tuple[np.ndarray, np.ndarray]] = {}
+
+    def turn(self, a: float) -> tuple[np.ndarray, np.ndarray]:
+        """Row and column means (float32) of the central square turned by ``a`` (rad)."""
+        got = self.means.get(a)
+        if got is None:
+            ca, sa = math.cos(a), math.sin(a)
+            cx, cy, x0 = self.cx, self.cy, self.x0
+            m = np.array([[ca, -sa, cx - x0 * ca + x0 * sa], [sa, ca, cy - x0 * sa - x0 * ca]])
+            turned = cv2.warpAffine(self.img, m, (self.side, self.side),
+                                    flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP)
+            got = (turned.mean(axis=1), turned.mean(axis=0))
+            self.means[a] = got
+        return got
+
+    def power(self, angles: np.ndarray, detrend: bool) -> np.ndarray:
+        basis = self.basis[detrend]
+        out = np.empty(angles.size)
+        for i, a in enumerate(angles.tolist()):
+            rows, cols = self.turn(a)
+            pr = basis @ rows
+            pc = basis @ cols
+            out[i] = float(pr @ pr) + float(pc @ pc)
+        return out
 
 
 def lattice_headings(run: RobustRun) -> list[float]:
@@ -93,11 +118,13 @@ def lattice_headings(run: RobustRun) -> list[float]:
     img -= float(img.mean())
     small = cv2.resize(img, None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA)
     coarse = np.arange(-0.25 * math.pi, 0.25 * math.pi, 0.01)
+    turns_small = _Turns(small, 0.5 * run.lp)
+    turns = _Turns(img, run.lp)
     out = []
     for detrend in (True, False):
-        pw = lattice_power(small, 0.5 * run.lp, coarse, detrend=detrend)
+        pw = turns_small.power(coarse, detrend)
         best = float(coarse[int(np.argmax(pw))])
         fine = best + np.arange(-0.012, 0.0121, 0.002)
-        pw = lattice_power(img, run.lp, fine, detrend=detrend)
+        pw = turns.power(fine, detrend)
         out.append(float(fine[int(np.argmax(pw))]))
     return out

@@ -4,8 +4,10 @@ for bit) what its numpy counterpart in :mod:`~tileviz.vision.robust.profiles` co
 :func:`part_rows` (``part_rows_numpy``: plateaus, crossings, centroid and midpoints of every part
 profile), :func:`part_profiles` (``part_profiles_numpy``: the part profiles from the integral
 image), :func:`grout_score` (``grout_score_numpy``: a family's term of the light-grout test),
-and :func:`profile_dips` (``profile_dips_numpy``: darkness, noise and dips of the family
-profiles).
+:func:`profile_dips` (``profile_dips_numpy``: darkness, noise and dips of the family
+profiles), :func:`dip_rows` (``dip_rows_numpy``: every dip's depth, centre, window, parts
+and plateaus on its whole profile), :func:`view_spans` and :func:`profile_arrays` (the in-view
+spans and the profiles of both families), :func:`part_summary` (each line's medians and parts).
 
 Every operation is the numpy one in the same order: sums over a profile are numpy's pairwise
 sums (:func:`_pairwise`, the order ``ndarray.sum`` adds a contiguous row in), medians sort the
@@ -29,12 +31,15 @@ from typing import Any
 
 import numpy as np
 
+from tileviz.vision.robust.state import PARTS
+
 try:
     import numba
 except ImportError:  # numba is a dependency; an older environment keeps the numpy path
     numba = None  # type: ignore[assignment]
 
-__all__ = ["AVAILABLE", "grout_score", "part_profiles", "part_rows", "profile_dips"]
+__all__ = ["AVAILABLE", "dip_rows", "grout_score", "part_profiles", "part_rows", "part_summary",
+           "profile_arrays", "profile_dips", "view_spans"]
 
 AVAILABLE = numba is not None
 
@@ -378,18 +383,45 @@ def part_profiles(flat: np.ndarray, stride: int, fam: np.ndarray, line: np.ndarr
 
 
 @_jit
+def _running(ext: np.ndarray, width: int, bigger: bool, out: np.ndarray) -> None:
+    """out[x] = max (``bigger``) or min of ext[x : x + width] for every x < out.size, in O(n)
+    (van Herk / Gil-Werman: within blocks of ``width`` samples, running extremes from each
+    block's start and from its end; a window spans the end of one block and the start of the
+    next). Exact: only comparisons (the extreme of a set does not depend on the order)."""
+    n = ext.size
+    fwd = np.empty(n, ext.dtype)
+    bwd = np.empty(n, ext.dtype)
+    for b0 in range(0, n, width):
+        b1 = min(b0 + width, n)
+        v = ext[b0]
+        fwd[b0] = v
+        for i in range(b0 + 1, b1):
+            u = ext[i]
+            if (u > v) if bigger else (u < v):
+                v = u
+            fwd[i] = v
+        v = ext[b1 - 1]
+        bwd[b1 - 1] = v
+        for i in range(b1 - 2, b0 - 1, -1):
+            u = ext[i]
+            if (u > v) if bigger else (u < v):
+                v = u
+            bwd[i] = v
+    for x in range(out.size):
+        a = bwd[x]
+        b = fwd[x + width - 1]
+        out[x] = b if ((b > a) if bigger else (b < a)) else a
+
+
+@_jit
 def _morph(a: np.ndarray, half: int, border: np.float32, bigger: bool) -> np.ndarray:
     """cv2.dilate (``bigger``) or cv2.erode of a float32 row by a 1 x (2 half + 1) window,
     constant ``border`` beyond the ends (exact: only comparisons)."""
     n = a.size
+    ext = np.full(n + 2 * half, border, np.float32)
+    ext[half : half + n] = a
     out = np.empty(n, np.float32)
-    for x in range(n):
-        v = a[x]
-        for k in range(x - half, x + half + 1):
-            u = a[k] if 0 <= k < n else border
-            if (u > v) if bigger else (u < v):
-                v = u
-        out[x] = v
+    _running(ext, 2 * half + 1, bigger, out)
     return out
 
 
@@ -454,6 +486,9 @@ def profile_dips(prof: np.ndarray, mean: float, closing: int, min_depth: float
     found = 0
     filled = np.empty(size, np.float32)
     dil = np.empty(size, np.float32)
+    ero = np.empty(size, np.float32)
+    closing_w = 2 * half + 1
+    ext = np.empty(size + 2 * half, np.float32)
     diffs = np.empty(size)
     for k in range(fams):
         row = prof[k]
@@ -469,20 +504,19 @@ def profile_dips(prof: np.ndarray, mean: float, closing: int, min_depth: float
             if not math.isnan(row[x]):
                 last = row[x]
             filled[x] = np.float32(last)
-        for x in range(size):  # grey dilation, the ends replicated
-            v = filled[x]
-            for t in range(x - half, x + half + 1):
-                u = filled[min(max(t, 0), size - 1)]
-                if u > v:
-                    v = u
-            dil[x] = v
-        for x in range(size):  # then erosion
-            v = dil[x]
-            for t in range(x - half, x + half + 1):
-                u = dil[min(max(t, 0), size - 1)]
-                if u < v:
-                    v = u
-            dark[k, x] = np.float64(v) - row[x]
+        # grey dilation then erosion, the ends replicated
+        for x in range(half):
+            ext[x] = filled[0]
+            ext[half + size + x] = filled[size - 1]
+        ext[half : half + size] = filled
+        _running(ext, closing_w, True, dil)
+        for x in range(half):
+            ext[x] = dil[0]
+            ext[half + size + x] = dil[size - 1]
+        ext[half : half + size] = dil
+        _running(ext, closing_w, False, ero)
+        for x in range(size):
+            dark[k, x] = np.float64(ero[x]) - row[x]
         nok = 0
         nd = 0
         prev = 0.0
@@ -522,3 +556,182 @@ def profile_dips(prof: np.ndarray, mean: float, closing: int, min_depth: float
             peak_out[found] = at
             found += 1
     return dark, noise, fam_out[:found].copy(), peak_out[:found].copy()
+
+
+@_jit
+def dip_rows(prof: np.ndarray, dark: np.ndarray, lo: np.ndarray, hi: np.ndarray,
+             fam: np.ndarray, peak: np.ndarray, r: int
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                        np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`~tileviz.vision.robust.profiles.dip_rows_numpy` compiled (bit-identical): every
+    dip's profile, depth, centre, half window, parts (start, length) and plateau levels."""
+    size = prof.shape[1]
+    pf = prof.ravel()
+    df = dark.ravel()
+    lf = lo.ravel()
+    hf = hi.ravel()
+    m = fam.size
+    n = 2 * r + 1
+    jf = np.empty(n)
+    for t in range(n):
+        jf[t] = float(t - r)
+    p0 = np.empty((m, n))
+    depth = np.empty(m)
+    c0 = np.empty(m)
+    half = np.empty(m)
+    u_lo = np.empty(m)
+    step = np.empty(m)
+    lev_l = np.empty(m)
+    lev_r = np.empty(m)
+    d0 = np.empty(n)
+    buf = np.empty(n)
+    for i in range(m):
+        at = fam[i] * size + peak[i] - r  # flat index of the window's first sample
+        for t in range(n):
+            p0[i, t] = pf[at + t]
+            d0[t] = df[at + t]
+        best = -math.inf
+        jp = -2
+        for t in range(r - 2, r + 3):
+            v = d0[t]
+            if math.isnan(v):
+                v = -math.inf
+            if t == r - 2 or v > best:  # np.argmax: the first maximum
+                best = v
+                jp = t - r
+        depth[i] = best
+        hl, hr = _crossings(d0, jf, float(jp), 0.5 * best)
+        c = 0.5 * (hl + hr)
+        h = 1.5 * (hr - hl) + 1.5
+        c0[i] = c
+        half[i] = h
+        cu = 0.0 if math.isnan(c) else c
+        hu = (0.0 if math.isnan(h) else h) + 5.0
+        a = -math.inf
+        b = math.inf
+        for t in range(n):
+            if abs(jf[t] - cu) <= hu:
+                if lf[at + t] > a:
+                    a = lf[at + t]
+                if hf[at + t] < b:
+                    b = hf[at + t]
+        u_lo[i] = a + 1.0
+        step[i] = ((b - 1.0) - (a + 1.0)) / PARTS
+        lev_l[i], lev_r[i] = _plateaus(p0[i], jf, c, h, buf)
+    return p0, depth, c0, half, u_lo, step, lev_l, lev_r
+
+
+@_jit
+def view_spans(n: int, off: float, c: float, s: float, w: int, h: int, along_rows: bool
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`~tileviz.vision.robust.profiles.view_spans` compiled (bit-identical) for the
+    ``n`` warp rows (``along_rows``) or columns at offsets ``i - off`` from the warp centre, in
+    a ``w`` x ``h`` view turned by (cos, sin) = (``c``, ``s``)."""
+    cx = (w - 1) / 2.0
+    cy = (h - 1) / 2.0
+    if along_rows:
+        a, b, e, f = c, -s, s, c
+    else:
+        a, b, e, f = -s, c, c, s
+    lo = np.empty(n)
+    hi = np.empty(n)
+    for i in range(n):
+        q = float(i) - off
+        vlo = -math.inf
+        vhi = math.inf
+        for axis in range(2):
+            coef = a if axis == 0 else e
+            base = (cx + b * q) if axis == 0 else (cy + f * q)
+            size = w if axis == 0 else h
+            if abs(coef) < 1e-12:
+                if not ((base >= -0.5) and (base <= size - 0.5)):
+                    vlo = math.inf
+                continue
+            u1 = (-0.5 - base) / coef
+            u2 = (size - 0.5 - base) / coef
+            vlo = _max(vlo, _min(u1, u2))
+            vhi = _min(vhi, _max(u1, u2))
+        lo[i] = vlo
+        hi[i] = vhi
+    return lo, hi
+
+
+@_jit
+def profile_arrays(sums0: np.ndarray, sums1: np.ndarray, lo0: np.ndarray, hi0: np.ndarray,
+                   lo1: np.ndarray, hi1: np.ndarray, r: int, mean: float
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`~tileviz.vision.robust.profiles.profile_arrays_numpy` compiled (bit-identical):
+    the profiles, spans and lengths of both families as (2, size) arrays."""
+    size = max(sums0.size, sums1.size) + 2 * r
+    prof = np.full((2, size), math.nan)
+    lo = np.full((2, size), math.inf)
+    hi = np.full((2, size), -math.inf)
+    total = np.zeros((2, size))
+    for k in range(2):
+        sums = sums0 if k == 0 else sums1
+        slo = lo0 if k == 0 else lo1
+        shi = hi0 if k == 0 else hi1
+        n = sums.size
+        lmax = -math.inf
+        for i in range(n):
+            lo[k, r + i] = slo[i]
+            hi[k, r + i] = shi[i]
+            length = _max(shi[i] - slo[i], 0.0)
+            total[k, r + i] = length
+            if math.isnan(length) or math.isnan(lmax):
+                lmax = math.nan
+            elif length > lmax:
+                lmax = length
+        v = 0.15 * lmax
+        thr = v if v > 8.0 else 8.0  # Python's max(8.0, v): NaN gives 8.0
+        for i in range(n):
+            length = total[k, r + i]
+            if length >= thr:
+                prof[k, r + i] = sums[i] / length + mean
+    return prof, lo, hi, total
+
+
+@_jit
+def part_summary(width: np.ndarray, rise: np.ndarray, contrast: np.ndarray, cen: np.ndarray,
+                 mids: np.ndarray, msig: np.ndarray, count: np.ndarray, base: np.ndarray,
+                 lev_l: np.ndarray, lev_r: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                            np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`~tileviz.vision.robust.profiles.part_summary_numpy` compiled (bit-identical):
+    the lines' medians, plateau steps and per-part positions, lengths, errors and spreads."""
+    m = count.shape[0]
+    wmed = np.empty(m)
+    rmed = np.empty(m)
+    cmed = np.empty(m)
+    stepr = np.empty(m)
+    parts = np.empty((m, PARTS))
+    wpart = np.empty((m, PARTS))
+    sigma = np.empty((m, PARTS))
+    spread = np.empty((m, PARTS))
+    buf = np.empty(PARTS)
+    for i in range(m):
+        for j in range(PARTS):
+            k = i * PARTS + j
+            m0 = mids[0, k]
+            pos = m0 if math.isfinite(cen[k]) else math.nan
+            sp = _max(abs(mids[1, k] - m0), abs(mids[2, k] - m0))
+            if not (math.isfinite(sp) and math.isfinite(msig[k])):
+                sp = 0.5 * width[k] + 0.5
+            ok = math.isfinite(pos)
+            wpart[i, j] = float(count[i, j]) if ok else 0.0
+            parts[i, j] = float(base[i]) + pos if ok else math.nan
+            sigma[i, j] = msig[k] if (ok and math.isfinite(msig[k])) else 0.0
+            spread[i, j] = sp if ok else 0.0
+        for j in range(PARTS):
+            buf[j] = width[i * PARTS + j]
+        wmed[i] = _median_finite(buf, PARTS)
+        for j in range(PARTS):
+            buf[j] = rise[i * PARTS + j]
+        rmed[i] = _median_finite(buf, PARTS)
+        for j in range(PARTS):
+            buf[j] = contrast[i * PARTS + j]
+        cmed[i] = _median_finite(buf, PARTS)
+        lo_lev = _min(lev_l[i], lev_r[i])
+        hi_lev = _max(lev_l[i], lev_r[i])
+        stepr[i] = (hi_lev - lo_lev) / _max(hi_lev, 1e-9)
+    return wmed, rmed, cmed, stepr, parts, wpart, sigma, spread

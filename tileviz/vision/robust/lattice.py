@@ -118,7 +118,7 @@ def missing_lines(run: RobustRun, k: int, ref: float, found: np.ndarray, y3: flo
     j1 = math.ceil((reach - ref) / run.lp)
     for j in range(j0, j1 + 1):
         s = ref + j * run.lp
-        if min(chord(s - margin), chord(s), chord(s + margin)) < need:
+        if any(chord(x) < need for x in (s - margin, s, s + margin)):
             continue
         if found.size == 0 or float(np.min(np.abs(found - s))) > 0.25 * run.lp:
             raise Fail("inconsistent spacing")

@@ -13,10 +13,11 @@ import numpy as np
 from tileviz.vision.robust import kernel
 from tileviz.vision.robust.state import PARTS, Line, RobustRun
 
-__all__ = ["Projection", "centroid", "crossings", "dips", "grout_score_numpy", "light_grout",
-           "measure", "measure_parts", "midpoints", "nanmedian", "part_profiles_numpy",
-           "part_rows_numpy", "plateaus", "profile_dips_numpy", "profiles", "project",
-           "select_lines", "view_spans"]
+__all__ = ["Projection", "centroid", "crossings", "dip_rows_numpy", "dips", "grout_score_numpy",
+           "light_grout", "measure", "measure_parts", "midpoints", "nanmedian",
+           "part_profiles_numpy", "part_rows_numpy", "part_summary_numpy", "plateaus",
+           "profile_arrays_numpy", "profile_dips_numpy", "profiles", "project", "select_lines",
+           "view_spans"]
 
 
 def light_grout(run: RobustRun, warped: np.ndarray,
@@ -119,10 +120,14 @@ def project(run: RobustRun, y3: float, attempt: int) -> Projection:
         borderMode=cv2.BORDER_CONSTANT,
         borderValue=0,
     )
-    spans = (
-        view_spans(run, np.arange(ho) - y0, c, s, along_rows=True),
-        view_spans(run, np.arange(wo) - x0, c, s, along_rows=False),
-    )
+    if kernel.AVAILABLE:
+        spans = (kernel.view_spans(ho, y0, c, s, w, h, True),
+                 kernel.view_spans(wo, x0, c, s, w, h, False))
+    else:
+        spans = (
+            view_spans(run, np.arange(ho) - y0, c, s, along_rows=True),
+            view_spans(run, np.arange(wo) - x0, c, s, along_rows=False),
+        )
     if attempt == 0 and (light_grout(run, warped, spans) if run.force_inverted is None
                          else run.force_inverted):
         # lighter grout: measure the inverted image (255 - gray), whose offset from its
@@ -144,7 +149,8 @@ def view_spans(
 ) -> tuple[np.ndarray, np.ndarray]:
     """The in-view stretch [lo, hi] of each warped row (``along_rows``) or column at offset
     ``q`` from the warp centre, in the tangent coordinate u (relative to the centre); empty
-    where hi <= lo."""
+    where hi <= lo. :func:`~tileviz.vision.robust.kernel.view_spans` is the same computation
+    compiled (bit-identical)."""
     cx, cy = (run.w - 1) / 2.0, (run.h - 1) / 2.0
     lo = np.full(q.shape, -np.inf)
     hi = np.full(q.shape, np.inf)
@@ -172,7 +178,32 @@ def profiles(
     in-view ``spans``), their baselines and their dips."""
     r = run.closing + 8  # the widest window (see execute)
     mean = run.mean
-    size = max(sums[0].size, sums[1].size) + 2 * r
+    build = kernel.profile_arrays if kernel.AVAILABLE else profile_arrays_numpy
+    prof, lo, hi, total = build(sums[0], sums[1], spans[0][0], spans[0][1], spans[1][0],
+                                spans[1][1], r, mean)
+    dips_of = kernel.profile_dips if kernel.AVAILABLE else profile_dips_numpy
+    dark, noise, fam, peak = dips_of(prof, mean, run.closing, run.st.min_depth)
+    for sig in noise.tolist():
+        if math.isfinite(sig):
+            run.details["profile_noise"] = max(run.details.get("profile_noise", 0.0), sig)
+    return Projection(
+        y3=y3, integ=integ, pad=r, prof=prof, dark=dark, lo=lo, hi=hi, total=total,
+        fam=fam, peak=peak,
+    )
+
+
+def profile_arrays_numpy(
+    sums0: np.ndarray, sums1: np.ndarray, lo0: np.ndarray, hi0: np.ndarray, lo1: np.ndarray,
+    hi1: np.ndarray, r: int, mean: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The (2, size) arrays of a :class:`Projection` (family k in row k, samples shifted by
+    ``r``): the profile (``sums`` / in-view length + ``mean``, NaN beyond the data and where a
+    row or column is shorter than 8 px or 15 % of the family's longest), the in-view spans
+    ``lo``, ``hi`` (inf, -inf beyond the data) and their length. :func:`~tileviz.vision.
+    robust.kernel.profile_arrays` is the same computation compiled (bit-identical)."""
+    sums = (sums0, sums1)
+    spans = ((lo0, hi0), (lo1, hi1))
+    size = max(sums0.size, sums1.size) + 2 * r
     # family k in row k; columns shifted by r; missing data NaN
     prof = np.full((2, size), np.nan)
     lo = np.full((2, size), np.inf)
@@ -185,15 +216,7 @@ def profiles(
         total[k, r : r + n] = length
         valid = length >= max(8.0, 0.15 * float(length.max()))
         prof[k, r : r + n] = np.where(valid, sums[k] / length + mean, np.nan)
-    dips_of = kernel.profile_dips if kernel.AVAILABLE else profile_dips_numpy
-    dark, noise, fam, peak = dips_of(prof, mean, run.closing, run.st.min_depth)
-    for sig in noise.tolist():
-        if math.isfinite(sig):
-            run.details["profile_noise"] = max(run.details.get("profile_noise", 0.0), sig)
-    return Projection(
-        y3=y3, integ=integ, pad=r, prof=prof, dark=dark, lo=lo, hi=hi, total=total,
-        fam=fam, peak=peak,
-    )
+    return prof, lo, hi, total
 
 
 def profile_dips_numpy(
@@ -272,52 +295,74 @@ def dips(run: RobustRun, proj: Projection, *, every: bool = False) -> list[list[
     if proj.peak.size == 0:
         return [[], []]
     r = run.window
-    fam = proj.fam
     pk = proj.peak
     jj = np.arange(-r, r + 1)
     jf = jj.astype(np.float64)
+    rows_of = kernel.dip_rows if kernel.AVAILABLE else dip_rows_numpy
     for again in (True, False):
-        cols = pk[:, None] + jj[None, :]  # padded profile index
-        at = fam[:, None] * proj.prof.shape[1] + cols  # flat index into the (2, size) arrays
-        # the whole profile: depth, half-depth crossings, width, window and plateau levels
-        p0 = proj.prof.ravel()[at]
-        d0 = proj.dark.ravel()[at]
-        near = d0[:, r - 2 : r + 3]
-        near = np.where(np.isnan(near), -np.inf, near)
-        depth = near.max(axis=1)
-        hl, hr = crossings(d0, jf, np.argmax(near, axis=1) - 2, 0.5 * depth)
-        c0 = 0.5 * (hl + hr)
+        p0, depth, c0, half, u_lo, step, lev_l, lev_r = rows_of(
+            proj.prof, proj.dark, proj.lo, proj.hi, proj.fam, pk, r)
         # The deepest sample of a wide, flat-bottomed band may lie at either of its edges,
         # half the band off its centre, where the band's far edge and plateau fall outside
         # the window (its parts could not be measured, :func:`part_rows_numpy`): such a dip
         # is measured again centred on its half-depth crossings.
-        reach = np.abs(c0) + 1.5 * (hr - hl) + 1.5 + 4.0
+        reach = np.abs(c0) + half + 4.0
         off = np.where(np.isfinite(reach) & (reach > r), np.rint(c0), 0.0).astype(np.intp)
         if not again or not off.any():
             break
         # (kept within the profile's data, so the window stays within its padding)
         pk = np.clip(pk + off, proj.pad, proj.prof.shape[1] - 1 - proj.pad)
-    half = 1.5 * (hr - hl) + 1.5
-    # the parts: PARTS equal stretches of the window's common in-view stretch
-    # (over the samples a part's centroid and plateaus use: c0 +- (half + 4))
-    used = np.abs(jf[None, :] - np.where(np.isnan(c0), 0.0, c0)[:, None]) <= (
-        np.where(np.isnan(half), 0.0, half)[:, None] + 5.0
-    )
-    u_lo = np.where(used, proj.lo.ravel()[at], -np.inf).max(axis=1) + 1.0
-    u_hi = np.where(used, proj.hi.ravel()[at], np.inf).min(axis=1) - 1.0
-    step = (u_hi - u_lo) / PARTS
+    cols = pk[:, None] + jj[None, :]  # padded profile index
     usable = np.flatnonzero(np.isfinite(c0) & (step >= run.st.min_part / 2.0))
     if usable.size == 0:
         return [[], []]
     # every row is measured on its own: a subset of the rows gives the same lines
     top = float(depth[usable].max())
     strong = usable if every else usable[depth[usable] >= run.st.rel_depth * top]
-    meas = (p0, c0, half, depth, u_lo, step)
+    meas = (p0, c0, half, depth, u_lo, step, lev_l, lev_r)
     out = measure_parts(run, proj, strong, cols, jf, *meas)
     if not any(ln.depth == top for fam_lines in out for ln in fam_lines):
         # the deepest dip gave no line: shallower ones may pass select_lines
         out = measure_parts(run, proj, usable, cols, jf, *meas)
     return out
+
+
+def dip_rows_numpy(
+    prof: np.ndarray, dark: np.ndarray, lo: np.ndarray, hi: np.ndarray, fam: np.ndarray,
+    peak: np.ndarray, r: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+           np.ndarray, np.ndarray]:
+    """Every dip's measurement on its whole profile (the arrays of a :class:`Projection`;
+    dip i of family ``fam[i]`` at padded index ``peak[i]``, sample offsets -r..r): the
+    profile ``p0`` (m, 2 r + 1), its depth (deepest darkness within 2 samples of the peak),
+    its half-depth centre ``c0`` and half window ``half`` (1.5 x the half-depth width + 1.5),
+    the start ``u_lo`` and the length ``step`` of each of its PARTS parts (the in-view
+    stretch that every sample within ``half`` + 5 of the centre sees, 1 px in from each end),
+    and its plateau levels on both sides (:func:`plateaus`). :func:`~tileviz.vision.robust.
+    kernel.dip_rows` is the same computation compiled (bit-identical)."""
+    jj = np.arange(-r, r + 1)
+    jf = jj.astype(np.float64)
+    cols = peak[:, None] + jj[None, :]  # padded profile index
+    at = fam[:, None] * prof.shape[1] + cols  # flat index into the (2, size) arrays
+    # the whole profile: depth, half-depth crossings, width, window and plateau levels
+    p0 = prof.ravel()[at]
+    d0 = dark.ravel()[at]
+    near = d0[:, r - 2 : r + 3]
+    near = np.where(np.isnan(near), -np.inf, near)
+    depth = near.max(axis=1)
+    hl, hr = crossings(d0, jf, np.argmax(near, axis=1) - 2, 0.5 * depth)
+    c0 = 0.5 * (hl + hr)
+    half = 1.5 * (hr - hl) + 1.5
+    # the parts: PARTS equal stretches of the window's common in-view stretch
+    # (over the samples a part's centroid and plateaus use: c0 +- (half + 4))
+    used = np.abs(jf[None, :] - np.where(np.isnan(c0), 0.0, c0)[:, None]) <= (
+        np.where(np.isnan(half), 0.0, half)[:, None] + 5.0
+    )
+    u_lo = np.where(used, lo.ravel()[at], -np.inf).max(axis=1) + 1.0
+    u_hi = np.where(used, hi.ravel()[at], np.inf).min(axis=1) - 1.0
+    step = (u_hi - u_lo) / PARTS
+    lev_l, lev_r = plateaus(p0, jf, c0, half)
+    return p0, depth, c0, half, u_lo, step, lev_l, lev_r
 
 
 def measure_parts(
@@ -332,6 +377,8 @@ def measure_parts(
     depth: np.ndarray,
     u_lo: np.ndarray,
     step: np.ndarray,
+    lev_l: np.ndarray,
+    lev_r: np.ndarray,
 ) -> list[list[Line]]:
     """The lines of the dips ``rows`` (indices into the dips of ``proj``), measured in parts
     (see :func:`dips`; the per-dip arrays are those :func:`dips` computed for every dip)."""
@@ -343,8 +390,7 @@ def measure_parts(
     pk = cols[:, r]  # each dip's centre sample (padded index)
     p0, c0, half, depth = p0[rows], c0[rows], half[rows], depth[rows]
     u_lo, step = u_lo[rows], step[rows]
-    m = rows.size
-    lev_l, lev_r = plateaus(p0, jf, c0, half)
+    lev_l, lev_r = lev_l[rows], lev_r[rows]
     x0, y0 = run.centre
     along = np.where(fam == 0, x0, y0)  # warp coordinate of u = 0
     edges_u = u_lo[:, None] + step[:, None] * np.arange(PARTS + 1)[None, :]
@@ -360,33 +406,14 @@ def measure_parts(
     hj = np.repeat(half, PARTS)
     meas_rows = kernel.part_rows if kernel.AVAILABLE else part_rows_numpy
     width, rise, contrast, cen, mids, msig = meas_rows(pp, jf, cj, hj, r)
-    width = width.reshape(m, PARTS)
-    rise = rise.reshape(m, PARTS)
-    cen = cen.reshape(m, PARTS)
-    mids = mids.reshape(3, m, PARTS)
-    msig = msig.reshape(m, PARTS)
-    pos50 = np.where(np.isfinite(cen), mids[0], np.nan)
-    spread = np.maximum(np.abs(mids[1] - mids[0]), np.abs(mids[2] - mids[0]))
-    # a thin or shallow dip may miss its 25 or 75 % crossings: its position is then only
-    # known to be within its half-depth width (from the 50 % crossings)
-    sp_ok = np.where(np.isfinite(spread) & np.isfinite(msig), spread, 0.5 * width + 0.5)
-    # medians over the parts of each dip's width, rise and contrast, in one sort
-    meds = nanmedian(np.concatenate(
-        (width.T, rise.T, contrast.reshape(m, PARTS).T), axis=1))
-    wmed, rmed, cmed = meds[:m], meds[m : 2 * m], meds[2 * m :]
-    gmed = np.full(m, np.nan)
+    summary = kernel.part_summary if kernel.AVAILABLE else part_summary_numpy
+    wmed, rmed, cmed, stepr, parts, wpart, sigma, spread = summary(
+        width, rise, contrast, cen, mids, msig, count, pk - proj.pad, lev_l, lev_r)
+    gmed = np.full(rows.size, np.nan)
     if run.inverted:
-        gmed = nanmedian(grout_contrast(pp, jf, cj, hj, contrast).reshape(m, PARTS).T)
-    lo_lev = np.minimum(lev_l, lev_r)
-    hi_lev = np.maximum(lev_l, lev_r)
-    stepr = (hi_lev - lo_lev) / np.maximum(hi_lev, 1e-9)
-    ok = np.isfinite(pos50)
-    wpart = np.where(ok, count, 0).astype(np.float64)
-    parts = np.where(ok, (pk - proj.pad)[:, None] + pos50, np.nan)
-    sigma = np.where(ok & np.isfinite(msig), msig, 0.0)
-    spread = np.where(ok, sp_ok, 0.0)
+        gmed = nanmedian(grout_contrast(pp, jf, cj, hj, contrast).reshape(rows.size, PARTS).T)
     out: list[list[Line]] = [[], []]
-    for i in np.flatnonzero(ok.any(axis=1)).tolist():
+    for i in np.flatnonzero(np.isfinite(parts).any(axis=1)).tolist():
         out[int(fam[i])].append(
             Line(
                 depth=float(depth[i]),
@@ -404,6 +431,45 @@ def measure_parts(
             )
         )
     return out
+
+
+def part_summary_numpy(
+    width: np.ndarray, rise: np.ndarray, contrast: np.ndarray, cen: np.ndarray,
+    mids: np.ndarray, msig: np.ndarray, count: np.ndarray, base: np.ndarray,
+    lev_l: np.ndarray, lev_r: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+           np.ndarray]:
+    """m dips' lines from their part measurements (:func:`part_rows_numpy`, row i * PARTS + j
+    is part j of dip i; ``count`` (m, PARTS) samples per part, ``base`` each dip's peak in
+    profile coordinates, ``lev_l``, ``lev_r`` its plateau levels): the medians over the parts
+    of width, rise and contrast, the step between the plateaus, and per part (m, PARTS) the
+    position (NaN where not measured), the length (0 there), the standard error and the
+    spread of the 25 / 75 % midpoints (0 there). :func:`~tileviz.vision.robust.kernel.
+    part_summary` is the same computation compiled (bit-identical)."""
+    m = count.shape[0]
+    width = width.reshape(m, PARTS)
+    rise = rise.reshape(m, PARTS)
+    cen = cen.reshape(m, PARTS)
+    mids = mids.reshape(3, m, PARTS)
+    msig = msig.reshape(m, PARTS)
+    pos50 = np.where(np.isfinite(cen), mids[0], np.nan)
+    spread = np.maximum(np.abs(mids[1] - mids[0]), np.abs(mids[2] - mids[0]))
+    # a thin or shallow dip may miss its 25 or 75 % crossings: its position is then only
+    # known to be within its half-depth width (from the 50 % crossings)
+    sp_ok = np.where(np.isfinite(spread) & np.isfinite(msig), spread, 0.5 * width + 0.5)
+    # medians over the parts of each dip's width, rise and contrast, in one sort
+    meds = nanmedian(np.concatenate(
+        (width.T, rise.T, contrast.reshape(m, PARTS).T), axis=1))
+    wmed, rmed, cmed = meds[:m], meds[m : 2 * m], meds[2 * m :]
+    lo_lev = np.minimum(lev_l, lev_r)
+    hi_lev = np.maximum(lev_l, lev_r)
+    stepr = (hi_lev - lo_lev) / np.maximum(hi_lev, 1e-9)
+    ok = np.isfinite(pos50)
+    wpart = np.where(ok, count, 0).astype(np.float64)
+    parts = np.where(ok, base[:, None] + pos50, np.nan)
+    sigma = np.where(ok & np.isfinite(msig), msig, 0.0)
+    spread = np.where(ok, sp_ok, 0.0)
+    return wmed, rmed, cmed, stepr, parts, wpart, sigma, spread
 
 
 def part_profiles_numpy(
