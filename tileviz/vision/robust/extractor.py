@@ -90,15 +90,11 @@ def execute(run: RobustRun) -> None:
             t = run.lap("heading", t)
             if any(abs(math.remainder(alt - y, QUARTER)) < 0.004 for y, _ in tried):
                 continue
-            run.mean, run.window, run.inverted = start
             run.details["heading_retry"] = float(len(tried))
-            lines, y3, t = read_lines(run, alt, t)
+            lines, y3, t, ok = read_again(run, start, alt, t)
             tried.append((alt, run.inverted))
-            try:
-                check_lines(run, lines)
+            if ok:
                 break
-            except Fail:
-                continue
         else:
             if first.reason not in POLARITY_REASONS:
                 raise first from None
@@ -108,15 +104,11 @@ def execute(run: RobustRun) -> None:
             # fail, the result shows the lines read before (as without this retry).
             kept = snapshot(run)
             for y, inverted in tried:
-                run.mean, run.window, run.inverted = start
                 run.force_inverted = not inverted
                 run.details["polarity_retry"] = 1.0
-                lines, y3, t = read_lines(run, y, t)
-                try:
-                    check_lines(run, lines)
+                lines, y3, t, ok = read_again(run, start, y, t)
+                if ok:
                     break
-                except Fail:
-                    continue
             else:
                 restore(run, kept)
                 run.details["polarity_retry"] = 1.0
@@ -159,6 +151,21 @@ RETRY_REASONS = frozenset(
 )
 """Refusals of the line checks after which the heading is sought from the view's periodicity
 (``lattice_heading``) and the lines read again."""
+
+
+def read_again(
+    run: RobustRun, start: tuple[float, int, bool], y3: float, t: float
+) -> tuple[list[list[Line]], float, float, bool]:
+    """Read the lines at heading ``y3`` (rad) again from ``start`` (``run.mean``,
+    ``run.window`` and ``run.inverted`` as the first reading began), as :func:`read_lines`
+    does; also True when they pass every check (:func:`check_lines`)."""
+    run.mean, run.window, run.inverted = start
+    lines, y3, t = read_lines(run, y3, t)
+    try:
+        check_lines(run, lines)
+    except Fail:
+        return lines, y3, t, False
+    return lines, y3, t, True
 
 
 def read_lines(run: RobustRun, y3: float, t: float) -> tuple[list[list[Line]], float, float]:
