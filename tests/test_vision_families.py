@@ -51,17 +51,28 @@ def test_each_floor_family_is_read_within_its_declared_bound(family: str) -> Non
         ("shade_steps", 24, "a line next to a dark tile at the border: the level beyond the "
                             "view (the image mean) hid its edge"),
         ("wide_grout", 92, "a flat-bottomed 19 px band whose deepest sample is at its edge"),
+        ("photo", 5_000_258, "a 10 px grout band beside the brick photograph's thin mortar "
+                             "lines: the first window could not measure the band, only the "
+                             "mortar (was low contrast)"),
+        ("photo", 5_000_421, "light grout on a grass photograph: its deepest dip did not "
+                             "fit the first window, only shallower ones were measured (was "
+                             "low contrast)"),
+        ("photo", 5_000_058, "the light stones of a gravel photograph saturate 7 % of the "
+                             "pixels in scattered specks (was glare)"),
+        ("photo", 5_000_345, "bright grass blades saturate 10 % of the pixels (was glare)"),
     ],
 )
 def test_views_once_refused_are_read_within_their_bound(family: str, seed: int, why: str) -> None:
-    """Readable clean views the extractor used to refuse (``foreign line``, ``step edge``,
-    ``low contrast``, ``no lines``, ``blurred``, ``inconsistent spacing``, ``one family``;
+    """Readable clean views the extractor used to refuse (``foreign line``, ``step edge``, ``low
+    contrast``, ``no lines``, ``blurred``, ``inconsistent spacing``, ``one family``, ``glare``;
     ``why``): texture is told from a foreign object's edge (an edge that stops at the grout
     leaves the grout alike on both sides), the heading is sought from the view's periodicity
     when the lines at the first heading fail their checks, and then the other polarity of the
     grout; a blurred view is read with the wider bound its softer edges give; lighter grout's
     lines are compared in depth over the grout's own level too; the profile beyond the view
-    continues its last level; a wide band is measured centred on itself."""
+    continues its last level; a wide band is measured centred on itself, and with a window that
+    fits it when only shallower dips could be measured; saturated specks of a light texture are
+    not glare."""
     r = run_view(seed, family, None)
     assert r["readable"] and r["accepted"], (why, r)
     assert r["err_px"] <= r["bound_px"] and r["err_rad"] <= r["bound_rad"], (why, r)

@@ -234,3 +234,21 @@ def test_missing_profile_samples_continue_the_nearest_level() -> None:
         kd, _, kf, kp = kernel.profile_dips(prof, 140.0, 21, 15.0)
         assert np.array_equal(kd, dark, equal_nan=True)
         assert kp.tolist() == peak.tolist() and kf.tolist() == fam.tolist()
+
+
+def test_scattered_saturated_specks_are_not_glare_but_a_saturated_patch_is() -> None:
+    """A light texture saturating many scattered specks (light stones, bright blades) leaves
+    the floor visible between them; glare washes out one large patch."""
+    from tileviz.vision.robust.statistics import glare_share
+
+    rng = np.random.default_rng(3)
+    gray = np.full((240, 320), 150, np.uint8)
+    for y0 in range(0, 234, 9):  # 3x3 specks, one in every 9x9 cell (11 % of the pixels)
+        for x0 in range(0, 315, 9):
+            y, x = y0 + int(rng.integers(0, 4)), x0 + int(rng.integers(0, 4))
+            gray[y : y + 3, x : x + 3] = 255
+    assert float((gray >= 250).mean()) > 0.08
+    assert glare_share(gray, 7) == 0.0
+    spot = np.full((240, 320), 150, np.uint8)
+    cv2.circle(spot, (160, 120), 50, 255, -1)  # 10 % of the pixels, one patch
+    assert glare_share(spot, 7) > 0.08

@@ -8,7 +8,8 @@ Modules, one per job: :mod:`.settings` (thresholds), :mod:`.state` (one frame's 
 
 How it measures (vectorised numpy/OpenCV; timings in ``bench/bench_vision.py``):
 
-1. Gray statistics: a constant image, or one with many saturated pixels (glare), is refused.
+1. Gray statistics: a constant image, or one with many saturated pixels in large patches
+   (glare; a light texture's scattered saturated specks are not), is refused.
 2. Scharr gradients and Canny edges; the heading modulo pi/2 from the edge pixels' gradient
    directions (a weighted histogram of 4 phi, its peak, then the weighted circular mean of the
    pixels near the peak: the report's (cos 4a, sin 4a) of eq. 4.4 applied per pixel).

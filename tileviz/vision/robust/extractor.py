@@ -177,6 +177,10 @@ def read_lines(run: RobustRun, y3: float, t: float) -> tuple[list[list[Line]], f
         lines = select_lines(run, measure(run, y3, attempt))
         # a window too narrow for the grout (a wide band): measure again with a wider one
         width = run.details.get("width", math.nan) if lines[0] or lines[1] else math.nan
+        if math.isfinite(run.unmeasured_width):
+            # the deepest dip was too wide for the window: the lines kept are shallower
+            # ones (a texture's), the grout band is measured with a window fitting it
+            width = max(width, run.unmeasured_width) if math.isfinite(width) else width
         need = run.closing + 8
         if math.isfinite(width):
             need = min(int(math.ceil(1.5 * width + 12.0)), need)

@@ -293,6 +293,7 @@ def dips(run: RobustRun, proj: Projection, *, every: bool = False) -> list[list[
 
     Missing data is NaN throughout: the caller silences numpy's warnings on it
     (:func:`~tileviz.vision.robust.extractor.extract_robust` does)."""
+    run.unmeasured_width = math.nan
     if proj.peak.size == 0:
         return [[], []]
     r = run.window
@@ -323,7 +324,12 @@ def dips(run: RobustRun, proj: Projection, *, every: bool = False) -> list[list[
     meas = (p0, c0, half, depth, u_lo, step, lev_l, lev_r)
     out = measure_parts(run, proj, strong, cols, jf, *meas)
     if not any(ln.depth == top for fam_lines in out for ln in fam_lines):
-        # the deepest dip gave no line: shallower ones may pass select_lines
+        # the deepest dip gave no line: shallower ones may pass select_lines; its own
+        # half-depth width on the whole profile (half = 1.5 width + 1.5) tells the caller
+        # whether a wider window would measure it (a grout band wider than the window
+        # allows, beside a texture's thin lines)
+        deepest = usable[int(np.argmax(depth[usable]))]
+        run.unmeasured_width = float((half[deepest] - 1.5) / 1.5)
         out = measure_parts(run, proj, usable, cols, jf, *meas)
     return out
 

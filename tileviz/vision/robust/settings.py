@@ -14,7 +14,11 @@ class RobustSettings:
     min_range: float = 6.0
     """Gray range (2nd to 98th percentile) below which the image is ``constant image``."""
     glare_fraction: float = 0.04
-    """Fraction of pixels >= 250 above which the frame is refused as ``glare``."""
+    """Fraction of pixels >= 250, and of pixels inside a saturated patch ``glare_patch`` px
+    across, above which the frame is refused as ``glare`` (scattered saturated specks of a
+    light texture are not glare)."""
+    glare_patch: int = 7
+    """Side of the square a saturated patch must hold to count as glare, px."""
     min_depth: float = 15.0
     """Weakest grout dip trusted, gray levels (``low contrast`` when the deepest is weaker)."""
     rel_depth: float = 0.3

@@ -105,6 +105,9 @@ class RobustRun:
         # half-size of the window each dip is measured in: 20 samples suit grout up to ~9 px
         # wide; a wider band measures again with a window up to closing + 8 (see execute)
         self.window = min(20, self.closing + 8)
+        # half-depth width (px) of the deepest dip when the window could not measure it in
+        # parts (NaN otherwise; set by profiles.dips): a wider window is tried
+        self.unmeasured_width = math.nan
         self.inverted = False  # grout lighter than the tiles: the gray levels are inverted
         # the grout's polarity imposed (True: lighter) instead of decided from the profiles
         self.force_inverted: bool | None = None

@@ -9,7 +9,7 @@ import numpy as np
 
 from tileviz.vision.robust.state import Fail, RobustRun
 
-__all__ = ["gray_statistics", "list_median", "noise_sigma"]
+__all__ = ["glare_share", "gray_statistics", "list_median", "noise_sigma"]
 
 
 def gray_statistics(run: RobustRun) -> None:
@@ -26,8 +26,20 @@ def gray_statistics(run: RobustRun) -> None:
         raise Fail("constant image")
     saturated = float(hist[250:].sum()) / n
     run.details["saturated"] = saturated
-    if saturated > st.glare_fraction:
+    if (saturated > st.glare_fraction
+            and glare_share(run.gray, st.glare_patch) > st.glare_fraction):
         raise Fail("glare")
+
+
+def glare_share(gray: np.ndarray, patch: int) -> float:
+    """Share of the pixels (0..1) inside a saturated (>= 250) patch at least ``patch`` px
+    across (an erosion of the saturated pixels by a ``patch`` x ``patch`` square). Glare
+    washes out a large area, grout and texture alike; a light texture (the light stones of
+    a gravel photograph, bright grass blades) saturates scattered specks between which the
+    floor still shows, and they vanish under the erosion."""
+    mask = cv2.compare(gray, 250, cv2.CMP_GE)
+    core = cv2.erode(mask, np.ones((patch, patch), np.uint8))
+    return float(cv2.countNonZero(core)) / float(gray.size)
 
 
 def noise_sigma(run: RobustRun) -> float:
