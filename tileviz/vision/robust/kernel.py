@@ -7,7 +7,9 @@ image), :func:`grout_score` (``grout_score_numpy``: a family's term of the light
 :func:`profile_dips` (``profile_dips_numpy``: darkness, noise and dips of the family
 profiles), :func:`dip_rows` (``dip_rows_numpy``: every dip's depth, centre, window, parts
 and plateaus on its whole profile), :func:`view_spans` and :func:`profile_arrays` (the in-view
-spans and the profiles of both families), :func:`part_summary` (each line's medians and parts).
+spans and the profiles of both families), :func:`part_summary` (each line's medians and parts),
+:func:`heading_magnitudes` and :func:`heading_votes` (``heading.heading_votes_numpy``: the
+first heading's votes).
 
 Every operation is the numpy one in the same order: sums over a profile are numpy's pairwise
 sums (:func:`_pairwise`, the order ``ndarray.sum`` adds a contiguous row in), medians sort the
