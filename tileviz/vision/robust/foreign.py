@@ -67,11 +67,13 @@ def clear_of_lattice(run: RobustRun, seg: np.ndarray) -> np.ndarray:
       plank's edge, a cable or a shadow along the grout in the middle of a tile;
     - an edge whose object stops, on both sides, before or at the grout lines (:func:`ends`):
       its line, followed from each end, sees the edge on at most half the steps to the next
-      band, or runs into the grout and neither goes on beyond the band nor changes the grout's
-      gray level beside it (:func:`straddle`). A straight edge inside a tile (the mortar of a
-      brick photograph, a plank's end) touches the grout's plateaus as any texture does; an
-      object crossing a grout line (a cable, a box or shadow edge) shows on both sides of it
-      and across the grout.
+      band, or runs into the grout without changing the grout's gray level there
+      (:func:`straddle`) and either does not go on beyond the band or would have changed that
+      level had it crossed (:func:`conclusive`: what is seen beside the edge differs from the
+      grout). A straight edge inside a tile (the mortar of a brick photograph, a plank's end)
+      touches the grout's plateaus as any texture does, and its line often runs on along
+      another tile's texture; an object crossing a grout line (a cable, a box or shadow edge)
+      covers or darkens the grout where it crosses it.
 
     Assumed: an object whose straight edge ends inside a grout band without crossing it, or
     crosses the grout with the grout's own gray level, is not told from texture there
@@ -217,20 +219,28 @@ def ends(run: RobustRun, px: float, py: float, dx: float, dy: float, band: float
     - The border of the view comes before any band: True.
     - At least 4 steps lead to the next band and at most half of them see the edge: it ends
       inside the tile (True).
+    - Where the line meets the grout's centre line, the grout's gray level beside the line
+      (:func:`straddle`) tells: an object crossing the grout covers it on one side (a cable,
+      a box) or darkens it (a shadow), so the level varies there by more than
+      :data:`STRADDLE_SIGMAS` x the image noise + :data:`STRADDLE_LEVELS` (False); a
+      texture's edge stops at the grout and leaves it alike (True when both sides of the
+      crossing are read and the edge is not seen beyond the band, or one side is read and
+      the far side is in view, at least 6 steps, without the edge).
     - Beyond the band, up to the next band (at least 6 steps in view), at least half the
-      steps see the edge: the object goes on across the grout (False).
-    - Otherwise, where the line meets the grout's centre line, the grout's gray level on the
-      two sides of the line (:func:`straddle`) tells: an object crossing the grout covers it
-      on one side (a cable, a box) or darkens it (a shadow), so the two sides differ by more
-      than :data:`STRADDLE_SIGMAS` x the image noise + :data:`STRADDLE_LEVELS` (False); a
-      texture's edge stops at the grout and leaves it alike on both sides (True).
-    - The line does not reach the grout's core in the view, or the two sides cannot be read
-      (the crossing is at the border of the view, or the line runs along the grout): True
-      when the far side was seen (6 steps or more), else False.
+      steps see the edge (the object may go on across the grout, or the line runs along
+      another tile's texture), or only one side of the crossing is in view and the far side
+      is not: True only when the object, had it crossed, would have changed the grout's level
+      there (:func:`conclusive`), else False.
+    - The line does not reach the grout's core in the view: False when the edge is seen
+      beyond the band; else True when the band runs to the border of the view or the far
+      side is in view (6 steps or more), else False. The grout cannot be read where the line
+      meets it (within 0.05 rad of the grout, or the crossing out of the view): as the line
+      not reaching it.
 
-    Assumed: an object whose gray level matches the grout's where it crosses it, and whose
-    continuation beyond the band is hidden by texture edges along it (fewer than half the
-    steps) or out of the view, is not told from texture at that end."""
+    Assumed: an object whose gray level matches the grout's where it crosses it (within
+    :data:`CONCLUSIVE` x the straddle's limit when the edge is seen beyond the band or the
+    far side is out of view; within that limit otherwise), or whose step darkens the tiles
+    by less than that limit, is not told from texture at that end."""
     # the steps to the border: t = 1 .. tmax, inside [-0.5, W - 0.5) x [-0.5, H - 0.5)
     lim = []
     for p, d, size in ((px, dx, run.w), (py, dy, run.h)):
@@ -267,18 +277,29 @@ def ends(run: RobustRun, px: float, py: float, dx: float, dy: float, band: float
     i2 = i1 + int(back[0]) if back.size else xs.size
     n2 = i2 - i1
     far = n2 >= 6 and int(oriented_hits(run, xs[i1:i2], ys[i1:i2], -dy, dx).sum()) >= 0.5 * n2
-    if far:
-        return False  # seen beyond the band
     k = 0 if float(dk[0][i0:i1].min()) <= float(dk[1][i0:i1].min()) else 1
     if float(dk[k][i0:i1].min()) >= 0.5 * run.details["width"]:
         # the line does not reach the grout of this band in the view
+        if far:
+            return False  # seen beyond the band
         if i1 == xs.size:
             return True
         return n2 >= 6
-    diff = straddle(run, px, py, dx, dy, normals[k], shift[k])
-    if diff is None:
-        return n2 >= 6
-    return diff <= STRADDLE_SIGMAS * run.details["noise_sigma"] + STRADDLE_LEVELS
+    read = straddle(run, px, py, dx, dy, normals[k], shift[k])
+    if read is None:
+        return n2 >= 6 and not far
+    core, both = read
+    limit = STRADDLE_SIGMAS * run.details["noise_sigma"] + STRADDLE_LEVELS
+    if float(core.max() - core.min()) > limit:
+        return False  # the grout's level changes where the line crosses it
+    if both and not far:
+        return True
+    if not both and n2 >= 6 and not far:
+        return True  # as when the grout cannot be read: the far side is in view, unseen
+    # seen beyond the band, or the grout read on one side only (the crossing at the border
+    # of the view, the far side out of it): texture only when anything seen beside the
+    # grout would have changed the grout's level there
+    return conclusive(run, px, py, dx, dy, float(np.median(core)), limit)
 
 
 STRADDLE_SIGMAS = 3.0
@@ -288,17 +309,21 @@ STRADDLE_LEVELS = 4.0
 
 
 def straddle(run: RobustRun, px: float, py: float, dx: float, dy: float,
-             n: tuple[float, float], sh: float) -> float | None:
-    """How much the grout's gray level varies where the line through (px, py) along (dx, dy)
-    crosses the grout's centre line (the next line ahead of the family with unit normal
-    ``n`` and offset ``sh``, px): the range of the centre line's gray levels (bilinear,
-    median of 3 neighbours) at 0..9 px from the line on both sides (at most 60 px along the
-    grout). An object crossing the grout covers it (a cable, a box) or darkens it (a shadow)
-    near the line; a texture's edge that stops at the grout leaves it alike. None when the
-    line runs within 0.15 rad of the grout, or a side has fewer than 3 samples in the view."""
+             n: tuple[float, float], sh: float) -> tuple[np.ndarray, bool] | None:
+    """The grout's gray levels where the line through (px, py) along (dx, dy) crosses the
+    grout's centre line (the next line ahead of the family with unit normal ``n`` and offset
+    ``sh``, px): the centre line's gray levels (bilinear) at 0..9 px from the line on both
+    sides (at most 180 px along the grout), whose range the caller compares with the noise.
+    An object crossing the grout covers it (a cable, a box) or darkens it (a shadow) near the
+    line; a texture's edge that stops at the grout leaves it alike.
+
+    Returns the samples (median of 3 neighbours) and whether both sides were read (3 samples
+    or more each); one side is enough when the line crosses the grout at
+    :data:`STRADDLE_ONE_SIDED` or more. None when the line runs within
+    :data:`STRADDLE_PARALLEL` of the grout or neither side can be read."""
     cx, cy = (run.w - 1) / 2.0, (run.h - 1) / 2.0
     nd = n[0] * dx + n[1] * dy
-    if abs(nd) < 0.15:
+    if abs(nd) < STRADDLE_PARALLEL:
         return None
     o = n[0] * (px - cx) + n[1] * (py - cy) + sh
     # the next grout centre line ahead: o + t nd = m lp
@@ -311,14 +336,55 @@ def straddle(run: RobustRun, px: float, py: float, dx: float, dy: float,
     xs = qx + s * g[0]
     ys = qy + s * g[1]
     ok = (xs >= 0) & (xs <= run.w - 1) & (ys >= 0) & (ys <= run.h - 1)
-    if int(ok[:9].sum()) < 3 or int(ok[10:].sum()) < 3:
+    sides = (int(ok[:9].sum()), int(ok[10:].sum()))
+    both = min(sides) >= 3
+    if not both and (max(sides) < 3 or abs(nd) < STRADDLE_ONE_SIDED):
         return None
     v = cv2.remap(run.gray, xs[ok].astype(np.float32).reshape(1, -1),
                   ys[ok].astype(np.float32).reshape(1, -1), cv2.INTER_LINEAR).ravel()
     v = v.astype(np.float64)
-    if v.size >= 3:
-        v = np.median(np.stack([v[:-2], v[1:-1], v[2:]]), axis=0)
-    return float(v.max() - v.min())
+    v = np.median(np.stack([v[:-2], v[1:-1], v[2:]]), axis=0)
+    return v, both
+
+
+STRADDLE_PARALLEL = 0.05
+STRADDLE_ONE_SIDED = 0.15
+"""The grout is read where a line crosses it at an angle (rad, sine) of at least
+``STRADDLE_PARALLEL`` when both sides of the crossing are in view, ``STRADDLE_ONE_SIDED`` when
+only one is (:func:`straddle`)."""
+
+
+def conclusive(run: RobustRun, px: float, py: float, dx: float, dy: float, grout: float,
+               limit: float) -> bool:
+    """Whether an object whose straight edge ends at (px, py) (a unit vector (dx, dy) pointing
+    on along its line) would have changed the grout's gray level ``grout`` by more than
+    :data:`CONCLUSIVE` x ``limit`` had it gone on across the grout: every level seen beside
+    the edge's last 15 px (the median along it at each of -8..8 px across it) differs from
+    the grout's by that much (a cable or a box covering the grout with its own level), and,
+    when the two sides' levels (5..8 px each side, beyond a ridge beside the edge) differ by
+    more than ``limit`` (a step edge), so does the grout darkened by their ratio (a shadow
+    edge darkens the grout as it darkens the tiles)."""
+    t = np.arange(-16.0, -1.0)
+    o = np.arange(-8.0, 9.0)
+    xs = px + t[None, :] * dx - o[:, None] * dy
+    ys = py + t[None, :] * dy + o[:, None] * dx
+    ok = ((xs >= 0) & (xs <= run.w - 1) & (ys >= 0) & (ys <= run.h - 1)).all(axis=0)
+    if int(ok.sum()) < 4:
+        return False
+    v = cv2.remap(run.gray, xs[:, ok].astype(np.float32), ys[:, ok].astype(np.float32),
+                  cv2.INTER_LINEAR).astype(np.float64)
+    lv = np.median(v, axis=1)
+    need = CONCLUSIVE * limit
+    if float(np.abs(lv - grout).min()) <= need:
+        return False
+    a, b = float(np.median(lv[o >= 5])), float(np.median(lv[o <= -5]))
+    return abs(a - b) <= limit or grout * abs(a - b) / max(a, b, 1e-9) > need
+
+
+CONCLUSIVE = 2.0
+"""An edge seen beyond the grout is taken for texture only when the grout's level there
+(:func:`straddle`) shows no crossing, and any object seen beside the grout would have changed
+it by this many times the straddle's limit (:func:`conclusive`)."""
 
 
 def classify_edge(run: RobustRun, seg: np.ndarray) -> str:
