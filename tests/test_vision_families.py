@@ -71,6 +71,10 @@ def test_each_floor_family_is_read_within_its_declared_bound(family: str) -> Non
         ("photo", 5_000_058, "the light stones of a gravel photograph saturate 7 % of the "
                              "pixels in scattered specks (was glare)"),
         ("photo", 5_000_345, "bright grass blades saturate 10 % of the pixels (was glare)"),
+        ("degraded", 4_000_058, "a 16 px band under 1.8 px of blur, JPEG 62 and noise 10: its "
+                                "edges rise 5.7 px (was blurred)"),
+        ("degraded", 5_000_253, "a 13 px band of light grout under 1.8 px of blur: its edges "
+                                "rise 5.1 px (was blurred)"),
     ],
 )
 def test_views_once_refused_are_read_within_their_bound(family: str, seed: int, why: str) -> None:
