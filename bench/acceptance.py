@@ -116,22 +116,32 @@ def first_frames(folder: Path, limit: int, into: Path) -> Path:
     return into
 
 
-def worker_cpu() -> float:
-    """CPU seconds so far of the live vision workers of this process's replay: the processes
-    whose parent is this process or its multiprocessing fork server (Linux ``/proc``)."""
-    from multiprocessing import forkserver
+def process_cpu() -> dict[str, float]:
+    """CPU seconds so far (user + system, Linux ``/proc``) of this process's replay helpers:
+    ``server``, the workers' fork server (a child of this process; all of it is its start-up:
+    the imports and the warm-up of :mod:`tileviz.pipeline.worker_start`, after which it only
+    forks), ``tracker``, multiprocessing's resource tracker, and ``workers``, the live vision
+    workers (the fork server's children) together."""
+    from multiprocessing import forkserver, resource_tracker
 
-    parents = {os.getpid(), getattr(forkserver._forkserver, "_forkserver_pid", None)}
+    server = getattr(forkserver._forkserver, "_forkserver_pid", None)
+    tracker = getattr(resource_tracker._resource_tracker, "_pid", None)
     tick = os.sysconf("SC_CLK_TCK")
-    total = 0.0
+    out = {"server": 0.0, "tracker": 0.0, "workers": 0.0}
     for stat in Path("/proc").glob("[0-9]*/stat"):
         try:
             fields = stat.read_text().rsplit(")", 1)[1].split()
         except OSError:  # gone meanwhile
             continue
-        if int(fields[1]) in parents:  # ppid; then utime, stime at fields 11, 12
-            total += (int(fields[11]) + int(fields[12])) / tick
-    return total
+        pid, ppid = int(stat.parent.name), int(fields[1])
+        cpu = (int(fields[11]) + int(fields[12])) / tick  # utime, stime
+        if pid == server:
+            out["server"] += cpu
+        elif pid == tracker:
+            out["tracker"] += cpu
+        elif ppid == server:
+            out["workers"] += cpu
+    return out
 
 
 def timing(folder: Path, repeats: int = 3, limit: int = 600) -> dict[str, float]:
@@ -145,7 +155,10 @@ def timing(folder: Path, repeats: int = 3, limit: int = 600) -> dict[str, float]
       the workers' start-up (``jobs2_startup_s``, seconds, once per replay) is left out;
     - ``command1_s``, ``command2_s``: seconds of the whole command ``python -m tileviz replay``
       with ``--jobs 1``, ``--jobs 2`` on the first 8 frames, in a new process (its start-up, as
-      a user sees it: imports, the workers, the compiled kernels loaded);
+      a user sees it: imports, the workers' fork server loading the vision code and the
+      compiled kernels, the workers);
+    - ``command``: the whole command ``python -m tileviz replay`` (its default jobs) on all the
+      frames, in a new process, per frame: what a user waits for, start-up included;
     - ``jobs1``: the same with ``--jobs 1`` (images decoded ahead on a thread);
     - ``bare``: the bare OpenCV calls of the original pipeline on the decoded images (already
       in memory: no file is read), with OpenCV on its default thread count (one per CPU, as
@@ -154,12 +167,14 @@ def timing(folder: Path, repeats: int = 3, limit: int = 600) -> dict[str, float]
     CPU time (``*_cpu``; the work a frame costs, which a loaded machine inflates less than
     wall time):
 
-    - ``jobs2_cpu``: ``--jobs 2``, this process and its 2 workers together (the workers'
-      start-up included: forked from a fork server that loaded the vision code once, a few
-      milliseconds; the fork server's own start-up, once per process, is in the first
-      ``jobs2_startup_s``);
-    - ``jobs2_main_cpu``: the part of it in this process (reading rows, taking the workers'
-      results, the localizer, the output);
+    - ``jobs2_cpu``: ``--jobs 2``, this process and its 2 workers together (the workers' own
+      start-up included: forked from the fork server, a few milliseconds each);
+    - ``jobs2_main_cpu``: the part of it in this process (reading rows, handing the frames to
+      the workers and taking their results, the localizer, the output);
+    - ``jobs2_workers_cpu``: the part of it in the 2 workers (reading and decoding the PNG,
+      vision, taking the tasks and sending the results back);
+    - ``server_cpu_s``: seconds, the workers' fork server (its start-up: the imports and the
+      warm-up; once per process, not per replay, so not per frame);
     - ``rows``, ``decode``, ``vision``, ``loop``, ``output``: one pass of the replay's steps on
       one thread, each step clocked in the same pass (``time.thread_time``): reading and
       checking frames.csv's rows; reading, checking and decoding the PNG as replay does
@@ -198,27 +213,30 @@ def _timing(folder: Path, tmp: Path, repeats: int, limit: int) -> dict[str, floa
         end = time.perf_counter()
         return (end - first[0]) / (n - 1) * 1e3, first[0] - t0
 
-    def replay_cpu() -> tuple[float, float]:
-        """(this process, its workers) CPU ms per frame of a --jobs 2 replay, the workers' read
-        at the last frame (still alive then; forked from the warm fork server, their start-up
-        is a few milliseconds), this process's over the whole replay."""
-        seen: list[float] = []
+    def replay_cpu() -> tuple[float, float, float]:
+        """(this process, its workers, the fork server) CPU of a --jobs 2 replay: the first two
+        in ms per frame, the workers' read at the last frame (still alive then), this
+        process's over the whole replay; the fork server's in seconds (all of it start-up)."""
+        seen: list[dict[str, float]] = []
 
         def on_frame(rec: FrameRecord) -> None:
             if rec.index == n - 1:
-                seen.append(worker_cpu())
+                seen.append(process_cpu())
 
         c0 = time.process_time()
         replay(data, out=out, jobs=2, on_frame=on_frame)
-        return (time.process_time() - c0) / n * 1e3, seen[0] / n * 1e3
+        return ((time.process_time() - c0) / n * 1e3, seen[0]["workers"] / n * 1e3,
+                seen[0]["server"])
 
     eight = first_frames(folder, 8, tmp / "eight")
 
-    def command(jobs: int) -> float:
+    def command(jobs: int | None, dataset: Path = eight) -> float:
+        """Seconds of ``python -m tileviz replay`` on ``dataset`` in a new process."""
         t0 = time.perf_counter()
-        subprocess.run([sys.executable, "-m", "tileviz", "replay", str(eight), "--out",
-                        str(tmp / "eight.csv"), "--jobs", str(jobs), "--quiet"], check=True,
-                       stdout=subprocess.DEVNULL)
+        subprocess.run([sys.executable, "-m", "tileviz", "replay", str(dataset), "--out",
+                        str(tmp / "command.csv"), "--quiet",
+                        *(["--jobs", str(jobs)] if jobs else [])],
+                       check=True, stdout=subprocess.DEVNULL)
         return time.perf_counter() - t0
 
     def one_thread() -> None:
@@ -269,13 +287,48 @@ def _timing(folder: Path, tmp: Path, repeats: int, limit: int) -> dict[str, floa
         keep("jobs1", replay_wall(1)[0])
         keep("command1_s", command(1))
         keep("command2_s", command(2))
-        main, workers = replay_cpu()
+        keep("command", command(None, data) / n * 1e3)
+        main, workers, server = replay_cpu()
         keep("jobs2_cpu", main + workers)
         keep("jobs2_main_cpu", main)
+        keep("jobs2_workers_cpu", workers)
+        keep("server_cpu_s", server)
         one_thread()
         keep("bare1_cpu", bare(1)[1])
         keep("bare", bare(cv2.getNumberOfCPUs())[0])  # OpenCV's default
     return best
+
+
+def timing_table(tm: dict[str, float], load0: float, load1: float) -> str:
+    """:func:`timing`'s figures as lines of text, each part of a replay on its own line."""
+    bare, bare1 = tm["bare"], tm["bare1_cpu"]
+    jobs2_parts = tm["jobs2_workers_cpu"] + tm["jobs2_main_cpu"]
+    best2 = max(0.5 * tm["jobs2_cpu"], tm["jobs2_main_cpu"])  # 2 idle cores, perfect overlap
+    one = ("rows", "PNG decoding", "vision", "localizer and loop", "output")
+    keys = ("rows_cpu", "decode_cpu", "vision_cpu", "loop_cpu", "output_cpu")
+    return "\n".join([
+        f"wall ms/frame (load average {load0:.2f} before, {load1:.2f} after; best of 3):",
+        f"  replay --jobs 2, from its first frame   {tm['jobs2']:7.3f}  "
+        f"{tm['jobs2'] / bare:.2f}x the bare chain",
+        f"  replay --jobs 1                         {tm['jobs1']:7.3f}  "
+        f"{tm['jobs1'] / bare:.2f}x",
+        f"  python -m tileviz replay, whole command {tm['command']:7.3f}  "
+        f"{tm['command'] / bare:.2f}x   (start-up included)",
+        f"  bare OpenCV chain, default threads      {bare:7.3f}",
+        f"  start-up: the command on 8 frames {tm['command2_s']:.2f} s (--jobs 2), "
+        f"{tm['command1_s']:.2f} s (--jobs 1); to the first frame of replay() in a warm "
+        f"process {tm['jobs2_startup_s']:.2f} s",
+        "CPU ms/frame:",
+        "  replay's steps on one thread: " + " + ".join(
+            f"{name} {tm[k]:.3f}" for name, k in zip(one, keys, strict=True))
+        + f" = {tm['parts_cpu']:.3f}  ({tm['parts_cpu'] / bare1:.2f}x the bare chain on one "
+        f"thread, {bare1:.3f})",
+        f"  replay --jobs 2: workers {tm['jobs2_workers_cpu']:.3f} (decoding + vision on one "
+        f"thread {tm['decode_cpu'] + tm['vision_cpu']:.3f}) + this process "
+        f"{tm['jobs2_main_cpu']:.3f} = {jobs2_parts:.3f}; on 2 idle cores at best "
+        f"{best2:.3f} ms/frame ({best2 / bare1:.2f}x); the workers' fork server "
+        f"{tm['server_cpu_s']:.2f} s at its start (once per process)",
+    ])
 
 
 def main() -> None:
@@ -286,6 +339,8 @@ def main() -> None:
                     help=f"floor styles: {', '.join(FLOOR_STYLES)}")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--keep", help="keep the datasets under this folder")
+    ap.add_argument("--timing-only", action="store_true",
+                    help="only the timings (no accuracy figures)")
     args = ap.parse_args()
     root = Path(args.keep) if args.keep else Path(tempfile.mkdtemp(prefix="tileviz-accept-"))
     for case in args.cases:
@@ -305,30 +360,15 @@ def main() -> None:
         print(f"\n== preset {name}, floor style {style or '(preset)'}: {frames} frames "
               f"({args.minutes} min simulated), "
               f"recorded in {time.perf_counter() - t0:.0f} s -> {folder}")
-        for mode, base in (("autonomous", None), ("odometry", None),
-                           ("autonomous, camera not a preset", Config())):
+        for mode, base in () if args.timing_only else (
+                ("autonomous", None), ("odometry", None),
+                ("autonomous, camera not a preset", Config())):
             s = replay_stats(folder, mode.split(",")[0], base)
             print(f"{mode:>10}: " + "  ".join(
                 f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in s.items()))
+        load0 = os.getloadavg()[0]
         tm = timing(folder)
-        bare = tm["bare"]
-        print(f"replay --jobs 2 {tm['jobs2']:.3f} ms/frame once started (start-up in this "
-              f"process {tm['jobs2_startup_s']:.2f} s; the command on 8 frames "
-              f"{tm['command2_s']:.2f} s, with --jobs 1 {tm['command1_s']:.2f} s), "
-              f"replay --jobs 1 {tm['jobs1']:.3f} ms/frame; "
-              f"bare OpenCV calls of the original pipeline {bare:.3f} ms/frame (OpenCV on its "
-              f"default threads); ratios {tm['jobs2'] / bare:.2f}, {tm['jobs1'] / bare:.2f}")
-        # CPU time: the work per frame; with 2 workers, decoding and vision split over two
-        # processes and the localizer stays in order in this one
-        bare1 = tm["bare1_cpu"]
-        two = max(0.5 * tm["jobs2_cpu"], tm["jobs2_main_cpu"])
-        print(f"CPU ms/frame: replay's steps on one thread {tm['parts_cpu']:.3f} (rows "
-              f"{tm['rows_cpu']:.3f}, PNG decoding {tm['decode_cpu']:.3f}, vision "
-              f"{tm['vision_cpu']:.3f}, localizer and loop {tm['loop_cpu']:.3f}, output "
-              f"{tm['output_cpu']:.3f}), ratio {tm['parts_cpu'] / bare1:.2f}; "
-              f"replay --jobs 2 {tm['jobs2_cpu']:.3f} in all (this process "
-              f"{tm['jobs2_main_cpu']:.3f}), on 2 idle cores at best {two:.3f} ms/frame, ratio "
-              f"{two / bare1:.2f}; bare OpenCV calls on one thread {bare1:.3f}")
+        print(timing_table(tm, load0, os.getloadavg()[0]))
     print(f"\n(datasets in {root}; timings are the best of 3 passes; wall clock unless "
           "marked CPU)")
 

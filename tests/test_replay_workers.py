@@ -44,3 +44,45 @@ def test_workers_start_with_the_kernels_loaded() -> None:
     with ProcessPoolExecutor(1, mp_context=ctx) as pool:
         loaded = pool.submit(_loaded_kernels).result(timeout=600)
     assert loaded == dict.fromkeys(KERNELS, 1)
+
+
+def _parent_pid() -> int:
+    import os
+
+    return os.getppid()
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="the fork server is used where it exists; "
+                    "this test checks it on Linux")
+def test_workers_come_from_the_server_started_ahead() -> None:
+    """The replay command starts the workers' fork server before it loads anything else
+    (start_worker_server); the replay's workers are then forked from that very server (not
+    from a second one started at the pool), and starting it again keeps it."""
+    from multiprocessing import forkserver
+
+    from tileviz.pipeline.worker_server import start_worker_server
+
+    assert start_worker_server()
+    server = forkserver._forkserver._forkserver_pid
+    assert server is not None
+    assert start_worker_server()
+    assert forkserver._forkserver._forkserver_pid == server
+    with ProcessPoolExecutor(1, mp_context=worker_context()) as pool:
+        assert pool.submit(_parent_pid).result(timeout=600) == server
+
+
+def test_pipeline_package_loads_the_frame_loop_on_first_use() -> None:
+    """Importing the workers' server module loads neither the frame loop nor OpenCV (so the
+    replay command can start the server first thing), and the package's names still work."""
+    import subprocess
+
+    code = ("import sys, tileviz.pipeline.worker_server as s; "
+            "assert 'cv2' not in sys.modules and 'tileviz.pipeline.frame_loop' not in "
+            "sys.modules, sorted(m for m in sys.modules if m.startswith(('cv2', 'tileviz'))); "
+            "from tileviz.pipeline import FrameLoop, FrameRecord; "
+            "import tileviz.pipeline.frame_loop as f; assert FrameLoop is f.FrameLoop; "
+            "print('ok')")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=False)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "ok"

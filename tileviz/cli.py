@@ -153,6 +153,12 @@ def replay_parser() -> Parser:
 
 def replay(argv: list[str]) -> int:
     args = replay_parser().parse_args(argv)
+    from tileviz.pipeline.worker_server import default_jobs, start_worker_server
+
+    if (args.jobs or default_jobs()) > 1:
+        # first thing: the workers' fork server loads the vision code on another core while
+        # this process imports its own (tileviz.pipeline.worker_server)
+        start_worker_server()
 
     def body() -> int:
         from tileviz.pipeline.heap import keep_freed_memory

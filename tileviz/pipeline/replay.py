@@ -23,18 +23,9 @@ from tileviz.pipeline.outputs import (
     replay_row,
     residual_row,
 )
+from tileviz.pipeline.worker_server import default_jobs, start_worker_server
 
 __all__ = ["default_jobs", "replay"]
-
-
-def default_jobs() -> int:
-    """The default worker count: the cores this process may run on, at most 4 (beyond that the
-    in-order localizer and the workers' start-up gain little)."""
-    try:
-        cores = len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        cores = os.cpu_count() or 1
-    return max(1, min(4, cores))
 
 
 def replay(
@@ -66,6 +57,9 @@ def replay(
     the first frame, ``on_frame`` every record (its ``residuals`` computed only with
     ``output_file``). A bad row or image raises DatasetError (a
     ValueError) after every frame before it was written."""
+    jobs = jobs if jobs is not None else default_jobs()
+    if jobs > 1:  # the workers' server loads the vision code while this process reads the rows
+        start_worker_server()
     # images decode on a background thread while the previous frame's vision runs
     source = DatasetSource(dataset, prefetch=8)
     cfg = replay_config(source.meta, mode=mode, extractor=extractor)
@@ -82,7 +76,6 @@ def replay(
     if on_total is not None:
         on_total(source.row_count() or None)
     n = 0
-    jobs = jobs if jobs is not None else default_jobs()
     records: Iterator[FrameRecord]
     if jobs > 1:
         from tileviz.pipeline.workers import vision_ahead

@@ -4,12 +4,13 @@ observations extracted on ``jobs`` processes, handed back in frame order.
 Vision of one frame does not depend on any other frame, so a replay (a batch job) can run it for
 several frames at once; the localizer, which does depend on the previous frame, stays in the
 calling process and takes the frames in order. Where the platform has it, the workers are forked
-from a fork server (:func:`worker_context`) that imported the vision code and loaded the robust
-extractor's compiled kernels once (:mod:`tileviz.pipeline.worker_start`), rather than each
-worker importing and loading them again before its first frame; the server serves every later
-replay of the calling process too. Each worker runs OpenCV with the calling process's
-thread count (one, as every entry point sets it, unless the caller changed it: OpenCV's
-multi-threaded Canny gives edges that depend on the count), so the results are bit for bit those
+from a fork server (:mod:`tileviz.pipeline.worker_server`) that imported the vision code and
+loaded the robust extractor's compiled kernels once (:mod:`tileviz.pipeline.worker_start`),
+rather than each worker importing and loading them again before its first frame; the server
+serves every later replay of the calling process too. Each worker runs OpenCV with the calling
+process's thread count (one, as every entry point sets it, unless the caller changed it:
+OpenCV's multi-threaded Canny gives edges that depend on the count), so the results are bit for
+bit those
 of :func:`tileviz.vision.extract` in the calling process;
 an error (a missing or unreadable image, an image of the wrong size) is raised when its frame's
 turn comes, after every frame before it was delivered, as :class:`tileviz.datasets.DatasetSource`
@@ -20,10 +21,8 @@ No viser, no pymunk here.
 
 from __future__ import annotations
 
-import multiprocessing
 from collections.abc import Iterator
 from concurrent.futures import ProcessPoolExecutor
-from multiprocessing.context import BaseContext
 from pathlib import Path
 from typing import TypeVar
 
@@ -33,6 +32,7 @@ from tileviz.config import Config
 from tileviz.datasets import DatasetSource
 from tileviz.pipeline.heap import keep_freed_memory
 from tileviz.pipeline.parallel import results_in_order
+from tileviz.pipeline.worker_server import worker_context
 from tileviz.types import FrameInput
 from tileviz.vision import VisionResult, extract, set_opencv_threads
 
@@ -46,19 +46,6 @@ T = TypeVar("T")
 
 _worker: tuple[DatasetSource, Config] | None = None
 """The dataset and configuration of this worker process (set by :func:`_init`)."""
-
-
-def worker_context() -> BaseContext:
-    """The multiprocessing context of the vision workers: ``forkserver`` with
-    :mod:`tileviz.pipeline.worker_start` loaded in the server before it forks (a fresh,
-    single-threaded process: no fork of a process that runs OpenCV's or anyone's threads),
-    else ``spawn``."""
-    if "forkserver" in multiprocessing.get_all_start_methods():
-        ctx = multiprocessing.get_context("forkserver")
-        # (takes effect when the server starts: at the first pool of this process)
-        ctx.set_forkserver_preload(["tileviz.pipeline.worker_start"])
-        return ctx
-    return multiprocessing.get_context("spawn")
 
 
 def _init(folder: str, cfg: Config, threads: int) -> None:
