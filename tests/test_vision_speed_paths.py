@@ -216,3 +216,39 @@ def test_the_compiled_light_grout_score_matches_numpy_on_any_profile(
     used_np, value_np = profiles.grout_score_numpy(sums, length, closing)
     assert used == used_np
     assert not used or value.hex() == value_np.hex()
+
+
+@pytest.mark.skipif(not kernel.AVAILABLE, reason="numba is not installed")
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), h=st.integers(1, 60), w=st.integers(1, 80),
+       angle=st.floats(-1.0, 1.0), zero_share=st.sampled_from([0.0, 0.5, 1.0]))
+def test_the_compiled_heading_votes_match_numpy_on_any_gradients(
+    seed: int, h: int, w: int, angle: float, zero_share: float
+) -> None:
+    """Random gradients (a dominant direction plus noise, any size, up to all zero): the
+    compiled first heading and numpy's agree bit for bit (the heading, the share near the
+    peak, and "no lines" when every gradient is zero), and the heading is the dominant
+    direction's when the gradients are noise-free."""
+    from tileviz.vision.robust import heading
+
+    rng = np.random.default_rng(seed)
+    mag = rng.uniform(0.0, 4000.0, (h, w))
+    phi = angle + np.where(rng.random((h, w)) < 0.3, rng.uniform(-np.pi, np.pi, (h, w)), 0.0)
+    mag[rng.random((h, w)) < zero_share] = 0.0
+    dx = np.rint(mag * np.cos(phi)).astype(np.int16)
+    dy = np.rint(mag * np.sin(phi)).astype(np.int16)
+    ref = heading.heading_votes_numpy(dx, dy, 0.2, heading.HEADING_BINS)
+    q = kernel.heading_magnitudes(dx, dy)
+    thr = heading.voters(q, 0.2)
+    assert (thr > 0) == ref[0]
+    if thr > 0:
+        y0, share = kernel.heading_votes(dx, dy, q, thr, heading.HEADING_BINS)
+        assert y0.hex() == ref[1].hex() and share.hex() == ref[2].hex()
+    clean_dx = np.full((40, 40), int(round(3000 * np.cos(angle))), np.int16)
+    clean_dy = np.full((40, 40), int(round(3000 * np.sin(angle))), np.int16)
+    found, y_clean, _ = heading.heading_votes_numpy(clean_dx, clean_dy, 0.2,
+                                                    heading.HEADING_BINS)
+    if found:
+        # gradient directions are normal to the lines; y3 is modulo pi / 2
+        want = np.arctan2(float(clean_dy[0, 0]), float(clean_dx[0, 0]))
+        assert abs(np.remainder(y_clean - want + np.pi / 4, np.pi / 2) - np.pi / 4) < 1e-9

@@ -8,6 +8,7 @@ import math
 import numpy as np
 
 from tileviz.vision.robust.state import Fail, Line, RobustRun
+from tileviz.vision.robust.statistics import list_median
 
 __all__ = ["check_lines", "fit_tilt"]
 
@@ -15,63 +16,66 @@ __all__ = ["check_lines", "fit_tilt"]
 def fit_tilt(run: RobustRun, lines: list[list[Line]]) -> float:
     """Fit one residual tilt eps for all lines (family-1 rows drift by +eps per unit of t,
     family-2 columns by -eps) and one intercept per line, weighted by part lengths; set each
-    line's ``pos`` (at t = 0) and ``var``; return eps (rad). Also records the tilt of each
-    family on its own (``tilt_gap``: their difference in standard errors)."""
-    num = [0.0, 0.0]
-    den = [0.0, 0.0]
-    stats = []
-    for k, (fam, sign) in enumerate(((lines[0], 1.0), (lines[1], -1.0))):
-        for ln in fam:
-            ok = ln.wpart > 0
-            w = ln.wpart[ok]
-            t = ln.tpart[ok]
-            p = ln.parts[ok]
-            tb = float(np.dot(w, t) / w.sum())
-            pb = float(np.dot(w, p) / w.sum())
-            num[k] += sign * float(np.dot(w, (t - tb) * (p - pb)))
-            den[k] += float(np.dot(w, (t - tb) ** 2))
-            stats.append((ln, sign, tb, pb))
+    line's ``pos`` (at t = 0), ``var`` and ``infl``, and ``run.part_bound``; return eps (rad).
+    Also records the tilt of each family on its own (``tilt_gap``: their difference in
+    standard errors). All lines at once: rows of (lines, PARTS) arrays, a part not measured
+    (``wpart`` 0) weighing nothing."""
+    every = lines[0] + lines[1]
+    m = len(every)
+    st = run.st
+    if m == 0:
+        run.details["straightness_px"] = 0.0
+        run.part_bound = np.zeros(0)
+        run.details["heading_parts"] = 0.0
+        run.details["heading_se"] = math.inf
+        run.details["tilt_gap"] = 0.0
+        return 0.0
+    wp = np.array([ln.wpart for ln in every])
+    ok = wp > 0
+    w = np.where(ok, wp, 0.0)
+    t = np.where(ok, np.array([ln.tpart for ln in every]), 0.0)
+    p = np.where(ok, np.array([ln.parts for ln in every]), 0.0)
+    sign = np.ones(m)
+    sign[len(lines[0]):] = -1.0
+    sw = w.sum(axis=1)
+    tb = (w * t).sum(axis=1) / sw
+    pb = (w * p).sum(axis=1) / sw
+    dt = np.where(ok, t - tb[:, None], 0.0)
+    num_l = sign * (w * dt * (p - pb[:, None])).sum(axis=1)
+    den_l = (w * dt * dt).sum(axis=1)
+    first = np.arange(m) < len(lines[0])
+    num = (float(num_l[first].sum()), float(num_l[~first].sum()))
+    den = (float(den_l[first].sum()), float(den_l[~first].sum()))
     dall = den[0] + den[1]
     eps = (num[0] + num[1]) / dall if dall > 1e-9 else 0.0
-    worst = 0.0
-    ss = 0.0
-    nobs = 0
-    for ln, sign, tb, pb in stats:
-        ln.pos = pb - sign * eps * tb
-        ok = ln.wpart > 0
-        res = ln.parts[ok] - (ln.pos + sign * eps * ln.tpart[ok])
-        ss += float(np.dot(ln.wpart[ok], res * res))
-        nobs += int(ok.sum())
-        big = ln.wpart[ok] >= 0.25 * ln.wpart.max()
-        if big.any():
-            worst = max(worst, float(np.abs(res[big]).max()))
-    run.details["straightness_px"] = worst
+    pos = pb - sign * eps * tb
+    res = np.where(ok, p - (pos[:, None] + sign[:, None] * eps * t), 0.0)
+    ss = float((w * res * res).sum())
+    nobs = int(ok.sum())
+    big = ok & (wp >= 0.25 * wp.max(axis=1)[:, None])
+    run.details["straightness_px"] = float(np.abs(res[big]).max()) if big.any() else 0.0
     # The fit is linear in the part positions: d eps / d p_i = sign w_i (t_i - tb) / dall,
     # d pos / d p_i = w_i / sum(w) [its own line] - sign tb d eps / d p_i. With every part
-    # within its own bound b_i, eps and pos are within sum |d / d p_i| b_i.
-    infl = [(ln, sign, tb, ln.wpart > 0) for ln, sign, tb, _ in stats]
-    d_eps = np.concatenate(
-        [sign * ln.wpart[ok] * (ln.tpart[ok] - tb) / max(dall, 1e-9)
-         for ln, sign, tb, ok in infl]) if infl else np.zeros(0)
-    run.part_bound = np.concatenate(
-        [run.st.part_sigmas * ln.sigma[ok] + ln.spread[ok] for ln, _, _, ok in infl]
-    ) if infl else np.zeros(0)
-    start = 0
-    for ln, sign, tb, ok in infl:
-        g = -sign * tb * d_eps
-        w = ln.wpart[ok]
-        g[start : start + w.size] += w / w.sum()
-        ln.infl = g
-        start += w.size
+    # within its own bound b_i, eps and pos are within sum |d / d p_i| b_i. (Parts in the
+    # order of the lines, then of their parts; only the measured ones.)
+    d_eps = (sign[:, None] * w * dt)[ok] / max(dall, 1e-9)
+    sig = np.array([ln.sigma for ln in every])
+    spr = np.array([ln.spread for ln in every])
+    run.part_bound = (st.part_sigmas * sig + spr)[ok]
+    g = -(sign * tb)[:, None] * d_eps[None, :]
+    own = np.repeat(np.arange(m), ok.sum(axis=1))
+    g[own, np.arange(own.size)] += (w / sw[:, None])[ok]
     run.details["heading_parts"] = float(np.dot(np.abs(d_eps), run.part_bound))
     # Scatter of the parts about the fit, per unit of part length (px^2 px), with a weak
     # prior so that a fit with few degrees of freedom is not trusted blindly.
-    st = run.st
-    dof = max(nobs - (len(stats) + 1), 0)
+    dof = max(nobs - (m + 1), 0)
     sigma2 = (ss + st.prior_dof * st.prior_sigma**2) / (dof + st.prior_dof)
     var_eps = sigma2 / dall if dall > 1e-9 else math.inf
-    for ln, _, tb, _ in stats:
-        ln.var = sigma2 / float(ln.wpart.sum()) + tb * tb * var_eps
+    var = sigma2 / sw + tb * tb * var_eps
+    for i, ln in enumerate(every):
+        ln.pos = float(pos[i])
+        ln.var = float(var[i])
+        ln.infl = g[i]
     run.details["heading_se"] = math.sqrt(var_eps)
     # the two families must be perpendicular: their own tilts agree within their errors
     if den[0] > 1e-9 and den[1] > 1e-9:
@@ -93,7 +97,7 @@ def check_lines(run: RobustRun, lines: list[list[Line]]) -> None:
         raise Fail("one family")
     every = lines[0] + lines[1]
     rises = [ln.rise for ln in every if math.isfinite(ln.rise)]
-    rise = float(np.median(rises)) if rises else math.inf
+    rise = list_median(rises) if rises else math.inf
     run.details["rise"] = rise
     if not rise <= st.max_rise:
         raise Fail("blurred")

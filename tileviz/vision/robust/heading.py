@@ -7,9 +7,11 @@ import math
 import cv2
 import numpy as np
 
+from tileviz.vision.robust import kernel
 from tileviz.vision.robust.state import Fail, RobustRun
 
-__all__ = ["first_heading", "lattice_headings", "lattice_power"]
+__all__ = ["HEADING_BINS", "first_heading", "angles", "heading_votes_numpy", "lattice_headings",
+           "lattice_power", "voters"]
 
 
 def first_heading(run: RobustRun, dx: np.ndarray, dy: np.ndarray) -> float:
@@ -20,36 +22,97 @@ def first_heading(run: RobustRun, dx: np.ndarray, dy: np.ndarray) -> float:
     pixels in the top ``heading_share`` of magnitudes; the peak of the smoothed histogram,
     then the weighted circular mean of the votes near the peak (report eq. 4.4 per pixel).
     Grout lines, tile-to-tile shade steps and a surface laid along the tiles all vote for
-    the lattice direction (mod pi/2); isotropic texture adds a flat floor."""
-    # (2 phi) as the angle of (gx^2 - gy^2, 2 gx gy), and |g|^2 its length
-    # every other row and column: a quarter of the votes is plenty for a first estimate
-    # (the fit over the lattice refines it)
-    fx = dx[::2, ::2].astype(np.float32)
-    fy = dy[::2, ::2].astype(np.float32)
-    c2 = cv2.subtract(cv2.multiply(fx, fx), cv2.multiply(fy, fy))
-    s2 = cv2.multiply(fx, fy, scale=2.0)
-    mag2, ang2 = cv2.cartToPolar(c2, s2)  # |g|^2, 2 phi in [0, 2 pi)
-    m = mag2.ravel()
-    n = m.size
-    k = max(20, int(run.st.heading_share * n))
-    thr = float(np.partition(m, n - k)[n - k])
-    if thr <= 0.0:
-        raise Fail("no lines")
-    sel = np.flatnonzero(m >= thr)
-    wgt = np.sqrt(m[sel])  # |g|
-    ang = np.remainder(2.0 * ang2.ravel()[sel], 2.0 * math.pi) - math.pi  # 4 phi - pi
-    nb = 90
-    b = ((ang + math.pi) * (nb / (2.0 * math.pi))).astype(np.int32) % nb
-    hist = np.bincount(b, weights=wgt, minlength=nb)
-    smooth = (hist + np.concatenate((hist[-1:], hist[:-1]))
-              + np.concatenate((hist[1:], hist[:1])))
+    the lattice direction (mod pi/2); isotropic texture adds a flat floor. Every other row
+    and column votes: a quarter of the votes is plenty for a first estimate (the fit over
+    the lattice refines it). :func:`heading_votes_numpy` computes the votes;
+    :func:`~tileviz.vision.robust.kernel.heading_votes` is the same computation compiled
+    (bit-identical)."""
+    if kernel.AVAILABLE:
+        q = kernel.heading_magnitudes(dx, dy)
+        thr = voters(q, run.st.heading_share)
+        if thr <= 0:
+            raise Fail("no lines")
+        y0, share = kernel.heading_votes(dx, dy, q, thr, HEADING_BINS)
+    else:
+        found, y0, share = heading_votes_numpy(dx, dy, run.st.heading_share, HEADING_BINS)
+        if not found:
+            raise Fail("no lines")
+    run.details["orientation_share"] = share
+    return y0
+
+
+HEADING_BINS = 90
+"""Bins of the 4 phi histogram of :func:`first_heading` (4 degrees of 4 phi, 1 of phi)."""
+
+
+def voters(q: np.ndarray, share: float) -> int:
+    """The smallest squared magnitude among the top ``share`` (at least 20) of ``q``: every
+    gradient at least as strong votes."""
+    n = q.size
+    k = min(max(20, int(share * n)), n)
+    return int(np.partition(q, n - k)[n - k])
+
+
+def angles(y: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """atan2(y, x) within 3e-4 rad (never both 0), as :func:`~tileviz.vision.robust.kernel.
+    _angle` computes it: an odd polynomial of min / max on the octant, then the octant."""
+    ax = np.abs(x)
+    ay = np.abs(y)
+    a = np.minimum(ax, ay) / np.maximum(ax, ay)
+    z = a * a
+    c0, c1, c2 = kernel._ATAN
+    r = ((c0 * z + c1) * z + c2) * z * a + a
+    r = np.where(ay > ax, 0.5 * math.pi - r, r)
+    r = np.where(x < 0.0, math.pi - r, r)
+    return np.where(y < 0.0, -r, r)
+
+
+def heading_votes_numpy(dx: np.ndarray, dy: np.ndarray, share: float, nb: int
+                        ) -> tuple[bool, float, float]:
+    """The votes of :func:`first_heading` from the Scharr gradients ``dx``, ``dy`` (int16) of
+    every other row and column: whether any gradient is non-zero; the heading (rad, modulo
+    pi / 2); the share of the votes' weight near the histogram's peak.
+
+    The squared magnitude q = gx^2 + gy^2 and the doubled-angle vector (c2, s2) = (gx^2 -
+    gy^2, 2 gx gy) are exact integers, so is 4 phi's vector (c2^2 - s2^2, 2 c2 s2) (length
+    q^2): the pixels in the top ``share`` of q vote with weight sqrt(q) in ``nb`` bins of
+    4 phi = atan2 of that vector; the peak of the 3-bin smoothed histogram; the votes within
+    :data:`~tileviz.vision.robust.kernel._NEAR` of it are averaged as vectors (weight x unit
+    vector, each its integer vector / q^1.5). Sums run in pixel order (row by row), one term
+    after the other."""
+    gx = dx[::2, ::2].astype(np.int64).ravel()
+    gy = dy[::2, ::2].astype(np.int64).ravel()
+    q = gx * gx + gy * gy
+    thr = voters(q, share)
+    if thr <= 0:
+        return False, 0.0, 0.0
+    sel = np.flatnonzero(q >= thr)
+    gx, gy, qs = gx[sel], gy[sel], q[sel]
+    c2 = gx * gx - gy * gy
+    s2 = 2 * gx * gy
+    cc = (c2 * c2 - s2 * s2).astype(np.float64)
+    ss = (2 * c2 * s2).astype(np.float64)
+    qf = qs.astype(np.float64)
+    g = np.sqrt(qf)
+    r = qf * g
+    theta = angles(ss, cc)
+    vc = cc / r
+    vs = ss / r
+    b = ((theta + math.pi) * (nb / (2.0 * math.pi))).astype(np.intp) % nb
+    hist = np.bincount(b, weights=g, minlength=nb)
+    smooth = (hist + np.roll(hist, 1)) + np.roll(hist, -1)
     peak = (int(np.argmax(smooth)) + 0.5) * (2.0 * math.pi / nb) - math.pi
-    near = np.abs(np.remainder(ang - peak + math.pi, 2.0 * math.pi) - math.pi) < 0.35
-    wn = wgt[near]
-    an = ang[near] + math.pi
-    run.details["orientation_share"] = float(wn.sum() / max(float(wgt.sum()), 1e-9))
-    # gradient directions are normal to the lines: 4 (a + pi/2) = 4 a (mod 2 pi)
-    return math.atan2(float(np.dot(wn, np.sin(an))), float(np.dot(wn, np.cos(an)))) / 4.0
+    d = theta - peak
+    d = np.where(d > math.pi, d - 2.0 * math.pi, np.where(d < -math.pi, d + 2.0 * math.pi, d))
+    near = np.abs(d) < kernel._NEAR
+
+    def total(a: np.ndarray) -> float:
+        # one term after the other, from 0.0 (as the compiled loop adds)
+        return float(np.cumsum(np.concatenate(([0.0], a)))[-1])
+
+    sw = total(g)
+    return (True, math.atan2(total(vs[near]), total(vc[near])) / 4.0,
+            total(g[near]) / max(sw, 1e-9))
 
 
 def lattice_power(img: np.ndarray, period: float, angles: np.ndarray, *, detrend: bool = True

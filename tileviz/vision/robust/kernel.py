@@ -7,7 +7,9 @@ image), :func:`grout_score` (``grout_score_numpy``: a family's term of the light
 :func:`profile_dips` (``profile_dips_numpy``: darkness, noise and dips of the family
 profiles), :func:`dip_rows` (``dip_rows_numpy``: every dip's depth, centre, window, parts
 and plateaus on its whole profile), :func:`view_spans` and :func:`profile_arrays` (the in-view
-spans and the profiles of both families), :func:`part_summary` (each line's medians and parts).
+spans and the profiles of both families), :func:`part_summary` (each line's medians and parts),
+:func:`heading_magnitudes` and :func:`heading_votes` (``heading.heading_votes_numpy``: the
+first heading's votes).
 
 Every operation is the numpy one in the same order: sums over a profile are numpy's pairwise
 sums (:func:`_pairwise`, the order ``ndarray.sum`` adds a contiguous row in), medians sort the
@@ -38,7 +40,8 @@ try:
 except ImportError:  # numba is a dependency; an older environment keeps the numpy path
     numba = None  # type: ignore[assignment]
 
-__all__ = ["AVAILABLE", "dip_rows", "grout_score", "part_profiles", "part_rows", "part_summary",
+__all__ = ["AVAILABLE", "dip_rows", "grout_score", "heading_magnitudes", "heading_votes",
+           "part_profiles", "part_rows", "part_summary",
            "profile_arrays", "profile_dips", "view_spans"]
 
 AVAILABLE = numba is not None
@@ -53,6 +56,10 @@ def _jit(fn: Callable[..., Any]) -> Callable[..., Any]:
 
 _ROUGH = 1.4826 / math.sqrt(2.0)
 _BIG = 1.7976931348623157e308  # np.nan_to_num's replacement of +inf
+_NEAR = 0.35
+_ATAN = (-0.0464964749, 0.15931422, -0.327622764)
+"""Coefficients of :func:`_angle`'s polynomial (z = a^2): atan(a) ~ a + a z (c2 + z (c1 + z c0))."""
+"""Heading votes within this angle (rad, of 4 phi) of their histogram's peak are averaged."""
 
 
 @_jit
@@ -735,3 +742,104 @@ def part_summary(width: np.ndarray, rise: np.ndarray, contrast: np.ndarray, cen:
         hi_lev = _max(lev_l[i], lev_r[i])
         stepr[i] = (hi_lev - lo_lev) / _max(hi_lev, 1e-9)
     return wmed, rmed, cmed, stepr, parts, wpart, sigma, spread
+
+
+@_jit
+def _angle(y: float, x: float) -> float:
+    """atan2(y, x) within 3e-4 rad (not both 0): an odd polynomial of min / max on the octant
+    (:func:`~tileviz.vision.robust.heading.angles` is the same computation in numpy)."""
+    ax = abs(x)
+    ay = abs(y)
+    a = min(ax, ay) / max(ax, ay)
+    z = a * a
+    r = ((_ATAN[0] * z + _ATAN[1]) * z + _ATAN[2]) * z * a + a
+    if ay > ax:
+        r = 0.5 * math.pi - r
+    if x < 0.0:
+        r = math.pi - r
+    if y < 0.0:
+        r = -r
+    return r
+
+
+@_jit
+def heading_magnitudes(dx: np.ndarray, dy: np.ndarray) -> np.ndarray:
+    """gx^2 + gy^2 (int64) of every other row and column of the Scharr gradients ``dx``,
+    ``dy`` (int16), row by row (:func:`~tileviz.vision.robust.heading.heading_votes_numpy`)."""
+    h, w = dx.shape
+    q = np.empty(((h + 1) // 2) * ((w + 1) // 2), np.int64)
+    i = 0
+    for y in range(0, h, 2):
+        for x in range(0, w, 2):
+            gx = np.int64(dx[y, x])
+            gy = np.int64(dy[y, x])
+            q[i] = gx * gx + gy * gy
+            i += 1
+    return q
+
+
+@_jit
+def heading_votes(dx: np.ndarray, dy: np.ndarray, q: np.ndarray, thr: int, nb: int
+                  ) -> tuple[float, float]:
+    """:func:`~tileviz.vision.robust.heading.heading_votes_numpy` compiled (bit-identical),
+    given the squared magnitudes ``q`` (:func:`heading_magnitudes`) and the threshold
+    ``thr`` (> 0) of the voters: the first heading (rad, modulo pi / 2) and the share of the
+    votes' weight near the histogram's peak."""
+    h, w = dx.shape
+    n = 0
+    for v in q:
+        if v >= thr:
+            n += 1
+    theta = np.empty(n)
+    wgt = np.empty(n)
+    vc = np.empty(n)
+    vs = np.empty(n)
+    m = 0
+    i = 0
+    for y in range(0, h, 2):
+        for x in range(0, w, 2):
+            if q[i] >= thr:
+                gx = np.int64(dx[y, x])
+                gy = np.int64(dy[y, x])
+                c2 = gx * gx - gy * gy
+                s2 = 2 * gx * gy
+                cc = float(c2 * c2 - s2 * s2)
+                ss = float(2 * c2 * s2)
+                qf = float(q[i])
+                g = math.sqrt(qf)
+                r = qf * g
+                theta[m] = _angle(ss, cc)
+                wgt[m] = g
+                vc[m] = cc / r
+                vs[m] = ss / r
+                m += 1
+            i += 1
+    hist = np.zeros(nb)
+    scale = nb / (2.0 * math.pi)
+    for j in range(m):
+        b = int((theta[j] + math.pi) * scale) % nb
+        hist[b] += wgt[j]
+    best = -1.0
+    at = 0
+    for b in range(nb):
+        v = (hist[b] + hist[(b - 1) % nb]) + hist[(b + 1) % nb]
+        if v > best:
+            best = v
+            at = b
+    peak = (at + 0.5) * (2.0 * math.pi / nb) - math.pi
+    sw = 0.0
+    swn = 0.0
+    sc = 0.0
+    sn = 0.0
+    for j in range(m):
+        sw += wgt[j]
+        d = theta[j] - peak
+        if d > math.pi:
+            d -= 2.0 * math.pi
+        elif d < -math.pi:
+            d += 2.0 * math.pi
+        if abs(d) < _NEAR:
+            swn += wgt[j]
+            sc += vc[j]
+            sn += vs[j]
+    return math.atan2(sn, sc) / 4.0, swn / max(sw, 1e-9)

@@ -11,7 +11,7 @@ from tileviz.vision.geometry import QUARTER, family_normals
 from tileviz.vision.robust.bound import frame_bound
 from tileviz.vision.robust.state import Fail, Line, RobustRun
 
-__all__ = ["clip_line", "lattice_offsets", "missing_lines", "normalise"]
+__all__ = ["chords", "clip_line", "lattice_offsets", "missing_lines", "normalise"]
 
 
 def normalise(y1: float, y2: float, y3: float, tile_size: float) -> tuple[float, float, float]:
@@ -107,18 +107,33 @@ def missing_lines(run: RobustRun, k: int, ref: float, found: np.ndarray, y3: flo
     reach = 0.5 * math.hypot(run.w, run.h)
     # a dip is measured over its window and 4 plateau samples on each side
     margin = math.ceil(1.5 * run.details["width"] + 1.5) + 5
-
-    def chord(s: float) -> float:
-        e = clip_line(n, s, run.w, run.h)
-        return 0.0 if e is None else math.hypot(e[2] - e[0], e[3] - e[1])
-
-    # the longest chord of a direction through a rectangle passes through its centre
-    need = run.st.min_chord * chord(0.0)
     j0 = math.floor((-reach - ref) / run.lp)
     j1 = math.ceil((reach - ref) / run.lp)
-    for j in range(j0, j1 + 1):
-        s = ref + j * run.lp
-        if any(chord(x) < need for x in (s - margin, s, s + margin)):
-            continue
-        if found.size == 0 or float(np.min(np.abs(found - s))) > 0.25 * run.lp:
+    s = ref + np.arange(j0, j1 + 1) * run.lp
+    # the longest chord of a direction through a rectangle passes through its centre
+    ch = chords(n, np.concatenate(([0.0], s - margin, s, s + margin)), run.w, run.h)
+    need = run.st.min_chord * ch[0]
+    visible = (ch[1:].reshape(3, -1) >= need).all(axis=0)
+    for sj in s[visible].tolist():
+        if found.size == 0 or float(np.min(np.abs(found - sj))) > 0.25 * run.lp:
             raise Fail("inconsistent spacing")
+
+
+def chords(n: tuple[float, float], s: np.ndarray, width: int, height: int) -> np.ndarray:
+    """The length (px) inside the image of each line ``n . (p - centre) = s`` (n a unit normal
+    in pixel coordinates, ``s`` an array of offsets, px); 0 where it misses the image. The
+    same clipping as :func:`clip_line`, for many parallel lines at once."""
+    cxp, cyp = (width - 1) / 2.0, (height - 1) / 2.0
+    tx, ty = -n[1], n[0]
+    lo = np.full(s.shape, -np.inf)
+    hi = np.full(s.shape, np.inf)
+    for p0, d, size in ((cxp + s * n[0], tx, width), (cyp + s * n[1], ty, height)):
+        if abs(d) < 1e-12:
+            hi = np.where((p0 >= -0.5) & (p0 <= size - 0.5), hi, -np.inf)
+            continue
+        a = (-0.5 - p0) / d
+        b = (size - 0.5 - p0) / d
+        lo = np.maximum(lo, np.minimum(a, b))
+        hi = np.minimum(hi, np.maximum(a, b))
+    span = hi - lo
+    return np.where(span > 0, span, 0.0) * math.hypot(tx, ty)

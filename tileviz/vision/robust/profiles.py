@@ -12,6 +12,7 @@ import numpy as np
 
 from tileviz.vision.robust import kernel
 from tileviz.vision.robust.state import PARTS, Line, RobustRun
+from tileviz.vision.robust.statistics import list_median
 
 __all__ = ["Projection", "centroid", "crossings", "dip_rows_numpy", "dips", "grout_score_numpy",
            "light_grout", "measure", "measure_parts", "midpoints", "nanmedian",
@@ -566,7 +567,7 @@ def select_lines(run: RobustRun, lines: list[list[Line]]) -> list[list[Line]]:
     if not every:
         return [[], []]
     deepest = max(ln.depth for ln in every)
-    wref = float(np.median([ln.width for ln in every if ln.depth >= 0.5 * deepest]))
+    wref = list_median([ln.width for ln in every if ln.depth >= 0.5 * deepest])
     run.details["depth"] = deepest
     run.details["width"] = wref
     return [

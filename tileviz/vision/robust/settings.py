@@ -23,10 +23,11 @@ class RobustSettings:
     """Weakest grout dip trusted, gray levels (``low contrast`` when the deepest is weaker)."""
     rel_depth: float = 0.3
     """A dip counts as a line when at least this fraction of the deepest dip."""
-    max_rise: float = 4.0
+    max_rise: float = 6.0
     """Median 20-80 % edge rise of the lines above which the view is ``blurred``, px (a blur
     costs bound, not soundness: a softer edge widens each part's own bound and the floor term
-    ``floor_rise``)."""
+    ``floor_rise``; a wide band under 1.2-1.8 px of blur, JPEG and strong vignetting rises 4-6
+    px)."""
     max_step: float = 0.85
     """|level left - level right| / brighter level above which a line is a ``step edge``."""
     spacing_fraction: float = 0.5

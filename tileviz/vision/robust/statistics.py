@@ -9,7 +9,7 @@ import numpy as np
 
 from tileviz.vision.robust.state import Fail, RobustRun
 
-__all__ = ["glare_share", "gray_statistics", "noise_sigma"]
+__all__ = ["glare_share", "gray_statistics", "list_median", "noise_sigma"]
 
 
 def gray_statistics(run: RobustRun) -> None:
@@ -53,3 +53,13 @@ def noise_sigma(run: RobustRun) -> float:
     )
     run.details["noise_sigma"] = sigma
     return sigma
+
+
+def list_median(values: list[float]) -> float:
+    """``float(np.median(values))`` of a short non-empty list, without numpy's overhead: the
+    middle value, or the mean of the two middle ones; NaN when any value is NaN."""
+    if any(v != v for v in values):
+        return math.nan
+    srt = sorted(values)
+    n = len(srt)
+    return srt[n // 2] if n % 2 else (srt[n // 2 - 1] + srt[n // 2]) / 2.0
