@@ -71,18 +71,33 @@ def test_workers_come_from_the_server_started_ahead() -> None:
         assert pool.submit(_parent_pid).result(timeout=600) == server
 
 
+def _runs_ok(code: str) -> None:
+    """Run ``code`` in a fresh Python process (what is imported there is its own); it must
+    succeed and print ``ok``."""
+    import subprocess
+
+    out = subprocess.run([sys.executable, "-c", code + "; print('ok')"], capture_output=True,
+                         text=True, check=False)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "ok"
+
+
+def test_replay_main_process_does_not_load_the_extractor_kernels() -> None:
+    """The main process of a replay with workers imports the frame loop and the dataset reader
+    but not the robust extractor nor numba (about 0.4 s of CPU at every start): only the
+    workers extract, and the extractor is imported on first use."""
+    code = ("import sys, tileviz.cli, tileviz.pipeline.replay, tileviz.pipeline.workers; "
+            "bad = [m for m in ('numba', 'tileviz.vision.robust') if m in sys.modules]; "
+            "assert not bad, bad")
+    _runs_ok(code)
+
+
 def test_pipeline_package_loads_the_frame_loop_on_first_use() -> None:
     """Importing the workers' server module loads neither the frame loop nor OpenCV (so the
     replay command can start the server first thing), and the package's names still work."""
-    import subprocess
-
     code = ("import sys, tileviz.pipeline.worker_server as s; "
             "assert 'cv2' not in sys.modules and 'tileviz.pipeline.frame_loop' not in "
             "sys.modules, sorted(m for m in sys.modules if m.startswith(('cv2', 'tileviz'))); "
             "from tileviz.pipeline import FrameLoop, FrameRecord; "
-            "import tileviz.pipeline.frame_loop as f; assert FrameLoop is f.FrameLoop; "
-            "print('ok')")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                         check=False)
-    assert out.returncode == 0, out.stderr
-    assert out.stdout.strip() == "ok"
+            "import tileviz.pipeline.frame_loop as f; assert FrameLoop is f.FrameLoop")
+    _runs_ok(code)

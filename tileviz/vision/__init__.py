@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 
 import cv2
 import numpy as np
@@ -36,7 +37,6 @@ from tileviz.core.constants import MAX_TILE_PX, MIN_TILE_PX
 from tileviz.vision.faithful import extract_faithful
 from tileviz.vision.geometry import observation_error
 from tileviz.vision.result import REASONS, VisionResult
-from tileviz.vision.robust import extract_robust
 
 OPENCV_THREADS = 1
 """The OpenCV thread count every tileviz entry point sets (module docstring)."""
@@ -52,6 +52,16 @@ __all__ = [
     "OPENCV_THREADS", "REASONS", "VisionResult", "extract", "observation_error",
     "set_opencv_threads", "to_gray",
 ]
+
+
+def _robust() -> Callable[..., VisionResult]:
+    """The robust extractor (:func:`tileviz.vision.robust.extract_robust`), imported on first
+    use: it loads numba for its compiled kernels (about 0.4 s of CPU), which a process that
+    imports this package but never extracts does without (the main process of a replay whose
+    workers run vision, :mod:`tileviz.pipeline.workers`)."""
+    from tileviz.vision.robust import extract_robust
+
+    return extract_robust
 
 
 def to_gray(image: np.ndarray) -> np.ndarray:
@@ -113,7 +123,7 @@ def extract(
             f"{camera.width}x{camera.height} (width x height)"
         )
     timings = {"gray": (time.perf_counter() - t0) * 1e3}
-    run = extract_robust if vision.extractor == "robust" else extract_faithful
+    run = _robust() if vision.extractor == "robust" else extract_faithful
     return run(
         gray,
         camera=camera,
