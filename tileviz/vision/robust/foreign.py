@@ -224,8 +224,10 @@ def ends(run: RobustRun, px: float, py: float, dx: float, dy: float, band: float
       a box) or darkens it (a shadow), so the level varies there by more than
       :data:`STRADDLE_SIGMAS` x the image noise + :data:`STRADDLE_LEVELS` (False); a
       texture's edge stops at the grout and leaves it alike (True when both sides of the
-      crossing are read and the edge is not seen beyond the band, or one side is read and
-      the far side is in view, at least 6 steps, without the edge).
+      crossing are read and the edge is not seen beyond the band). Where the line crosses
+      the grout at under :data:`STRADDLE_ONE_SIDED`, or one side only is read, the far side
+      in view (at least 6 steps) without the edge is enough (True), as where the grout
+      cannot be read.
     - Beyond the band, up to the next band (at least 6 steps in view), at least half the
       steps see the edge (the object may go on across the grout, or the line runs along
       another tile's texture), or only one side of the crossing is in view and the far side
@@ -233,9 +235,12 @@ def ends(run: RobustRun, px: float, py: float, dx: float, dy: float, band: float
       there (:func:`conclusive`), else False.
     - The line does not reach the grout's core in the view: False when the edge is seen
       beyond the band; else True when the band runs to the border of the view or the far
-      side is in view (6 steps or more), else False. The grout cannot be read where the line
-      meets it (within 0.05 rad of the grout, or the crossing out of the view): as the line
-      not reaching it.
+      side is in view (6 steps or more); else (it leaves the band within 6 steps of the
+      border or of another band) the grout's core beside its pass through the band
+      (:func:`alongside`) must not vary by more than that limit and be conclusive, as where a
+      crossing is read on one side only. The grout cannot be read where the line meets it
+      (within 0.05 rad of the grout, or the crossing out of the view): True when the far side
+      is in view without the edge, else False.
 
     Assumed: an object whose gray level matches the grout's where it crosses it (within
     :data:`CONCLUSIVE` x the straddle's limit when the edge is seen beyond the band or the
@@ -282,20 +287,30 @@ def ends(run: RobustRun, px: float, py: float, dx: float, dy: float, band: float
         # the line does not reach the grout of this band in the view
         if far:
             return False  # seen beyond the band
-        if i1 == xs.size:
+        if i1 == xs.size or n2 >= 6:
             return True
-        return n2 >= 6
+        # it leaves the band within 6 steps of the border or of the next band: the grout
+        # beside its pass through the band (and 10 steps either side) decides, as at a
+        # crossing seen on one side only
+        j0, j1 = max(i0 - 10, 0), min(i1 + 10, xs.size)
+        core = alongside(run, xs[j0:j1], ys[j0:j1], normals[k], shift[k])
+        if core is None:
+            return False
+        limit = STRADDLE_SIGMAS * run.details["noise_sigma"] + STRADDLE_LEVELS
+        return (float(core.max() - core.min()) <= limit
+                and conclusive(run, px, py, dx, dy, float(np.median(core)), limit))
     read = straddle(run, px, py, dx, dy, normals[k], shift[k])
     if read is None:
         return n2 >= 6 and not far
     core, both = read
+    steep = both and abs(normals[k][0] * dx + normals[k][1] * dy) >= STRADDLE_ONE_SIDED
+    if not far and n2 >= 6 and not steep:
+        return True  # as where the grout cannot be read: the far side is in view, unseen
     limit = STRADDLE_SIGMAS * run.details["noise_sigma"] + STRADDLE_LEVELS
     if float(core.max() - core.min()) > limit:
         return False  # the grout's level changes where the line crosses it
     if both and not far:
         return True
-    if not both and n2 >= 6 and not far:
-        return True  # as when the grout cannot be read: the far side is in view, unseen
     # seen beyond the band, or the grout read on one side only (the crossing at the border
     # of the view, the far side out of it): texture only when anything seen beside the
     # grout would have changed the grout's level there
@@ -352,6 +367,25 @@ STRADDLE_ONE_SIDED = 0.15
 """The grout is read where a line crosses it at an angle (rad, sine) of at least
 ``STRADDLE_PARALLEL`` when both sides of the crossing are in view, ``STRADDLE_ONE_SIDED`` when
 only one is (:func:`straddle`)."""
+
+
+def alongside(run: RobustRun, xs: np.ndarray, ys: np.ndarray, n: tuple[float, float],
+              sh: float) -> np.ndarray | None:
+    """The grout's gray levels beside the pixels (xs, ys): at the foot of each on the nearest
+    centre line of the family with unit normal ``n`` and offset ``sh`` (px), bilinear, median
+    of 3 neighbours; None when fewer than 3 feet lie in the view."""
+    cx, cy = (run.w - 1) / 2.0, (run.h - 1) / 2.0
+    o = n[0] * (xs - cx) + n[1] * (ys - cy) + sh
+    d = o - run.lp * np.rint(o / run.lp)
+    fx = xs - d * n[0]
+    fy = ys - d * n[1]
+    ok = (fx >= 0) & (fx <= run.w - 1) & (fy >= 0) & (fy <= run.h - 1)
+    if int(ok.sum()) < 3:
+        return None
+    v = cv2.remap(run.gray, fx[ok].astype(np.float32).reshape(1, -1),
+                  fy[ok].astype(np.float32).reshape(1, -1), cv2.INTER_LINEAR).ravel()
+    v = v.astype(np.float64)
+    return np.median(np.stack([v[:-2], v[1:-1], v[2:]]), axis=0)
 
 
 def conclusive(run: RobustRun, px: float, py: float, dx: float, dy: float, grout: float,
