@@ -2,8 +2,8 @@
 that imports nothing heavy, so that the replay command can start their fork server first thing.
 
 The workers are forked from a fork server that loads the vision code and the robust extractor's
-compiled kernels once (:mod:`tileviz.pipeline.worker_start`): about a second of CPU, which until
-then no worker can start. :func:`start_worker_server` launches that server without waiting for
+compiled kernels once (:mod:`tileviz.pipeline.worker_start`); until it has, no worker can
+start. :func:`start_worker_server` launches that server without waiting for
 it; called before this process imports the vision, dataset and localizer code (the replay
 command does), the server's loading runs on the other core while this process loads its own, and
 the workers are forked as soon as both are done. What the workers compute is the same whenever

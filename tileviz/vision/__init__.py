@@ -56,7 +56,7 @@ __all__ = [
 
 def _robust() -> Callable[..., VisionResult]:
     """The robust extractor (:func:`tileviz.vision.robust.extract_robust`), imported on first
-    use: it loads numba for its compiled kernels (about 0.4 s of CPU), which a process that
+    use: it loads numba for its compiled kernels, which a process that
     imports this package but never extracts does without (the main process of a replay whose
     workers run vision, :mod:`tileviz.pipeline.workers`)."""
     from tileviz.vision.robust import extract_robust
