@@ -16,7 +16,7 @@ from tileviz.config import FLOOR_STYLES, VisionConfig, floor_style, preset
 from tileviz.sim.camera import FloorRenderer
 from tileviz.types import Pose
 from tileviz.vision import extract
-from tileviz.vision.robust import extractor, kernel, profiles
+from tileviz.vision.robust import extractor, heading_kernel, kernel, profiles
 
 ROBUST = VisionConfig(extractor="robust")
 
@@ -238,11 +238,11 @@ def test_the_compiled_heading_votes_match_numpy_on_any_gradients(
     dx = np.rint(mag * np.cos(phi)).astype(np.int16)
     dy = np.rint(mag * np.sin(phi)).astype(np.int16)
     ref = heading.heading_votes_numpy(dx, dy, 0.2, heading.HEADING_BINS)
-    q = kernel.heading_magnitudes(dx, dy)
+    q = heading_kernel.heading_magnitudes(dx, dy)
     thr = heading.voters(q, 0.2)
     assert (thr > 0) == ref[0]
     if thr > 0:
-        y0, share = kernel.heading_votes(dx, dy, q, thr, heading.HEADING_BINS)
+        y0, share = heading_kernel.heading_votes(dx, dy, q, thr, heading.HEADING_BINS)
         assert y0.hex() == ref[1].hex() and share.hex() == ref[2].hex()
     clean_dx = np.full((40, 40), int(round(3000 * np.cos(angle))), np.int16)
     clean_dy = np.full((40, 40), int(round(3000 * np.sin(angle))), np.int16)

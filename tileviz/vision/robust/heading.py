@@ -7,7 +7,7 @@ import math
 import cv2
 import numpy as np
 
-from tileviz.vision.robust import kernel
+from tileviz.vision.robust import heading_kernel, kernel
 from tileviz.vision.robust.state import Fail, RobustRun
 
 __all__ = ["HEADING_BINS", "first_heading", "angles", "heading_votes_numpy", "lattice_headings",
@@ -25,14 +25,14 @@ def first_heading(run: RobustRun, dx: np.ndarray, dy: np.ndarray) -> float:
     the lattice direction (mod pi/2); isotropic texture adds a flat floor. Every other row
     and column votes: a quarter of the votes is plenty for a first estimate (the fit over
     the lattice refines it). :func:`heading_votes_numpy` computes the votes;
-    :func:`~tileviz.vision.robust.kernel.heading_votes` is the same computation compiled
+    :func:`~tileviz.vision.robust.heading_kernel.heading_votes` is the same computation compiled
     (bit-identical)."""
     if kernel.AVAILABLE:
-        q = kernel.heading_magnitudes(dx, dy)
+        q = heading_kernel.heading_magnitudes(dx, dy)
         thr = voters(q, run.st.heading_share)
         if thr <= 0:
             raise Fail("no lines")
-        y0, share = kernel.heading_votes(dx, dy, q, thr, HEADING_BINS)
+        y0, share = heading_kernel.heading_votes(dx, dy, q, thr, HEADING_BINS)
     else:
         found, y0, share = heading_votes_numpy(dx, dy, run.st.heading_share, HEADING_BINS)
         if not found:
@@ -54,13 +54,14 @@ def voters(q: np.ndarray, share: float) -> int:
 
 
 def angles(y: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """atan2(y, x) within 3e-4 rad (never both 0), as :func:`~tileviz.vision.robust.kernel.
-    _angle` computes it: an odd polynomial of min / max on the octant, then the octant."""
+    """atan2(y, x) within 3e-4 rad (never both 0), as
+    :func:`~tileviz.vision.robust.heading_kernel._angle` computes it: an odd polynomial of
+    min / max on the octant, then the octant."""
     ax = np.abs(x)
     ay = np.abs(y)
     a = np.minimum(ax, ay) / np.maximum(ax, ay)
     z = a * a
-    c0, c1, c2 = kernel._ATAN
+    c0, c1, c2 = heading_kernel.ATAN
     r = ((c0 * z + c1) * z + c2) * z * a + a
     r = np.where(ay > ax, 0.5 * math.pi - r, r)
     r = np.where(x < 0.0, math.pi - r, r)
@@ -77,9 +78,9 @@ def heading_votes_numpy(dx: np.ndarray, dy: np.ndarray, share: float, nb: int
     gy^2, 2 gx gy) are exact integers, so is 4 phi's vector (c2^2 - s2^2, 2 c2 s2) (length
     q^2): the pixels in the top ``share`` of q vote with weight sqrt(q) in ``nb`` bins of
     4 phi = atan2 of that vector; the peak of the 3-bin smoothed histogram; the votes within
-    :data:`~tileviz.vision.robust.kernel._NEAR` of it are averaged as vectors (weight x unit
-    vector, each its integer vector / q^1.5). Sums run in pixel order (row by row), one term
-    after the other."""
+    :data:`~tileviz.vision.robust.heading_kernel.NEAR` of it are averaged as vectors (weight x
+    unit vector, each its integer vector / q^1.5). Sums run in pixel order (row by row), one
+    term after the other."""
     gx = dx[::2, ::2].astype(np.int64).ravel()
     gy = dy[::2, ::2].astype(np.int64).ravel()
     q = gx * gx + gy * gy
@@ -104,7 +105,7 @@ def heading_votes_numpy(dx: np.ndarray, dy: np.ndarray, share: float, nb: int
     peak = (int(np.argmax(smooth)) + 0.5) * (2.0 * math.pi / nb) - math.pi
     d = theta - peak
     d = np.where(d > math.pi, d - 2.0 * math.pi, np.where(d < -math.pi, d + 2.0 * math.pi, d))
-    near = np.abs(d) < kernel._NEAR
+    near = np.abs(d) < heading_kernel.NEAR
 
     def total(a: np.ndarray) -> float:
         # one term after the other, from 0.0 (as the compiled loop adds)

@@ -7,9 +7,8 @@ image), :func:`grout_score` (``grout_score_numpy``: a family's term of the light
 :func:`profile_dips` (``profile_dips_numpy``: darkness, noise and dips of the family
 profiles), :func:`dip_rows` (``dip_rows_numpy``: every dip's depth, centre, window, parts
 and plateaus on its whole profile), :func:`view_spans` and :func:`profile_arrays` (the in-view
-spans and the profiles of both families), :func:`part_summary` (each line's medians and parts),
-:func:`heading_magnitudes` and :func:`heading_votes` (``heading.heading_votes_numpy``: the
-first heading's votes).
+spans and the profiles of both families), :func:`part_summary` (each line's medians and
+parts). The first heading's kernels are in :mod:`~tileviz.vision.robust.heading_kernel`.
 
 Every operation is the numpy one in the same order: sums over a profile are numpy's pairwise
 sums (:func:`_pairwise`, the order ``ndarray.sum`` adds a contiguous row in), medians sort the
@@ -40,14 +39,13 @@ try:
 except ImportError:  # numba is a dependency; an older environment keeps the numpy path
     numba = None  # type: ignore[assignment]
 
-__all__ = ["AVAILABLE", "dip_rows", "grout_score", "heading_magnitudes", "heading_votes",
-           "part_profiles", "part_rows", "part_summary",
-           "profile_arrays", "profile_dips", "view_spans"]
+__all__ = ["AVAILABLE", "compiled", "dip_rows", "grout_score", "part_profiles", "part_rows",
+           "part_summary", "profile_arrays", "profile_dips", "view_spans"]
 
 AVAILABLE = numba is not None
 
 
-def _jit(fn: Callable[..., Any]) -> Callable[..., Any]:
+def compiled(fn: Callable[..., Any]) -> Callable[..., Any]:
     """Compiled with numba when it is installed (numpy's error model: x / 0 is inf or NaN)."""
     if numba is None:
         return fn
@@ -56,13 +54,9 @@ def _jit(fn: Callable[..., Any]) -> Callable[..., Any]:
 
 _ROUGH = 1.4826 / math.sqrt(2.0)
 _BIG = 1.7976931348623157e308  # np.nan_to_num's replacement of +inf
-_NEAR = 0.35
-_ATAN = (-0.0464964749, 0.15931422, -0.327622764)
-"""Coefficients of :func:`_angle`'s polynomial (z = a^2): atan(a) ~ a + a z (c2 + z (c1 + z c0))."""
-"""Heading votes within this angle (rad, of 4 phi) of their histogram's peak are averaged."""
 
 
-@_jit
+@compiled
 def _block(a: np.ndarray, lo: int, n: int) -> float:
     """numpy's pairwise sum of a[lo : lo + n] for n <= 128 (8 accumulators)."""
     if n < 8:
@@ -97,14 +91,14 @@ def _block(a: np.ndarray, lo: int, n: int) -> float:
     return res
 
 
-@_jit
+@compiled
 def _split(n: int) -> int:
     """Where numpy's pairwise sum splits n > 128 values: half, down to a multiple of 8."""
     n2 = n // 2
     return n2 - n2 % 8
 
 
-@_jit
+@compiled
 def _half(a: np.ndarray, lo: int, n: int) -> float:
     """numpy's pairwise sum of a[lo : lo + n] for n up to about 256."""
     if n <= 128:
@@ -113,7 +107,7 @@ def _half(a: np.ndarray, lo: int, n: int) -> float:
     return _block(a, lo, n2) + _block(a, lo + n2, n - n2)
 
 
-@_jit
+@compiled
 def _pairwise(a: np.ndarray, lo: int, n: int) -> float:
     """numpy's pairwise sum of a[lo : lo + n] (blocks of up to 128 values, split in halves),
     for n up to about 512 (a profile window is at most 2 x 69 + 1 samples); written without
@@ -124,13 +118,13 @@ def _pairwise(a: np.ndarray, lo: int, n: int) -> float:
     return _half(a, lo, n2) + _half(a, lo + n2, n - n2)
 
 
-@_jit
+@compiled
 def _rowsum(a: np.ndarray) -> float:
     """``a.sum()`` of a contiguous 1-D float64 array (as a row of ``.sum(axis=1)``)."""
     return 0.0 + _pairwise(a, 0, a.size)
 
 
-@_jit
+@compiled
 def _max(a: float, b: float) -> float:
     """np.maximum: NaN if either is NaN."""
     if math.isnan(a) or math.isnan(b):
@@ -138,7 +132,7 @@ def _max(a: float, b: float) -> float:
     return a if a >= b else b
 
 
-@_jit
+@compiled
 def _min(a: float, b: float) -> float:
     """np.minimum: NaN if either is NaN."""
     if math.isnan(a) or math.isnan(b):
@@ -146,7 +140,7 @@ def _min(a: float, b: float) -> float:
     return a if a <= b else b
 
 
-@_jit
+@compiled
 def _clip01(x: float) -> float:
     """np.clip(x, 0, 1) (NaN stays NaN)."""
     if math.isnan(x):
@@ -158,7 +152,7 @@ def _clip01(x: float) -> float:
     return x
 
 
-@_jit
+@compiled
 def _plateaus(p: np.ndarray, j: np.ndarray, c: float, half: float,
               buf: np.ndarray) -> tuple[float, float]:
     """One row of :func:`~tileviz.vision.robust.profiles.plateaus`."""
@@ -184,7 +178,7 @@ def _plateaus(p: np.ndarray, j: np.ndarray, c: float, half: float,
     return left, right
 
 
-@_jit
+@compiled
 def _crossings(d: np.ndarray, j: np.ndarray, jp: float, lv: float) -> tuple[float, float]:
     """One row of :func:`~tileviz.vision.robust.profiles.crossings`."""
     n = j.size
@@ -208,7 +202,7 @@ def _crossings(d: np.ndarray, j: np.ndarray, jp: float, lv: float) -> tuple[floa
     return xl, xr
 
 
-@_jit
+@compiled
 def _centroid(p: np.ndarray, j: np.ndarray, c: float, half: float, ll: float, lr: float,
               q: np.ndarray, qj: np.ndarray) -> float:
     """One row of :func:`~tileviz.vision.robust.profiles.centroid` (3 iterations)."""
@@ -227,7 +221,7 @@ def _centroid(p: np.ndarray, j: np.ndarray, c: float, half: float, ll: float, lr
     return cc
 
 
-@_jit
+@compiled
 def _median_finite(a: np.ndarray, n: int) -> float:
     """:func:`~tileviz.vision.robust.profiles.nanmedian` of a[:n] (NaN if no finite value)."""
     cnt = 0
@@ -241,7 +235,7 @@ def _median_finite(a: np.ndarray, n: int) -> float:
     return 0.5 * (s[(cnt - 1) // 2] + s[cnt // 2])
 
 
-@_jit
+@compiled
 def _midpoints(p: np.ndarray, j: np.ndarray, start: float, c: float, half: float,
                lev_l: float, lev_r: float, dn: np.ndarray, tmp: np.ndarray,
                mids: np.ndarray) -> float:
@@ -297,7 +291,7 @@ def _midpoints(p: np.ndarray, j: np.ndarray, start: float, c: float, half: float
     return 0.5 * math.sqrt(sl * sl + sr * sr)
 
 
-@_jit
+@compiled
 def part_rows(pp: np.ndarray, jf: np.ndarray, cj: np.ndarray, hj: np.ndarray, r: int
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
                          np.ndarray]:
@@ -353,7 +347,7 @@ def part_rows(pp: np.ndarray, jf: np.ndarray, cj: np.ndarray, hj: np.ndarray, r:
     return width, rise, contrast, cen, mids, msig
 
 
-@_jit
+@compiled
 def part_profiles(flat: np.ndarray, stride: int, fam: np.ndarray, line: np.ndarray,
                   idx: np.ndarray, mean: float, p0: np.ndarray) -> np.ndarray:
     """:func:`~tileviz.vision.robust.profiles.part_profiles_numpy` compiled: the (m PARTS, W)
@@ -389,7 +383,7 @@ def part_profiles(flat: np.ndarray, stride: int, fam: np.ndarray, line: np.ndarr
     return pp
 
 
-@_jit
+@compiled
 def _running(ext: np.ndarray, width: int, bigger: bool, out: np.ndarray) -> None:
     """out[x] = max (``bigger``) or min of ext[x : x + width] for every x < out.size, in O(n)
     (van Herk / Gil-Werman: within blocks of ``width`` samples, running extremes from each
@@ -420,7 +414,7 @@ def _running(ext: np.ndarray, width: int, bigger: bool, out: np.ndarray) -> None
         out[x] = b if ((b > a) if bigger else (b < a)) else a
 
 
-@_jit
+@compiled
 def _morph(a: np.ndarray, half: int, border: np.float32, bigger: bool) -> np.ndarray:
     """cv2.dilate (``bigger``) or cv2.erode of a float32 row by a 1 x (2 half + 1) window,
     constant ``border`` beyond the ends (exact: only comparisons)."""
@@ -432,7 +426,7 @@ def _morph(a: np.ndarray, half: int, border: np.float32, bigger: bool) -> np.nda
     return out
 
 
-@_jit
+@compiled
 def grout_score(sums: np.ndarray, length: np.ndarray, closing: int) -> tuple[bool, float]:
     """One family's term of :func:`~tileviz.vision.robust.profiles.light_grout` (whether the
     family counts, and its peak height minus its dip depth), bit-identical to the numpy /
@@ -477,7 +471,7 @@ def grout_score(sums: np.ndarray, length: np.ndarray, closing: int) -> tuple[boo
     return True, np.float64(peak) - np.float64(dip)
 
 
-@_jit
+@compiled
 def profile_dips(prof: np.ndarray, mean: float, closing: int, min_depth: float
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """:func:`~tileviz.vision.robust.profiles.profile_dips_numpy` compiled (bit-identical):
@@ -565,7 +559,7 @@ def profile_dips(prof: np.ndarray, mean: float, closing: int, min_depth: float
     return dark, noise, fam_out[:found].copy(), peak_out[:found].copy()
 
 
-@_jit
+@compiled
 def dip_rows(prof: np.ndarray, dark: np.ndarray, lo: np.ndarray, hi: np.ndarray,
              fam: np.ndarray, peak: np.ndarray, r: int
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
@@ -628,7 +622,7 @@ def dip_rows(prof: np.ndarray, dark: np.ndarray, lo: np.ndarray, hi: np.ndarray,
     return p0, depth, c0, half, u_lo, step, lev_l, lev_r
 
 
-@_jit
+@compiled
 def view_spans(n: int, off: float, c: float, s: float, w: int, h: int, along_rows: bool
                ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`~tileviz.vision.robust.profiles.view_spans` compiled (bit-identical) for the
@@ -663,7 +657,7 @@ def view_spans(n: int, off: float, c: float, s: float, w: int, h: int, along_row
     return lo, hi
 
 
-@_jit
+@compiled
 def profile_arrays(sums0: np.ndarray, sums1: np.ndarray, lo0: np.ndarray, hi0: np.ndarray,
                    lo1: np.ndarray, hi1: np.ndarray, r: int, mean: float
                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -698,7 +692,7 @@ def profile_arrays(sums0: np.ndarray, sums1: np.ndarray, lo0: np.ndarray, hi0: n
     return prof, lo, hi, total
 
 
-@_jit
+@compiled
 def part_summary(width: np.ndarray, rise: np.ndarray, contrast: np.ndarray, cen: np.ndarray,
                  mids: np.ndarray, msig: np.ndarray, count: np.ndarray, base: np.ndarray,
                  lev_l: np.ndarray, lev_r: np.ndarray
@@ -742,104 +736,3 @@ def part_summary(width: np.ndarray, rise: np.ndarray, contrast: np.ndarray, cen:
         hi_lev = _max(lev_l[i], lev_r[i])
         stepr[i] = (hi_lev - lo_lev) / _max(hi_lev, 1e-9)
     return wmed, rmed, cmed, stepr, parts, wpart, sigma, spread
-
-
-@_jit
-def _angle(y: float, x: float) -> float:
-    """atan2(y, x) within 3e-4 rad (not both 0): an odd polynomial of min / max on the octant
-    (:func:`~tileviz.vision.robust.heading.angles` is the same computation in numpy)."""
-    ax = abs(x)
-    ay = abs(y)
-    a = min(ax, ay) / max(ax, ay)
-    z = a * a
-    r = ((_ATAN[0] * z + _ATAN[1]) * z + _ATAN[2]) * z * a + a
-    if ay > ax:
-        r = 0.5 * math.pi - r
-    if x < 0.0:
-        r = math.pi - r
-    if y < 0.0:
-        r = -r
-    return r
-
-
-@_jit
-def heading_magnitudes(dx: np.ndarray, dy: np.ndarray) -> np.ndarray:
-    """gx^2 + gy^2 (int64) of every other row and column of the Scharr gradients ``dx``,
-    ``dy`` (int16), row by row (:func:`~tileviz.vision.robust.heading.heading_votes_numpy`)."""
-    h, w = dx.shape
-    q = np.empty(((h + 1) // 2) * ((w + 1) // 2), np.int64)
-    i = 0
-    for y in range(0, h, 2):
-        for x in range(0, w, 2):
-            gx = np.int64(dx[y, x])
-            gy = np.int64(dy[y, x])
-            q[i] = gx * gx + gy * gy
-            i += 1
-    return q
-
-
-@_jit
-def heading_votes(dx: np.ndarray, dy: np.ndarray, q: np.ndarray, thr: int, nb: int
-                  ) -> tuple[float, float]:
-    """:func:`~tileviz.vision.robust.heading.heading_votes_numpy` compiled (bit-identical),
-    given the squared magnitudes ``q`` (:func:`heading_magnitudes`) and the threshold
-    ``thr`` (> 0) of the voters: the first heading (rad, modulo pi / 2) and the share of the
-    votes' weight near the histogram's peak."""
-    h, w = dx.shape
-    n = 0
-    for v in q:
-        if v >= thr:
-            n += 1
-    theta = np.empty(n)
-    wgt = np.empty(n)
-    vc = np.empty(n)
-    vs = np.empty(n)
-    m = 0
-    i = 0
-    for y in range(0, h, 2):
-        for x in range(0, w, 2):
-            if q[i] >= thr:
-                gx = np.int64(dx[y, x])
-                gy = np.int64(dy[y, x])
-                c2 = gx * gx - gy * gy
-                s2 = 2 * gx * gy
-                cc = float(c2 * c2 - s2 * s2)
-                ss = float(2 * c2 * s2)
-                qf = float(q[i])
-                g = math.sqrt(qf)
-                r = qf * g
-                theta[m] = _angle(ss, cc)
-                wgt[m] = g
-                vc[m] = cc / r
-                vs[m] = ss / r
-                m += 1
-            i += 1
-    hist = np.zeros(nb)
-    scale = nb / (2.0 * math.pi)
-    for j in range(m):
-        b = int((theta[j] + math.pi) * scale) % nb
-        hist[b] += wgt[j]
-    best = -1.0
-    at = 0
-    for b in range(nb):
-        v = (hist[b] + hist[(b - 1) % nb]) + hist[(b + 1) % nb]
-        if v > best:
-            best = v
-            at = b
-    peak = (at + 0.5) * (2.0 * math.pi / nb) - math.pi
-    sw = 0.0
-    swn = 0.0
-    sc = 0.0
-    sn = 0.0
-    for j in range(m):
-        sw += wgt[j]
-        d = theta[j] - peak
-        if d > math.pi:
-            d -= 2.0 * math.pi
-        elif d < -math.pi:
-            d += 2.0 * math.pi
-        if abs(d) < _NEAR:
-            swn += wgt[j]
-            sc += vc[j]
-            sn += vs[j]
-    return math.atan2(sn, sc) / 4.0, swn / max(sw, 1e-9)

@@ -1,0 +1,123 @@
+"""The first heading's votes, compiled with numba (:func:`heading_magnitudes`,
+:func:`heading_votes`): exactly (bit for bit) what
+:func:`~tileviz.vision.robust.heading.heading_votes_numpy` computes, in the same order, with
+the same conventions as the profile kernels (:mod:`~tileviz.vision.robust.kernel`: numpy's
+error model, cached next to this module, the numpy path when numba is not installed).
+``tests/test_vision_speed_paths.py`` checks the equality on random gradients.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from tileviz.vision.robust.kernel import compiled
+
+__all__ = ["ATAN", "NEAR", "heading_magnitudes", "heading_votes"]
+
+NEAR = 0.35
+"""Heading votes within this angle (rad, of 4 phi) of their histogram's peak are averaged."""
+ATAN = (-0.0464964749, 0.15931422, -0.327622764)
+"""Coefficients of :func:`_angle`'s polynomial (z = a^2): atan(a) ~ a + a z (c2 + z (c1 + z c0))."""
+
+
+@compiled
+def _angle(y: float, x: float) -> float:
+    """atan2(y, x) within 3e-4 rad (not both 0): an odd polynomial of min / max on the octant
+    (:func:`~tileviz.vision.robust.heading.angles` is the same computation in numpy)."""
+    ax = abs(x)
+    ay = abs(y)
+    a = min(ax, ay) / max(ax, ay)
+    z = a * a
+    r = ((ATAN[0] * z + ATAN[1]) * z + ATAN[2]) * z * a + a
+    if ay > ax:
+        r = 0.5 * math.pi - r
+    if x < 0.0:
+        r = math.pi - r
+    if y < 0.0:
+        r = -r
+    return r
+
+
+@compiled
+def heading_magnitudes(dx: np.ndarray, dy: np.ndarray) -> np.ndarray:
+    """gx^2 + gy^2 (int64) of every other row and column of the Scharr gradients ``dx``,
+    ``dy`` (int16), row by row (:func:`~tileviz.vision.robust.heading.heading_votes_numpy`)."""
+    h, w = dx.shape
+    q = np.empty(((h + 1) // 2) * ((w + 1) // 2), np.int64)
+    i = 0
+    for y in range(0, h, 2):
+        for x in range(0, w, 2):
+            gx = np.int64(dx[y, x])
+            gy = np.int64(dy[y, x])
+            q[i] = gx * gx + gy * gy
+            i += 1
+    return q
+
+
+@compiled
+def heading_votes(dx: np.ndarray, dy: np.ndarray, q: np.ndarray, thr: int, nb: int
+                  ) -> tuple[float, float]:
+    """:func:`~tileviz.vision.robust.heading.heading_votes_numpy` compiled (bit-identical),
+    given the squared magnitudes ``q`` (:func:`heading_magnitudes`) and the threshold
+    ``thr`` (> 0) of the voters: the first heading (rad, modulo pi / 2) and the share of the
+    votes' weight near the histogram's peak."""
+    h, w = dx.shape
+    n = 0
+    for v in q:
+        if v >= thr:
+            n += 1
+    theta = np.empty(n)
+    wgt = np.empty(n)
+    vc = np.empty(n)
+    vs = np.empty(n)
+    m = 0
+    i = 0
+    for y in range(0, h, 2):
+        for x in range(0, w, 2):
+            if q[i] >= thr:
+                gx = np.int64(dx[y, x])
+                gy = np.int64(dy[y, x])
+                c2 = gx * gx - gy * gy
+                s2 = 2 * gx * gy
+                cc = float(c2 * c2 - s2 * s2)
+                ss = float(2 * c2 * s2)
+                qf = float(q[i])
+                g = math.sqrt(qf)
+                r = qf * g
+                theta[m] = _angle(ss, cc)
+                wgt[m] = g
+                vc[m] = cc / r
+                vs[m] = ss / r
+                m += 1
+            i += 1
+    hist = np.zeros(nb)
+    scale = nb / (2.0 * math.pi)
+    for j in range(m):
+        b = int((theta[j] + math.pi) * scale) % nb
+        hist[b] += wgt[j]
+    best = -1.0
+    at = 0
+    for b in range(nb):
+        v = (hist[b] + hist[(b - 1) % nb]) + hist[(b + 1) % nb]
+        if v > best:
+            best = v
+            at = b
+    peak = (at + 0.5) * (2.0 * math.pi / nb) - math.pi
+    sw = 0.0
+    swn = 0.0
+    sc = 0.0
+    sn = 0.0
+    for j in range(m):
+        sw += wgt[j]
+        d = theta[j] - peak
+        if d > math.pi:
+            d -= 2.0 * math.pi
+        elif d < -math.pi:
+            d += 2.0 * math.pi
+        if abs(d) < NEAR:
+            swn += wgt[j]
+            sc += vc[j]
+            sn += vs[j]
+    return math.atan2(sn, sc) / 4.0, swn / max(sw, 1e-9)
