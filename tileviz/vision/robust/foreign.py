@@ -296,7 +296,7 @@ def ends(run: RobustRun, px: float, py: float, dx: float, dy: float, band: float
         core = alongside(run, xs[j0:j1], ys[j0:j1], normals[k], shift[k])
         if core is None:
             return False
-        limit = STRADDLE_SIGMAS * run.details["noise_sigma"] + STRADDLE_LEVELS
+        limit = straddle_limit(run)
         return (float(core.max() - core.min()) <= limit
                 and conclusive(run, px, py, dx, dy, float(np.median(core)), limit))
     read = straddle(run, px, py, dx, dy, normals[k], shift[k])
@@ -306,7 +306,7 @@ def ends(run: RobustRun, px: float, py: float, dx: float, dy: float, band: float
     steep = both and abs(normals[k][0] * dx + normals[k][1] * dy) >= STRADDLE_ONE_SIDED
     if not far and n2 >= 6 and not steep:
         return True  # as where the grout cannot be read: the far side is in view, unseen
-    limit = STRADDLE_SIGMAS * run.details["noise_sigma"] + STRADDLE_LEVELS
+    limit = straddle_limit(run)
     if float(core.max() - core.min()) > limit:
         return False  # the grout's level changes where the line crosses it
     if both and not far:
@@ -355,11 +355,7 @@ def straddle(run: RobustRun, px: float, py: float, dx: float, dy: float,
     both = min(sides) >= 3
     if not both and (max(sides) < 3 or abs(nd) < STRADDLE_ONE_SIDED):
         return None
-    v = cv2.remap(run.gray, xs[ok].astype(np.float32).reshape(1, -1),
-                  ys[ok].astype(np.float32).reshape(1, -1), cv2.INTER_LINEAR).ravel()
-    v = v.astype(np.float64)
-    v = np.median(np.stack([v[:-2], v[1:-1], v[2:]]), axis=0)
-    return v, both
+    return gray_levels(run, xs[ok], ys[ok]), both
 
 
 STRADDLE_PARALLEL = 0.05
@@ -382,10 +378,22 @@ def alongside(run: RobustRun, xs: np.ndarray, ys: np.ndarray, n: tuple[float, fl
     ok = (fx >= 0) & (fx <= run.w - 1) & (fy >= 0) & (fy <= run.h - 1)
     if int(ok.sum()) < 3:
         return None
-    v = cv2.remap(run.gray, fx[ok].astype(np.float32).reshape(1, -1),
-                  fy[ok].astype(np.float32).reshape(1, -1), cv2.INTER_LINEAR).ravel()
+    return gray_levels(run, fx[ok], fy[ok])
+
+
+def gray_levels(run: RobustRun, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
+    """The view's gray levels at the points (xs, ys) (px, in the view, at least 3, in order
+    along a line): bilinear, each the median of itself and its 2 neighbours (n - 2 values)."""
+    v = cv2.remap(run.gray, xs.astype(np.float32).reshape(1, -1),
+                  ys.astype(np.float32).reshape(1, -1), cv2.INTER_LINEAR).ravel()
     v = v.astype(np.float64)
     return np.median(np.stack([v[:-2], v[1:-1], v[2:]]), axis=0)
+
+
+def straddle_limit(run: RobustRun) -> float:
+    """How much the grout's gray level may vary where a texture's edge meets it (gray levels):
+    :data:`STRADDLE_SIGMAS` x the image noise + :data:`STRADDLE_LEVELS`."""
+    return STRADDLE_SIGMAS * run.details["noise_sigma"] + STRADDLE_LEVELS
 
 
 def conclusive(run: RobustRun, px: float, py: float, dx: float, dy: float, grout: float,
