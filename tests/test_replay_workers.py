@@ -13,10 +13,12 @@ from tileviz.config import Config
 from tileviz.pipeline.worker_start import synthetic_view
 from tileviz.pipeline.workers import worker_context
 from tileviz.vision import extract
-from tileviz.vision.robust import heading_kernel, kernel
+from tileviz.vision.robust import heading_kernel, kernel, projection_kernel
 
-KERNELS = ("dip_rows", "grout_score", "part_profiles", "part_rows", "part_summary",
-           "profile_arrays", "profile_dips", "view_spans")
+KERNELS = ("dip_rows", "part_profiles", "part_rows", "part_summary")
+
+
+PROJECTION_KERNELS = ("grout_score", "profile_arrays", "profile_dips", "view_spans")
 
 
 HEADING_KERNELS = ("heading_magnitudes", "heading_votes")
@@ -25,6 +27,8 @@ HEADING_KERNELS = ("heading_magnitudes", "heading_votes")
 def _loaded_kernels() -> dict[str, int]:
     """How many compiled signatures each public kernel holds in this process."""
     out = {name: len(getattr(kernel, name).signatures) for name in KERNELS}
+    out.update((name, len(getattr(projection_kernel, name).signatures))
+               for name in PROJECTION_KERNELS)
     out.update((name, len(getattr(heading_kernel, name).signatures)) for name in HEADING_KERNELS)
     return out
 
@@ -48,7 +52,7 @@ def test_workers_start_with_the_kernels_loaded() -> None:
     assert ctx.get_start_method() == "forkserver"
     with ProcessPoolExecutor(1, mp_context=ctx) as pool:
         loaded = pool.submit(_loaded_kernels).result(timeout=600)
-    assert loaded == dict.fromkeys(KERNELS + HEADING_KERNELS, 1)
+    assert loaded == dict.fromkeys(KERNELS + PROJECTION_KERNELS + HEADING_KERNELS, 1)
 
 
 def _parent_pid() -> int:

@@ -211,8 +211,8 @@ def test_normalise_keeps_the_view(y1: float, y2: float, y3: float) -> None:
 def test_missing_profile_samples_continue_the_nearest_level() -> None:
     """Beyond the view a profile continues its own last level (not the image mean): a dark
     tile at the border neither becomes a dip nor hides the edge of the grout next to it."""
-    from tileviz.vision.robust import kernel
-    from tileviz.vision.robust.profiles import fill_ends, profile_dips_numpy
+    from tileviz.vision.robust import kernel, projection_kernel
+    from tileviz.vision.robust.projection import fill_ends, profile_dips_numpy
 
     nan = np.nan
     prof = np.array([[nan, nan, 50.0, 50.0, 20.0, 50.0, 60.0, nan, nan],
@@ -231,7 +231,7 @@ def test_missing_profile_samples_continue_the_nearest_level() -> None:
     assert sorted(set(peak.tolist())) == [44]
     assert np.all(dark[0, 48:60] == 0.0)
     if kernel.AVAILABLE:
-        kd, _, kf, kp = kernel.profile_dips(prof, 140.0, 21, 15.0)
+        kd, _, kf, kp = projection_kernel.profile_dips(prof, 140.0, 21, 15.0)
         assert np.array_equal(kd, dark, equal_nan=True)
         assert kp.tolist() == peak.tolist() and kf.tolist() == fam.tolist()
 

@@ -1,7 +1,8 @@
 """The robust extractor's shortcuts change nothing: reusing one heading's warp and profiles when
 a wide grout band asks for a wider window, and measuring in parts only the dips that can be
 kept as lines, give the same result, field for field, as the full computation; the compiled
-part measurement (:mod:`tileviz.vision.robust.kernel`) gives numpy's bits."""
+part measurement and projection (:mod:`tileviz.vision.robust.kernel`,
+:mod:`tileviz.vision.robust.projection_kernel`) give numpy's bits."""
 
 from __future__ import annotations
 
@@ -16,7 +17,14 @@ from tileviz.config import FLOOR_STYLES, VisionConfig, floor_style, preset
 from tileviz.sim.camera import FloorRenderer
 from tileviz.types import Pose
 from tileviz.vision import extract
-from tileviz.vision.robust import extractor, heading_kernel, kernel, profiles
+from tileviz.vision.robust import (
+    extractor,
+    heading_kernel,
+    kernel,
+    profiles,
+    projection,
+    projection_kernel,
+)
 
 ROBUST = VisionConfig(extractor="robust")
 
@@ -91,6 +99,9 @@ def _bits(a: np.ndarray) -> bytes:
     return a.tobytes()
 
 
+PROJECTION_KERNELS = ("grout_score", "profile_dips", "view_spans", "profile_arrays")
+
+
 @pytest.mark.skipif(not kernel.AVAILABLE, reason="numba is not installed")
 def test_the_compiled_part_measurement_is_the_numpy_one_bit_for_bit(
     monkeypatch: pytest.MonkeyPatch,
@@ -104,7 +115,8 @@ def test_the_compiled_part_measurement_is_the_numpy_one_bit_for_bit(
     views = _floor_views(2)
     names = ("part_rows", "part_profiles", "grout_score", "profile_dips", "dip_rows",
              "view_spans", "profile_arrays", "part_summary")
-    compiled = {name: getattr(kernel, name) for name in names}
+    home = {name: projection_kernel if name in PROJECTION_KERNELS else kernel for name in names}
+    compiled = {name: getattr(home[name], name) for name in names}
     seen: dict[str, list[tuple]] = {name: [] for name in names}
 
     def recorder(name: str) -> object:
@@ -114,7 +126,7 @@ def test_the_compiled_part_measurement_is_the_numpy_one_bit_for_bit(
         return record
 
     for name in names:
-        monkeypatch.setattr(kernel, name, recorder(name))
+        monkeypatch.setattr(home[name], name, recorder(name))
     fast = [extract(img, camera=cam, tile_size=ts, vision=ROBUST) for img, cam, ts in views]
     assert sum(res.accepted for res in fast) >= len(views) // 2
     assert sum(int(args[0].shape[0]) for args in seen["part_rows"]) > 100
@@ -130,11 +142,11 @@ def test_the_compiled_part_measurement_is_the_numpy_one_bit_for_bit(
     assert sum(compiled["grout_score"](*args)[0] for args in seen["grout_score"]) >= len(views)
     for args in seen["grout_score"]:
         used, value = compiled["grout_score"](*args)
-        used_np, value_np = profiles.grout_score_numpy(*args)
+        used_np, value_np = projection.grout_score_numpy(*args)
         assert used == used_np and (not used or value.hex() == value_np.hex())
     assert len(seen["profile_dips"]) >= len(views)
     for args in seen["profile_dips"]:
-        for a, b in zip(compiled["profile_dips"](*args), profiles.profile_dips_numpy(*args),
+        for a, b in zip(compiled["profile_dips"](*args), projection.profile_dips_numpy(*args),
                         strict=True):
             assert a.dtype == b.dtype and _bits(a) == _bits(b)
     assert sum(int(args[4].size) for args in seen["dip_rows"]) > 100
@@ -149,7 +161,7 @@ def test_the_compiled_part_measurement_is_the_numpy_one_bit_for_bit(
             assert a.shape == b.shape and _bits(a) == _bits(b)
     assert len(seen["profile_arrays"]) >= len(views)
     for args in seen["profile_arrays"]:
-        for a, b in zip(compiled["profile_arrays"](*args), profiles.profile_arrays_numpy(*args),
+        for a, b in zip(compiled["profile_arrays"](*args), projection.profile_arrays_numpy(*args),
                         strict=True):
             assert a.shape == b.shape and _bits(a) == _bits(b)
     assert len(seen["view_spans"]) >= 2 * len(views)
@@ -160,7 +172,7 @@ def test_the_compiled_part_measurement_is_the_numpy_one_bit_for_bit(
 
         run = Run()
         run.w, run.h = w, h  # type: ignore[attr-defined]
-        ref = profiles.view_spans(run, np.arange(n) - off, c, s,  # type: ignore[arg-type]
+        ref = projection.view_spans(run, np.arange(n) - off, c, s,  # type: ignore[arg-type]
                                   along_rows=along)
         for a, b in zip(compiled["view_spans"](n, off, c, s, w, h, along), ref, strict=True):
             assert _bits(a) == _bits(b)
@@ -212,8 +224,8 @@ def test_the_compiled_light_grout_score_matches_numpy_on_any_profile(
     rng = np.random.default_rng(seed)
     sums = rng.normal(0.0, 3000.0, n)
     length = rng.uniform(0.0, 300.0, n)
-    used, value = kernel.grout_score(sums, length, closing)
-    used_np, value_np = profiles.grout_score_numpy(sums, length, closing)
+    used, value = projection_kernel.grout_score(sums, length, closing)
+    used_np, value_np = projection.grout_score_numpy(sums, length, closing)
     assert used == used_np
     assert not used or value.hex() == value_np.hex()
 

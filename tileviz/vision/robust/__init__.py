@@ -1,10 +1,11 @@
 """The robust extractor: sub-pixel lattice parameters, and a refusal when the view is doubtful.
 
 Modules, one per job: :mod:`.settings` (thresholds), :mod:`.state` (one frame's state),
-:mod:`.statistics` (step 1), :mod:`.heading` (step 2), :mod:`.profiles` (steps 3-4),
-:mod:`.fit` (step 5 and the line checks), :mod:`.lattice` (spacing, the observation),
-:mod:`.bound` (the view's error bound), :mod:`.foreign` (the last checks) and
-:mod:`.extractor` (the entry point, the result and the stage images).
+:mod:`.statistics` (step 1), :mod:`.heading` (step 2), :mod:`.projection` (step 3),
+:mod:`.profiles` (step 4), :mod:`.fit` (step 5 and the line checks), :mod:`.lattice` (spacing,
+the observation), :mod:`.bound` (the view's error bound), :mod:`.foreign` (the last checks) and
+:mod:`.extractor` (the entry point, the result and the stage images); the compiled loops are in
+:mod:`.kernel`, :mod:`.projection_kernel` and :mod:`.heading_kernel`.
 
 How it measures (vectorised numpy/OpenCV; timings in ``bench/bench_vision.py``):
 

@@ -188,7 +188,7 @@ def measurement_band(run: RobustRun) -> float:
 def grout_like(run: RobustRun, proj: object, e: tuple[float, float, float, float]) -> bool:
     """Whether the profile of the warp family that the line ``e`` (endpoints, px) runs along
     dips there at least a quarter as deep as the other family's grout lines."""
-    from tileviz.vision.robust.profiles import Projection
+    from tileviz.vision.robust.projection import Projection
 
     assert isinstance(proj, Projection)
     cx, cy = (run.w - 1) / 2.0, (run.h - 1) / 2.0

@@ -1,14 +1,14 @@
 """The robust extractor's loops over profile samples, compiled with numba: one loop per dip or
-per part profile instead of many numpy passes over all of them. Each kernel computes exactly (bit
-for bit) what its numpy counterpart in :mod:`~tileviz.vision.robust.profiles` computes:
-:func:`part_rows` (``part_rows_numpy``: plateaus, crossings, centroid and midpoints of every part
-profile), :func:`part_profiles` (``part_profiles_numpy``: the part profiles from the integral
-image), :func:`grout_score` (``grout_score_numpy``: a family's term of the light-grout test),
-:func:`profile_dips` (``profile_dips_numpy``: darkness, noise and dips of the family
-profiles), :func:`dip_rows` (``dip_rows_numpy``: every dip's depth, centre, window, parts
-and plateaus on its whole profile), :func:`view_spans` and :func:`profile_arrays` (the in-view
-spans and the profiles of both families), :func:`part_summary` (each line's medians and
-parts). The first heading's kernels are in :mod:`~tileviz.vision.robust.heading_kernel`.
+per part profile instead of many numpy passes over all of them, and the compile decorator and
+numpy-exact helpers the other kernels share. Each kernel computes exactly (bit for bit) what its
+numpy counterpart in :mod:`~tileviz.vision.robust.profiles` computes: :func:`part_rows`
+(``part_rows_numpy``: plateaus, crossings, centroid and midpoints of every part profile),
+:func:`part_profiles` (``part_profiles_numpy``: the part profiles from the integral image),
+:func:`dip_rows` (``dip_rows_numpy``: every dip's depth, centre, window, parts and plateaus on
+its whole profile), :func:`part_summary` (each line's medians and parts). The projection's
+kernels (spans, profiles, dips, the light-grout test) are in
+:mod:`~tileviz.vision.robust.projection_kernel`, the first heading's in
+:mod:`~tileviz.vision.robust.heading_kernel`.
 
 Every operation is the numpy one in the same order: sums over a profile are numpy's pairwise
 sums (:func:`_pairwise`, the order ``ndarray.sum`` adds a contiguous row in), medians sort the
@@ -39,8 +39,7 @@ try:
 except ImportError:  # numba is a dependency; an older environment keeps the numpy path
     numba = None  # type: ignore[assignment]
 
-__all__ = ["AVAILABLE", "compiled", "dip_rows", "grout_score", "part_profiles", "part_rows",
-           "part_summary", "profile_arrays", "profile_dips", "view_spans"]
+__all__ = ["AVAILABLE", "compiled", "dip_rows", "part_profiles", "part_rows", "part_summary"]
 
 AVAILABLE = numba is not None
 
@@ -384,182 +383,6 @@ def part_profiles(flat: np.ndarray, stride: int, fam: np.ndarray, line: np.ndarr
 
 
 @compiled
-def _running(ext: np.ndarray, width: int, bigger: bool, out: np.ndarray) -> None:
-    """out[x] = max (``bigger``) or min of ext[x : x + width] for every x < out.size, in O(n)
-    (van Herk / Gil-Werman: within blocks of ``width`` samples, running extremes from each
-    block's start and from its end; a window spans the end of one block and the start of the
-    next). Exact: only comparisons (the extreme of a set does not depend on the order)."""
-    n = ext.size
-    fwd = np.empty(n, ext.dtype)
-    bwd = np.empty(n, ext.dtype)
-    for b0 in range(0, n, width):
-        b1 = min(b0 + width, n)
-        v = ext[b0]
-        fwd[b0] = v
-        for i in range(b0 + 1, b1):
-            u = ext[i]
-            if (u > v) if bigger else (u < v):
-                v = u
-            fwd[i] = v
-        v = ext[b1 - 1]
-        bwd[b1 - 1] = v
-        for i in range(b1 - 2, b0 - 1, -1):
-            u = ext[i]
-            if (u > v) if bigger else (u < v):
-                v = u
-            bwd[i] = v
-    for x in range(out.size):
-        a = bwd[x]
-        b = fwd[x + width - 1]
-        out[x] = b if ((b > a) if bigger else (b < a)) else a
-
-
-@compiled
-def _morph(a: np.ndarray, half: int, border: np.float32, bigger: bool) -> np.ndarray:
-    """cv2.dilate (``bigger``) or cv2.erode of a float32 row by a 1 x (2 half + 1) window,
-    constant ``border`` beyond the ends (exact: only comparisons)."""
-    n = a.size
-    ext = np.full(n + 2 * half, border, np.float32)
-    ext[half : half + n] = a
-    out = np.empty(n, np.float32)
-    _running(ext, 2 * half + 1, bigger, out)
-    return out
-
-
-@compiled
-def grout_score(sums: np.ndarray, length: np.ndarray, closing: int) -> tuple[bool, float]:
-    """One family's term of :func:`~tileviz.vision.robust.profiles.light_grout` (whether the
-    family counts, and its peak height minus its dip depth), bit-identical to the numpy /
-    OpenCV computation there: the profile ``sums / length`` as float32 over the rows long
-    enough, its median as the border level, grey closing and opening by ``closing``
-    samples."""
-    lmax = length[0]
-    for v in length:
-        if v > lmax:
-            lmax = v
-    thr = 0.15 * lmax
-    thr = thr if thr > 8.0 else 8.0
-    n = 0
-    for v in length:
-        if v >= thr:
-            n += 1
-    if n < 8:
-        return False, 0.0
-    prof = np.empty(n, np.float32)
-    k = 0
-    for i in range(length.size):
-        if length[i] >= thr:
-            prof[k] = np.float32(sums[i] / length[i])
-            k += 1
-    srt = np.sort(prof)
-    if n % 2 == 1:
-        mid = srt[n // 2]
-    else:
-        mid = np.float32(np.float32(srt[n // 2 - 1] + srt[n // 2]) / np.float32(2.0))
-    half = closing // 2
-    close = _morph(_morph(prof, half, mid, True), half, mid, False)
-    opening = _morph(_morph(prof, half, mid, False), half, mid, True)
-    peak = np.float32(prof[0] - opening[0])
-    dip = np.float32(close[0] - prof[0])
-    for i in range(1, n):
-        v = np.float32(prof[i] - opening[i])
-        if v > peak:
-            peak = v
-        v = np.float32(close[i] - prof[i])
-        if v > dip:
-            dip = v
-    return True, np.float64(peak) - np.float64(dip)
-
-
-@compiled
-def profile_dips(prof: np.ndarray, mean: float, closing: int, min_depth: float
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """:func:`~tileviz.vision.robust.profiles.profile_dips_numpy` compiled (bit-identical):
-    the darkness below the grey closing of both family profiles (rows of ``prof``, NaN where
-    missing), each family's profile noise (NaN when it has fewer than 8 samples) and the
-    dips (family, deepest sample) in order."""
-    fams, size = prof.shape
-    half = closing // 2
-    dark = np.empty((fams, size))
-    noise = np.full(fams, math.nan)
-    fam_out = np.empty(fams * size, np.intp)
-    peak_out = np.empty(fams * size, np.intp)
-    found = 0
-    filled = np.empty(size, np.float32)
-    dil = np.empty(size, np.float32)
-    ero = np.empty(size, np.float32)
-    closing_w = 2 * half + 1
-    ext = np.empty(size + 2 * half, np.float32)
-    diffs = np.empty(size)
-    for k in range(fams):
-        row = prof[k]
-        # missing samples: the nearest valid one before, else after (profiles.fill_ends)
-        last = math.nan
-        for x in range(size):
-            if not math.isnan(row[x]):
-                last = row[x]
-                break
-        if math.isnan(last):
-            last = mean
-        for x in range(size):
-            if not math.isnan(row[x]):
-                last = row[x]
-            filled[x] = np.float32(last)
-        # grey dilation then erosion, the ends replicated
-        for x in range(half):
-            ext[x] = filled[0]
-            ext[half + size + x] = filled[size - 1]
-        ext[half : half + size] = filled
-        _running(ext, closing_w, True, dil)
-        for x in range(half):
-            ext[x] = dil[0]
-            ext[half + size + x] = dil[size - 1]
-        ext[half : half + size] = dil
-        _running(ext, closing_w, False, ero)
-        for x in range(size):
-            dark[k, x] = np.float64(ero[x]) - row[x]
-        nok = 0
-        nd = 0
-        prev = 0.0
-        for x in range(size):
-            if not math.isnan(row[x]):
-                if nok > 0:
-                    diffs[nd] = abs(row[x] - prev)
-                    nd += 1
-                prev = row[x]
-                nok += 1
-        if nok < 8:
-            continue
-        srt = np.sort(diffs[:nd])
-        sig = 1.4826 * srt[nd // 2] / math.sqrt(2.0)
-        noise[k] = sig
-        thr = 5.0 * sig
-        if not thr > 0.5 * min_depth:
-            thr = 0.5 * min_depth
-        x = 0
-        while x < size:
-            dk = dark[k, x] if not math.isnan(row[x]) else -math.inf
-            if not dk > thr:
-                x += 1
-                continue
-            best = dk
-            at = x
-            x += 1
-            while x < size:
-                dk = dark[k, x] if not math.isnan(row[x]) else -math.inf
-                if not dk > thr:
-                    break
-                if dk > best:
-                    best = dk
-                    at = x
-                x += 1
-            fam_out[found] = k
-            peak_out[found] = at
-            found += 1
-    return dark, noise, fam_out[:found].copy(), peak_out[:found].copy()
-
-
-@compiled
 def dip_rows(prof: np.ndarray, dark: np.ndarray, lo: np.ndarray, hi: np.ndarray,
              fam: np.ndarray, peak: np.ndarray, r: int
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
@@ -620,76 +443,6 @@ def dip_rows(prof: np.ndarray, dark: np.ndarray, lo: np.ndarray, hi: np.ndarray,
         step[i] = ((b - 1.0) - (a + 1.0)) / PARTS
         lev_l[i], lev_r[i] = _plateaus(p0[i], jf, c, h, buf)
     return p0, depth, c0, half, u_lo, step, lev_l, lev_r
-
-
-@compiled
-def view_spans(n: int, off: float, c: float, s: float, w: int, h: int, along_rows: bool
-               ) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`~tileviz.vision.robust.profiles.view_spans` compiled (bit-identical) for the
-    ``n`` warp rows (``along_rows``) or columns at offsets ``i - off`` from the warp centre, in
-    a ``w`` x ``h`` view turned by (cos, sin) = (``c``, ``s``)."""
-    cx = (w - 1) / 2.0
-    cy = (h - 1) / 2.0
-    if along_rows:
-        a, b, e, f = c, -s, s, c
-    else:
-        a, b, e, f = -s, c, c, s
-    lo = np.empty(n)
-    hi = np.empty(n)
-    for i in range(n):
-        q = float(i) - off
-        vlo = -math.inf
-        vhi = math.inf
-        for axis in range(2):
-            coef = a if axis == 0 else e
-            base = (cx + b * q) if axis == 0 else (cy + f * q)
-            size = w if axis == 0 else h
-            if abs(coef) < 1e-12:
-                if not ((base >= -0.5) and (base <= size - 0.5)):
-                    vlo = math.inf
-                continue
-            u1 = (-0.5 - base) / coef
-            u2 = (size - 0.5 - base) / coef
-            vlo = _max(vlo, _min(u1, u2))
-            vhi = _min(vhi, _max(u1, u2))
-        lo[i] = vlo
-        hi[i] = vhi
-    return lo, hi
-
-
-@compiled
-def profile_arrays(sums0: np.ndarray, sums1: np.ndarray, lo0: np.ndarray, hi0: np.ndarray,
-                   lo1: np.ndarray, hi1: np.ndarray, r: int, mean: float
-                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """:func:`~tileviz.vision.robust.profiles.profile_arrays_numpy` compiled (bit-identical):
-    the profiles, spans and lengths of both families as (2, size) arrays."""
-    size = max(sums0.size, sums1.size) + 2 * r
-    prof = np.full((2, size), math.nan)
-    lo = np.full((2, size), math.inf)
-    hi = np.full((2, size), -math.inf)
-    total = np.zeros((2, size))
-    for k in range(2):
-        sums = sums0 if k == 0 else sums1
-        slo = lo0 if k == 0 else lo1
-        shi = hi0 if k == 0 else hi1
-        n = sums.size
-        lmax = -math.inf
-        for i in range(n):
-            lo[k, r + i] = slo[i]
-            hi[k, r + i] = shi[i]
-            length = _max(shi[i] - slo[i], 0.0)
-            total[k, r + i] = length
-            if math.isnan(length) or math.isnan(lmax):
-                lmax = math.nan
-            elif length > lmax:
-                lmax = length
-        v = 0.15 * lmax
-        thr = v if v > 8.0 else 8.0  # Python's max(8.0, v): NaN gives 8.0
-        for i in range(n):
-            length = total[k, r + i]
-            if length >= thr:
-                prof[k, r + i] = sums[i] / length + mean
-    return prof, lo, hi, total
 
 
 @compiled
