@@ -8,9 +8,7 @@ on: every dip votes with its depth times the length over which it was measured (
 lengths), for the phase of every dip within :data:`PHASE_TOLERANCE` of it. A dip off that
 phase is dropped only when it is weak beside the lattice's lines (:data:`WEAK_SHARE`): a
 strong line off the period (a cable along the grout direction, a second lattice) is kept, so
-that the checks refuse the view as before (``foreign line``, ``inconsistent spacing``). Two
-dips of one line (the same grout line found twice, less than :data:`SAME_LINE` px apart) keep
-the stronger only.
+that the checks refuse the view as before (``foreign line``, ``inconsistent spacing``).
 """
 
 from __future__ import annotations
@@ -19,7 +17,7 @@ import numpy as np
 
 from tileviz.vision.robust.state import Line, RobustRun
 
-__all__ = ["PHASE_TOLERANCE", "SAME_LINE", "WEAK_SHARE", "on_lattice"]
+__all__ = ["PHASE_TOLERANCE", "WEAK_SHARE", "on_lattice"]
 
 PHASE_TOLERANCE = 0.04
 """A dip is on a phase when within this fraction of the tile period of it (modulo the period);
@@ -27,13 +25,11 @@ a dip kept a little off (more than the spacing check allows) is refused there.""
 WEAK_SHARE = 0.5
 """A dip off the phase is dropped when its evidence (depth x measured length) is under this
 share of the strongest line on the phase."""
-SAME_LINE = 1.0
-"""Two dips of one family closer than this (px) are one line measured twice."""
 
 
 def on_lattice(run: RobustRun, lines: list[list[Line]]) -> list[list[Line]]:
-    """``lines`` (per family) without the weak dips off each family's phase and without the
-    second reading of one line (see the module docstring)."""
+    """``lines`` (per family) without the weak dips off each family's phase (see the module
+    docstring)."""
     lp = run.lp
     out: list[list[Line]] = []
     for fam in lines:
@@ -53,10 +49,5 @@ def on_lattice(run: RobustRun, lines: list[list[Line]]) -> list[list[Line]]:
         member = near[int(np.argmax(votes))]
         strongest = float(weight[member].max())
         keep = member | (weight >= WEAK_SHARE * strongest)
-        order = np.argsort(-weight, kind="stable")
-        kept: list[int] = []
-        for i in order.tolist():
-            if keep[i] and all(abs(pos[i] - pos[j]) >= SAME_LINE for j in kept):
-                kept.append(i)
-        out.append([fam[i] for i in sorted(kept)])
+        out.append([ln for ln, k in zip(fam, keep.tolist(), strict=True) if k])
     return out
