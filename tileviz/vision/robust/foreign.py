@@ -222,7 +222,8 @@ def ends(run: RobustRun, px: float, py: float, dx: float, dy: float, band: float
     - Where the line meets the grout's centre line, the grout's gray level beside the line
       (:func:`straddle`) tells: an object crossing the grout covers it on one side (a cable,
       a box) or darkens it (a shadow), so the level varies there by more than
-      :data:`STRADDLE_SIGMAS` x the image noise + :data:`STRADDLE_LEVELS` (False); a
+      :data:`STRADDLE_SIGMAS` x the image noise + :data:`STRADDLE_LEVELS` and more than the
+      grout varies by itself elsewhere on its line (:func:`grout_variation`) (False); a
       texture's edge stops at the grout and leaves it alike (True when both sides of the
       crossing are read and the edge is not seen beyond the band). Where the line crosses
       the grout at under :data:`STRADDLE_ONE_SIDED`, or one side only is read, the far side
@@ -301,12 +302,12 @@ def ends(run: RobustRun, px: float, py: float, dx: float, dy: float, band: float
         # it, or where it lies out of view): the grout's core beside the line's whole pass
         # through the band decides, as where the line does not reach the core
         return pass_unchanged(run, xs, ys, i0, i1, px, py, dx, dy, normals[k], shift[k])
-    core, both = read
+    core, both, own = read
     steep = both and abs(normals[k][0] * dx + normals[k][1] * dy) >= STRADDLE_ONE_SIDED
     if not far and n2 >= 6 and not steep:
         return True  # as where the grout cannot be read: the far side is in view, unseen
     limit = straddle_limit(run)
-    if float(core.max() - core.min()) > limit:
+    if float(core.max() - core.min()) > (max(limit, own) if math.isfinite(own) else limit):
         return False  # the grout's level changes where the line crosses it
     if both and not far:
         return True
@@ -345,7 +346,7 @@ STRADDLE_LEVELS = 4.0
 
 
 def straddle(run: RobustRun, px: float, py: float, dx: float, dy: float,
-             n: tuple[float, float], sh: float) -> tuple[np.ndarray, bool] | None:
+             n: tuple[float, float], sh: float) -> tuple[np.ndarray, bool, float] | None:
     """The grout's gray levels where the line through (px, py) along (dx, dy) crosses the
     grout's centre line (the next line ahead of the family with unit normal ``n`` and offset
     ``sh``, px): the centre line's gray levels (bilinear) at 0..9 px from the line on both
@@ -353,10 +354,12 @@ def straddle(run: RobustRun, px: float, py: float, dx: float, dy: float,
     An object crossing the grout covers it (a cable, a box) or darkens it (a shadow) near the
     line; a texture's edge that stops at the grout leaves it alike.
 
-    Returns the samples (median of 3 neighbours) and whether both sides were read (3 samples
-    or more each); one side is enough when the line crosses the grout at
-    :data:`STRADDLE_ONE_SIDED` or more. None when the line runs within
-    :data:`STRADDLE_PARALLEL` of the grout or neither side can be read."""
+    Returns the samples (median of 3 neighbours), whether both sides were read (3 samples
+    or more each; one side is enough when the line crosses the grout at
+    :data:`STRADDLE_ONE_SIDED` or more) and the grout's own variation over as long a stretch
+    elsewhere on its line (:func:`grout_variation`, gray levels, NaN when not read). None
+    when the line runs within :data:`STRADDLE_PARALLEL` of the grout or neither side can be
+    read."""
     cx, cy = (run.w - 1) / 2.0, (run.h - 1) / 2.0
     nd = n[0] * dx + n[1] * dy
     if abs(nd) < STRADDLE_PARALLEL:
@@ -376,7 +379,44 @@ def straddle(run: RobustRun, px: float, py: float, dx: float, dy: float,
     both = min(sides) >= 3
     if not both and (max(sides) < 3 or abs(nd) < STRADDLE_ONE_SIDED):
         return None
-    return gray_levels(run, xs[ok], ys[ok]), both
+    return gray_levels(run, xs[ok], ys[ok]), both, grout_variation(run, qx, qy, g, 1.0 / abs(nd))
+
+
+def grout_variation(run: RobustRun, qx: float, qy: float, g: tuple[float, float],
+                    step: float) -> float:
+    """How much the grout's gray level varies by itself over a stretch as long as a straddle's
+    (19 samples ``step`` px apart along the unit direction ``g``) elsewhere on the same grout
+    centre line through the crossing (qx, qy): the largest range of the stretches in view that
+    keep :data:`VARIATION_CLEAR` samples clear of the crossing's own stretch (an object's
+    other edge lies within them), NaN when fewer than :data:`VARIATION_STRETCHES`. A thin
+    grout band takes in the texture beside it (the mortar of a brick photograph brightens it
+    where it meets it) and a lighting gradient runs along it, all along the line; an object
+    changes it only where it crosses it (a cable) or on one side of that crossing (a box, a
+    shadow)."""
+    reach = math.hypot(run.w, run.h)
+    u = np.arange(-math.floor(reach / step), math.floor(reach / step) + 1) * step
+    xs = qx + u * g[0]
+    ys = qy + u * g[1]
+    idx = np.flatnonzero((xs >= 0) & (xs <= run.w - 1) & (ys >= 0) & (ys <= run.h - 1))
+    if idx.size < 21:
+        return math.nan
+    lv = gray_levels(run, xs[idx], ys[idx])  # at the samples idx[1:-1]
+    # every run of 19 consecutive samples (the line is one interval in view) clear of the
+    # crossing's samples -9..9 about u = 0 by VARIATION_CLEAR more
+    win = np.lib.stride_tricks.sliding_window_view(lv, 19)
+    first = idx[1 : 1 + win.shape[0]]
+    zero = int(np.argmin(np.abs(u)))
+    clear = 9 + VARIATION_CLEAR
+    far = (first + 18 < zero - clear) | (first > zero + clear)
+    if int(far.sum()) < VARIATION_STRETCHES:
+        return math.nan
+    return float((win.max(axis=1) - win.min(axis=1))[far].max())
+
+
+VARIATION_CLEAR = 19
+VARIATION_STRETCHES = 10
+"""The grout's own variation (:func:`grout_variation`) is read on at least 10 stretches of its
+line, each at least 19 samples clear of the crossing's."""
 
 
 STRADDLE_PARALLEL = 0.05
