@@ -246,8 +246,12 @@ def render(spec: FloorSpec, cx: float, cy: float, theta: float,
         img = _motion_blur(img, rng)
     img = img + rng.normal(0.0, spec.noise, img.shape).astype(np.float32)
     out = np.clip(np.rint(img), 0, 255).astype(np.uint8)
+    # the light's colour cast, before the sensor clips each channel at 255: a surface brighter
+    # than the sensor's range (glare, a light grout under strong light) saturates every
+    # channel, as a real camera's highlights do, instead of being tinted below saturation
     tint = np.array([1.0, 0.97, 0.92]) if spec.seed % 2 else np.array([0.95, 1.0, 1.0])
-    rgb = np.clip(np.rint(out[..., None] * tint), 0, 255).astype(np.uint8)
+    level = np.where(img > 255.0, img, out)
+    rgb = np.clip(np.rint(level[..., None] * tint), 0, 255).astype(np.uint8)
     if spec.jpeg:
         ok, buf = cv2.imencode(".jpg", rgb, [cv2.IMWRITE_JPEG_QUALITY, spec.jpeg])
         if ok:

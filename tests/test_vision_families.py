@@ -75,6 +75,19 @@ def test_each_floor_family_is_read_within_its_declared_bound(family: str) -> Non
                                 "edges rise 5.7 px (was blurred)"),
         ("degraded", 5_000_253, "a 13 px band of light grout under 1.8 px of blur: its edges "
                                 "rise 5.1 px (was blurred)"),
+        ("degraded", 49, "light grout on tiles 150 levels apart under a lighting gradient: "
+                         "the lines' contrasts differ by more than 1.7 x, their depths "
+                         "beside the crossings agree (was foreign line)"),
+        ("degraded", 6_000_299, "the same, a short line between two light tiles at the "
+                                "border (was foreign line)"),
+        ("degraded", 6_000_116, "noise 9.3 and JPEG 55 outvote 1.6 px grout on terrazzo in "
+                                "the gradient directions: the smoothed view's votes find the "
+                                "heading (was one family)"),
+        ("degraded", 38, "a grout line between two dark tiles, too shallow to be kept as a "
+                         "line, shows as a dip where the lattice puts it (was inconsistent "
+                         "spacing)"),
+        ("shade_steps", 6_000_051, "light grout beside a light tile at the border: a dip, no "
+                                   "line (was inconsistent spacing)"),
     ],
 )
 def test_views_once_refused_are_read_within_their_bound(family: str, seed: int, why: str) -> None:
@@ -85,7 +98,9 @@ def test_views_once_refused_are_read_within_their_bound(family: str, seed: int, 
     beside it would have changed the grout's level had it crossed), the heading is sought from
     the view's periodicity when the lines at the first heading fail their checks, and then the
     other polarity of the grout; a blurred view is read with the wider bound its softer edges
-    give; lighter grout's lines are compared in depth over the grout's own level too; the
+    give; lighter grout's lines are compared in depth over the grout's own level too, and
+    beside their crossings; the heading is also sought from the gradient votes of the
+    smoothed view; a lattice line that shows as a dip but gives no line is not missing; the
     profile beyond the view continues its last level; a wide band is measured centred on
     itself, and with a window that fits it when only shallower dips could be measured;
     saturated specks of a light texture are not glare."""
@@ -148,3 +163,19 @@ def test_corrupted_views_are_never_accepted_outside_their_bound(corruption: str)
         assert r["inside"], r
         refused += not r["accepted"]
     assert refused >= 2
+
+
+def test_glare_saturates_the_sensor_and_is_refused_as_glare() -> None:
+    """The renderer's colour cast comes before the sensor clips: a glare patch is white (gray
+    255) in every view, whichever the tint (``spec.seed`` odd or even), and the extractor
+    refuses it as glare."""
+    tints = set()
+    for seed in range(100, 106):
+        rng = np.random.default_rng([seed, FAMILY_SALT["plain"], 1])
+        spec = floorgen.draw_floor("plain", rng)
+        cx, cy, th = floorgen.draw_view(rng)
+        img = floorgen.render(spec, cx, cy, th, rng, "glare")
+        tints.add(spec.seed % 2)
+        assert int(img.min(axis=2).max()) == 255, seed
+        assert run_view(seed, "plain", "glare")["reason"] == "glare", seed
+    assert tints == {0, 1}

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Iterator
 from dataclasses import replace
 
 import cv2
@@ -17,7 +18,7 @@ from tileviz.vision.geometry import QUARTER, family_normals
 from tileviz.vision.result import BAG_HORIZONTAL, BAG_VERTICAL, VisionResult
 from tileviz.vision.robust.fit import check_lines, fit_tilt
 from tileviz.vision.robust.foreign import foreign_edges
-from tileviz.vision.robust.heading import first_heading, lattice_headings
+from tileviz.vision.robust.heading import first_heading, lattice_headings, smoothed_headings
 from tileviz.vision.robust.lattice import clip_line, lattice_offsets
 from tileviz.vision.robust.profiles import measure, select_lines
 from tileviz.vision.robust.settings import DEFAULT_SETTINGS, RobustSettings
@@ -86,7 +87,7 @@ def execute(run: RobustRun) -> None:
         if first.reason not in RETRY_REASONS:
             raise
         tried = [(y0, run.inverted)]
-        for alt in lattice_headings(run):
+        for alt in retry_headings(run):
             t = run.lap("heading", t)
             if any(abs(math.remainder(alt - y, QUARTER)) < 0.004 for y, _ in tried):
                 continue
@@ -118,6 +119,14 @@ def execute(run: RobustRun) -> None:
     t = run.lap("lattice", t)
     foreign_edges(run)
     run.lap("foreign", t)
+
+
+def retry_headings(run: RobustRun) -> Iterator[float]:
+    """The headings (rad) tried when the first one's lines fail: the view's periodicity
+    (:func:`lattice_headings`), then the gradient votes on the smoothed view
+    (:func:`smoothed_headings`: strong noise can outvote thin grout), computed as needed."""
+    yield from lattice_headings(run)
+    yield from smoothed_headings(run)
 
 
 POLARITY_REASONS = frozenset({"no lines", "low contrast", "one family"})

@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 
+from tileviz.vision.robust.crossings import crossings_agree
 from tileviz.vision.robust.state import Fail, Line, RobustRun
 from tileviz.vision.robust.statistics import list_median
 
@@ -122,11 +123,10 @@ def check_lines(run: RobustRun, lines: list[list[Line]]) -> None:
         # falling off across the view cancels); a line unlike the others differs in both
         run.details["contrast_spread"] = min(
             run.details["contrast_spread"], spread([ln.contrast_grout for ln in every]))
-    if (
-        not widths
-        or max(widths) > st.width_ratio * min(widths) + st.width_slack
-        or run.details["contrast_spread"] > st.contrast_ratio
-    ):
+    if not widths or max(widths) > st.width_ratio * min(widths) + st.width_slack:
+        raise Fail("foreign line")
+    if run.details["contrast_spread"] > st.contrast_ratio and not (
+            run.inverted and crossings_agree(run, lines)):
         raise Fail("foreign line")
 
 

@@ -10,8 +10,8 @@ import numpy as np
 from tileviz.vision.robust import heading_kernel, kernel
 from tileviz.vision.robust.state import Fail, RobustRun
 
-__all__ = ["HEADING_BINS", "first_heading", "angles", "heading_votes_numpy", "lattice_headings",
-           "lattice_power", "voters"]
+__all__ = ["HEADING_BINS", "SMOOTHING", "first_heading", "angles", "heading_votes_numpy",
+           "lattice_headings", "lattice_power", "smoothed_headings", "voters"]
 
 
 def first_heading(run: RobustRun, dx: np.ndarray, dy: np.ndarray) -> float:
@@ -40,6 +40,31 @@ def first_heading(run: RobustRun, dx: np.ndarray, dy: np.ndarray) -> float:
     run.details["orientation_share"] = share
     return y0
 
+
+def smoothed_headings(run: RobustRun) -> list[float]:
+    """The votes of :func:`first_heading` again on the view smoothed by a Gaussian of each
+    :data:`SMOOTHING` std (px): headings (rad, modulo pi/2). Strong camera noise (and the
+    8 x 8 blocks of a JPEG) outvotes a thin grout line pixel by pixel; smoothing weakens the
+    noise's gradients far more than the grout's edges, which span several pixels."""
+    out = []
+    for sigma in SMOOTHING:
+        g = cv2.GaussianBlur(run.gray, (0, 0), sigma)
+        dx = cv2.Scharr(g, cv2.CV_16S, 1, 0)
+        dy = cv2.Scharr(g, cv2.CV_16S, 0, 1)
+        if kernel.AVAILABLE:
+            q = heading_kernel.heading_magnitudes(dx, dy)
+            thr = voters(q, run.st.heading_share)
+            if thr > 0:
+                out.append(heading_kernel.heading_votes(dx, dy, q, thr, HEADING_BINS)[0])
+        else:
+            found, y0, _ = heading_votes_numpy(dx, dy, run.st.heading_share, HEADING_BINS)
+            if found:
+                out.append(y0)
+    return out
+
+
+SMOOTHING = (1.0, 2.0)
+"""Gaussian stds (px) of :func:`smoothed_headings`."""
 
 HEADING_BINS = 90
 """Bins of the 4 phi histogram of :func:`first_heading` (4 degrees of 4 phi, 1 of phi)."""

@@ -102,7 +102,9 @@ def lattice_offsets(run: RobustRun, lines: list[list[Line]], y3: float) -> None:
 
 def missing_lines(run: RobustRun, k: int, ref: float, found: np.ndarray, y3: float) -> None:
     """Refuse when the lattice predicts a well-visible line of family k that was not found
-    (the signed offsets ``ref + j L ppm``, px)."""
+    (the signed offsets ``ref + j L ppm``, px) and the family's profile shows no dip there
+    either (within half the grout's width + 1.5 px of it): a grout line as light as the
+    tiles beside it, or cut short by the border, may give no line yet be seen."""
     n = family_normals(y3)[k]
     reach = 0.5 * math.hypot(run.w, run.h)
     # a dip is measured over its window and 4 plateau samples on each side
@@ -114,8 +116,20 @@ def missing_lines(run: RobustRun, k: int, ref: float, found: np.ndarray, y3: flo
     ch = chords(n, np.concatenate(([0.0], s - margin, s, s + margin)), run.w, run.h)
     need = run.st.min_chord * ch[0]
     visible = (ch[1:].reshape(3, -1) >= need).all(axis=0)
+    # the family's dips (the deepest sample of each, px offsets as ``s``): a grout line
+    # between two tiles of nearly its own shade (lighter grout beside light tiles) may be
+    # too shallow for a line, or too near the border of the view to be measured in parts,
+    # yet shows as a dip where the lattice puts it
+    dips = np.zeros(0)
+    proj = run.projection
+    if proj is not None:
+        c = run.centre[1] if k == 0 else run.centre[0]
+        dips = -(proj.peak[proj.fam == k] - proj.pad - c).astype(np.float64)
+    near = 0.5 * run.details["width"] + 1.5
     for sj in s[visible].tolist():
         if found.size == 0 or float(np.min(np.abs(found - sj))) > 0.25 * run.lp:
+            if dips.size and float(np.min(np.abs(dips - sj))) <= near:
+                continue
             raise Fail("inconsistent spacing")
 
 

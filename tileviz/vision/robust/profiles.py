@@ -355,13 +355,32 @@ def select_lines(run: RobustRun, lines: list[list[Line]]) -> list[list[Line]]:
     run.details["depth"] = deepest
     run.details["width"] = wref
     return [
-        [
+        distinct([
             ln
             for ln in fam
             if ln.depth >= run.st.rel_depth * deepest and ln.width <= 2.0 * wref + 2.0
-        ]
+        ])
         for fam in lines
     ]
+
+
+def distinct(fam: list[Line]) -> list[Line]:
+    """The lines of one family, each band once: a shallower dip beside a grout band (a
+    texture's, within its window) can be measured onto that band; of two lines whose parts'
+    median positions are within the wider one's half-depth width, the deeper is kept (in the
+    family's order)."""
+    if len(fam) < 2:
+        return fam
+    at = [list_median([p for p in ln.parts.tolist() if p == p] or [math.nan]) for ln in fam]
+    keep = [True] * len(fam)
+    for i in sorted(range(len(fam)), key=lambda i: -fam[i].depth):
+        if not keep[i]:
+            continue
+        for j in range(len(fam)):
+            if j != i and keep[j] and fam[j].depth <= fam[i].depth and (
+                    abs(at[j] - at[i]) <= max(fam[i].width, fam[j].width)):
+                keep[j] = False
+    return [ln for ln, k in zip(fam, keep, strict=True) if k]
 
 
 def nanmedian(a: np.ndarray) -> np.ndarray:

@@ -44,6 +44,11 @@ class RobustSettings:
     width_slack: float = 1.0
     contrast_ratio: float = 1.7
     """Lines may differ in contrast (depth / level) at most by this factor."""
+    crossing_ratio: float = 1.3
+    """Lines of lighter grout that differ in contrast beyond ``contrast_ratio`` (tiles of
+    strongly different shades under uneven light) are one grout when, beside every crossing
+    of two of them that the view holds, their depths differ at most by this factor
+    (:func:`~tileviz.vision.robust.crossings.crossings_agree`)."""
     foreign_length: float = 0.3
     """Straight edges off the lattice longer than this fraction of the smaller side refuse."""
     foreign_contrast: float = 0.35
