@@ -412,8 +412,9 @@ def main() -> int:
         "`bench/faults.py`; the guarantee and its hypotheses in `docs/guarantees.md`.",
         "Detection delay and recovery time are computed by the code behind the same columns of "
         "the evaluation table (`tileviz.evaluation.event_outcomes`): there, per scenario, over "
-        "long runs with several faults, for the autonomous localizer with recovery off "
-        "(`interval`) and on (`interval-recovery`, the `max_slip` below) "
+        "long runs with several faults, for the autonomous localizer with its fault model "
+        "(`interval`, the `model` rows below) and with recovery on instead "
+        "(`interval-recovery`, the `max_slip` below) "
         "([evaluation.md](evaluation.md), [eval/results.md](eval/results.md)). This page adds "
         "one fault at a time, more fault types, and the explanation of every wrong vouched "
         "frame.",

@@ -110,11 +110,12 @@ def test_the_compiled_part_measurement_is_the_numpy_one_bit_for_bit(
     (the profile from the integral image; its width, rise, contrast, centroid, midpoints,
     standard error) from the compiled kernels as from the numpy computation, so do every
     family's light-grout score, every profile's darkness, noise and dips, every dip's
-    measurement on its whole profile, the profiles and in-view spans of every warp, and whole
-    extractions agree field for field."""
+    measurement on its whole profile, where its parts lie and whether it is moved onto its
+    centre, the profiles and in-view spans of every warp, and whole extractions agree field
+    for field."""
     views = _floor_views(2)
     names = ("part_rows", "part_profiles", "grout_score", "profile_dips", "dip_rows",
-             "view_spans", "profile_arrays", "part_summary")
+             "view_spans", "profile_arrays", "part_summary", "part_layout", "dip_recentre")
     home = {name: projection_kernel if name in PROJECTION_KERNELS else kernel for name in names}
     compiled = {name: getattr(home[name], name) for name in names}
     seen: dict[str, list[tuple]] = {name: [] for name in names}
@@ -159,6 +160,17 @@ def test_the_compiled_part_measurement_is_the_numpy_one_bit_for_bit(
         for a, b in zip(compiled["part_summary"](*args), profiles.part_summary_numpy(*args),
                         strict=True):
             assert a.shape == b.shape and _bits(a) == _bits(b)
+    assert len(seen["part_layout"]) == len(seen["part_rows"])
+    for args in seen["part_layout"]:
+        for a, b in zip(compiled["part_layout"](*args), profiles.part_layout_numpy(*args),
+                        strict=True):
+            assert a.dtype == b.dtype and a.shape == b.shape and _bits(a) == _bits(b)
+    assert len(seen["dip_recentre"]) >= len(views)
+    assert any(compiled["dip_recentre"](*args)[1] for args in seen["dip_recentre"])
+    for args in seen["dip_recentre"]:
+        (peak, moved), (peak_np, moved_np) = (compiled["dip_recentre"](*args),
+                                              profiles.dip_recentre_numpy(*args))
+        assert moved == moved_np and np.array_equal(peak, peak_np)
     assert len(seen["profile_arrays"]) >= len(views)
     for args in seen["profile_arrays"]:
         for a, b in zip(compiled["profile_arrays"](*args), projection.profile_arrays_numpy(*args),

@@ -60,8 +60,10 @@ degrees):
   matches each level.
 - ``cpu_us_per_frame``: CPU time of the evaluating thread (``time.thread_time``) in the method's
   step alone, per frame, excluding vision and simulation. The methods take turns at being
-  stepped first after vision (frame k starts with method k mod 5), since the first one pays for
-  the caches vision leaves cold.
+  stepped first after vision (frame k starts with method k mod 6, in :data:`METHODS` order), since
+  the first one pays for the caches vision leaves cold; the cycle is fixed, so each method
+  otherwise follows the same one (``interval`` follows ``mcl-untuned``) and inherits the caches
+  that one leaves.
 
 Outputs in ``--out``: ``results.csv`` and ``results.md`` (the table), ``runs.csv`` (one row per run
 and method), ``coverage.png`` (containment per scenario and method) and ``error_<scenario>.png``

@@ -5,7 +5,9 @@ numpy counterpart in :mod:`~tileviz.vision.robust.profiles` computes: :func:`par
 (``part_rows_numpy``: plateaus, crossings, centroid and midpoints of every part profile),
 :func:`part_profiles` (``part_profiles_numpy``: the part profiles from the integral image),
 :func:`dip_rows` (``dip_rows_numpy``: every dip's depth, centre, window, parts and plateaus on
-its whole profile), :func:`part_summary` (each line's medians and parts). The projection's
+its whole profile), :func:`dip_recentre` (a wide band's dips moved onto their centres),
+:func:`part_layout` (``part_layout_numpy``: where each part lies), :func:`part_summary` (each
+line's medians and parts). The projection's
 kernels (spans, profiles, dips, the light-grout test) are in
 :mod:`~tileviz.vision.robust.projection_kernel`, the first heading's in
 :mod:`~tileviz.vision.robust.heading_kernel`.
@@ -39,7 +41,8 @@ try:
 except ImportError:  # numba is a dependency; an older environment keeps the numpy path
     numba = None  # type: ignore[assignment]
 
-__all__ = ["AVAILABLE", "compiled", "dip_rows", "part_profiles", "part_rows", "part_summary"]
+__all__ = ["AVAILABLE", "compiled", "dip_recentre", "dip_rows", "part_layout", "part_profiles",
+           "part_rows", "part_summary"]
 
 AVAILABLE = numba is not None
 
@@ -489,3 +492,56 @@ def part_summary(width: np.ndarray, rise: np.ndarray, contrast: np.ndarray, cen:
         hi_lev = _max(lev_l[i], lev_r[i])
         stepr[i] = (hi_lev - lo_lev) / _max(hi_lev, 1e-9)
     return wmed, rmed, cmed, stepr, parts, wpart, sigma, spread
+
+
+@compiled
+def dip_recentre(c0: np.ndarray, half: np.ndarray, peak: np.ndarray, r: int, first: int,
+                 last: int) -> tuple[np.ndarray, bool]:
+    """The dips' peaks moved onto their half-depth centres where the window of ``r`` samples
+    does not reach the plateaus (``|c0| + half + 4 > r``), kept within [``first``, ``last``],
+    and whether any moved: :func:`~tileviz.vision.robust.profiles.dips`' numpy steps compiled
+    (bit-identical)."""
+    m = c0.size
+    out = peak.copy()
+    moved = False
+    for i in range(m):
+        reach = abs(c0[i]) + half[i] + 4.0
+        if math.isfinite(reach) and reach > r:
+            off = np.intp(np.rint(c0[i]))
+            if off != 0:
+                moved = True
+            out[i] = peak[i] + off
+    if moved:
+        for i in range(m):
+            out[i] = min(max(out[i], first), last)
+    return out, moved
+
+
+@compiled
+def part_layout(fam: np.ndarray, u_lo: np.ndarray, step: np.ndarray, x0: float, y0: float,
+                cols: np.ndarray, pad: int, lim: int, c0: np.ndarray, half: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                           np.ndarray]:
+    """:func:`~tileviz.vision.robust.profiles.part_layout_numpy` compiled (bit-identical): the
+    parts' sample bounds, lengths and mean tangent coordinates, every window sample's warp row
+    or column, and each part's dip centre and half window."""
+    m = fam.size
+    n = cols.shape[1]
+    idx = np.empty((m, PARTS + 1), np.intp)
+    count = np.empty((m, PARTS), np.intp)
+    tpart = np.empty((m, PARTS))
+    line = np.empty((m, n), np.intp)
+    cj = np.empty(m * PARTS)
+    hj = np.empty(m * PARTS)
+    for i in range(m):
+        along = x0 if fam[i] == 0 else y0
+        for k in range(PARTS + 1):
+            idx[i, k] = np.intp(np.ceil(along + (u_lo[i] + step[i] * float(k))))
+        for k in range(PARTS):
+            count[i, k] = idx[i, k + 1] - idx[i, k]
+            tpart[i, k] = 0.5 * float(idx[i, k] + idx[i, k + 1] - 1) - along
+            cj[i * PARTS + k] = c0[i]
+            hj[i * PARTS + k] = half[i]
+        for t in range(n):
+            line[i, t] = min(max(cols[i, t] - pad, 0), lim)
+    return idx, count, tpart, line, cj, hj

@@ -14,9 +14,10 @@ from tileviz.vision.robust.projection import Projection, project
 from tileviz.vision.robust.state import PARTS, Line, RobustRun
 from tileviz.vision.robust.statistics import list_median
 
-__all__ = ["centroid", "crossings", "dip_rows_numpy", "dips", "grout_contrast", "measure",
-           "measure_parts", "midpoints", "nanmedian", "part_profiles_numpy", "part_rows_numpy",
-           "part_summary_numpy", "plateaus", "select_lines"]
+__all__ = ["centroid", "crossings", "dip_recentre_numpy", "dip_rows_numpy", "dips",
+           "grout_contrast", "measure", "measure_parts", "midpoints", "nanmedian",
+           "part_layout_numpy", "part_profiles_numpy", "part_rows_numpy", "part_summary_numpy",
+           "plateaus", "select_lines"]
 
 
 def measure(
@@ -52,19 +53,18 @@ def dips(run: RobustRun, proj: Projection, *, every: bool = False) -> list[list[
     jj = np.arange(-r, r + 1)
     jf = jj.astype(np.float64)
     rows_of = kernel.dip_rows if kernel.AVAILABLE else dip_rows_numpy
-    for again in (True, False):
+    recentre = kernel.dip_recentre if kernel.AVAILABLE else dip_recentre_numpy
+    p0, depth, c0, half, u_lo, step, lev_l, lev_r = rows_of(
+        proj.prof, proj.dark, proj.lo, proj.hi, proj.fam, pk, r)
+    # The deepest sample of a wide, flat-bottomed band may lie at either of its edges, half
+    # the band off its centre, where the band's far edge and plateau fall outside the window
+    # (its parts could not be measured, :func:`part_rows_numpy`): such a dip is measured
+    # again centred on its half-depth crossings (kept within the profile's data, so the
+    # window stays within its padding).
+    pk, moved = recentre(c0, half, pk, r, proj.pad, proj.prof.shape[1] - 1 - proj.pad)
+    if moved:
         p0, depth, c0, half, u_lo, step, lev_l, lev_r = rows_of(
             proj.prof, proj.dark, proj.lo, proj.hi, proj.fam, pk, r)
-        # The deepest sample of a wide, flat-bottomed band may lie at either of its edges,
-        # half the band off its centre, where the band's far edge and plateau fall outside
-        # the window (its parts could not be measured, :func:`part_rows_numpy`): such a dip
-        # is measured again centred on its half-depth crossings.
-        reach = np.abs(c0) + half + 4.0
-        off = np.where(np.isfinite(reach) & (reach > r), np.rint(c0), 0.0).astype(np.intp)
-        if not again or not off.any():
-            break
-        # (kept within the profile's data, so the window stays within its padding)
-        pk = np.clip(pk + off, proj.pad, proj.prof.shape[1] - 1 - proj.pad)
     cols = pk[:, None] + jj[None, :]  # padded profile index
     usable = np.flatnonzero(np.isfinite(c0) & (step >= run.st.min_part / 2.0))
     if usable.size == 0:
@@ -123,6 +123,40 @@ def dip_rows_numpy(
     return p0, depth, c0, half, u_lo, step, lev_l, lev_r
 
 
+def dip_recentre_numpy(c0: np.ndarray, half: np.ndarray, peak: np.ndarray, r: int, first: int,
+                       last: int) -> tuple[np.ndarray, bool]:
+    """The dips' peaks (padded indices) moved by their half-depth centres ``c0`` (rounded)
+    where the window of ``r`` samples does not reach the plateaus (``|c0| + half + 4 > r``),
+    kept within [``first``, ``last``], and whether any moved. :func:`~tileviz.vision.robust.
+    kernel.dip_recentre` is the same computation compiled (bit-identical)."""
+    reach = np.abs(c0) + half + 4.0
+    off = np.where(np.isfinite(reach) & (reach > r), np.rint(c0), 0.0).astype(np.intp)
+    if not off.any():
+        return peak, False
+    return np.clip(peak + off, first, last), True
+
+
+def part_layout_numpy(
+    fam: np.ndarray, u_lo: np.ndarray, step: np.ndarray, x0: float, y0: float,
+    cols: np.ndarray, pad: int, lim: int, c0: np.ndarray, half: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Where the PARTS parts of m dips lie (family ``fam``, parts from ``u_lo`` in steps of
+    ``step`` along the tangent axis, whose u = 0 is warp column ``x0`` (family 1) or row
+    ``y0``): each part's sample bounds ``idx`` (m, PARTS + 1; part j is [idx[j], idx[j + 1])),
+    its length ``count`` and mean tangent coordinate ``tpart`` (m, PARTS), the warp row or
+    column of every window sample (padded profile indices ``cols`` less ``pad``, within
+    [0, ``lim``]), and per part row the dip's centre ``c0`` and half window ``half``.
+    :func:`~tileviz.vision.robust.kernel.part_layout` is the same computation compiled
+    (bit-identical)."""
+    along = np.where(fam == 0, x0, y0)  # warp coordinate of u = 0
+    edges_u = u_lo[:, None] + step[:, None] * np.arange(PARTS + 1)[None, :]
+    idx = np.ceil(along[:, None] + edges_u).astype(np.intp)
+    count = np.diff(idx, axis=1)  # samples in each part, (m, PARTS)
+    tpart = 0.5 * (idx[:, :-1] + idx[:, 1:] - 1) - along[:, None]
+    line = np.clip(cols - pad, 0, lim)  # warp row / column
+    return idx, count, tpart, line, np.repeat(c0, PARTS), np.repeat(half, PARTS)
+
+
 def measure_parts(
     run: RobustRun,
     proj: Projection,
@@ -150,18 +184,13 @@ def measure_parts(
     u_lo, step = u_lo[rows], step[rows]
     lev_l, lev_r = lev_l[rows], lev_r[rows]
     x0, y0 = run.centre
-    along = np.where(fam == 0, x0, y0)  # warp coordinate of u = 0
-    edges_u = u_lo[:, None] + step[:, None] * np.arange(PARTS + 1)[None, :]
-    idx = np.ceil(along[:, None] + edges_u).astype(np.intp)
-    count = np.diff(idx, axis=1)  # samples in each part, (m, PARTS)
-    tpart = 0.5 * (idx[:, :-1] + idx[:, 1:] - 1) - along[:, None]
-    line = np.clip(cols - proj.pad, 0, integ.shape[0] + integ.shape[1])  # warp row / column
+    layout = kernel.part_layout if kernel.AVAILABLE else part_layout_numpy
+    idx, count, tpart, line, cj, hj = layout(fam, u_lo, step, x0, y0, cols, proj.pad,
+                                             integ.shape[0] + integ.shape[1], c0, half)
     if kernel.AVAILABLE:
         pp = kernel.part_profiles(integ.ravel(), integ.shape[1], fam, line, idx, mean, p0)
     else:
         pp = part_profiles_numpy(integ, fam, line, idx, mean, p0)
-    cj = np.repeat(c0, PARTS)
-    hj = np.repeat(half, PARTS)
     meas_rows = kernel.part_rows if kernel.AVAILABLE else part_rows_numpy
     width, rise, contrast, cen, mids, msig = meas_rows(pp, jf, cj, hj, r)
     summary = kernel.part_summary if kernel.AVAILABLE else part_summary_numpy
@@ -171,16 +200,20 @@ def measure_parts(
     if run.inverted:
         gmed = nanmedian(grout_contrast(pp, jf, cj, hj, contrast).reshape(rows.size, PARTS).T)
     out: list[list[Line]] = [[], []]
+    # (Python floats and ints of the arrays in one conversion each)
+    fam_l, depth_l, chord_l = fam.tolist(), depth.tolist(), proj.total[fam, pk].tolist()
+    wmed_l, rmed_l, stepr_l = wmed.tolist(), rmed.tolist(), stepr.tolist()
+    cmed_l, gmed_l = cmed.tolist(), gmed.tolist()
     for i in np.flatnonzero(np.isfinite(parts).any(axis=1)).tolist():
-        out[int(fam[i])].append(
+        out[fam_l[i]].append(
             Line(
-                depth=float(depth[i]),
-                width=float(wmed[i]),
-                rise=float(rmed[i]),
-                step=float(stepr[i]),
-                contrast=float(cmed[i]),
-                contrast_grout=float(gmed[i]),
-                chord=float(proj.total[fam[i], pk[i]]),
+                depth=depth_l[i],
+                width=wmed_l[i],
+                rise=rmed_l[i],
+                step=stepr_l[i],
+                contrast=cmed_l[i],
+                contrast_grout=gmed_l[i],
+                chord=chord_l[i],
                 parts=parts[i],
                 tpart=tpart[i],
                 wpart=wpart[i],
