@@ -8,6 +8,7 @@ import math
 import sys
 from pathlib import Path
 
+import cv2
 import numpy as np
 import pytest
 
@@ -75,6 +76,21 @@ def test_each_floor_family_is_read_within_its_declared_bound(family: str) -> Non
                                 "edges rise 5.7 px (was blurred)"),
         ("degraded", 5_000_253, "a 13 px band of light grout under 1.8 px of blur: its edges "
                                 "rise 5.1 px (was blurred)"),
+        ("photo", 6_000_079, "the brick photograph's mortar lines give dips off the tile "
+                             "period, narrower and weaker than the grout's (was a foreign "
+                             "line)"),
+        ("photo", 6_000_306, "a mortar dip 12 px off the tile period (was inconsistent "
+                             "spacing)"),
+        ("photo", 6_000_441, "mortar dips off the tile period, 2.7 x narrower than the grout "
+                             "(was a foreign line)"),
+        ("photo", 6_000_004, "a mortar edge running into the grout band at the border of the "
+                             "view, the grout's centre line beyond it (was a foreign line)"),
+        ("photo", 6_000_183, "a mortar edge leaving the grout band near the border, the "
+                             "grout's centre line beside it out of view (was a step edge)"),
+        ("photo", 174, "2 px grout that the brick photograph's light mortar brightens where "
+                       "it meets it, there as all along the line (was a step edge)"),
+        ("photo", 127, "the same on 2.9 px grout (was a step edge)"),
+        ("degraded", 4_000_442, "the same under noise and JPEG (was a foreign line)"),
         ("degraded", 49, "light grout on tiles 150 levels apart under a lighting gradient: "
                          "the lines' contrasts differ by more than 1.7 x, their depths "
                          "beside the crossings agree (was foreign line)"),
@@ -153,6 +169,35 @@ def test_a_cable_of_the_grouts_own_gray_on_brick_floors_is_never_read_outside_it
             assert max(abs(e1), abs(e2)) <= res.observation.position_error, (seed, ang)
             assert abs(e3) <= res.observation.heading_error, (seed, ang)
     assert refused >= 11
+
+
+@pytest.mark.parametrize("seed", [6_000_079, 6_000_441])
+@pytest.mark.parametrize("bag", [1, 2])
+@pytest.mark.parametrize("width", [3, 5])
+def test_a_cable_along_the_grout_off_the_tile_period_is_refused(seed: int, bag: int,
+                                                                 width: int) -> None:
+    """Brick photographs whose weak mortar dips off the tile period are dropped at the line
+    selection (the lattice's periodicity): a cable of the grout's own gray, ``width`` px wide,
+    laid across the whole view along one grout family half a tile period off its lines, is as
+    strong as the grout and must still be refused."""
+    rng = np.random.default_rng([seed, FAMILY_SALT["photo"], 0])
+    spec = floorgen.draw_floor("photo", rng)
+    cx, cy, th = floorgen.draw_view(rng)
+    img = floorgen.render(spec, cx, cy, th, rng)
+    cam = CameraConfig(ppm=spec.ppm, width=spec.width, height=spec.height, offset=(0.0, 0.0))
+    vision = VisionConfig(extractor="robust")
+    clean = extract(img, camera=cam, tile_size=spec.tile_size, vision=vision)
+    assert clean.accepted, clean.reason
+    x1, y1, x2, y2 = clean.segments[clean.bags.tolist().index(bag)]
+    along = np.array([x2 - x1, y2 - y1])
+    normal = np.array([-along[1], along[0]]) / math.hypot(*along)
+    mid = np.array([x1, y1]) + 0.5 * spec.tile_size * spec.ppm * normal
+    a = tuple(int(v) for v in np.rint(mid - along))
+    b = tuple(int(v) for v in np.rint(mid + 2.0 * along))
+    view = img.copy()
+    cv2.line(view, a, b, (int(spec.grout_shade),) * 3, width, cv2.LINE_AA)
+    res = extract(view, camera=cam, tile_size=spec.tile_size, vision=vision)
+    assert not res.accepted, res.reason
 
 
 @pytest.mark.parametrize("corruption", floorgen.CORRUPTIONS)

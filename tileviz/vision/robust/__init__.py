@@ -2,10 +2,11 @@
 
 Modules, one per job: :mod:`.settings` (thresholds), :mod:`.state` (one frame's state),
 :mod:`.statistics` (step 1), :mod:`.heading` (step 2), :mod:`.projection` (step 3),
-:mod:`.profiles` (step 4), :mod:`.fit` (step 5 and the line checks), :mod:`.lattice` (spacing,
-the observation), :mod:`.bound` (the view's error bound), :mod:`.foreign` (the last checks) and
-:mod:`.extractor` (the entry point, the result and the stage images); the compiled loops are in
-:mod:`.kernel`, :mod:`.projection_kernel` and :mod:`.heading_kernel`.
+:mod:`.profiles` (step 4), :mod:`.periodic` (step 4's tile period), :mod:`.fit` (step 5 and
+the line checks), :mod:`.lattice` (spacing, the observation), :mod:`.bound` (the view's error
+bound), :mod:`.foreign` (the last checks) and :mod:`.extractor` (the entry point, the result
+and the stage images); the compiled loops are in :mod:`.kernel`, :mod:`.projection_kernel`
+and :mod:`.heading_kernel`.
 
 How it measures (vectorised numpy/OpenCV; timings in ``bench/bench_vision.py``):
 
@@ -26,7 +27,8 @@ How it measures (vectorised numpy/OpenCV; timings in ``bench/bench_vision.py``):
    three times, only seeds the search); the 25 and 75 % midpoints and the part's roughness give
    the part its own error bound; its depth, contrast (depth / level), half-depth width, 20-80 %
    edge rise and the step between its two sides are measured too. Dips much wider than the
-   strong ones (a shadow, a stain) are not lines.
+   strong ones (a shadow, a stain) are not lines, nor are dips off the tile period that are
+   weak beside the lattice's lines (a texture's lines inside the tiles, :mod:`.periodic`).
 5. A least-squares fit over every line's part positions gives the residual tilt of the warp
    (one slope shared by all lines, one intercept per line): the heading correction, each
    line's offset at the image centre, and standard errors from the scatter of the parts. A

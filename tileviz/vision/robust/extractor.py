@@ -20,6 +20,7 @@ from tileviz.vision.robust.fit import check_lines, fit_tilt
 from tileviz.vision.robust.foreign import foreign_edges
 from tileviz.vision.robust.heading import first_heading, lattice_headings, smoothed_headings
 from tileviz.vision.robust.lattice import clip_line, lattice_offsets
+from tileviz.vision.robust.periodic import on_lattice
 from tileviz.vision.robust.profiles import measure, select_lines
 from tileviz.vision.robust.settings import DEFAULT_SETTINGS, RobustSettings
 from tileviz.vision.robust.state import Fail, Line, RobustRun
@@ -183,7 +184,7 @@ def read_lines(run: RobustRun, y3: float, t: float) -> tuple[list[list[Line]], f
     heading and the time (perf_counter) after the "profiles" lap. Sets ``run.lines`` and
     ``run.y3``."""
     for attempt in range(3):
-        lines = select_lines(run, measure(run, y3, attempt))
+        lines = on_lattice(run, select_lines(run, measure(run, y3, attempt)))
         # a window too narrow for the grout (a wide band): measure again with a wider one
         width = run.details.get("width", math.nan) if lines[0] or lines[1] else math.nan
         if math.isfinite(run.unmeasured_width):
@@ -195,7 +196,7 @@ def read_lines(run: RobustRun, y3: float, t: float) -> tuple[list[list[Line]], f
             need = min(int(math.ceil(1.5 * width + 12.0)), need)
         if need > run.window:
             run.window = need
-            lines = select_lines(run, measure(run, y3, attempt + 1))
+            lines = on_lattice(run, select_lines(run, measure(run, y3, attempt + 1)))
         tilt = fit_tilt(run, lines)
         t = run.lap("profiles", t)
         y3 += tilt

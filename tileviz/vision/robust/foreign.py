@@ -222,7 +222,8 @@ def ends(run: RobustRun, px: float, py: float, dx: float, dy: float, band: float
     - Where the line meets the grout's centre line, the grout's gray level beside the line
       (:func:`straddle`) tells: an object crossing the grout covers it on one side (a cable,
       a box) or darkens it (a shadow), so the level varies there by more than
-      :data:`STRADDLE_SIGMAS` x the image noise + :data:`STRADDLE_LEVELS` (False); a
+      :data:`STRADDLE_SIGMAS` x the image noise + :data:`STRADDLE_LEVELS` and more than the
+      grout varies by itself elsewhere on its line (:func:`grout_variation`) (False); a
       texture's edge stops at the grout and leaves it alike (True when both sides of the
       crossing are read and the edge is not seen beyond the band). Where the line crosses
       the grout at under :data:`STRADDLE_ONE_SIDED`, or one side only is read, the far side
@@ -237,10 +238,11 @@ def ends(run: RobustRun, px: float, py: float, dx: float, dy: float, band: float
       beyond the band; else True when the band runs to the border of the view or the far
       side is in view (6 steps or more); else (it leaves the band within 6 steps of the
       border or of another band) the grout's core beside its pass through the band
-      (:func:`alongside`) must not vary by more than that limit and be conclusive, as where a
-      crossing is read on one side only. The grout cannot be read where the line meets it
-      (within 0.05 rad of the grout, or the crossing out of the view): True when the far side
-      is in view without the edge, else False.
+      (:func:`pass_unchanged`) must not vary by more than that limit and be conclusive, as
+      where a crossing is read on one side only. The grout cannot be read where the line
+      meets it (within 0.05 rad of the grout, or the crossing out of the view): True when the
+      far side is in view without the edge, else the grout's core beside the line's pass
+      through the band decides in the same way (:func:`pass_unchanged`).
 
     Assumed: an object whose gray level matches the grout's where it crosses it (within
     :data:`CONCLUSIVE` x the straddle's limit when the edge is seen beyond the band or the
@@ -290,24 +292,22 @@ def ends(run: RobustRun, px: float, py: float, dx: float, dy: float, band: float
         if i1 == xs.size or n2 >= 6:
             return True
         # it leaves the band within 6 steps of the border or of the next band: the grout
-        # beside its pass through the band (and 10 steps either side) decides, as at a
-        # crossing seen on one side only
-        j0, j1 = max(i0 - 10, 0), min(i1 + 10, xs.size)
-        core = alongside(run, xs[j0:j1], ys[j0:j1], normals[k], shift[k])
-        if core is None:
-            return False
-        limit = straddle_limit(run)
-        return (float(core.max() - core.min()) <= limit
-                and conclusive(run, px, py, dx, dy, float(np.median(core)), limit))
+        # beside its pass through the band decides, as at a crossing seen on one side only
+        return pass_unchanged(run, xs, ys, i0, i1, px, py, dx, dy, normals[k], shift[k])
     read = straddle(run, px, py, dx, dy, normals[k], shift[k])
     if read is None:
-        return n2 >= 6 and not far
-    core, both = read
+        if n2 >= 6 and not far:
+            return True
+        # the crossing cannot be read (the line meets the grout within STRADDLE_PARALLEL of
+        # it, or where it lies out of view): the grout's core beside the line's whole pass
+        # through the band decides, as where the line does not reach the core
+        return pass_unchanged(run, xs, ys, i0, i1, px, py, dx, dy, normals[k], shift[k])
+    core, both, own = read
     steep = both and abs(normals[k][0] * dx + normals[k][1] * dy) >= STRADDLE_ONE_SIDED
     if not far and n2 >= 6 and not steep:
         return True  # as where the grout cannot be read: the far side is in view, unseen
     limit = straddle_limit(run)
-    if float(core.max() - core.min()) > limit:
+    if float(core.max() - core.min()) > (max(limit, own) if math.isfinite(own) else limit):
         return False  # the grout's level changes where the line crosses it
     if both and not far:
         return True
@@ -317,6 +317,28 @@ def ends(run: RobustRun, px: float, py: float, dx: float, dy: float, band: float
     return conclusive(run, px, py, dx, dy, float(np.median(core)), limit)
 
 
+def pass_unchanged(run: RobustRun, xs: np.ndarray, ys: np.ndarray, i0: int, i1: int,
+                   px: float, py: float, dx: float, dy: float, n: tuple[float, float],
+                   sh: float) -> bool:
+    """Whether the grout of the family with unit normal ``n`` and offset ``sh`` (px) stays
+    alike beside a straight edge's pass through its band (the steps ``xs``, ``ys`` from
+    ``i0`` to ``i1``, 10 steps more either side), for the edge ending at (px, py) along the
+    unit vector (dx, dy): the grout's core levels beside the pass (:func:`alongside`) vary by
+    at most :func:`straddle_limit` and the pass is :func:`conclusive` (anything seen beside
+    the edge would have changed the grout's level had it covered or shaded the grout). An
+    object reaching the grout in that stretch covers or darkens its core; a texture's edge
+    beside the grout leaves it alike."""
+    j0, j1 = max(i0 - 10, 0), min(i1 + 10, xs.size)
+    core = alongside(run, xs[j0:j1], ys[j0:j1], n, sh)
+    if core is None:
+        # the grout's centre line beside the pass lies out of view: the object cannot have
+        # covered a grout core in view (a line whose core is out of view is not measured)
+        return j1 - j0 >= 3
+    limit = straddle_limit(run)
+    return (float(core.max() - core.min()) <= limit
+            and conclusive(run, px, py, dx, dy, float(np.median(core)), limit))
+
+
 STRADDLE_SIGMAS = 3.0
 STRADDLE_LEVELS = 4.0
 """An edge crosses the grout when the grout's gray level differs on its two sides
@@ -324,7 +346,7 @@ STRADDLE_LEVELS = 4.0
 
 
 def straddle(run: RobustRun, px: float, py: float, dx: float, dy: float,
-             n: tuple[float, float], sh: float) -> tuple[np.ndarray, bool] | None:
+             n: tuple[float, float], sh: float) -> tuple[np.ndarray, bool, float] | None:
     """The grout's gray levels where the line through (px, py) along (dx, dy) crosses the
     grout's centre line (the next line ahead of the family with unit normal ``n`` and offset
     ``sh``, px): the centre line's gray levels (bilinear) at 0..9 px from the line on both
@@ -332,10 +354,12 @@ def straddle(run: RobustRun, px: float, py: float, dx: float, dy: float,
     An object crossing the grout covers it (a cable, a box) or darkens it (a shadow) near the
     line; a texture's edge that stops at the grout leaves it alike.
 
-    Returns the samples (median of 3 neighbours) and whether both sides were read (3 samples
-    or more each); one side is enough when the line crosses the grout at
-    :data:`STRADDLE_ONE_SIDED` or more. None when the line runs within
-    :data:`STRADDLE_PARALLEL` of the grout or neither side can be read."""
+    Returns the samples (median of 3 neighbours), whether both sides were read (3 samples
+    or more each; one side is enough when the line crosses the grout at
+    :data:`STRADDLE_ONE_SIDED` or more) and the grout's own variation over as long a stretch
+    elsewhere on its line (:func:`grout_variation`, gray levels, NaN when not read). None
+    when the line runs within :data:`STRADDLE_PARALLEL` of the grout or neither side can be
+    read."""
     cx, cy = (run.w - 1) / 2.0, (run.h - 1) / 2.0
     nd = n[0] * dx + n[1] * dy
     if abs(nd) < STRADDLE_PARALLEL:
@@ -355,7 +379,44 @@ def straddle(run: RobustRun, px: float, py: float, dx: float, dy: float,
     both = min(sides) >= 3
     if not both and (max(sides) < 3 or abs(nd) < STRADDLE_ONE_SIDED):
         return None
-    return gray_levels(run, xs[ok], ys[ok]), both
+    return gray_levels(run, xs[ok], ys[ok]), both, grout_variation(run, qx, qy, g, 1.0 / abs(nd))
+
+
+def grout_variation(run: RobustRun, qx: float, qy: float, g: tuple[float, float],
+                    step: float) -> float:
+    """How much the grout's gray level varies by itself over a stretch as long as a straddle's
+    (19 samples ``step`` px apart along the unit direction ``g``) elsewhere on the same grout
+    centre line through the crossing (qx, qy): the largest range of the stretches in view that
+    keep :data:`VARIATION_CLEAR` samples clear of the crossing's own stretch (an object's
+    other edge lies within them), NaN when fewer than :data:`VARIATION_STRETCHES`. A thin
+    grout band takes in the texture beside it (the mortar of a brick photograph brightens it
+    where it meets it) and a lighting gradient runs along it, all along the line; an object
+    changes it only where it crosses it (a cable) or on one side of that crossing (a box, a
+    shadow)."""
+    reach = math.hypot(run.w, run.h)
+    u = np.arange(-math.floor(reach / step), math.floor(reach / step) + 1) * step
+    xs = qx + u * g[0]
+    ys = qy + u * g[1]
+    idx = np.flatnonzero((xs >= 0) & (xs <= run.w - 1) & (ys >= 0) & (ys <= run.h - 1))
+    if idx.size < 21:
+        return math.nan
+    lv = gray_levels(run, xs[idx], ys[idx])  # at the samples idx[1:-1]
+    # every run of 19 consecutive samples (the line is one interval in view) clear of the
+    # crossing's samples -9..9 about u = 0 by VARIATION_CLEAR more
+    win = np.lib.stride_tricks.sliding_window_view(lv, 19)
+    first = idx[1 : 1 + win.shape[0]]
+    zero = int(np.argmin(np.abs(u)))
+    clear = 9 + VARIATION_CLEAR
+    far = (first + 18 < zero - clear) | (first > zero + clear)
+    if int(far.sum()) < VARIATION_STRETCHES:
+        return math.nan
+    return float((win.max(axis=1) - win.min(axis=1))[far].max())
+
+
+VARIATION_CLEAR = 19
+VARIATION_STRETCHES = 10
+"""The grout's own variation (:func:`grout_variation`) is read on at least 10 stretches of its
+line, each at least 19 samples clear of the crossing's."""
 
 
 STRADDLE_PARALLEL = 0.05
@@ -405,22 +466,53 @@ def conclusive(run: RobustRun, px: float, py: float, dx: float, dy: float, grout
     the grout's by that much (a cable or a box covering the grout with its own level), and,
     when the two sides' levels (5..8 px each side, beyond a ridge beside the edge) differ by
     more than ``limit`` (a step edge), so does the grout darkened by their ratio (a shadow
-    edge darkens the grout as it darkens the tiles)."""
+    edge darkens the grout as it darkens the tiles). Only what is seen counts: samples out of
+    the view, and samples on the grout itself (:func:`on_grout`: an edge beside the grout
+    sees it within 8 px), are not the object's and are left out (a level needs 4 samples);
+    a side whose levels 5..8 px off are all left out is read at 3..4 px off
+    (:func:`side_level`); False when no level, or no level of a side, is seen."""
     t = np.arange(-16.0, -1.0)
     o = np.arange(-8.0, 9.0)
     xs = px + t[None, :] * dx - o[:, None] * dy
     ys = py + t[None, :] * dy + o[:, None] * dx
-    ok = ((xs >= 0) & (xs <= run.w - 1) & (ys >= 0) & (ys <= run.h - 1)).all(axis=0)
-    if int(ok.sum()) < 4:
-        return False
-    v = cv2.remap(run.gray, xs[:, ok].astype(np.float32), ys[:, ok].astype(np.float32),
+    ok = (xs >= 0) & (xs <= run.w - 1) & (ys >= 0) & (ys <= run.h - 1)
+    v = cv2.remap(run.gray, xs.astype(np.float32), ys.astype(np.float32),
                   cv2.INTER_LINEAR).astype(np.float64)
-    lv = np.median(v, axis=1)
+    v[~ok | on_grout(run, xs, ys)] = np.nan
+    count = np.isfinite(v).sum(axis=1)
+    seen = count >= 4
+    lv = np.full(o.size, np.nan)
+    lv[seen] = np.nanmedian(v[seen], axis=1)
     need = CONCLUSIVE * limit
-    if float(np.abs(lv - grout).min()) <= need:
+    if not seen.any() or float(np.abs(lv[seen] - grout).min()) <= need:
         return False
-    a, b = float(np.median(lv[o >= 5])), float(np.median(lv[o <= -5]))
+    a, b = side_level(lv, seen, o), side_level(lv, seen, -o)
+    if not (math.isfinite(a) and math.isfinite(b)):
+        return False
     return abs(a - b) <= limit or grout * abs(a - b) / max(a, b, 1e-9) > need
+
+
+def side_level(lv: np.ndarray, seen: np.ndarray, o: np.ndarray) -> float:
+    """The level of one side of an edge (gray levels; NaN when none is seen): the median of
+    the levels ``lv`` seen (``seen``) at 5..8 px off (``o``, px, positive on that side), else
+    (those lie on the grout or out of view) of those seen at 3..4 px off."""
+    for side in (seen & (o >= 5), seen & (o >= 3)):
+        if side.any():
+            return float(np.median(lv[side]))
+    return math.nan
+
+
+def on_grout(run: RobustRun, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
+    """Which points (xs, ys) (px) lie on the grout the observation predicts: within half the
+    grout's half-depth width + 2 px (its edges' blur) of a grout line of either family."""
+    assert run.y is not None
+    cx, cy = (run.w - 1) / 2.0, (run.h - 1) / 2.0
+    reach = 0.5 * run.details["width"] + 2.0
+    out = np.zeros(xs.shape, bool)
+    for n, yk in zip(family_normals(run.y[2]), run.y[:2], strict=True):
+        off = n[0] * (xs - cx) + n[1] * (ys - cy) + yk * run.ppm
+        out |= np.abs(off - run.lp * np.rint(off / run.lp)) <= reach
+    return out
 
 
 CONCLUSIVE = 2.0
