@@ -104,6 +104,9 @@ def test_each_floor_family_is_read_within_its_declared_bound(family: str) -> Non
                          "spacing)"),
         ("shade_steps", 6_000_051, "light grout beside a light tile at the border: a dip, no "
                                    "line (was inconsistent spacing)"),
+        ("coarse", 7_000_311, "0.9 px grout on 1.5 m tiles covers about 1.4 % of the view: "
+                              "its 2-98 % gray range was a blank floor's (was constant "
+                              "image)"),
     ],
 )
 def test_views_once_refused_are_read_within_their_bound(family: str, seed: int, why: str) -> None:
@@ -224,3 +227,20 @@ def test_glare_saturates_the_sensor_and_is_refused_as_glare() -> None:
         assert int(img.min(axis=2).max()) == 255, seed
         assert run_view(seed, "plain", "glare")["reason"] == "glare", seed
     assert tints == {0, 1}
+
+
+@pytest.mark.parametrize("sigma", [0.0, 1.0, 1.4])
+def test_a_blank_floor_is_a_constant_image_and_one_thin_line_is_not(sigma: float) -> None:
+    """A blank frame under camera noise (up to 1.4 gray levels) is refused as ``constant
+    image``; the same frame crossed by one 1 px dark line is not (it has structure, and is
+    refused for what it lacks: a second family)."""
+    rng = np.random.default_rng(7)
+    blank = np.clip(180.0 + rng.normal(0.0, sigma, (240, 320)), 0, 255).astype(np.uint8)
+    cam = CameraConfig(ppm=120.0, width=320, height=240, offset=(0.0, 0.0))
+    vision = VisionConfig(extractor="robust")
+    res = extract(blank, camera=cam, tile_size=1.5, vision=vision)
+    assert res.reason == "constant image"
+    lined = blank.copy()
+    lined[:, 150] = 80
+    res = extract(lined, camera=cam, tile_size=1.5, vision=vision)
+    assert not res.accepted and res.reason != "constant image", res.reason

@@ -18,11 +18,11 @@ def gray_statistics(run: RobustRun) -> None:
     hist = cv2.calcHist([run.gray], [0], None, [256], [0, 256]).ravel()
     cdf = np.cumsum(hist)
     n = float(cdf[-1])
-    lo = float(np.searchsorted(cdf, 0.02 * n))
-    hi = float(np.searchsorted(cdf, 0.98 * n))
+    lo, hi, thin_lo, thin_hi = (float(v) for v in np.searchsorted(
+        cdf, np.array([0.02, 0.98, 0.002, 0.998]) * n))
     run.mean = float(np.dot(hist, np.arange(256))) / n
     run.details["gray_range"] = hi - lo
-    if hi - lo < st.min_range:
+    if hi - lo < st.min_range and thin_hi - thin_lo < st.min_thin_range:
         raise Fail("constant image")
     saturated = float(hist[250:].sum()) / n
     run.details["saturated"] = saturated
