@@ -477,8 +477,9 @@ def plateaus(
     ml = (jr < cl) & (jr >= cl - 4.0) & ok
     mr = (jr > cr) & (jr <= cr + 4.0) & ok
     pz = np.where(ok, p, 0.0)
-    left = (pz * ml).sum(axis=1) / ml.sum(axis=1)
-    right = (pz * mr).sum(axis=1) / mr.sum(axis=1)
+    with np.errstate(invalid="ignore"):  # no sample on a side: NaN
+        left = (pz * ml).sum(axis=1) / ml.sum(axis=1)
+        right = (pz * mr).sum(axis=1) / mr.sum(axis=1)
     return left, right
 
 
@@ -509,5 +510,6 @@ def centroid(
         q = (1.0 - p / lev) * w
         q = np.where(w > 0, q, 0.0)  # NaN inside the window stays NaN
         tot = q.sum(axis=1)
-        cc = np.where(tot > 0, (q * jr).sum(axis=1) / tot, np.nan)
+        with np.errstate(invalid="ignore", divide="ignore"):  # tot <= 0 or NaN: NaN
+            cc = np.where(tot > 0, (q * jr).sum(axis=1) / tot, np.nan)
     return cc

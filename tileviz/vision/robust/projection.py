@@ -199,7 +199,8 @@ def profile_arrays_numpy(
         length = np.maximum(hi[k, r : r + n] - lo[k, r : r + n], 0.0)
         total[k, r : r + n] = length
         valid = length >= max(8.0, 0.15 * float(length.max()))
-        prof[k, r : r + n] = np.where(valid, sums[k] / length + mean, np.nan)
+        with np.errstate(invalid="ignore", divide="ignore"):  # length 0: not valid, NaN
+            prof[k, r : r + n] = np.where(valid, sums[k] / length + mean, np.nan)
     return prof, lo, hi, total
 
 
