@@ -59,11 +59,9 @@ degrees):
   Mahalanobis distance of the true (x, y) <= chi2_2(level)) holds the truth; a calibrated filter
   matches each level.
 - ``cpu_us_per_frame``: CPU time of the evaluating thread (``time.thread_time``) in the method's
-  step alone, per frame, excluding vision and simulation. The methods take turns at being
-  stepped first after vision (frame k starts with method k mod 6, in :data:`METHODS` order), since
-  the first one pays for the caches vision leaves cold; the cycle is fixed, so each method
-  otherwise follows the same one (``interval`` follows ``mcl-untuned``) and inherits the caches
-  that one leaves.
+  step alone, per frame, excluding vision and simulation. Each frame steps the methods in an
+  order drawn afresh (``FrameLoop(rotate=True)``): the first one pays for the caches vision
+  leaves cold, and each inherits the caches its predecessor leaves; a fresh order shares both.
 
 Outputs in ``--out``: ``results.csv`` and ``results.md`` (the table), ``runs.csv`` (one row per run
 and method), ``coverage.png`` (containment per scenario and method) and ``error_<scenario>.png``

@@ -133,9 +133,11 @@ class FrameLoop:
     ``bounds`` (default from ``cfg.noise``). ``optional``: names of estimators dropped (not
     failing the frame) when they raise. ``keep_stages``: keep every vision stage image in the
     record (for display). ``residuals``: compute the equivalence residuals. ``clock``: the clock
-    of the timings (seconds). ``rotate``: frame k steps the estimators starting with the
-    (k mod n)-th (the first one stepped after vision finds the caches cold; rotating shares that
-    cost when the timings are compared).
+    of the timings (seconds). ``rotate``: each frame steps the estimators in an order drawn
+    afresh (a permutation seeded by the frame's count, so runs repeat): the first one stepped
+    after vision finds the caches cold, and each one inherits the caches its predecessor
+    leaves; a fresh order shares both costs when the timings are compared. The estimates do
+    not depend on the order.
     """
 
     def __init__(
@@ -249,8 +251,7 @@ class FrameLoop:
                             frame.truth)
         names = list(self.estimators)
         if self.rotate and names:
-            r = self._frames % len(names)
-            names = names[r:] + names[:r]
+            names = [names[i] for i in np.random.default_rng(self._frames).permutation(len(names))]
         estimates: dict[str, Any] = {}
         timings = {"vision_ms": vision_ms}
         dropped: dict[str, str] = {}
