@@ -10,8 +10,9 @@ import numpy as np
 from tileviz.vision.robust import heading_kernel, kernel
 from tileviz.vision.robust.state import Fail, RobustRun
 
-__all__ = ["HEADING_BINS", "SMOOTHING", "first_heading", "angles", "heading_votes_numpy",
-           "lattice_headings", "lattice_power", "smoothed_headings", "voters"]
+__all__ = ["HEADING_BINS", "SMOOTHING", "first_heading", "angles", "gradient_votes",
+           "heading_votes_numpy", "lattice_headings", "lattice_power", "smoothed_headings",
+           "voters"]
 
 
 def first_heading(run: RobustRun, dx: np.ndarray, dy: np.ndarray) -> float:
@@ -27,18 +28,27 @@ def first_heading(run: RobustRun, dx: np.ndarray, dy: np.ndarray) -> float:
     the lattice refines it). :func:`heading_votes_numpy` computes the votes;
     :func:`~tileviz.vision.robust.heading_kernel.heading_votes` is the same computation compiled
     (bit-identical)."""
-    if kernel.AVAILABLE:
-        q = heading_kernel.heading_magnitudes(dx, dy)
-        thr = voters(q, run.st.heading_share)
-        if thr <= 0:
-            raise Fail("no lines")
-        y0, share = heading_kernel.heading_votes(dx, dy, q, thr, HEADING_BINS)
-    else:
-        found, y0, share = heading_votes_numpy(dx, dy, run.st.heading_share, HEADING_BINS)
-        if not found:
-            raise Fail("no lines")
+    found = gradient_votes(dx, dy, run.st.heading_share)
+    if found is None:
+        raise Fail("no lines")
+    y0, share = found
     run.details["orientation_share"] = share
     return y0
+
+
+def gradient_votes(dx: np.ndarray, dy: np.ndarray, share: float) -> tuple[float, float] | None:
+    """The votes of :func:`first_heading` on the Scharr gradients ``dx``, ``dy`` (int16): the
+    heading (rad, modulo pi/2) and the share of the votes' weight near the peak; None when no
+    gradient is non-zero. Compiled when numba is present (bit-identical to
+    :func:`heading_votes_numpy`)."""
+    if kernel.AVAILABLE:
+        q = heading_kernel.heading_magnitudes(dx, dy)
+        thr = voters(q, share)
+        if thr <= 0:
+            return None
+        return heading_kernel.heading_votes(dx, dy, q, thr, HEADING_BINS)
+    found, y0, near = heading_votes_numpy(dx, dy, share, HEADING_BINS)
+    return (y0, near) if found else None
 
 
 def smoothed_headings(run: RobustRun) -> list[float]:
@@ -51,15 +61,9 @@ def smoothed_headings(run: RobustRun) -> list[float]:
         g = cv2.GaussianBlur(run.gray, (0, 0), sigma)
         dx = cv2.Scharr(g, cv2.CV_16S, 1, 0)
         dy = cv2.Scharr(g, cv2.CV_16S, 0, 1)
-        if kernel.AVAILABLE:
-            q = heading_kernel.heading_magnitudes(dx, dy)
-            thr = voters(q, run.st.heading_share)
-            if thr > 0:
-                out.append(heading_kernel.heading_votes(dx, dy, q, thr, HEADING_BINS)[0])
-        else:
-            found, y0, _ = heading_votes_numpy(dx, dy, run.st.heading_share, HEADING_BINS)
-            if found:
-                out.append(y0)
+        found = gradient_votes(dx, dy, run.st.heading_share)
+        if found is not None:
+            out.append(found[0])
     return out
 
 
