@@ -95,7 +95,8 @@ def lattice_offsets(run: RobustRun, lines: list[list[Line]], y3: float) -> None:
     pos_px, head = frame_bound(run, se)
     run.details["bound_px"] = pos_px
     run.details["bound_rad"] = head
-    if pos_px > run.vision.position_error_px or head > run.vision.heading_error:
+    if (pos_px > max(run.vision.position_error_px, st.max_bound_px)
+            or head > max(run.vision.heading_error, st.max_bound_rad)):
         raise Fail("imprecise")
     run.y = normalise(ys[0], ys[1], y3, run.tile_size)
 
