@@ -21,6 +21,8 @@ from tileviz.vision.robust import (
     extractor,
     heading_kernel,
     kernel,
+    lattice,
+    lattice_kernel,
     profiles,
     projection,
     projection_kernel,
@@ -276,3 +278,35 @@ def test_the_compiled_heading_votes_match_numpy_on_any_gradients(
         # gradient directions are normal to the lines; y3 is modulo pi / 2
         want = np.arctan2(float(clean_dy[0, 0]), float(clean_dx[0, 0]))
         assert abs(np.remainder(y_clean - want + np.pi / 4, np.pi / 2) - np.pi / 4) < 1e-9
+
+
+@pytest.mark.skipif(not kernel.AVAILABLE, reason="numba is not installed")
+@settings(max_examples=150, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), y3=st.one_of(st.just(0.0), st.floats(-0.79, 0.79)),
+       size=st.sampled_from([(320, 240), (640, 480), (100, 300)]), lp=st.floats(15.0, 400.0),
+       drop=st.integers(0, 3), k=st.integers(0, 1))
+def test_the_compiled_missing_line_check_matches_numpy_on_any_lattice(
+    seed: int, y3: float, size: tuple[int, int], lp: float, drop: int, k: int
+) -> None:
+    """Random lattices (any heading, including one along the pixel axes, any period, lines
+    found near the predicted ones or not, dips of both families here and there): the compiled
+    missing-line check decides as numpy's does; with every predicted line found it finds none
+    missing."""
+    rng = np.random.default_rng(seed)
+    w, h = size
+    n = ((np.sin(y3), -np.cos(y3)), (-np.cos(y3), -np.sin(y3)))[k]
+    ref = float(rng.uniform(-lp, lp))
+    reach = 0.5 * float(np.hypot(w, h))
+    every = ref + np.arange(-int(reach / lp) - 2, int(reach / lp) + 3) * lp
+    found = every + rng.normal(0.0, 0.1 * lp, every.size)
+    found = np.delete(found, rng.permutation(found.size)[:drop])
+    peak = rng.integers(0, 800, int(rng.integers(0, 12))).astype(np.intp)
+    fam = rng.integers(0, 2, peak.size).astype(np.intp)
+    args = (float(n[0]), float(n[1]), float(np.hypot(-n[1], n[0])), ref, lp, reach,
+            int(rng.integers(5, 40)), w, h, float(rng.uniform(0.2, 0.9)))
+    tail = (peak, fam, k, int(rng.integers(0, 40)), float(rng.uniform(0.0, 400.0)),
+            float(rng.uniform(1.0, 10.0)))
+    for got in (found, every, np.zeros(0)):
+        assert lattice_kernel.missing_line(*args, got, *tail) == lattice.missing_line_numpy(
+            *args, got, *tail)
+    assert not lattice.missing_line_numpy(*args, every, *tail)

@@ -8,10 +8,12 @@ import math
 import numpy as np
 
 from tileviz.vision.geometry import QUARTER, family_normals
+from tileviz.vision.robust import kernel, lattice_kernel
 from tileviz.vision.robust.bound import frame_bound
 from tileviz.vision.robust.state import Fail, Line, RobustRun
 
-__all__ = ["chords", "clip_line", "lattice_offsets", "missing_lines", "normalise"]
+__all__ = ["chords", "clip_line", "lattice_offsets", "missing_line_numpy", "missing_lines",
+           "normalise"]
 
 
 def normalise(y1: float, y2: float, y3: float, tile_size: float) -> tuple[float, float, float]:
@@ -105,39 +107,68 @@ def missing_lines(run: RobustRun, k: int, ref: float, found: np.ndarray, y3: flo
     """Refuse when the lattice predicts a well-visible line of family k that was not found
     (the signed offsets ``ref + j L ppm``, px) and the family's profile shows no dip there
     either (within half the grout's width + 1.5 px of it): a grout line as light as the
-    tiles beside it, or cut short by the border, may give no line yet be seen."""
+    tiles beside it, or cut short by the border, may give no line yet be seen
+    (:func:`missing_line_numpy`; compiled: :func:`~tileviz.vision.robust.lattice_kernel.
+    missing_line`)."""
     n = family_normals(y3)[k]
     reach = 0.5 * math.hypot(run.w, run.h)
     # a dip is measured over its window and 4 plateau samples on each side
     margin = math.ceil(1.5 * run.details["width"] + 1.5) + 5
-    j0 = math.floor((-reach - ref) / run.lp)
-    j1 = math.ceil((reach - ref) / run.lp)
-    s = ref + np.arange(j0, j1 + 1) * run.lp
-    # the longest chord of a direction through a rectangle passes through its centre
-    ch = chords(n, np.concatenate(([0.0], s - margin, s, s + margin)), run.w, run.h)
-    need = run.st.min_chord * ch[0]
-    visible = (ch[1:].reshape(3, -1) >= need).all(axis=0)
     # the family's dips (the deepest sample of each, px offsets as ``s``): a grout line
     # between two tiles of nearly its own shade (lighter grout beside light tiles) may be
     # too shallow for a line, or too near the border of the view to be measured in parts,
     # yet shows as a dip where the lattice puts it
-    dips = np.zeros(0)
     proj = run.projection
-    if proj is not None:
-        c = run.centre[1] if k == 0 else run.centre[0]
-        dips = -(proj.peak[proj.fam == k] - proj.pad - c).astype(np.float64)
+    if proj is None:
+        peak, fam, pad = _NO_DIPS, _NO_DIPS, 0
+    else:
+        peak, fam, pad = proj.peak, proj.fam, proj.pad
+    centre = run.centre[1] if k == 0 else run.centre[0]
     near = 0.5 * run.details["width"] + 1.5
+    check = lattice_kernel.missing_line if kernel.AVAILABLE else missing_line_numpy
+    if check(n[0], n[1], math.hypot(-n[1], n[0]), ref, run.lp, reach, margin, run.w, run.h,
+             run.st.min_chord, found, peak, fam, k, pad, centre, near):
+        raise Fail("inconsistent spacing")
+
+
+_NO_DIPS = np.zeros(0, np.intp)
+
+
+def missing_line_numpy(n0: float, n1: float, hyp: float, ref: float, lp: float, reach: float,
+                       margin: int, width: int, height: int, min_chord: float,
+                       found: np.ndarray, peak: np.ndarray, fam: np.ndarray, k: int, pad: int,
+                       centre: float, near: float) -> bool:
+    """Whether a line of family ``k`` that the lattice predicts at the signed offsets ``ref + j
+    lp`` (px; ``(n0, n1)`` the family's unit normal, ``hyp`` its ``math.hypot``) within
+    ``reach`` of the centre is missing: visible along at least ``min_chord`` of the longest
+    chord at the offset and ``margin`` px each side of it, neither a line ``found`` (offsets,
+    px) within a quarter of the period nor a dip of the family (``peak``, ``fam``: the
+    projection's dips, padded by ``pad``; ``centre`` the warp centre's profile coordinate)
+    within ``near`` px. :func:`~tileviz.vision.robust.lattice_kernel.missing_line` is the same
+    computation compiled (bit-identical)."""
+    j0 = math.floor((-reach - ref) / lp)
+    j1 = math.ceil((reach - ref) / lp)
+    s = ref + np.arange(j0, j1 + 1) * lp
+    # the longest chord of a direction through a rectangle passes through its centre
+    ch = chords((n0, n1), np.concatenate(([0.0], s - margin, s, s + margin)), width, height,
+                hyp)
+    need = min_chord * ch[0]
+    visible = (ch[1:].reshape(3, -1) >= need).all(axis=0)
+    dips = -(peak[fam == k] - pad - centre).astype(np.float64)
     for sj in s[visible].tolist():
-        if found.size == 0 or float(np.min(np.abs(found - sj))) > 0.25 * run.lp:
+        if found.size == 0 or float(np.min(np.abs(found - sj))) > 0.25 * lp:
             if dips.size and float(np.min(np.abs(dips - sj))) <= near:
                 continue
-            raise Fail("inconsistent spacing")
+            return True
+    return False
 
 
-def chords(n: tuple[float, float], s: np.ndarray, width: int, height: int) -> np.ndarray:
+def chords(n: tuple[float, float], s: np.ndarray, width: int, height: int,
+           hyp: float | None = None) -> np.ndarray:
     """The length (px) inside the image of each line ``n . (p - centre) = s`` (n a unit normal
     in pixel coordinates, ``s`` an array of offsets, px); 0 where it misses the image. The
-    same clipping as :func:`clip_line`, for many parallel lines at once."""
+    same clipping as :func:`clip_line`, for many parallel lines at once. ``hyp``: the
+    normal's ``math.hypot`` when the caller has it."""
     cxp, cyp = (width - 1) / 2.0, (height - 1) / 2.0
     tx, ty = -n[1], n[0]
     lo = np.full(s.shape, -np.inf)
@@ -151,4 +182,4 @@ def chords(n: tuple[float, float], s: np.ndarray, width: int, height: int) -> np
         lo = np.maximum(lo, np.minimum(a, b))
         hi = np.minimum(hi, np.maximum(a, b))
     span = hi - lo
-    return np.where(span > 0, span, 0.0) * math.hypot(tx, ty)
+    return np.where(span > 0, span, 0.0) * (math.hypot(tx, ty) if hyp is None else hyp)

@@ -18,21 +18,21 @@ __all__ = ["Projection", "fill_ends", "grout_score_numpy", "light_grout", "profi
            "profile_dips_numpy", "profiles", "project", "view_spans"]
 
 
-def light_grout(run: RobustRun, warped: np.ndarray,
+def light_grout(run: RobustRun, sums: tuple[np.ndarray, np.ndarray],
                 spans: tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
                 ) -> bool:
     """Whether the grout is lighter than the tiles: the family profiles (row and column
     means of the warped image, offsets from the mean) hold stronger narrow peaks (above a
     grey opening) than narrow dips (below a grey closing), summed over both families.
-    ``spans``: the in-view stretch of every row and column (:func:`view_spans`).
+    ``sums``: the warped image's row and column sums (from its integral image); ``spans``:
+    the in-view stretch of every row and column (:func:`view_spans`).
     :func:`~tileviz.vision.robust.projection_kernel.grout_score` computes a family's term
     compiled (bit-identical)."""
     term = projection_kernel.grout_score if kernel.AVAILABLE else grout_score_numpy
     score = 0.0
-    for k, axis in ((0, 1), (1, 0)):
+    for k in range(2):
         lo, hi = spans[k]
-        sums = cv2.reduce(warped, axis, cv2.REDUCE_SUM, dtype=cv2.CV_64F).ravel()
-        used, value = term(sums, np.maximum(hi - lo, 0.0), run.closing)
+        used, value = term(sums[k], np.maximum(hi - lo, 0.0), run.closing)
         if used:
             score += value
     return score > 0.0
@@ -112,7 +112,10 @@ def project(run: RobustRun, y3: float, attempt: int) -> Projection:
             view_spans(run, np.arange(ho) - y0, c, s, along_rows=True),
             view_spans(run, np.arange(wo) - x0, c, s, along_rows=False),
         )
-    if attempt == 0 and (light_grout(run, warped, spans) if run.force_inverted is None
+    # integral image: the sum over any stretch of any row or column in four look-ups
+    integ = cv2.integral(warped, sdepth=cv2.CV_64F)
+    sums = (integ[1:, -1] - integ[:-1, -1], integ[-1, 1:] - integ[-1, :-1])
+    if attempt == 0 and (light_grout(run, sums, spans) if run.force_inverted is None
                          else run.force_inverted):
         # lighter grout: measure the inverted image (255 - gray), whose offset from its
         # mean is -warped; every later step then sees dark lines on brighter tiles
@@ -120,11 +123,13 @@ def project(run: RobustRun, y3: float, attempt: int) -> Projection:
         run.mean = 255.0 - run.mean
     if run.inverted:
         cv2.multiply(warped, -1.0, dst=warped)
+        # the integral of -warped: the same additions with every sign turned, exactly (+ 0.0
+        # turns the zeros that the negation signed back to +0.0, as the integral gives them)
+        np.negative(integ, out=integ)
+        integ += 0.0
+        sums = (integ[1:, -1] - integ[:-1, -1], integ[-1, 1:] - integ[-1, :-1])
     run.warped = warped
     run.centre = (x0, y0)
-    # integral image: the sum over any stretch of any row or column in four look-ups
-    integ = cv2.integral(warped, sdepth=cv2.CV_64F)
-    sums = (integ[1:, -1] - integ[:-1, -1], integ[-1, 1:] - integ[-1, :-1])
     return profiles(run, y3, integ, sums, spans)
 
 

@@ -1,0 +1,88 @@
+"""The lattice's check for a missing line, compiled with numba (:func:`missing_line`): exactly
+(bit for bit) what :func:`~tileviz.vision.robust.lattice.missing_line_numpy` decides, with the
+conventions of :mod:`~tileviz.vision.robust.kernel` (numpy's order of operations, its NaN
+propagation and error model). A family has a few dozen predicted lines: one compiled loop
+instead of some twenty numpy calls on arrays that short.
+``tests/test_vision_speed_paths.py`` checks the equality on random lattices.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from tileviz.vision.robust.kernel import _max, _min, compiled
+
+__all__ = ["missing_line"]
+
+
+@compiled
+def _chord(n0: float, n1: float, hyp: float, v: float, width: int, height: int) -> float:
+    """The length (px) inside the image of the line ``n . (p - centre) = v``: one entry of
+    :func:`~tileviz.vision.robust.lattice.chords` (``hyp``: ``math.hypot`` of the normal)."""
+    tx = -n1
+    ty = n0
+    lo = -np.inf
+    hi = np.inf
+    for axis in range(2):
+        if axis == 0:
+            p0 = (width - 1) / 2.0 + v * n0
+            d = tx
+            size = width
+        else:
+            p0 = (height - 1) / 2.0 + v * n1
+            d = ty
+            size = height
+        if abs(d) < 1e-12:
+            if not ((p0 >= -0.5) & (p0 <= size - 0.5)):
+                hi = -np.inf
+            continue
+        a = (-0.5 - p0) / d
+        b = (size - 0.5 - p0) / d
+        lo = _max(lo, _min(a, b))
+        hi = _min(hi, _max(a, b))
+    span = hi - lo
+    return (span if span > 0 else 0.0) * hyp
+
+
+@compiled
+def _nearest(values: np.ndarray, x: float) -> float:
+    """``np.min(np.abs(values - x))`` of a non-empty array (NaN if any is NaN)."""
+    out = abs(values[0] - x)
+    for i in range(1, values.size):
+        out = _min(out, abs(values[i] - x))
+    return out
+
+
+@compiled
+def missing_line(n0: float, n1: float, hyp: float, ref: float, lp: float, reach: float,
+                 margin: int, width: int, height: int, min_chord: float, found: np.ndarray,
+                 peak: np.ndarray, fam: np.ndarray, k: int, pad: int, centre: float,
+                 near: float) -> bool:
+    """:func:`~tileviz.vision.robust.lattice.missing_line_numpy` compiled (bit-identical
+    decisions): whether a well-visible line that the lattice predicts is missing."""
+    j0 = math.floor((-reach - ref) / lp)
+    j1 = math.ceil((reach - ref) / lp)
+    need = min_chord * _chord(n0, n1, hyp, 0.0, width, height)
+    ndips = 0
+    for i in range(fam.size):
+        if fam[i] == k:
+            ndips += 1
+    dips = np.empty(ndips)
+    m = 0
+    for i in range(fam.size):
+        if fam[i] == k:
+            dips[m] = -((peak[i] - pad) - centre)
+            m += 1
+    for j in range(j0, j1 + 1):
+        sj = ref + j * lp
+        if not (_chord(n0, n1, hyp, sj - margin, width, height) >= need
+                and _chord(n0, n1, hyp, sj, width, height) >= need
+                and _chord(n0, n1, hyp, sj + margin, width, height) >= need):
+            continue
+        if found.size == 0 or _nearest(found, sj) > 0.25 * lp:
+            if ndips and _nearest(dips, sj) <= near:
+                continue
+            return True
+    return False
