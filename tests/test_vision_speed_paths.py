@@ -344,3 +344,23 @@ def test_the_compiled_fit_matches_numpy_on_any_parts(
         eps = fit.fit_arrays_numpy(wp, tp, exact, sig, spr, n0, 4.0, 4.5, 2.0)[0]
     if ((wp > 0).sum(axis=1) >= 2).all():  # every line measured in two parts or more
         assert abs(eps - tilt) < 1e-6
+
+
+@pytest.mark.skipif(not kernel.AVAILABLE, reason="numba is not installed")
+@settings(max_examples=100, deadline=None)
+@given(y3=st.one_of(st.just(0.0), st.just(np.pi / 2), st.floats(-3.2, 3.2)),
+       offsets=st.lists(st.floats(-500.0, 500.0), max_size=12),
+       size=st.sampled_from([(320, 240), (64, 480), (7, 5)]), k=st.integers(0, 1))
+def test_the_compiled_clipping_matches_clip_line(
+    y3: float, offsets: list[float], size: tuple[int, int], k: int
+) -> None:
+    """Any heading (along the pixel axes too) and offsets within and beyond the view: the
+    compiled clipping gives clip_line's endpoints bit for bit, and misses where it does."""
+    n = ((np.sin(y3), -np.cos(y3)), (-np.cos(y3), -np.sin(y3)))[k]
+    n = (float(n[0]), float(n[1]))
+    out, hit = lattice_kernel.clip_lines(n[0], n[1], np.array(offsets, np.float64), *size)
+    for i, s in enumerate(offsets):
+        seg = lattice.clip_line(n, s, *size)
+        assert hit[i] == (seg is not None)
+        if seg is not None:
+            assert _bits(out[i]) == _bits(np.array(seg))
