@@ -29,7 +29,7 @@ PROJECTION_KERNELS = ("grout_score", "profile_arrays", "profile_dips", "view_spa
 
 HEADING_KERNELS = ("heading_magnitudes", "heading_votes")
 FIT_KERNELS = ("fit_arrays",)
-LATTICE_KERNELS = ("missing_line",)
+LATTICE_KERNELS = ("clip_lines", "missing_line")
 
 
 def _loaded_kernels() -> dict[str, int]:
