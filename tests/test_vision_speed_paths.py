@@ -282,6 +282,33 @@ def test_the_compiled_heading_votes_match_numpy_on_any_gradients(
         assert abs(np.remainder(y_clean - want + np.pi / 4, np.pi / 2) - np.pi / 4) < 1e-9
 
 
+@settings(max_examples=80, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), rows=st.integers(1, 20), cols=st.integers(1, 20),
+       missing=st.floats(0.0, 0.9), fractional=st.booleans())
+def test_the_foreign_edge_medians_are_numpys(
+    seed: int, rows: int, cols: int, missing: float, fractional: bool
+) -> None:
+    """The foreign-edge search's medians (the grout's levels, median of 3 neighbours; the
+    levels beside an edge, the median of each row's seen samples) are numpy's bit for bit, on
+    gray levels with and without fractions and any share of unseen (NaN) samples."""
+    from tileviz.vision.robust import foreign
+
+    rng = np.random.default_rng(seed)
+    v = rng.integers(0, 256, (rows, cols)).astype(np.float64)
+    if fractional:
+        v += rng.random((rows, cols))
+    v[rng.random((rows, cols)) < missing] = np.nan
+    count = np.isfinite(v).sum(axis=1)
+    seen = count >= 1
+    if seen.any():
+        want = np.nanmedian(v[seen], axis=1)
+        assert want.tobytes() == foreign.row_medians(v[seen], count[seen]).tobytes()
+    line = v[0][np.isfinite(v[0])]
+    if line.size >= 3:
+        want3 = np.median(np.stack([line[:-2], line[1:-1], line[2:]]), axis=0)
+        assert want3.tobytes() == foreign.neighbour_medians(line).tobytes()
+
+
 @pytest.mark.skipif(not kernel.AVAILABLE, reason="numba is not installed")
 @settings(max_examples=150, deadline=None)
 @given(seed=st.integers(0, 2**31 - 1), y3=st.one_of(st.just(0.0), st.floats(-0.79, 0.79)),
