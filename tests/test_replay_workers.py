@@ -13,7 +13,13 @@ from tileviz.config import Config
 from tileviz.pipeline.worker_start import synthetic_view
 from tileviz.pipeline.workers import worker_context
 from tileviz.vision import extract
-from tileviz.vision.robust import heading_kernel, kernel, projection_kernel
+from tileviz.vision.robust import (
+    fit_kernel,
+    heading_kernel,
+    kernel,
+    lattice_kernel,
+    projection_kernel,
+)
 
 KERNELS = ("dip_rows", "part_profiles", "part_rows", "part_summary")
 
@@ -22,6 +28,8 @@ PROJECTION_KERNELS = ("grout_score", "profile_arrays", "profile_dips", "view_spa
 
 
 HEADING_KERNELS = ("heading_magnitudes", "heading_votes")
+FIT_KERNELS = ("fit_arrays",)
+LATTICE_KERNELS = ("clip_lines", "missing_line")
 
 
 def _loaded_kernels() -> dict[str, int]:
@@ -30,6 +38,8 @@ def _loaded_kernels() -> dict[str, int]:
     out.update((name, len(getattr(projection_kernel, name).signatures))
                for name in PROJECTION_KERNELS)
     out.update((name, len(getattr(heading_kernel, name).signatures)) for name in HEADING_KERNELS)
+    out.update((name, len(getattr(fit_kernel, name).signatures)) for name in FIT_KERNELS)
+    out.update((name, len(getattr(lattice_kernel, name).signatures)) for name in LATTICE_KERNELS)
     return out
 
 
@@ -52,7 +62,8 @@ def test_workers_start_with_the_kernels_loaded() -> None:
     assert ctx.get_start_method() == "forkserver"
     with ProcessPoolExecutor(1, mp_context=ctx) as pool:
         loaded = pool.submit(_loaded_kernels).result(timeout=600)
-    assert loaded == dict.fromkeys(KERNELS + PROJECTION_KERNELS + HEADING_KERNELS, 1)
+    assert loaded == dict.fromkeys(
+        KERNELS + PROJECTION_KERNELS + HEADING_KERNELS + FIT_KERNELS + LATTICE_KERNELS, 1)
 
 
 def _parent_pid() -> int:

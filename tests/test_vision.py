@@ -17,6 +17,7 @@ from tileviz.sim.camera import FloorRenderer
 from tileviz.types import Pose
 from tileviz.vision import REASONS, VisionResult, extract, observation_error
 from tileviz.vision.geometry import circular_median, family_normals, wrap_quarter
+from tileviz.vision.robust import DEFAULT_SETTINGS
 
 CFG = preset("default")
 EXTRACTORS = ("faithful", "robust")
@@ -196,10 +197,12 @@ def test_reasons_are_ok_exactly_when_accepted(views: list) -> None:
                 assert res.observation.position_error == pytest.approx(
                     CFG.vision.position_error_px / CFG.camera.ppm)
                 assert res.observation.heading_error == CFG.vision.heading_error
-            elif res.accepted:  # the view's own bound, within the configured limits
+            elif res.accepted:  # the view's own bound, within the largest it may declare
+                caps = DEFAULT_SETTINGS
                 assert 0 < res.observation.position_error <= (
-                    CFG.vision.position_error_px / CFG.camera.ppm)
-                assert 0 < res.observation.heading_error <= CFG.vision.heading_error
+                    max(CFG.vision.position_error_px, caps.max_bound_px) / CFG.camera.ppm)
+                assert 0 < res.observation.heading_error <= max(CFG.vision.heading_error,
+                                                                caps.max_bound_rad)
 
 
 def test_geometry_helpers() -> None:

@@ -107,14 +107,32 @@ def test_each_floor_family_is_read_within_its_declared_bound(family: str) -> Non
         ("coarse", 7_000_311, "0.9 px grout on 1.5 m tiles covers about 1.4 % of the view: "
                               "its 2-98 % gray range was a blank floor's (was constant "
                               "image)"),
+        ("photo", 7_000_098, "a light mortar line meets the grout between bricks of nearly "
+                             "the grout's gray, its line running on along another tile's "
+                             "mortar: the object there is the light ridge, which would have "
+                             "brightened the grout (was a foreign line)"),
+        ("photo", 7_000_183, "the same on noisier bricks (was a foreign line)"),
+        ("photo", 6_000_069, "a mortar edge with a 16 % step over dark grout, its line running "
+                             "on along another tile's mortar where the tiles show no such "
+                             "step: no shadow goes on across the grout (was a foreign line)"),
+        ("photo", 7_000_286, "the same, a 13 % step (was a foreign line)"),
+        ("photo", 7_000_123, "a mortar edge running along the grout band for 115 px under "
+                             "vignetting: the grout's level falls by 18 levels along it, "
+                             "smoothly (was a foreign line)"),
+        ("photo", 6_000_046, "the same, 17 levels over 133 px (was a foreign line)"),
+        ("photo", 5_000_030, "its own bound, 3.4 px and 0.042 rad, exceeds the 3 px and "
+                             "0.025 rad configured; its errors are 0.14 px and 0.0004 rad "
+                             "(was imprecise)"),
+        ("photo", 6_000_349, "the same, a bound of 3.04 px (was imprecise)"),
     ],
 )
 def test_views_once_refused_are_read_within_their_bound(family: str, seed: int, why: str) -> None:
     """Readable clean views the extractor used to refuse (``foreign line``, ``step edge``, ``low
-    contrast``, ``no lines``, ``blurred``, ``inconsistent spacing``, ``one family``, ``glare``;
-    ``why``): texture is told from a foreign object's edge (an edge that stops at the grout
-    leaves the grout alike on both sides; when its line runs on beyond the grout, what is seen
-    beside it would have changed the grout's level had it crossed), the heading is sought from
+    contrast``, ``no lines``, ``blurred``, ``inconsistent spacing``, ``one family``, ``glare``,
+    ``imprecise``; ``why``): texture is told from a foreign object's edge (an edge that stops
+    at the grout leaves the grout alike on both sides; when its line runs on beyond the grout,
+    what is seen beside it would have changed the grout's level had it crossed), the heading
+    is sought from
     the view's periodicity when the lines at the first heading fail their checks, and then the
     other polarity of the grout; a blurred view is read with the wider bound its softer edges
     give; lighter grout's lines are compared in depth over the grout's own level too, and
@@ -122,7 +140,8 @@ def test_views_once_refused_are_read_within_their_bound(family: str, seed: int, 
     smoothed view; a lattice line that shows as a dip but gives no line is not missing; the
     profile beyond the view continues its last level; a wide band is measured centred on
     itself, and with a window that fits it when only shallower dips could be measured;
-    saturated specks of a light texture are not glare."""
+    saturated specks of a light texture are not glare; a view may declare a bound wider than
+    the configured one, up to the robust extractor's own limit."""
     r = run_view(seed, family, None)
     assert r["readable"] and r["accepted"], (why, r)
     assert r["err_px"] <= r["bound_px"] and r["err_rad"] <= r["bound_rad"], (why, r)
@@ -145,8 +164,10 @@ def test_a_cable_of_the_grouts_own_gray_on_brick_floors_is_never_read_outside_it
     along other tiles' mortar beyond the grout, which they leave alike): a 5 px cable of the
     grout's own gray level, which the grout's level cannot show where it crosses it, laid
     across each view at eight angles, must be refused or read within the declared bound, and
-    mostly refused (at least 11 of the 16 views; the exact count moves with rounding-level
-    changes of the heading)."""
+    mostly refused (at least 10 of the 16 views; the exact count moves with rounding-level
+    changes of the heading, and with the texture's own edges: the search finds the cable's
+    edge in none of the views it reads, and one more view whose mortar step used to refuse it
+    by chance is read since that step is seen not to go on beyond the grout)."""
     refused = 0
     for seed in (5_000_024, 5_000_093):
         rng = np.random.default_rng([seed, FAMILY_SALT["photo"], 0])
@@ -171,7 +192,91 @@ def test_a_cable_of_the_grouts_own_gray_on_brick_floors_is_never_read_outside_it
                                            spec.tile_size, (0.0, 0.0))
             assert max(abs(e1), abs(e2)) <= res.observation.position_error, (seed, ang)
             assert abs(e3) <= res.observation.heading_error, (seed, ang)
-    assert refused >= 11
+    assert refused >= 10
+
+
+def _photo_view(seed: int) -> tuple[floorgen.FloorSpec, np.ndarray, CameraConfig, Pose]:
+    """The clean photo-family view of ``seed`` (float32 RGB), its camera and true pose."""
+    rng = np.random.default_rng([seed, FAMILY_SALT["photo"], 0])
+    spec = floorgen.draw_floor("photo", rng)
+    cx, cy, th = floorgen.draw_view(rng)
+    img = floorgen.render(spec, cx, cy, th, rng).astype(np.float32)
+    cam = CameraConfig(ppm=spec.ppm, width=spec.width, height=spec.height, offset=(0.0, 0.0))
+    return spec, img, cam, Pose(cx, cy, th)
+
+
+def _read(view: np.ndarray, spec: floorgen.FloorSpec, cam: CameraConfig, pose: Pose) -> bool:
+    """Extract ``view`` (float RGB); True when accepted, after asserting the observation lies
+    within its own declared bound."""
+    res = extract(np.clip(np.rint(view), 0, 255).astype(np.uint8), camera=cam,
+                  tile_size=spec.tile_size, vision=VisionConfig(extractor="robust"))
+    if not res.accepted:
+        return False
+    assert res.observation is not None
+    e1, e2, e3 = observation_error(res.observation, pose, spec.tile_size, (0.0, 0.0))
+    assert max(abs(e1), abs(e2)) <= res.observation.position_error, res.details
+    assert abs(e3) <= res.observation.heading_error, res.details
+    return True
+
+
+@pytest.mark.parametrize("seed", [7_000_098, 7_000_183])
+def test_a_grout_gray_cable_on_views_read_by_their_light_mortar_ridge_stays_in_bound(
+        seed: int) -> None:
+    """Views whose mortar edges the foreign-edge search lets pass because the object beside
+    them is a light ridge unlike the grout (the bricks beside it nearly the grout's gray): a
+    cable of the grout's own gray, 3 or 8 px wide, laid across at eight angles, is a dark
+    ridge of the grout's level and must be refused or read within the declared bound."""
+    spec, img, cam, pose = _photo_view(seed)
+    h, w = img.shape[:2]
+    yy, xx = np.mgrid[0:h, 0:w].astype(np.float32)
+    refused = 0
+    for width in (3.0, 8.0):
+        for ang in np.linspace(0.1, 3.0, 8):
+            d = -(xx - (w - 1) / 2) * math.sin(ang) + (yy - (h - 1) / 2) * math.cos(ang) + 20.0
+            cov = np.clip(0.5 * width + 0.5 - np.abs(d), 0.0, 1.0)[..., None]
+            refused += not _read(img + cov * (spec.grout_shade - img), spec, cam, pose)
+    assert refused >= 8
+
+
+@pytest.mark.parametrize("seed", [6_000_069, 7_000_286])
+def test_a_shadow_edge_on_views_read_by_the_far_sides_ratio_stays_in_bound(seed: int) -> None:
+    """Views whose mortar steps pass because the tiles beyond the grout show no such step: a
+    straight shadow edge across the view, 15 % or 45 % dark (2 px penumbra), at eight angles,
+    must be refused or read within the declared bound; the darker one (as the renderer's
+    shadows, 35-60 %) nearly always refused."""
+    spec, img, cam, pose = _photo_view(seed)
+    h, w = img.shape[:2]
+    yy, xx = np.mgrid[0:h, 0:w].astype(np.float32)
+    refused = {0.15: 0, 0.45: 0}
+    for k in refused:
+        for ang in np.linspace(0.1, 3.0, 8):
+            d = -(xx - (w - 1) / 2) * math.sin(ang) + (yy - (h - 1) / 2) * math.cos(ang) + 30.0
+            t = np.clip(d / 2.0 + 0.5, 0.0, 1.0)[..., None]
+            refused[k] += not _read(img * (1.0 - k * t), spec, cam, pose)
+    assert refused[0.45] >= 6
+
+
+@pytest.mark.parametrize("seed", [7_000_123, 6_000_046])
+@pytest.mark.parametrize("tilt", [-0.03, 0.03])
+def test_a_box_edge_along_the_grout_on_views_read_through_a_trend_stays_in_bound(
+        seed: int, tilt: float) -> None:
+    """Views whose mortar edge runs along the grout band where the light's gradient changes
+    the grout's level smoothly: a box edge laid along a measured grout line, ``tilt`` rad off
+    it and crossing it in the middle of the view, the box as dark or as light as the
+    renderer's boxes, covers the grout on one side of the crossing and must be refused."""
+    spec, img, cam, pose = _photo_view(seed)
+    clean = extract(np.clip(np.rint(img), 0, 255).astype(np.uint8), camera=cam,
+                    tile_size=spec.tile_size, vision=VisionConfig(extractor="robust"))
+    assert clean.accepted, clean.reason
+    h, w = img.shape[:2]
+    yy, xx = np.mgrid[0:h, 0:w].astype(np.float32)
+    x1, y1, x2, y2 = clean.segments[0]
+    a = math.atan2(y2 - y1, x2 - x1) + tilt
+    mx, my = 0.5 * (x1 + x2), 0.5 * (y1 + y2)
+    d = -(xx - mx) * math.sin(a) + (yy - my) * math.cos(a)
+    cov = np.clip(d + 0.5, 0.0, 1.0)[..., None]
+    for level in (70.0, 190.0):
+        assert not _read(img + cov * (level - img), spec, cam, pose), level
 
 
 @pytest.mark.parametrize("seed", [6_000_079, 6_000_441])

@@ -19,6 +19,8 @@ from tileviz.types import Pose
 from tileviz.vision import extract
 from tileviz.vision.robust import (
     extractor,
+    fit,
+    fit_kernel,
     heading_kernel,
     kernel,
     lattice,
@@ -337,3 +339,55 @@ def test_the_compiled_missing_line_check_matches_numpy_on_any_lattice(
         assert lattice_kernel.missing_line(*args, got, *tail) == lattice.missing_line_numpy(
             *args, got, *tail)
     assert not lattice.missing_line_numpy(*args, every, *tail)
+
+
+@pytest.mark.skipif(not kernel.AVAILABLE, reason="numba is not installed")
+@settings(max_examples=150, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), m=st.integers(1, 20), unmeasured=st.floats(0.0, 0.6),
+       tilt=st.floats(-0.05, 0.05))
+def test_the_compiled_fit_matches_numpy_on_any_parts(
+    seed: int, m: int, unmeasured: float, tilt: float
+) -> None:
+    """Random lines of four parts (any number of each family, some parts not measured, up to
+    whole lines): the compiled common fit gives numpy's bits (tilt, positions, variances,
+    influences, the parts' bounds, straightness, heading error, tilt gap); parts drawn on
+    straight lines with one common tilt give that tilt back."""
+    rng = np.random.default_rng(seed)
+    n0 = int(rng.integers(0, m + 1))
+    wp = np.where(rng.random((m, 4)) < unmeasured, 0.0, rng.integers(3, 200, (m, 4)) * 1.0)
+    tp = rng.normal(0.0, 80.0, (m, 4))
+    sign = np.where(np.arange(m) < n0, 1.0, -1.0)[:, None]
+    straight = rng.uniform(-300.0, 300.0, (m, 1)) + sign * tilt * tp
+    pp = np.where(wp > 0, straight + rng.normal(0.0, 0.3, (m, 4)), np.nan)
+    sig = np.where(wp > 0, rng.random((m, 4)), 0.0)
+    spr = np.where(wp > 0, rng.random((m, 4)), 0.0)
+    args = (wp, tp, pp, sig, spr, n0, 4.0, 4.5, 2.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ref = fit.fit_arrays_numpy(*args)
+    got = fit_kernel.fit_arrays(*args)
+    assert all(_bits(a) == _bits(b) for a, b in zip(got, ref, strict=True))
+    exact = np.where(wp > 0, straight, np.nan)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        eps = fit.fit_arrays_numpy(wp, tp, exact, sig, spr, n0, 4.0, 4.5, 2.0)[0]
+    if ((wp > 0).sum(axis=1) >= 2).all():  # every line measured in two parts or more
+        assert abs(eps - tilt) < 1e-6
+
+
+@pytest.mark.skipif(not kernel.AVAILABLE, reason="numba is not installed")
+@settings(max_examples=100, deadline=None)
+@given(y3=st.one_of(st.just(0.0), st.just(np.pi / 2), st.floats(-3.2, 3.2)),
+       offsets=st.lists(st.floats(-500.0, 500.0), max_size=12),
+       size=st.sampled_from([(320, 240), (64, 480), (7, 5)]), k=st.integers(0, 1))
+def test_the_compiled_clipping_matches_clip_line(
+    y3: float, offsets: list[float], size: tuple[int, int], k: int
+) -> None:
+    """Any heading (along the pixel axes too) and offsets within and beyond the view: the
+    compiled clipping gives clip_line's endpoints bit for bit, and misses where it does."""
+    n = ((np.sin(y3), -np.cos(y3)), (-np.cos(y3), -np.sin(y3)))[k]
+    n = (float(n[0]), float(n[1]))
+    out, hit = lattice_kernel.clip_lines(n[0], n[1], np.array(offsets, np.float64), *size)
+    for i, s in enumerate(offsets):
+        seg = lattice.clip_line(n, s, *size)
+        assert hit[i] == (seg is not None)
+        if seg is not None:
+            assert _bits(out[i]) == _bits(np.array(seg))

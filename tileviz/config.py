@@ -189,13 +189,15 @@ class VisionConfig:
     min_segments: int = 2
     """Continue only with at least this many good segments."""
     position_error_px: float = 3.0
-    """Bound on the error of y1, y2, in pixels (converted with ppm). The robust extractor
-    declares each view's own bound from the evidence in that image (docs/vision.md) and refuses
-    a view whose bound exceeds this (``imprecise``); the faithful extractor declares this bound
-    for every view."""
+    """Bound on the error of y1, y2, in pixels (converted with ppm): the faithful extractor
+    declares this bound for every view. The robust extractor declares each view's own bound
+    from the evidence in that image (docs/vision.md), scales its consistency checks with the
+    smaller of this and 2 px, and refuses a view whose bound exceeds the larger of this and
+    its own limit (``RobustSettings.max_bound_px``, 5 px: ``imprecise``)."""
     heading_error: float = 0.025
-    """Bound on the error of y3, rad: the robust extractor's largest per-view heading bound, the
-    faithful extractor's declared bound."""
+    """Bound on the error of y3, rad: the faithful extractor's declared bound; for the robust
+    extractor as ``position_error_px`` (its own limit ``RobustSettings.max_bound_rad``,
+    0.05 rad)."""
 
     def __post_init__(self) -> None:
         if self.extractor not in EXTRACTORS:
@@ -370,11 +372,11 @@ def _to_tuple(value: Any) -> Any:
 
 
 PRESET_VISION = VisionConfig(position_error_px=1.5, heading_error=0.0065)
-"""Vision limits of both presets' cameras (noise 3 gray levels, blur 0.7 px, no JPEG). The robust
-extractor declares each view's own bound (docs/vision.md) and refuses a view whose bound exceeds
-these (``imprecise``); on the presets' clean views that bound is about 0.8 px / 0.004 rad, and
-these limits keep nearly every view (``bench/preset_bounds.py``, ``tests/test_preset_bounds.py``).
-The faithful extractor declares these bounds for every view."""
+"""Vision bounds of both presets' cameras (noise 3 gray levels, blur 0.7 px, no JPEG): the
+faithful extractor declares them for every view; the robust extractor declares each view's own
+bound (docs/vision.md), about 0.8 px / 0.004 rad on the presets' clean views, within these
+nearly always (``bench/preset_bounds.py``, ``tests/test_preset_bounds.py``), and its checks
+scale with them."""
 
 
 FLOOR_STYLES: dict[str, dict[str, Any]] = {

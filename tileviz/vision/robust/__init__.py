@@ -5,8 +5,8 @@ Modules, one per job: :mod:`.settings` (thresholds), :mod:`.state` (one frame's 
 :mod:`.profiles` (step 4), :mod:`.periodic` (step 4's tile period), :mod:`.fit` (step 5 and
 the line checks), :mod:`.lattice` (spacing, the observation), :mod:`.bound` (the view's error
 bound), :mod:`.foreign` (the last checks) and :mod:`.extractor` (the entry point, the result
-and the stage images); the compiled loops are in :mod:`.kernel`, :mod:`.projection_kernel`
-and :mod:`.heading_kernel`.
+and the stage images); the compiled loops are in :mod:`.kernel`, :mod:`.projection_kernel`,
+:mod:`.heading_kernel`, :mod:`.fit_kernel` and :mod:`.lattice_kernel`.
 
 How it measures (vectorised numpy/OpenCV; timings in ``bench/bench_vision.py``):
 
@@ -41,8 +41,9 @@ How it measures (vectorised numpy/OpenCV; timings in ``bench/bench_vision.py``):
    share both; lighter grout may instead agree in depth over the grout's own level),
    ``inconsistent spacing`` (line offsets not multiples of L apart, or a well-visible
    lattice line missing), ``too few segments`` (too little line length per
-   family), ``imprecise`` (the view's own bound, :mod:`.bound`, exceeds the largest bounds
-   the configuration allows), then
+   family), ``imprecise`` (the view's own bound, :mod:`.bound`, exceeds the largest a view
+   may declare: ``RobustSettings.max_bound_px`` / ``max_bound_rad``, 5 px / 0.05 rad, or the
+   configured ``VisionConfig`` bounds when larger), then
    ``foreign line`` / ``step edge`` again for a long straight edge that is not on the lattice
    (a cable; a box or shadow edge), found by a probabilistic Hough transform on the Canny edges
    that the predicted grout lines do not explain.
@@ -51,11 +52,12 @@ Known limit: a straight dark object lying exactly along the grout direction (wit
 0.2 deg), as wide and as dark as the grout, with no real grout line of that family in view,
 cannot be told from grout by a single image; the fault study shows how rare that is.
 
-The observation carries the declared bounds (``VisionConfig.position_error_px / ppm`` and
-``VisionConfig.heading_error``). The consistency checks work at the smaller of those bounds and
-the check scales of :class:`RobustSettings` (2 px, 0.02 rad): the defaults of the declared
-bounds (3 px, 0.025 rad) keep a margin over the largest errors the accuracy study saw among
-accepted frames (``bench/accuracy_study.py``), and a tighter declared bound tightens the checks.
+The observation carries the view's own bound (:mod:`.bound`, px / ppm and rad). The
+consistency checks work at the smaller of the configured bounds (``VisionConfig.position_error_px``,
+``VisionConfig.heading_error``) and the check scales of :class:`RobustSettings` (2 px, 0.02 rad):
+the configured defaults (3 px, 0.025 rad) keep a margin over the largest errors the accuracy
+study saw among accepted frames (``bench/accuracy_study.py``), and a tighter configured bound
+tightens the checks.
 """
 
 

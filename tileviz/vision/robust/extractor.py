@@ -16,6 +16,7 @@ from tileviz.types import Observation
 from tileviz.vision import draw
 from tileviz.vision.geometry import QUARTER, family_normals
 from tileviz.vision.result import BAG_HORIZONTAL, BAG_VERTICAL, VisionResult
+from tileviz.vision.robust import kernel, lattice_kernel
 from tileviz.vision.robust.fit import check_lines, fit_tilt
 from tileviz.vision.robust.foreign import foreign_edges
 from tileviz.vision.robust.heading import first_heading, lattice_headings, smoothed_headings
@@ -26,7 +27,7 @@ from tileviz.vision.robust.settings import DEFAULT_SETTINGS, RobustSettings
 from tileviz.vision.robust.state import Fail, Line, RobustRun
 from tileviz.vision.robust.statistics import gray_statistics, noise_sigma
 
-__all__ = ["build_result", "execute", "extract_robust", "stage_images"]
+__all__ = ["build_result", "clip_all", "execute", "extract_robust", "stage_images"]
 
 
 def extract_robust(
@@ -209,24 +210,21 @@ def read_lines(run: RobustRun, y3: float, t: float) -> tuple[list[list[Line]], f
 
 def build_result(run: RobustRun, reason: str) -> VisionResult:
     """The VisionResult of this run (segments = the measured lines, clipped to the view)."""
-    segs: list[tuple[float, float, float, float]] = []
+    segs: list[np.ndarray] = []
     bags: list[int] = []
     offsets: list[float] = []
     if run.y3 is not None:
         normals = family_normals(run.y3)
         x0, y0 = run.centre
         for k, fam in enumerate(run.lines):
-            for ln in fam:
-                if not math.isfinite(ln.pos):
-                    continue
-                s_px = -(ln.pos - (y0 if k == 0 else x0))
-                seg = clip_line(normals[k], s_px, run.w, run.h)
-                if seg is None:
-                    continue
-                segs.append(seg)
-                bags.append(BAG_HORIZONTAL if k == 0 else BAG_VERTICAL)
-                offsets.append(s_px / run.ppm)
-    seg_arr = np.array(segs, np.float64).reshape(-1, 4)
+            s_px = [-(ln.pos - (y0 if k == 0 else x0)) for ln in fam if math.isfinite(ln.pos)]
+            seg, hit = clip_all(normals[k], s_px, run.w, run.h)
+            segs.append(seg[hit])
+            for s, h in zip(s_px, hit.tolist(), strict=True):
+                if h:
+                    bags.append(BAG_HORIZONTAL if k == 0 else BAG_VERTICAL)
+                    offsets.append(s / run.ppm)
+    seg_arr = np.concatenate(segs) if segs else np.zeros((0, 4))
     ang = np.arctan2(seg_arr[:, 3] - seg_arr[:, 1], seg_arr[:, 2] - seg_arr[:, 0])
     dis = np.stack([np.cos(4.0 * ang), np.sin(4.0 * ang)], axis=1).reshape(-1, 2)
     med = None if run.y3 is None else (math.cos(4.0 * run.y3), math.sin(4.0 * run.y3))
@@ -253,6 +251,24 @@ def build_result(run: RobustRun, reason: str) -> VisionResult:
         timings=run.tm,
         details=run.details,
     )
+
+
+def clip_all(n: tuple[float, float], s: list[float], width: int, height: int
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`~tileviz.vision.robust.lattice.clip_line` of the lines ``n . (p - centre) = s``
+    for every offset of ``s`` (px): their endpoints (k, 4) and whether each meets the view
+    (its row is unset otherwise); compiled when numba is present
+    (:func:`~tileviz.vision.robust.lattice_kernel.clip_lines`, bit-identical)."""
+    if kernel.AVAILABLE:
+        return lattice_kernel.clip_lines(n[0], n[1], np.array(s, np.float64), width, height)
+    out = np.zeros((len(s), 4))
+    hit = np.zeros(len(s), bool)
+    for i, v in enumerate(s):
+        seg = clip_line(n, v, width, height)
+        if seg is not None:
+            out[i] = seg
+            hit[i] = True
+    return out, hit
 
 
 def stage_images(

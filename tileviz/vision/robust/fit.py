@@ -7,11 +7,12 @@ import math
 
 import numpy as np
 
+from tileviz.vision.robust import fit_kernel, kernel
 from tileviz.vision.robust.crossings import crossings_agree
 from tileviz.vision.robust.state import Fail, Line, RobustRun
 from tileviz.vision.robust.statistics import list_median
 
-__all__ = ["check_lines", "fit_tilt"]
+__all__ = ["check_lines", "fit_arrays_numpy", "fit_tilt"]
 
 
 def fit_tilt(run: RobustRun, lines: list[list[Line]]) -> float:
@@ -19,8 +20,8 @@ def fit_tilt(run: RobustRun, lines: list[list[Line]]) -> float:
     family-2 columns by -eps) and one intercept per line, weighted by part lengths; set each
     line's ``pos`` (at t = 0), ``var`` and ``infl``, and ``run.part_bound``; return eps (rad).
     Also records the tilt of each family on its own (``tilt_gap``: their difference in
-    standard errors). All lines at once: rows of (lines, PARTS) arrays, a part not measured
-    (``wpart`` 0) weighing nothing."""
+    standard errors). All lines at once (:func:`fit_arrays_numpy`; compiled:
+    :func:`~tileviz.vision.robust.fit_kernel.fit_arrays`)."""
     every = lines[0] + lines[1]
     m = len(every)
     st = run.st
@@ -31,20 +32,51 @@ def fit_tilt(run: RobustRun, lines: list[list[Line]]) -> float:
         run.details["heading_se"] = math.inf
         run.details["tilt_gap"] = 0.0
         return 0.0
-    wp = np.array([ln.wpart for ln in every])
+    fit = fit_kernel.fit_arrays if kernel.AVAILABLE else fit_arrays_numpy
+    eps, pos, var, g, d_eps, part_bound, straight, heading_se, tilt_gap = fit(
+        np.array([ln.wpart for ln in every]), np.array([ln.tpart for ln in every]),
+        np.array([ln.parts for ln in every]), np.array([ln.sigma for ln in every]),
+        np.array([ln.spread for ln in every]), len(lines[0]), st.part_sigmas,
+        st.prior_dof * st.prior_sigma**2, st.prior_dof)
+    run.details["straightness_px"] = straight
+    run.part_bound = part_bound
+    run.details["heading_parts"] = float(np.dot(np.abs(d_eps), part_bound))
+    for i, ln in enumerate(every):
+        ln.pos = float(pos[i])
+        ln.var = float(var[i])
+        ln.infl = g[i]
+    run.details["heading_se"] = heading_se
+    run.details["tilt_gap"] = tilt_gap
+    return eps
+
+
+def fit_arrays_numpy(
+    wp: np.ndarray, tp: np.ndarray, pp: np.ndarray, sig: np.ndarray, spr: np.ndarray, n0: int,
+    part_sigmas: float, prior: float, prior_dof: float
+) -> tuple[float, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, float, float,
+           float]:
+    """The fit of :func:`fit_tilt` on the (lines, PARTS) arrays of the parts' lengths ``wp``
+    (0: not measured, weighing nothing), tangent coordinates ``tp``, positions ``pp``,
+    standard errors ``sig`` and spreads ``spr`` (the first ``n0`` lines of family 1): eps
+    (rad); each line's pos and var; its influence row ``g`` (d pos / d every measured part);
+    d eps / d every measured part; every measured part's own bound (``part_sigmas`` sigma +
+    spread); the straightness (px), the heading's standard error and the tilt gap. ``prior``
+    is ``prior_dof`` x the prior sigma squared. :func:`~tileviz.vision.robust.fit_kernel.
+    fit_arrays` is the same computation compiled (bit-identical)."""
+    m = wp.shape[0]
     ok = wp > 0
     w = np.where(ok, wp, 0.0)
-    t = np.where(ok, np.array([ln.tpart for ln in every]), 0.0)
-    p = np.where(ok, np.array([ln.parts for ln in every]), 0.0)
+    t = np.where(ok, tp, 0.0)
+    p = np.where(ok, pp, 0.0)
     sign = np.ones(m)
-    sign[len(lines[0]):] = -1.0
+    sign[n0:] = -1.0
     sw = w.sum(axis=1)
     tb = (w * t).sum(axis=1) / sw
     pb = (w * p).sum(axis=1) / sw
     dt = np.where(ok, t - tb[:, None], 0.0)
     num_l = sign * (w * dt * (p - pb[:, None])).sum(axis=1)
     den_l = (w * dt * dt).sum(axis=1)
-    first = np.arange(m) < len(lines[0])
+    first = np.arange(m) < n0
     num = (float(num_l[first].sum()), float(num_l[~first].sum()))
     den = (float(den_l[first].sum()), float(den_l[~first].sum()))
     dall = den[0] + den[1]
@@ -54,37 +86,28 @@ def fit_tilt(run: RobustRun, lines: list[list[Line]]) -> float:
     ss = float((w * res * res).sum())
     nobs = int(ok.sum())
     big = ok & (wp >= 0.25 * wp.max(axis=1)[:, None])
-    run.details["straightness_px"] = float(np.abs(res[big]).max()) if big.any() else 0.0
+    straight = float(np.abs(res[big]).max()) if big.any() else 0.0
     # The fit is linear in the part positions: d eps / d p_i = sign w_i (t_i - tb) / dall,
     # d pos / d p_i = w_i / sum(w) [its own line] - sign tb d eps / d p_i. With every part
     # within its own bound b_i, eps and pos are within sum |d / d p_i| b_i. (Parts in the
     # order of the lines, then of their parts; only the measured ones.)
     d_eps = (sign[:, None] * w * dt)[ok] / max(dall, 1e-9)
-    sig = np.array([ln.sigma for ln in every])
-    spr = np.array([ln.spread for ln in every])
-    run.part_bound = (st.part_sigmas * sig + spr)[ok]
+    part_bound = (part_sigmas * sig + spr)[ok]
     g = -(sign * tb)[:, None] * d_eps[None, :]
     own = np.repeat(np.arange(m), ok.sum(axis=1))
     g[own, np.arange(own.size)] += (w / sw[:, None])[ok]
-    run.details["heading_parts"] = float(np.dot(np.abs(d_eps), run.part_bound))
     # Scatter of the parts about the fit, per unit of part length (px^2 px), with a weak
     # prior so that a fit with few degrees of freedom is not trusted blindly.
     dof = max(nobs - (m + 1), 0)
-    sigma2 = (ss + st.prior_dof * st.prior_sigma**2) / (dof + st.prior_dof)
+    sigma2 = (ss + prior) / (dof + prior_dof)
     var_eps = sigma2 / dall if dall > 1e-9 else math.inf
     var = sigma2 / sw + tb * tb * var_eps
-    for i, ln in enumerate(every):
-        ln.pos = float(pos[i])
-        ln.var = float(var[i])
-        ln.infl = g[i]
-    run.details["heading_se"] = math.sqrt(var_eps)
     # the two families must be perpendicular: their own tilts agree within their errors
+    gap = 0.0
     if den[0] > 1e-9 and den[1] > 1e-9:
         gap = abs(num[0] / den[0] - num[1] / den[1])
-        run.details["tilt_gap"] = gap / math.sqrt(sigma2 / den[0] + sigma2 / den[1])
-    else:
-        run.details["tilt_gap"] = 0.0
-    return eps
+        gap = gap / math.sqrt(sigma2 / den[0] + sigma2 / den[1])
+    return eps, pos, var, g, d_eps, part_bound, straight, math.sqrt(var_eps), gap
 
 
 def check_lines(run: RobustRun, lines: list[list[Line]]) -> None:

@@ -284,6 +284,8 @@ def ends(run: RobustRun, px: float, py: float, dx: float, dy: float, band: float
     i2 = i1 + int(back[0]) if back.size else xs.size
     n2 = i2 - i1
     far = n2 >= 6 and int(oriented_hits(run, xs[i1:i2], ys[i1:i2], -dy, dx).sum()) >= 0.5 * n2
+    # the steps (t, px from the end) where the edge is read again beyond the band
+    seen_beyond = (float(i1 + 1), float(min(i2, i1 + 16))) if far else None
     k = 0 if float(dk[0][i0:i1].min()) <= float(dk[1][i0:i1].min()) else 1
     if float(dk[k][i0:i1].min()) >= 0.5 * run.details["width"]:
         # the line does not reach the grout of this band in the view
@@ -301,7 +303,8 @@ def ends(run: RobustRun, px: float, py: float, dx: float, dy: float, band: float
         # the crossing cannot be read (the line meets the grout within STRADDLE_PARALLEL of
         # it, or where it lies out of view): the grout's core beside the line's whole pass
         # through the band decides, as where the line does not reach the core
-        return pass_unchanged(run, xs, ys, i0, i1, px, py, dx, dy, normals[k], shift[k])
+        return pass_unchanged(run, xs, ys, i0, i1, px, py, dx, dy, normals[k], shift[k],
+                              seen_beyond)
     core, both, own = read
     steep = both and abs(normals[k][0] * dx + normals[k][1] * dy) >= STRADDLE_ONE_SIDED
     if not far and n2 >= 6 and not steep:
@@ -314,20 +317,23 @@ def ends(run: RobustRun, px: float, py: float, dx: float, dy: float, band: float
     # seen beyond the band, or the grout read on one side only (the crossing at the border
     # of the view, the far side out of it): texture only when anything seen beside the
     # grout would have changed the grout's level there
-    return conclusive(run, px, py, dx, dy, float(np.median(core)), limit)
+    return conclusive(run, px, py, dx, dy, float(np.median(core)), limit, seen_beyond)
 
 
 def pass_unchanged(run: RobustRun, xs: np.ndarray, ys: np.ndarray, i0: int, i1: int,
                    px: float, py: float, dx: float, dy: float, n: tuple[float, float],
-                   sh: float) -> bool:
+                   sh: float, beyond: tuple[float, float] | None = None) -> bool:
     """Whether the grout of the family with unit normal ``n`` and offset ``sh`` (px) stays
     alike beside a straight edge's pass through its band (the steps ``xs``, ``ys`` from
     ``i0`` to ``i1``, 10 steps more either side), for the edge ending at (px, py) along the
-    unit vector (dx, dy): the grout's core levels beside the pass (:func:`alongside`) vary by
-    at most :func:`straddle_limit` and the pass is :func:`conclusive` (anything seen beside
-    the edge would have changed the grout's level had it covered or shaded the grout). An
-    object reaching the grout in that stretch covers or darkens its core; a texture's edge
-    beside the grout leaves it alike."""
+    unit vector (dx, dy): the grout's core levels beside the pass (:func:`alongside`) vary
+    by at most :func:`straddle_limit`, or by that much about their straight trend (a
+    least-squares line over the pass: the light's gradient and vignetting change the level
+    slowly along a long pass), and the pass is :func:`conclusive` (anything seen beside the edge
+    would have changed the grout's level had it covered or shaded the grout; ``beyond``: the
+    steps where the edge is seen again past the band, as there). An object reaching the
+    grout in that stretch covers or darkens its core from where its edge meets it, a step
+    the trend leaves nearly whole; a texture's edge beside the grout leaves it alike."""
     j0, j1 = max(i0 - 10, 0), min(i1 + 10, xs.size)
     core = alongside(run, xs[j0:j1], ys[j0:j1], n, sh)
     if core is None:
@@ -335,8 +341,11 @@ def pass_unchanged(run: RobustRun, xs: np.ndarray, ys: np.ndarray, i0: int, i1: 
         # covered a grout core in view (a line whose core is out of view is not measured)
         return j1 - j0 >= 3
     limit = straddle_limit(run)
-    return (float(core.max() - core.min()) <= limit
-            and conclusive(run, px, py, dx, dy, float(np.median(core)), limit))
+    x = np.arange(core.size, dtype=np.float64)
+    rest = core - np.polyval(np.polyfit(x, core, 1), x)
+    vary = min(float(core.max() - core.min()), float(rest.max() - rest.min()))
+    return (vary <= limit
+            and conclusive(run, px, py, dx, dy, float(np.median(core)), limit, beyond))
 
 
 STRADDLE_SIGMAS = 3.0
@@ -463,21 +472,16 @@ def straddle_limit(run: RobustRun) -> float:
     return STRADDLE_SIGMAS * run.details["noise_sigma"] + STRADDLE_LEVELS
 
 
-def conclusive(run: RobustRun, px: float, py: float, dx: float, dy: float, grout: float,
-               limit: float) -> bool:
-    """Whether an object whose straight edge ends at (px, py) (a unit vector (dx, dy) pointing
-    on along its line) would have changed the grout's gray level ``grout`` by more than
-    :data:`CONCLUSIVE` x ``limit`` had it gone on across the grout: every level seen beside
-    the edge's last 15 px (the median along it at each of -8..8 px across it) differs from
-    the grout's by that much (a cable or a box covering the grout with its own level), and,
-    when the two sides' levels (5..8 px each side, beyond a ridge beside the edge) differ by
-    more than ``limit`` (a step edge), so does the grout darkened by their ratio (a shadow
-    edge darkens the grout as it darkens the tiles). Only what is seen counts: samples out of
-    the view, and samples on the grout itself (:func:`on_grout`: an edge beside the grout
-    sees it within 8 px), are not the object's and are left out (a level needs 4 samples);
-    a side whose levels 5..8 px off are all left out is read at 3..4 px off
-    (:func:`side_level`); False when no level, or no level of a side, is seen."""
-    t = np.arange(-16.0, -1.0)
+def cross_profile(run: RobustRun, px: float, py: float, dx: float, dy: float, t0: float,
+                  t1: float) -> np.ndarray:
+    """The gray levels across a straight edge through (px, py) along the unit vector
+    (dx, dy): at each of -8..8 px across it (positive along (-dy, dx)), the median of the
+    bilinear samples at t0..t1 px along it (1 px apart). Samples out of the view, and on the
+    grout itself (:func:`on_grout`: an edge beside the grout sees it within 8 px), are not
+    the edge's and are left out; an offset with fewer than 4 samples left is NaN."""
+    t = np.arange(t0, t1 + 0.5)
+    if t.size == 0:
+        return np.full(17, np.nan)
     o = np.arange(-8.0, 9.0)
     xs = px + t[None, :] * dx - o[:, None] * dy
     ys = py + t[None, :] * dy + o[:, None] * dx
@@ -486,16 +490,67 @@ def conclusive(run: RobustRun, px: float, py: float, dx: float, dy: float, grout
                   cv2.INTER_LINEAR).astype(np.float64)
     v[~ok | on_grout(run, xs, ys)] = np.nan
     count = np.isfinite(v).sum(axis=1)
-    seen = count >= 4
     lv = np.full(o.size, np.nan)
+    seen = count >= 4
     lv[seen] = row_medians(v[seen], count[seen])
+    return lv
+
+
+def conclusive(run: RobustRun, px: float, py: float, dx: float, dy: float, grout: float,
+               limit: float, beyond: tuple[float, float] | None = None) -> bool:
+    """Whether an object whose straight edge ends at (px, py) (a unit vector (dx, dy) pointing
+    on along its line) would have changed the grout's gray level ``grout`` by more than
+    :data:`CONCLUSIVE` x ``limit`` had it gone on across the grout, from the levels across
+    the edge's last 15 px (:func:`cross_profile`; the two sides' levels by :func:`side_level`,
+    5..8 px off). Two kinds of object are ruled out:
+
+    - one covering the grout with its own level (a cable, a box): no level seen beside the
+      edge lies within that margin of the grout's; or the two sides agree within ``limit``
+      and the edge bounds a ridge (the levels more than ``limit`` off the sides') whose every
+      level differs from the grout's by that margin: the object there is the ridge (a mortar
+      line, a cable), and the sides are the tile; or, when the edge is seen again beyond the
+      band (``beyond``: the steps along its line, t from its end, where it is read there),
+      every offset whose level lies near the grout's reads more than ``limit`` differently
+      there: nothing of that level goes on along the line;
+    - a shadow: the two sides agree within ``limit``, or the grout darkened by their ratio
+      would change by more than the margin, or (``beyond``) the far side's two levels are not
+      in the near side's ratio within ``limit``: a shadow edge darkens the tiles on both
+      sides of the grout alike.
+
+    Only what is seen counts (see :func:`cross_profile`); False when no level, or no level
+    of a side, is seen."""
+    o = np.arange(-8.0, 9.0)
+    lv = cross_profile(run, px, py, dx, dy, -16.0, -2.0)
+    seen = np.isfinite(lv)
     need = CONCLUSIVE * limit
-    if not seen.any() or float(np.abs(lv[seen] - grout).min()) <= need:
+    if not seen.any():
         return False
     a, b = side_level(lv, seen, o), side_level(lv, seen, -o)
     if not (math.isfinite(a) and math.isfinite(b)):
         return False
-    return abs(a - b) <= limit or grout * abs(a - b) / max(a, b, 1e-9) > need
+    far = None if beyond is None else cross_profile(run, px, py, dx, dy, *beyond)
+    if float(np.abs(lv[seen] - grout).min()) <= need:
+        if abs(a - b) > limit:
+            covered = True
+        else:
+            ridge = seen & (np.abs(lv - 0.5 * (a + b)) > limit)
+            covered = not (bool(ridge.any()) and float(np.abs(lv[ridge] - grout).min()) > need)
+        if covered:
+            if far is None:
+                return False
+            g = seen & (np.abs(lv - grout) <= need) & np.isfinite(far)
+            if not g.any() or float(np.abs(far[g] - lv[g]).min()) <= limit:
+                return False
+    if abs(a - b) <= limit or grout * abs(a - b) / max(a, b, 1e-9) > need:
+        return True
+    if far is None:
+        return False
+    fseen = np.isfinite(far)
+    a2, b2 = side_level(far, fseen, o), side_level(far, fseen, -o)
+    if not (math.isfinite(a2) and math.isfinite(b2)):
+        return False
+    # a shadow edge going on across the grout darkens the far tile by the same ratio
+    return abs(a2 * b - b2 * a) / max(b, a, 1e-9) > limit
 
 
 def row_medians(v: np.ndarray, count: np.ndarray) -> np.ndarray:

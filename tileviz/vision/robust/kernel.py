@@ -10,7 +10,9 @@ its whole profile), :func:`dip_recentre` (a wide band's dips moved onto their ce
 line's medians and parts). The projection's
 kernels (spans, profiles, dips, the light-grout test) are in
 :mod:`~tileviz.vision.robust.projection_kernel`, the first heading's in
-:mod:`~tileviz.vision.robust.heading_kernel`.
+:mod:`~tileviz.vision.robust.heading_kernel`, the common fit of the lines' parts in
+:mod:`~tileviz.vision.robust.fit_kernel`, the lattice's missing-line check in
+:mod:`~tileviz.vision.robust.lattice_kernel`.
 
 Every operation is the numpy one in the same order: sums over a profile are numpy's pairwise
 sums (:func:`_pairwise`, the order ``ndarray.sum`` adds a contiguous row in), medians sort the

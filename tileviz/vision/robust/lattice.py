@@ -79,7 +79,9 @@ def lattice_offsets(run: RobustRun, lines: list[list[Line]], y3: float) -> None:
         res = np.remainder(s_arr - ref + 0.5 * lp, lp) - 0.5 * lp
         worst = max(worst, float(np.abs(res).max()))
         # ref moves with the lines' offsets s = -(pos - centre), weighted by their chords
-        g = sum(c * ln.infl for c, ln in zip(w_arr.tolist(), fam, strict=True)) / w_arr.sum()
+        # (the chord-weighted influence rows added one after the other)
+        g = np.add.accumulate(w_arr[:, None] * np.array([ln.infl for ln in fam]),
+                              axis=0)[-1] / w_arr.sum()
         parts_k = float(np.dot(np.abs(g), run.part_bound))
         run.details["position_parts"] = max(run.details.get("position_parts", 0.0),
                                              parts_k)
@@ -97,7 +99,8 @@ def lattice_offsets(run: RobustRun, lines: list[list[Line]], y3: float) -> None:
     pos_px, head = frame_bound(run, se)
     run.details["bound_px"] = pos_px
     run.details["bound_rad"] = head
-    if pos_px > run.vision.position_error_px or head > run.vision.heading_error:
+    if (pos_px > max(run.vision.position_error_px, st.max_bound_px)
+            or head > max(run.vision.heading_error, st.max_bound_rad)):
         raise Fail("imprecise")
     run.y = normalise(ys[0], ys[1], y3, run.tile_size)
 

@@ -14,7 +14,7 @@ import numpy as np
 
 from tileviz.vision.robust.kernel import _max, _min, compiled
 
-__all__ = ["missing_line"]
+__all__ = ["clip_lines", "missing_line"]
 
 
 @compiled
@@ -86,3 +86,47 @@ def missing_line(n0: float, n1: float, hyp: float, ref: float, lp: float, reach:
                 continue
             return True
     return False
+
+
+@compiled
+def clip_lines(n0: float, n1: float, s: np.ndarray, width: int, height: int
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`~tileviz.vision.robust.lattice.clip_line` of every offset in ``s`` (px) with the
+    unit normal ``(n0, n1)`` (bit-identical; Python's ``min`` and ``max`` keep their first
+    argument unless the second is strictly smaller / larger): the endpoints (k, 4) and
+    whether each line meets the image (its row is unset otherwise)."""
+    k = s.size
+    out = np.empty((k, 4))
+    hit = np.zeros(k, np.bool_)
+    cxp = (width - 1) / 2.0
+    cyp = (height - 1) / 2.0
+    tx = -n1
+    ty = n0
+    for i in range(k):
+        px = cxp + s[i] * n0
+        py = cyp + s[i] * n1
+        lo = -math.inf
+        hi = math.inf
+        inside = True
+        for axis in range(2):
+            p0 = px if axis == 0 else py
+            d = tx if axis == 0 else ty
+            size = width if axis == 0 else height
+            if abs(d) < 1e-12:
+                if not (-0.5 <= p0 <= size - 0.5):
+                    inside = False
+                continue
+            a = (-0.5 - p0) / d
+            b = (size - 0.5 - p0) / d
+            small = b if b < a else a
+            big = b if b > a else a
+            lo = small if small > lo else lo
+            hi = big if big < hi else hi
+        if not inside or hi - lo <= 0:
+            continue
+        hit[i] = True
+        out[i, 0] = px + lo * tx
+        out[i, 1] = py + lo * ty
+        out[i, 2] = px + hi * tx
+        out[i, 3] = py + hi * ty
+    return out, hit

@@ -41,7 +41,10 @@ def on_lattice(run: RobustRun, lines: list[list[Line]]) -> list[list[Line]]:
         measured = wp.sum(axis=1)
         # the line's place: its parts' length-weighted mean (a residual tilt moves the parts
         # of one line by about the same amount as those of the others)
-        pos = np.nansum(np.where(wp > 0, parts * wp, 0.0), axis=1) / np.maximum(measured, 1e-9)
+        # (np.nansum's sum, without its copy and its checks: NaN terms are 0.0)
+        x = parts * wp
+        x = np.where((wp > 0) & (x == x), x, 0.0)
+        pos = x.sum(axis=1) / np.maximum(measured, 1e-9)
         weight = np.array([ln.depth for ln in fam]) * measured
         d = pos[:, None] - pos[None, :]
         near = np.abs(d - lp * np.rint(d / lp)) <= PHASE_TOLERANCE * lp

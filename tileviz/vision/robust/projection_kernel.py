@@ -28,21 +28,20 @@ def _running(ext: np.ndarray, width: int, bigger: bool, out: np.ndarray) -> None
     n = ext.size
     fwd = np.empty(n, ext.dtype)
     bwd = np.empty(n, ext.dtype)
+    # (selections rather than branches: a noisy profile's order is a coin toss)
     for b0 in range(0, n, width):
         b1 = min(b0 + width, n)
         v = ext[b0]
         fwd[b0] = v
         for i in range(b0 + 1, b1):
             u = ext[i]
-            if (u > v) if bigger else (u < v):
-                v = u
+            v = u if ((u > v) if bigger else (u < v)) else v
             fwd[i] = v
         v = ext[b1 - 1]
         bwd[b1 - 1] = v
         for i in range(b1 - 2, b0 - 1, -1):
             u = ext[i]
-            if (u > v) if bigger else (u < v):
-                v = u
+            v = u if ((u > v) if bigger else (u < v)) else v
             bwd[i] = v
     for x in range(out.size):
         a = bwd[x]
@@ -87,11 +86,16 @@ def grout_score(sums: np.ndarray, length: np.ndarray, closing: int) -> tuple[boo
         if length[i] >= thr:
             prof[k] = np.float32(sums[i] / length[i])
             k += 1
-    srt = np.sort(prof)
+    # the median (np.median's float32 value) from a selection: the middle order statistics
+    # are the sorted array's, exactly
+    srt = np.partition(prof, n // 2)
     if n % 2 == 1:
         mid = srt[n // 2]
     else:
-        mid = np.float32(np.float32(srt[n // 2 - 1] + srt[n // 2]) / np.float32(2.0))
+        below = srt[0]
+        for i in range(1, n // 2):
+            below = srt[i] if srt[i] > below else below
+        mid = np.float32(np.float32(below + srt[n // 2]) / np.float32(2.0))
     half = closing // 2
     close = _morph(_morph(prof, half, mid, True), half, mid, False)
     opening = _morph(_morph(prof, half, mid, False), half, mid, True)
@@ -166,7 +170,7 @@ def profile_dips(prof: np.ndarray, mean: float, closing: int, min_depth: float
                 nok += 1
         if nok < 8:
             continue
-        srt = np.sort(diffs[:nd])
+        srt = np.partition(diffs[:nd], nd // 2)  # the middle order statistic, exactly
         sig = 1.4826 * srt[nd // 2] / math.sqrt(2.0)
         noise[k] = sig
         thr = 5.0 * sig

@@ -88,6 +88,14 @@ class RobustSettings:
     floor_rise: float = 0.05
     floor_rad: float = 0.0005
     """Smallest heading bound of a view, rad."""
+    max_bound_px: float = 5.0
+    """Largest position bound a view may declare, px, unless the configured
+    ``VisionConfig.position_error_px`` is larger: a view whose own bound exceeds both is refused
+    (``imprecise``). A wider bound is honest, only loose: the localizer's box contracts less
+    on it than on a tight one, never more than its evidence allows."""
+    max_bound_rad: float = 0.05
+    """Largest heading bound a view may declare, rad, unless ``VisionConfig.heading_error`` is
+    larger (as ``max_bound_px``)."""
     heading_sigmas: float = 6.0
     """The heading bound is this many standard errors of the fitted tilt (plus ``floor_rad``):
     the tilt's error has heavier tails than the positions' (bench/vision_study.py)."""
