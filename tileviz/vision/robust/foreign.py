@@ -341,9 +341,11 @@ def pass_unchanged(run: RobustRun, xs: np.ndarray, ys: np.ndarray, i0: int, i1: 
         # covered a grout core in view (a line whose core is out of view is not measured)
         return j1 - j0 >= 3
     limit = straddle_limit(run)
-    x = np.arange(core.size, dtype=np.float64)
-    rest = core - np.polyval(np.polyfit(x, core, 1), x)
-    vary = min(float(core.max() - core.min()), float(rest.max() - rest.min()))
+    vary = float(core.max() - core.min())
+    if vary > limit:  # about the straight trend (fitted only when the levels are not flat)
+        x = np.arange(core.size, dtype=np.float64)
+        rest = core - np.polyval(np.polyfit(x, core, 1), x)
+        vary = min(vary, float(rest.max() - rest.min()))
     return (vary <= limit
             and conclusive(run, px, py, dx, dy, float(np.median(core)), limit, beyond))
 
@@ -528,7 +530,15 @@ def conclusive(run: RobustRun, px: float, py: float, dx: float, dy: float, grout
     a, b = side_level(lv, seen, o), side_level(lv, seen, -o)
     if not (math.isfinite(a) and math.isfinite(b)):
         return False
-    far = None if beyond is None else cross_profile(run, px, py, dx, dy, *beyond)
+    far: np.ndarray | None = None
+
+    def far_profile() -> np.ndarray | None:
+        # the levels beyond the band, read once and only when a test below needs them
+        nonlocal far
+        if far is None and beyond is not None:
+            far = cross_profile(run, px, py, dx, dy, *beyond)
+        return far
+
     if float(np.abs(lv[seen] - grout).min()) <= need:
         if abs(a - b) > limit:
             covered = True
@@ -536,17 +546,19 @@ def conclusive(run: RobustRun, px: float, py: float, dx: float, dy: float, grout
             ridge = seen & (np.abs(lv - 0.5 * (a + b)) > limit)
             covered = not (bool(ridge.any()) and float(np.abs(lv[ridge] - grout).min()) > need)
         if covered:
-            if far is None:
+            past = far_profile()
+            if past is None:
                 return False
-            g = seen & (np.abs(lv - grout) <= need) & np.isfinite(far)
-            if not g.any() or float(np.abs(far[g] - lv[g]).min()) <= limit:
+            g = seen & (np.abs(lv - grout) <= need) & np.isfinite(past)
+            if not g.any() or float(np.abs(past[g] - lv[g]).min()) <= limit:
                 return False
     if abs(a - b) <= limit or grout * abs(a - b) / max(a, b, 1e-9) > need:
         return True
-    if far is None:
+    past = far_profile()
+    if past is None:
         return False
-    fseen = np.isfinite(far)
-    a2, b2 = side_level(far, fseen, o), side_level(far, fseen, -o)
+    fseen = np.isfinite(past)
+    a2, b2 = side_level(past, fseen, o), side_level(past, fseen, -o)
     if not (math.isfinite(a2) and math.isfinite(b2)):
         return False
     # a shadow edge going on across the grout darkens the far tile by the same ratio
