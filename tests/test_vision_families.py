@@ -124,6 +124,16 @@ def test_each_floor_family_is_read_within_its_declared_bound(family: str) -> Non
                              "0.025 rad configured; its errors are 0.14 px and 0.0004 rad "
                              "(was imprecise)"),
         ("photo", 6_000_349, "the same, a bound of 3.04 px (was imprecise)"),
+        ("photo", 6_000_106, "a mortar edge meets the light grout at 0.1 rad, where its short "
+                             "line in view gives no reading of the grout's own variation: "
+                             "the grout's level rises by 16 levels over the 180 px read, "
+                             "smoothly, about its straight trend (was a step edge)"),
+        ("photo", 6_000_370, "the same at 0.085 rad, 20 levels (was a step edge)"),
+        ("photo", 121, "the same on dark bricks, 15 levels at 0.14 rad (was a foreign line)"),
+        ("photo", 240, "the same, 15 levels falling at 0.1 rad (was a foreign line)"),
+        ("photo", 5_000_269, "the same, two mortar edges at 0.06 rad (was a foreign line)"),
+        ("photo", 7_000_095, "the same, 9 levels over a 7.6 limit at 0.17 rad (was a foreign "
+                             "line)"),
     ],
 )
 def test_views_once_refused_are_read_within_their_bound(family: str, seed: int, why: str) -> None:
@@ -277,6 +287,35 @@ def test_a_box_edge_along_the_grout_on_views_read_through_a_trend_stays_in_bound
     cov = np.clip(d + 0.5, 0.0, 1.0)[..., None]
     for level in (70.0, 190.0):
         assert not _read(img + cov * (level - img), spec, cam, pose), level
+
+
+@pytest.mark.parametrize("seed", [6_000_106, 240])
+@pytest.mark.parametrize("tilt", [-0.1, 0.1])
+def test_a_box_edge_crossing_the_grout_shallowly_on_views_read_about_the_trend_is_refused(
+        seed: int, tilt: float) -> None:
+    """Views whose mortar edges pass because the grout's level, read over a long stretch where
+    they meet it at a shallow angle, changes smoothly (the light's trend): a box edge laid
+    ``tilt`` rad off a measured grout line, crossing it in the middle of the view, covers the
+    grout from the crossing on (a jump the trend leaves whole) and must be refused; a shadow
+    edge (45 % dark) or a cable (5 px, the grout's gray or dark) laid the same way must be
+    refused or read within the declared bound."""
+    spec, img, cam, pose = _photo_view(seed)
+    clean = extract(np.clip(np.rint(img), 0, 255).astype(np.uint8), camera=cam,
+                    tile_size=spec.tile_size, vision=VisionConfig(extractor="robust"))
+    assert clean.accepted, clean.reason
+    h, w = img.shape[:2]
+    yy, xx = np.mgrid[0:h, 0:w].astype(np.float32)
+    x1, y1, x2, y2 = clean.segments[0]
+    a = math.atan2(y2 - y1, x2 - x1) + tilt
+    mx, my = 0.5 * (x1 + x2), 0.5 * (y1 + y2)
+    d = -(xx - mx) * math.sin(a) + (yy - my) * math.cos(a)
+    cov = np.clip(d + 0.5, 0.0, 1.0)[..., None]
+    for level in (70.0, 190.0):
+        assert not _read(img + cov * (level - img), spec, cam, pose), level
+    _read(img * (1.0 - 0.45 * np.clip(d / 2.0 + 0.5, 0.0, 1.0)[..., None]), spec, cam, pose)
+    for shade in (spec.grout_shade, 30.0):
+        cable = np.clip(3.0 - np.abs(d - 3.0), 0.0, 1.0)[..., None]
+        _read(img + cable * (shade - img), spec, cam, pose)
 
 
 @pytest.mark.parametrize("seed", [6_000_079, 6_000_441])

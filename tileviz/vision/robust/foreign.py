@@ -223,7 +223,8 @@ def ends(run: RobustRun, px: float, py: float, dx: float, dy: float, band: float
       (:func:`straddle`) tells: an object crossing the grout covers it on one side (a cable,
       a box) or darkens it (a shadow), so the level varies there by more than
       :data:`STRADDLE_SIGMAS` x the image noise + :data:`STRADDLE_LEVELS` and more than the
-      grout varies by itself elsewhere on its line (:func:`grout_variation`) (False); a
+      grout varies by itself elsewhere on its line (:func:`grout_variation`; where that
+      cannot be read, about the levels' straight trend, :func:`trend_range`) (False); a
       texture's edge stops at the grout and leaves it alike (True when both sides of the
       crossing are read and the edge is not seen beyond the band). Where the line crosses
       the grout at under :data:`STRADDLE_ONE_SIDED`, or one side only is read, the far side
@@ -310,7 +311,16 @@ def ends(run: RobustRun, px: float, py: float, dx: float, dy: float, band: float
     if not far and n2 >= 6 and not steep:
         return True  # as where the grout cannot be read: the far side is in view, unseen
     limit = straddle_limit(run)
-    if float(core.max() - core.min()) > (max(limit, own) if math.isfinite(own) else limit):
+    allowed = max(limit, own) if math.isfinite(own) else limit
+    vary = float(core.max() - core.min())
+    if vary > allowed and not math.isfinite(own):
+        # the grout's own variation is not read (its line in view is too short for stretches
+        # as long as this one: a shallow crossing reads the grout over up to 9 / 0.05 px either
+        # side): about the straight trend, along which the light's gradient changes the
+        # level slowly; an object covering or shading the grout from the crossing on is a
+        # jump the trend leaves whole
+        vary = min(vary, trend_range(core))
+    if vary > allowed:
         return False  # the grout's level changes where the line crosses it
     if both and not far:
         return True
@@ -343,9 +353,7 @@ def pass_unchanged(run: RobustRun, xs: np.ndarray, ys: np.ndarray, i0: int, i1: 
     limit = straddle_limit(run)
     vary = float(core.max() - core.min())
     if vary > limit:  # about the straight trend (fitted only when the levels are not flat)
-        x = np.arange(core.size, dtype=np.float64)
-        rest = core - np.polyval(np.polyfit(x, core, 1), x)
-        vary = min(vary, float(rest.max() - rest.min()))
+        vary = min(vary, trend_range(core))
     return (vary <= limit
             and conclusive(run, px, py, dx, dy, float(np.median(core)), limit, beyond))
 
@@ -435,6 +443,15 @@ STRADDLE_ONE_SIDED = 0.15
 """The grout is read where a line crosses it at an angle (rad, sine) of at least
 ``STRADDLE_PARALLEL`` when both sides of the crossing are in view, ``STRADDLE_ONE_SIDED`` when
 only one is (:func:`straddle`)."""
+
+
+def trend_range(v: np.ndarray) -> float:
+    """The range of the values ``v`` (1-D, at least 2, in order along a line, equally
+    spaced) about their least-squares straight line (gray levels): a slow change of the
+    light along the line leaves it small; a jump (an object's edge) stays nearly whole."""
+    x = np.arange(v.size, dtype=np.float64)
+    rest = v - np.polyval(np.polyfit(x, v, 1), x)
+    return float(rest.max() - rest.min())
 
 
 def alongside(run: RobustRun, xs: np.ndarray, ys: np.ndarray, n: tuple[float, float],
