@@ -17,7 +17,7 @@ from tileviz.vision import draw
 from tileviz.vision.geometry import QUARTER, family_normals
 from tileviz.vision.result import BAG_HORIZONTAL, BAG_VERTICAL, VisionResult
 from tileviz.vision.robust import kernel, lattice_kernel
-from tileviz.vision.robust.fit import check_lines, fit_tilt
+from tileviz.vision.robust.fit import check_lines, drop_stray_part, fit_tilt
 from tileviz.vision.robust.foreign import foreign_edges
 from tileviz.vision.robust.heading import first_heading, lattice_headings, smoothed_headings
 from tileviz.vision.robust.lattice import clip_line, lattice_offsets
@@ -199,6 +199,9 @@ def read_lines(run: RobustRun, y3: float, t: float) -> tuple[list[list[Line]], f
             run.window = need
             lines = on_lattice(run, select_lines(run, measure(run, y3, attempt + 1)))
         tilt = fit_tilt(run, lines)
+        if (run.details["straightness_px"] > run.st.straight_fraction * run.bound_px
+                and drop_stray_part(run, lines, tilt)):
+            tilt = fit_tilt(run, lines)  # without the part that kept the lines from straight
         t = run.lap("profiles", t)
         y3 += tilt
         if abs(tilt) <= run.st.refine_tilt or attempt == 2:

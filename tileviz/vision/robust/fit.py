@@ -12,7 +12,7 @@ from tileviz.vision.robust.crossings import crossings_agree
 from tileviz.vision.robust.state import Fail, Line, RobustRun
 from tileviz.vision.robust.statistics import list_median
 
-__all__ = ["check_lines", "fit_arrays_numpy", "fit_tilt"]
+__all__ = ["check_lines", "drop_stray_part", "fit_arrays_numpy", "fit_tilt"]
 
 
 def fit_tilt(run: RobustRun, lines: list[list[Line]]) -> float:
@@ -108,6 +108,52 @@ def fit_arrays_numpy(
         gap = abs(num[0] / den[0] - num[1] / den[1])
         gap = gap / math.sqrt(sigma2 / den[0] + sigma2 / den[1])
     return eps, pos, var, g, d_eps, part_bound, straight, math.sqrt(var_eps), gap
+
+
+def drop_stray_part(run: RobustRun, lines: list[list[Line]], eps: float) -> bool:
+    """Leave out (``wpart`` 0, position NaN) the one part that keeps the lines from being
+    straight, when it is unambiguous: exactly one part of the whole view (among those the
+    straightness weighs, a quarter of its line's longest part or more) lies farther than the
+    straightness limit (``straight_fraction`` x ``run.bound_px``) from the common fit of tilt
+    ``eps`` (rad) and its line's other parts, which are at least 2 (of those so weighed) and
+    lie within half that limit of their own mean offset from that fit; no other line has a
+    part beyond the limit. A dip of the texture (a mortar joint of a brick
+    photograph a few px beside the grout) measured instead of the grout in one part of a short
+    line moves that part alone; the line is then measured by its other parts. True when a
+    part was left out (the caller fits again; every check then applies as before)."""
+    limit = run.st.straight_fraction * run.bound_px
+    stray: list[tuple[Line, int]] = []
+    for k, fam in enumerate(lines):
+        sign = 1.0 if k == 0 else -1.0
+        for ln in fam:
+            ok = ln.wpart > 0
+            if not ok.any():
+                continue
+            big = np.flatnonzero(ok & (ln.wpart >= 0.25 * float(ln.wpart.max())))
+            res = ln.parts[big] - (ln.pos + sign * eps * ln.tpart[big])
+            if float(np.abs(res).max()) <= limit:
+                continue
+            found = []
+            for j in range(big.size):
+                rest = np.delete(np.arange(big.size), j)
+                if rest.size < 2:
+                    continue
+                # the line without part j: its parts' mean offset from the common fit
+                m = float(np.average(res[rest], weights=ln.wpart[big[rest]]))
+                if (abs(res[j] - m) > limit
+                        and float(np.abs(res[rest] - m).max()) <= 0.5 * limit):
+                    found.append(int(big[j]))
+            if len(found) != 1:
+                return False
+            stray.append((ln, found[0]))
+    if len(stray) != 1:
+        return False
+    ln, i = stray[0]
+    ln.wpart = ln.wpart.copy()
+    ln.parts = ln.parts.copy()
+    ln.wpart[i] = 0.0
+    ln.parts[i] = math.nan
+    return True
 
 
 def check_lines(run: RobustRun, lines: list[list[Line]]) -> None:
