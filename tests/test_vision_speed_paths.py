@@ -391,3 +391,102 @@ def test_the_compiled_clipping_matches_clip_line(
         assert hit[i] == (seg is not None)
         if seg is not None:
             assert _bits(out[i]) == _bits(np.array(seg))
+
+
+def _edge_view(rng: np.random.Generator, h: int, w: int, share: float
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Random gradients (int16, some zero) and edge pixels (uint8, 0 or 255) of an h x w view."""
+    dx = rng.integers(-400, 401, (h, w)).astype(np.int16)
+    dy = rng.integers(-400, 401, (h, w)).astype(np.int16)
+    dx[rng.random((h, w)) < 0.1] = 0
+    dy[rng.random((h, w)) < 0.1] = 0
+    edges = np.where(rng.random((h, w)) < share, 255, 0).astype(np.uint8)
+    return dx, dy, edges
+
+
+@pytest.mark.skipif(not kernel.AVAILABLE, reason="numba is not installed")
+@settings(max_examples=80, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), size=st.sampled_from([(240, 320), (31, 17)]),
+       share=st.sampled_from([0.0, 0.2, 0.7]), count=st.integers(0, 12))
+def test_the_compiled_edge_shares_match_numpy(
+    seed: int, size: tuple[int, int], share: float, count: int
+) -> None:
+    """Random straight edges (some under 1 px, some along the pixel axes) on random gradients
+    and edge pixels: the compiled shares are numpy's bit for bit; an edge drawn along a column
+    of edge pixels whose gradients are normal to it is seen on every point."""
+    from tileviz.vision.robust import foreign, foreign_kernel
+
+    rng = np.random.default_rng(seed)
+    h, w = size
+    dx, dy, edges = _edge_view(rng, h, w, share)
+    seg = np.column_stack([rng.uniform(0, w - 1, count), rng.uniform(0, h - 1, count),
+                           rng.uniform(0, w - 1, count), rng.uniform(0, h - 1, count)])
+    if count >= 2:
+        seg[0, 2:] = seg[0, :2] + rng.uniform(-0.6, 0.6, 2)  # under 1 px
+        seg[1, 2] = seg[1, 0]  # along a column
+    cos_tol = float(np.cos(foreign.NORMAL_TOLERANCE))
+    got = foreign_kernel.edge_shares(dx, dy, edges, seg, cos_tol)
+    assert got.tobytes() == foreign.edge_shares_numpy(dx, dy, edges, seg, cos_tol).tobytes()
+    col = w // 2
+    edges[:, col] = 255
+    dx[:, col] = 300  # a step across the column: its gradient is normal to the column
+    dy[:, col] = int(rng.integers(-100, 101))
+    along = np.array([[col, 0.0, col, h - 1.0]])
+    assert foreign_kernel.edge_shares(dx, dy, edges, along, cos_tol)[0] == 1.0
+
+
+@pytest.mark.skipif(not kernel.AVAILABLE, reason="numba is not installed")
+@settings(max_examples=150, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), y3=st.one_of(st.just(0.0), st.floats(-0.79, 0.79)),
+       angle=st.one_of(st.sampled_from([0.0, np.pi / 2, np.pi, -np.pi / 2]),
+                       st.floats(-np.pi, np.pi)),
+       lp=st.floats(15.0, 300.0), band=st.floats(2.0, 30.0), share=st.sampled_from([0.0, 0.5]))
+def test_the_compiled_end_steps_match_numpy(
+    seed: int, y3: float, angle: float, lp: float, band: float, share: float
+) -> None:
+    """Random edge ends (in the view and on its border, any direction, along the pixel axes
+    too) on random lattices, gradients and edge pixels: the compiled steps to the border, the
+    bands met and the edge seen before and beyond them are numpy's bit for bit."""
+    from tileviz.vision.robust import foreign, foreign_kernel
+
+    rng = np.random.default_rng(seed)
+    h, w = 240, 320
+    dx, dy, edges = _edge_view(rng, h, w, share)
+    px = float(rng.choice([rng.uniform(0, w - 1), 0.0, w - 1.0]))
+    py = float(rng.uniform(0, h - 1))
+    n = (np.sin(y3), -np.cos(y3)), (-np.cos(y3), -np.sin(y3))
+    args = (px, py, float(np.cos(angle)), float(np.sin(angle)), band, float(n[0][0]),
+            float(n[0][1]), float(n[1][0]), float(n[1][1]), float(rng.uniform(-lp, lp)),
+            float(rng.uniform(-lp, lp)), lp, float(np.cos(foreign.NORMAL_TOLERANCE)))
+    got = foreign_kernel.end_steps(dx, dy, edges, *args)
+    ref = foreign.end_steps_numpy(dx, dy, edges, *args)
+    assert got[0] == ref[0] and tuple(got[3:8]) == tuple(ref[3:8])
+    assert np.array_equal(got[1], ref[1]) and np.array_equal(got[2], ref[2])
+    assert float(got[8]).hex() == float(ref[8]).hex()
+    if not ref[0]:  # every step lies in the view, the first in a band is i0
+        assert ((ref[1] >= 0) & (ref[1] < w) & (ref[2] >= 0) & (ref[2] < h)).all()
+        assert 0 <= ref[3] < ref[4] <= ref[5] <= ref[1].size
+
+
+@pytest.mark.skipif(not kernel.AVAILABLE, reason="numba is not installed")
+@settings(max_examples=150, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), reach=st.integers(10, 300), lo=st.integers(0, 300),
+       hi=st.integers(0, 300), step=st.floats(1.0, 20.0))
+def test_the_compiled_stretch_range_matches_numpy(
+    seed: int, reach: int, lo: int, hi: int, step: float
+) -> None:
+    """Random gray levels along a grout line (any stretch of it in view, the crossing inside
+    or outside it): the compiled largest range of the stretches clear of the crossing is
+    numpy's, NaN when too few stretches are clear."""
+    from tileviz.vision.robust import foreign, foreign_kernel
+
+    rng = np.random.default_rng(seed)
+    u = np.arange(-reach, reach + 1) * step
+    a, b = sorted((min(lo, u.size - 21), min(hi, u.size - 1)))
+    b = max(b, a + 20)
+    idx = np.arange(a, b + 1)
+    lv = np.floor(rng.uniform(0.0, 256.0, idx.size - 2))
+    args = (lv, idx, u, foreign.VARIATION_CLEAR, foreign.VARIATION_STRETCHES)
+    got = foreign_kernel.stretch_range(*args)
+    ref = foreign.stretch_range_numpy(*args)
+    assert float(got).hex() == float(ref).hex() or (np.isnan(got) and np.isnan(ref))
