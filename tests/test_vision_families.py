@@ -142,6 +142,19 @@ def test_each_floor_family_is_read_within_its_declared_bound(family: str) -> Non
         ("photo", 5_000_379, "the same, 6.6 px (was inconsistent angle)"),
         ("photo", 6_000_395, "the same on a gravel photograph, 6.6 px (was inconsistent "
                              "angle)"),
+        ("photo", 4_000_312, "a light mortar line between bricks of two shades (a 10 % step) "
+                             "meets the grout at the border of the view: the levels at the "
+                             "edge rise above both sides, a ridge no shadow edge makes (was a "
+                             "foreign line)"),
+        ("photo", 5_000_488, "the same, an 11 % step (was a step edge)"),
+        ("photo", 4_000_121, "the same (was a step edge)"),
+        ("photo", 7_000_325, "the same (was a foreign line)"),
+        ("photo", 6_000_351, "the same, the mortar edge passing the grout band near the border "
+                             "(was a foreign line)"),
+        ("photo", 37, "a light mortar edge running into the grout at the corner of the view, "
+                      "one side out of the view beside its last 15 px: its sides read beside "
+                      "its last 47 px (was a foreign line)"),
+        ("photo", 51, "the same (was a step edge)"),
     ],
 )
 def test_views_once_refused_are_read_within_their_bound(family: str, seed: int, why: str) -> None:
@@ -324,6 +337,30 @@ def test_a_box_edge_crossing_the_grout_shallowly_on_views_read_about_the_trend_i
     for shade in (spec.grout_shade, 30.0):
         cable = np.clip(3.0 - np.abs(d - 3.0), 0.0, 1.0)[..., None]
         _read(img + cable * (shade - img), spec, cam, pose)
+
+
+@pytest.mark.parametrize(
+    ("seed", "edge"),
+    [(4_000_312, (191.0, 11.0, 0.3348, -0.9423)), (5_000_488, (282.0, 19.0, 0.7557, -0.6549))],
+)
+def test_a_shadow_edge_along_a_mortar_ridge_read_as_texture_stays_in_bound(
+        seed: int, edge: tuple[float, float, float, float]) -> None:
+    """Views whose mortar edges (a light ridge between bricks of two shades, meeting the
+    grout at the border of the view) pass because the levels at the edge go beyond both
+    sides, which a shadow's edge never does: a straight shadow edge laid along that very
+    edge (``edge``: its end, px, and unit direction), 0 or 2 px off it, 15 % to 45 % dark on
+    either side, keeps or hides the ridge and must be refused or read within the declared
+    bound."""
+    spec, img, cam, pose = _photo_view(seed)
+    px, py, dx, dy = edge
+    h, w = img.shape[:2]
+    yy, xx = np.mgrid[0:h, 0:w].astype(np.float32)
+    for off in (-2.0, 0.0, 2.0):
+        d = -(xx - px) * dy + (yy - py) * dx - off
+        for k in (0.15, 0.3, 0.45):
+            for side in (1.0, -1.0):
+                t = np.clip(side * d / 2.0 + 0.5, 0.0, 1.0)[..., None]
+                _read(img * (1.0 - k * t), spec, cam, pose)
 
 
 @pytest.mark.parametrize("seed", [116, 6_000_267])

@@ -606,19 +606,28 @@ def conclusive(run: RobustRun, px: float, py: float, dx: float, dy: float, grout
       every offset whose level lies near the grout's reads more than ``limit`` differently
       there: nothing of that level goes on along the line;
     - a shadow: the two sides agree within ``limit``, or the grout darkened by their ratio
-      would change by more than the margin, or (``beyond``) the far side's two levels are not
-      in the near side's ratio within ``limit``: a shadow edge darkens the tiles on both
-      sides of the grout alike.
+      would change by more than the margin, or the levels within 4 px of the edge go beyond
+      both sides' by more than ``limit`` (a ridge or a trough at the edge, a mortar line's: a
+      shadow's edge goes monotonically from one side's level to the other's), or
+      (``beyond``) the far side's two levels are not in the near side's ratio within
+      ``limit``: a shadow edge darkens the tiles on both sides of the grout alike.
 
-    Only what is seen counts (see :func:`cross_profile`); False when no level, or no level
-    of a side, is seen."""
+    Only what is seen counts (see :func:`cross_profile`); where one side is not seen beside
+    the last 15 px (the edge's end at the border of the view), the levels are read beside
+    its last 47 px; False when no level, or no level of a side, is seen."""
     o = np.arange(-8.0, 9.0)
     lv = cross_profile(run, px, py, dx, dy, -16.0, -2.0)
     seen = np.isfinite(lv)
+    a, b = side_level(lv, seen, o), side_level(lv, seen, -o)
+    if not (math.isfinite(a) and math.isfinite(b)):
+        # one side out of the view there (the edge's end at the border): the edge's sides
+        # over its last 48 px
+        lv = cross_profile(run, px, py, dx, dy, -48.0, -2.0)
+        seen = np.isfinite(lv)
+        a, b = side_level(lv, seen, o), side_level(lv, seen, -o)
     need = CONCLUSIVE * limit
     if not seen.any():
         return False
-    a, b = side_level(lv, seen, o), side_level(lv, seen, -o)
     if not (math.isfinite(a) and math.isfinite(b)):
         return False
     far: np.ndarray | None = None
@@ -644,6 +653,13 @@ def conclusive(run: RobustRun, px: float, py: float, dx: float, dy: float, grout
             if not g.any() or float(np.abs(past[g] - lv[g]).min()) <= limit:
                 return False
     if abs(a - b) <= limit or grout * abs(a - b) / max(a, b, 1e-9) > need:
+        return True
+    # a shadow's edge goes monotonically from one side's level to the other's (its penumbra):
+    # levels beyond both sides by more than the limit (a ridge or a trough at the edge, a
+    # mortar line's) are not a shadow's
+    between = lv[seen & (np.abs(o) <= 4)]
+    if between.size and (float(between.max()) > max(a, b) + limit
+                         or float(between.min()) < min(a, b) - limit):
         return True
     past = far_profile()
     if past is None:
