@@ -32,9 +32,10 @@ How it measures (vectorised numpy/OpenCV; timings in ``bench/bench_vision.py``):
 5. A least-squares fit over every line's part positions gives the residual tilt of the warp
    (one slope shared by all lines, one intercept per line): the heading correction, each
    line's offset at the image centre, and standard errors from the scatter of the parts. A
-   large correction redoes the warp. The one part that alone keeps the lines from straight
-   (:func:`.fit.drop_stray_part`: a texture's dip measured beside the grout) is left out and
-   the fit done again.
+   large correction redoes the warp. When a view is refused after its lines were found not
+   straight, it is read again leaving out the one part that alone kept them from straight
+   (:func:`.fit.drop_stray_part`: a texture's dip measured beside the grout), and that
+   reading is kept when it passes every check.
 6. Checks, in order; the first that fails is the ``reason``:
    ``constant image``, ``glare``, ``no lines``, ``low contrast``, ``one family``, ``blurred``
    (edges too soft), ``step edge`` (a line with a different level on each side),

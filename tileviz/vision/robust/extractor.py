@@ -55,6 +55,17 @@ def extract_robust(
             execute(run)
         except Fail as f:
             reason = f.reason
+        if reason != "ok" and run.not_straight:
+            # refused after lines found not straight: read again leaving out the one part
+            # that alone kept them from straight (fit.drop_stray_part); kept only when that
+            # reading passes every check (a view read the first time is read as before)
+            again = RobustRun(gray, camera, tile_size, vision, settings, tm)
+            again.drop_stray = True
+            try:
+                execute(again)
+                run, reason = again, "ok"
+            except Fail:
+                pass
     t0 = time.perf_counter()
     res = build_result(run, reason)
     tm["result"] = (time.perf_counter() - t0) * 1e3
@@ -199,9 +210,10 @@ def read_lines(run: RobustRun, y3: float, t: float) -> tuple[list[list[Line]], f
             run.window = need
             lines = on_lattice(run, select_lines(run, measure(run, y3, attempt + 1)))
         tilt = fit_tilt(run, lines)
-        if (run.details["straightness_px"] > run.st.straight_fraction * run.bound_px
-                and drop_stray_part(run, lines, tilt)):
-            tilt = fit_tilt(run, lines)  # without the part that kept the lines from straight
+        if run.details["straightness_px"] > run.st.straight_fraction * run.bound_px:
+            run.not_straight = True
+            if run.drop_stray and drop_stray_part(run, lines, tilt):
+                tilt = fit_tilt(run, lines)  # without the part that kept them from straight
         t = run.lap("profiles", t)
         y3 += tilt
         if abs(tilt) <= run.st.refine_tilt or attempt == 2:

@@ -120,7 +120,8 @@ def drop_stray_part(run: RobustRun, lines: list[list[Line]], eps: float) -> bool
     part beyond the limit. A dip of the texture (a mortar joint of a brick
     photograph a few px beside the grout) measured instead of the grout in one part of a short
     line moves that part alone; the line is then measured by its other parts. True when a
-    part was left out (the caller fits again; every check then applies as before)."""
+    part was left out (the caller fits again; every check then applies as before). Used only
+    in a second reading of a view the first refused (``RobustRun.drop_stray``)."""
     limit = run.st.straight_fraction * run.bound_px
     stray: list[tuple[Line, int]] = []
     for k, fam in enumerate(lines):

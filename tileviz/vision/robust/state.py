@@ -112,6 +112,11 @@ class RobustRun:
         # the grout's polarity imposed (True: lighter) instead of decided from the profiles
         self.force_inverted: bool | None = None
         self.projection: Any = None  # the last profiles.Projection (reused by a wider window)
+        # leave out the one part that alone keeps the lines from straight (fit.drop_stray_part)
+        # only when reading the view again after a refusal; whether a reading found the lines
+        # not straight (so that reading again may differ)
+        self.drop_stray = False
+        self.not_straight = False
 
     def lap(self, name: str, t0: float) -> float:
         """Add the time since ``t0`` (perf_counter, s) to stage ``name`` (ms); the time now."""
