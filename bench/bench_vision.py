@@ -107,7 +107,7 @@ def parse(doc: str, argv: list[str] | None, threads: bool = False) -> argparse.N
     ``--clock cpu`` this module's ``clock`` becomes the thread's CPU time (the caller sets
     OpenCV to one thread, :func:`~tileviz.vision.set_opencv_threads`, so that the thread's
     CPU time holds all of OpenCV's work)."""
-    ap = argparse.ArgumentParser(description=doc.splitlines()[0])
+    ap = argparse.ArgumentParser(description=doc.split("\n\n")[0].replace("\n", " "))
     ap.add_argument("--frames", type=int, default=200)
     ap.add_argument("--clock", choices=("wall", "cpu"), default="wall",
                     help="wall: time.perf_counter; cpu: this thread's CPU time "

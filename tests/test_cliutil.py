@@ -23,3 +23,13 @@ def test_notice_if_slow_speaks_only_when_the_block_outlasts_it(
         pass
     time.sleep(0.1)
     assert capsys.readouterr().err == ""
+
+
+def test_a_notice_cancelled_by_the_block_is_never_shown(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """The block's first result cancels the notice (``extract``, ``replay``): a slow run after
+    a quick start says nothing."""
+    with notice_if_slow("never shown", after=0.05) as slow:
+        slow.cancel()
+        time.sleep(0.2)
+    assert capsys.readouterr().err == ""

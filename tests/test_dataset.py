@@ -164,6 +164,11 @@ def test_unreadable_and_wrong_size_image(tmp_path: Path) -> None:
     cv2.imwrite(str(folder / "pics" / "b.png"), np.zeros((10, 10, 3), np.uint8))
     with pytest.raises(DatasetError, match="is 10x10, meta.json says 64x48"):
         list(DatasetSource(folder))
+    # 10-bit data stored unscaled in a 16-bit PNG: named, not read as a nearly black view
+    cv2.imwrite(str(folder / "pics" / "b.png"), np.full((48, 64, 3), 700, np.uint16))
+    with pytest.raises(DatasetError, match=r"row 3: image 'pics/b.png': 16-bit samples reach "
+                       r"only 700 of 65535"):
+        list(DatasetSource(folder))
 
 
 def test_writer_round_trips_exactly(tmp_path: Path) -> None:

@@ -143,3 +143,63 @@ def test_module_entry_point_never_tracebacks(images, tmp_path: Path) -> None:
     obj = json.loads(proc.stdout)  # the seed image, read with the default camera settings
     assert obj["image"] == images["seed"]
     assert math.isfinite(obj["lines"])
+
+
+def test_damaged_odd_and_misplaced_files_each_give_one_line(images, tmp_path: Path) -> None:
+    """A cut-off PNG, a float TIFF, a directory and a 16-bit PNG holding 12-bit data: one line
+    each on stderr naming the file and the problem (no decoder chatter), the good image still
+    read."""
+    whole = Path(images["default"]).read_bytes()
+    cut = tmp_path / "cut.png"
+    cut.write_bytes(whole[: len(whole) // 2])
+    tiff = tmp_path / "float.tiff"
+    ok, buf = cv2.imencode(".tiff", np.random.default_rng(0).random((24, 32, 3), np.float32))
+    assert ok
+    tiff.write_bytes(buf.tobytes())
+    folder = tmp_path / "adir"
+    folder.mkdir()
+    gray = cv2.imread(images["default"], cv2.IMREAD_GRAYSCALE)
+    twelve = tmp_path / "twelve.png"
+    assert cv2.imwrite(str(twelve), gray.astype(np.uint16) * 16)  # 12-bit data, unscaled
+    proc = subprocess.run(
+        [sys.executable, "-m", "tileviz", "extract", str(cut), str(tiff), str(folder),
+         str(twelve), images["default"]],
+        capture_output=True, text=True, cwd=REPO, timeout=600,
+    )
+    assert proc.returncode == 2
+    assert proc.stdout.count("\n") == 1 and "y1=" in proc.stdout
+    assert proc.stderr.strip().splitlines() == [
+        f"tileviz extract: error: {cut}: is truncated (no end marker)",
+        f"tileviz extract: error: {tiff}: cannot read it as an image",
+        f"tileviz extract: error: {folder}: is a directory, not an image",
+        f"tileviz extract: error: {twelve}: 16-bit samples reach only {int(gray.max()) * 16} "
+        f"of 65535 (data in the low bits?): its 8-bit view would keep "
+        f"{int(gray.max()) * 16 // 256 + 1} gray level(s); scale it to the full 16-bit range "
+        "or save it as 8-bit",
+    ]
+
+
+def test_a_full_range_16_bit_png_is_read_as_its_8_bit_view(capsys, images,
+                                                          tmp_path: Path) -> None:
+    bgr = cv2.imread(images["default"], cv2.IMREAD_COLOR)
+    deep = tmp_path / "deep.png"
+    assert cv2.imwrite(str(deep), bgr.astype(np.uint16) * 257)
+    rc, out, err = _run(capsys, "--json", images["default"], str(deep))
+    assert rc == 0 and err == ""
+    a, b = (json.loads(line) for line in out.splitlines())
+    assert b["accepted"] and (b["y1"], b["y2"], b["y3"]) == (a["y1"], a["y2"], a["y3"])
+
+
+def test_stage_images_of_two_files_with_one_stem_are_both_kept(capsys, images,
+                                                               tmp_path: Path) -> None:
+    other = tmp_path / "elsewhere"
+    other.mkdir()
+    twin = other / Path(images["default"]).name
+    twin.write_bytes(Path(images["default"]).read_bytes())
+    out_dir = tmp_path / "stages"
+    rc, _, _ = _run(capsys, "--stages", str(out_dir), "--extractor", "faithful",
+                    images["default"], str(twin))
+    assert rc == 0
+    names = {p.name for p in out_dir.iterdir()}
+    assert len(names) == 20
+    assert {"default_00_input.png", "default-2_00_input.png"} <= names

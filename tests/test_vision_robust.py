@@ -252,3 +252,35 @@ def test_scattered_saturated_specks_are_not_glare_but_a_saturated_patch_is() -> 
     spot = np.full((240, 320), 150, np.uint8)
     cv2.circle(spot, (160, 120), 50, 255, -1)  # 10 % of the pixels, one patch
     assert glare_share(spot, 7) > 0.08
+
+
+def _drawn_grid(tile_px: int, grout_px: int, angle_deg: float, shift: tuple[float, float],
+                *, blur: float) -> np.ndarray:
+    """A noise-free 320x240 drawing of flat tiles (gray 200) and dark grout (gray 50), turned
+    by ``angle_deg`` about the view centre and shifted by ``shift`` (px) before the turn: most
+    of its gradients are exactly zero."""
+    big = np.full((720, 720), 200, np.uint8)
+    for k in range(0, 720, tile_px):
+        big[:, k : k + grout_px] = 50
+        big[k : k + grout_px, :] = 50
+    m = cv2.getRotationMatrix2D((360.0, 360.0), angle_deg, 1.0)
+    m[:, 2] += (shift[0] - 200.0, shift[1] - 240.0)
+    view = cv2.warpAffine(big, m, (320, 240), flags=cv2.INTER_LINEAR)
+    return cv2.GaussianBlur(view, (0, 0), blur) if blur > 0 else view
+
+
+@pytest.mark.parametrize("angle", [0.0, 7.0, 23.0, -31.0])
+@pytest.mark.parametrize("blur", [0.0, 0.7])
+def test_noise_free_drawings_are_read(angle: float, blur: float) -> None:
+    """A clean synthetic render or a drawing (no noise, flat tiles: fewer than a fifth of the
+    gradients are non-zero) is read, not refused for want of gradients; its heading is the
+    drawing's turn (modulo 90 degrees) within the declared bound."""
+    img = _drawn_grid(150, 4, angle, (13.0, 29.0), blur=blur)
+    cam = CameraConfig(ppm=150.0, width=320, height=240, offset=(0.0, 0.0))
+    res = extract(img, camera=cam, tile_size=1.0, vision=ROBUST)
+    assert np.count_nonzero(cv2.Scharr(img, cv2.CV_16S, 1, 0)) < 0.2 * img.size
+    assert res.accepted, res.reason
+    # the drawing turns the floor by +angle on the screen: its lines run at -angle in image
+    # coordinates (y down), i.e. y3 = -angle modulo 90 degrees
+    turn = math.remainder(res.observation.y3 - math.radians(-angle), math.pi / 2)
+    assert abs(turn) <= res.observation.heading_error

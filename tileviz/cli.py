@@ -4,18 +4,21 @@ from __future__ import annotations
 
 import math
 import sys
+import threading
 from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from tileviz.cliutil import (
     EXTRACTOR_HELP,
+    FIRST_RUN_NOTICE,
     CliError,
     Parser,
     add_fault_options,
     config_from_args,
     float_in,
     int_in,
+    notice_if_slow,
     positive_int,
     run_cli,
 )
@@ -174,16 +177,24 @@ def replay(argv: list[str]) -> int:
             nonlocal bar
             bar = _progress(total, "replay", not args.quiet)
 
+        slow: threading.Timer | None = None
+
         def on_frame(rec: FrameRecord) -> None:
+            nonlocal slow
+            if slow is not None:  # the first frame is in: no notice of a slow start
+                slow.cancel()
+                slow = None
             tally.add(rec)
             bar.update(1)  # type: ignore[attr-defined]
 
         try:
-            n = run_replay(args.dataset, out=args.out, output_file=args.output_file,
-                           mode=args.mode, extractor=args.extractor, max_boxes=args.max_boxes,
-                           jobs=args.jobs, mcap=args.mcap, fault_model=args.fault_model,
-                           relocalize_region=args.relocalize_region,
-                           on_total=on_total, on_frame=on_frame)
+            with notice_if_slow(f"tileviz replay: {FIRST_RUN_NOTICE}", after=10.0) as slow:
+                n = run_replay(args.dataset, out=args.out, output_file=args.output_file,
+                               mode=args.mode, extractor=args.extractor,
+                               max_boxes=args.max_boxes, jobs=args.jobs, mcap=args.mcap,
+                               fault_model=args.fault_model,
+                               relocalize_region=args.relocalize_region,
+                               on_total=on_total, on_frame=on_frame)
         finally:
             if bar is not None:
                 bar.close()  # type: ignore[attr-defined]

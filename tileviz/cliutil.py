@@ -187,28 +187,39 @@ def positive_int(name: str) -> Callable[[str], int]:
 
 
 @contextmanager
-def notice_if_slow(message: str, after: float = 3.0) -> Iterator[None]:
+def notice_if_slow(message: str, after: float = 3.0) -> Iterator[threading.Timer]:
     """Print ``message`` (one line, standard error) if the block is still running ``after``
-    seconds (wall clock) after it started; nothing when it ends sooner. For a start that is slow
-    only once (the vision kernels compile on the first run after an install), so a user waiting
+    seconds (wall clock) after it started; nothing when it ends sooner, or once the block calls
+    ``cancel()`` on the timer it gets (its first result is in). For a start that is slow only
+    once (the vision kernels compile on the first run after an install), so a user waiting
     knows why."""
     timer = threading.Timer(after, lambda: print(message, file=sys.stderr, flush=True))
     timer.daemon = True
     timer.start()
     try:
-        yield
+        yield timer
     finally:
         timer.cancel()
+
+
+FIRST_RUN_NOTICE = ("still starting: the first run after an install compiles the vision "
+                    "kernels (up to a minute, once)")
+"""The second half of the line :func:`notice_if_slow` prints while the kernels compile."""
 
 
 def run_cli(prog: str, body: Callable[[], int]) -> int:
     """Run ``body`` as the command ``prog`` (every ``python -m tileviz`` command and ``serve.py``
     go through here): first the process set-up (:func:`tileviz.vision.set_opencv_threads`: OpenCV
     on one thread, so observations do not depend on the core count), then ``body``; expected
-    errors become one line on stderr and exit status 2."""
+    errors become one line on stderr and exit status 2. OpenCV's own log lines below errors
+    (e.g. a warning when it converts an image's samples) are silenced: the command's one-line
+    error names the problem."""
+    import cv2.utils.logging as cv_log
+
     from tileviz.vision import set_opencv_threads
 
     set_opencv_threads()
+    cv_log.setLogLevel(cv_log.LOG_LEVEL_ERROR)
     try:
         return body()
     except KeyboardInterrupt:

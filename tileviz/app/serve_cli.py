@@ -31,6 +31,7 @@ from tileviz.app import commands as C
 from tileviz.app.server import DEFAULT_PORT, App
 from tileviz.app.session import Session, SessionOptions
 from tileviz.cliutil import (
+    FIRST_RUN_NOTICE,
     CliError,
     Parser,
     float_in,
@@ -245,8 +246,7 @@ def main(command: str = "serve", argv: list[str] | None = None) -> int:
         previous_int = signal.signal(signal.SIGINT, on_term)
         status = 0
         try:
-            with notice_if_slow("tileviz serve: still starting: the first run after an install "
-                                "compiles the vision kernels (up to a minute, once)"):
+            with notice_if_slow(f"tileviz serve: {FIRST_RUN_NOTICE}"):
                 app.start()
             if port != 0 and app.port != port:
                 print(f"tileviz serve: port {port} is busy; serving on port {app.port} instead",

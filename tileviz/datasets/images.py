@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 import pyspng
 
-__all__ = ["decode_image", "png_chunks_intact", "to_rgb", "truncated"]
+__all__ = ["decode_image", "depth_problem", "png_chunks_intact", "to_rgb", "truncated"]
 
 def to_rgb(image: np.ndarray) -> np.ndarray:
     """An HxWx3 image from HxWx3 or HxW gray (uint8)."""
@@ -46,6 +46,30 @@ def decode_image(raw: bytes, spng: bool = True) -> np.ndarray | None:
         return None
     # (the same pixels as image[:, :, ::-1], contiguous, 30x cheaper than numpy's copy)
     return cv2.cvtColor(image, cv2.COLOR_BGR2RGB)
+
+
+LOW_BITS_MAX = 4096
+"""A 16-bit image whose samples all stay below this (the low 12 bits: a 10- or 12-bit camera's
+data stored unscaled) would keep at most 16 gray levels in the 8-bit view the extractors read
+(:func:`depth_problem`)."""
+
+
+def depth_problem(raw: bytes) -> str | None:
+    """What is wrong with the sample depth of the image file ``raw``, or None: a 16-bit PNG whose
+    samples use only the low bits (all below :data:`LOW_BITS_MAX`). The 8-bit view of a 16-bit
+    image keeps its high byte, so such an image would read as nearly constant; a full-range
+    16-bit image is fine."""
+    if not (raw.startswith(_PNG_SIGNATURE) and len(raw) > 24 and raw[24] == 16):
+        return None  # IHDR's bit depth (byte 24) is not 16
+    image = cv2.imdecode(np.frombuffer(raw, np.uint8), cv2.IMREAD_UNCHANGED)
+    if image is None or image.dtype != np.uint16:
+        return None
+    top = int(image.max())
+    if top >= LOW_BITS_MAX:
+        return None
+    return (f"16-bit samples reach only {top} of 65535 (data in the low bits?): its 8-bit "
+            f"view would keep {top // 256 + 1} gray level(s); scale it to the full 16-bit "
+            "range or save it as 8-bit")
 
 
 def png_chunks_intact(raw: bytes) -> bool:

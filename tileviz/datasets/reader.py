@@ -21,7 +21,7 @@ from tileviz.datasets.format import (
     parse_float,
     read_meta,
 )
-from tileviz.datasets.images import decode_image, truncated
+from tileviz.datasets.images import decode_image, depth_problem, truncated
 from tileviz.pipeline.parallel import results_in_order
 from tileviz.types import FrameInput, Odometry, Pose
 
@@ -169,6 +169,9 @@ class DatasetSource:
         raw = path.read_bytes()
         if truncated(raw):
             raise DatasetError(f"{where}: image {name!r} is truncated (no end marker)")
+        problem = depth_problem(raw)
+        if problem is not None:
+            raise DatasetError(f"{where}: image {name!r}: {problem}")
         # a prefetching source decodes on a thread: OpenCV's decoder lets the caller run
         image = decode_image(raw, spng=self.prefetch == 0)
         if image is None:

@@ -4,7 +4,8 @@ Options: ``--preset {default,seed}`` (the camera and vision constants; with a pr
 image size must be the preset's), ``--ppm P``, ``--tile-size L`` (metres), ``--extractor
 {faithful,robust}``, ``--json`` (one JSON object per image and line: ``image``, ``y1``, ``y2``,
 ``y3`` (docs/method.md convention; null when refused), ``accepted``, ``reason``, ``lines``, ...),
-``--stages DIR`` (every stage image as ``DIR/<image stem>_<nn>_<stage>.png``), ``--camera-model
+``--stages DIR`` (every stage image as ``DIR/<image stem>_<nn>_<stage>.png``; a stem met again
+in the same run becomes ``<stem>-2``, ``<stem>-3``...), ``--camera-model
 META`` (a dataset's meta.json with a ``camera_model`` block: each image is a raw camera image,
 rectified first; the meta's ppm, view size, tile size and widened view bound are used).
 
@@ -26,7 +27,15 @@ from typing import TYPE_CHECKING
 import cv2
 import numpy as np
 
-from tileviz.cliutil import EXTRACTOR_HELP, CliError, Parser, positive_float, run_cli
+from tileviz.cliutil import (
+    EXTRACTOR_HELP,
+    FIRST_RUN_NOTICE,
+    CliError,
+    Parser,
+    notice_if_slow,
+    positive_float,
+    run_cli,
+)
 from tileviz.config import EXTRACTORS, PRESETS, Config, preset
 from tileviz.vision import VisionResult, extract
 
@@ -40,7 +49,8 @@ def _parser(prog: str) -> Parser:
     p = Parser(prog=prog, description="Extract the tile parameters (y1, y2, y3) from images.")
     p.add_argument("images", nargs="+", metavar="IMAGE", help="image files (PNG, JPEG, ...)")
     p.add_argument("--preset", choices=PRESETS, default=None,
-                   help="camera/vision constants (default: 'default', image size from the image)")
+                   help="camera/vision constants; given, every image must have the "
+                   "preset's size (default: the 'default' constants with each image's own size)")
     p.add_argument("--ppm", type=positive_float("--ppm"), default=None,
                    help="pixels per metre on the floor")
     p.add_argument("--tile-size", type=positive_float("--tile-size"), default=None,
@@ -73,13 +83,29 @@ def _camera_model(path: str, base: Config) -> tuple[Config, Rectifier]:
 
 
 def read_image(path: str) -> np.ndarray:
-    """An image file as HxWx3 uint8 RGB; CliError naming the file when it cannot be read."""
+    """An image file as HxWx3 uint8 RGB, decoded as a dataset's images are
+    (:func:`~tileviz.datasets.images.decode_image`); CliError naming the file and the problem
+    when it cannot be read (missing, a directory, cut off, damaged, 16-bit data in the low
+    bits, not an image)."""
+    from tileviz.datasets.images import decode_image, depth_problem, truncated
+
+    if os.path.isdir(path):
+        raise CliError(f"{path}: is a directory, not an image")
     if not os.path.isfile(path):
         raise CliError(f"{path}: no such file")
-    img = cv2.imread(path, cv2.IMREAD_COLOR)
+    try:
+        raw = Path(path).read_bytes()
+    except OSError as e:
+        raise CliError(f"{path}: cannot read it ({e.strerror or e})") from None
+    if truncated(raw):
+        raise CliError(f"{path}: is truncated (no end marker)")
+    problem = depth_problem(raw)
+    if problem is not None:
+        raise CliError(f"{path}: {problem}")
+    img = decode_image(raw)
     if img is None or img.size == 0:
         raise CliError(f"{path}: cannot read it as an image")
-    return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
+    return img
 
 
 def _config(args: argparse.Namespace, image: np.ndarray, base: Config | None = None) -> Config:
@@ -109,12 +135,37 @@ def _line(path: str, res: VisionResult) -> str:
     )
 
 
-def _write_stages(folder: Path, path: str, res: VisionResult) -> None:
+def _stage_stem(path: str, used: dict[str, int]) -> str:
+    """The file name stem of ``path``'s stage images: the image's own stem, with ``-2``,
+    ``-3``... when an image of the same stem came before in this run (``used`` counts them)."""
     stem = Path(path).stem
+    used[stem] = used.get(stem, 0) + 1
+    return stem if used[stem] == 1 else f"{stem}-{used[stem]}"
+
+
+def _write_stages(folder: Path, stem: str, res: VisionResult) -> None:
     for i, (name, img) in enumerate(res.stages.items()):
         out = folder / f"{stem}_{i:02d}_{name}.png"
         if not cv2.imwrite(str(out), cv2.cvtColor(img, cv2.COLOR_RGB2BGR)):
             raise CliError(f"cannot write {out}")
+
+
+def _extract_one(args: argparse.Namespace, path: str, base: Config | None,
+                 rectify: Rectifier | None, *, keep_stages: bool) -> VisionResult:
+    """Read the image ``path`` (rectified first with a camera model) and extract it with the
+    configuration the options ask for; CliError or ValueError naming the problem."""
+    image = read_image(path)
+    if rectify is not None:  # the gray view, as replay and the server read it
+        image = rectify.gray(image)
+    cfg = _config(args, image, base)
+    h, w = image.shape[:2]
+    if (w, h) != (cfg.camera.width, cfg.camera.height):
+        wants = (f"preset {args.preset!r}" if args.preset is not None
+                 else f"the camera model ({args.camera_model})")
+        raise CliError(f"{path}: image is {w}x{h} but {wants} expects "
+                       f"{cfg.camera.width}x{cfg.camera.height}")
+    return extract(image, camera=cfg.camera, tile_size=cfg.floor.tile_size, vision=cfg.vision,
+                   keep_stages=keep_stages)
 
 
 def main(command: str, argv: list[str]) -> int:
@@ -130,35 +181,27 @@ def main(command: str, argv: list[str]) -> int:
                 folder.mkdir(parents=True, exist_ok=True)
             except OSError as e:
                 raise CliError(f"--stages: cannot create {folder}: {e.strerror}") from None
-        status = 0
         base, rectify = None, None
         if args.camera_model is not None:
             base, rectify = _camera_model(args.camera_model, preset(args.preset or "default"))
-        for path in args.images:
-            try:
-                image = read_image(path)
-                if rectify is not None:  # the gray view, as replay and the server read it
-                    image = rectify.gray(image)
-                cfg = _config(args, image, base)
-                h, w = image.shape[:2]
-                if (w, h) != (cfg.camera.width, cfg.camera.height):
-                    raise CliError(
-                        f"{path}: image is {w}x{h} but preset {args.preset!r} expects "
-                        f"{cfg.camera.width}x{cfg.camera.height}"
-                    )
-                res = extract(image, camera=cfg.camera, tile_size=cfg.floor.tile_size,
-                              vision=cfg.vision, keep_stages=folder is not None)
-            except (CliError, ValueError) as e:
-                msg = str(e) if str(e).startswith(path) else f"{path}: {e}"
-                print(f"{prog}: error: {msg}", file=sys.stderr)
-                status = 2
-                continue
-            if folder is not None:
-                _write_stages(folder, path, res)
-            if args.json:
-                print(json.dumps({"image": path, **res.as_dict()}))
-            else:
-                print(_line(path, res))
+        status = 0
+        stems: dict[str, int] = {}
+        with notice_if_slow(f"{prog}: {FIRST_RUN_NOTICE}", after=10.0) as slow:
+            for path in args.images:
+                try:
+                    res = _extract_one(args, path, base, rectify, keep_stages=folder is not None)
+                except (CliError, ValueError) as e:
+                    msg = str(e) if str(e).startswith(path) else f"{path}: {e}"
+                    print(f"{prog}: error: {msg}", file=sys.stderr)
+                    status = 2
+                    continue
+                slow.cancel()  # a first result is in: no notice of a slow start
+                if folder is not None:
+                    _write_stages(folder, _stage_stem(path, stems), res)
+                if args.json:
+                    print(json.dumps({"image": path, **res.as_dict()}))
+                else:
+                    print(_line(path, res))
         return status
 
     return run_cli(prog, body)

@@ -12,9 +12,10 @@ How it measures (vectorised numpy/OpenCV; timings in ``bench/bench_vision.py``):
 
 1. Gray statistics: a constant image, or one with many saturated pixels in large patches
    (glare; a light texture's scattered saturated specks are not), is refused.
-2. Scharr gradients and Canny edges; the heading modulo pi/2 from the edge pixels' gradient
-   directions (a weighted histogram of 4 phi, its peak, then the weighted circular mean of the
-   pixels near the peak: the report's (cos 4a, sin 4a) of eq. 4.4 applied per pixel).
+2. Scharr gradients; the heading modulo pi/2 from the gradient directions of the strongest
+   fifth of the gradients (every other row and column; a weighted histogram of 4 phi, its peak,
+   then the weighted circular mean of the pixels near the peak: the report's
+   (cos 4a, sin 4a) of eq. 4.4 applied per pixel).
 3. One affine warp turns the image by that heading so that family-1 grout lines become rows and
    family-2 lines columns (:func:`~tileviz.vision.geometry.family_normals`). Row (column) means
    are the gray profile across every line of a family, averaged over the whole line.

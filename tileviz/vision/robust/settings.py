@@ -78,14 +78,17 @@ class RobustSettings:
     """Prior scatter of a part's position at unit part length, px sqrt(px) (0.15 px for a
     100 px part), weighing ``prior_dof`` degrees of freedom."""
     prior_dof: float = 2.0
+    """Degrees of freedom the prior scatter ``prior_sigma`` weighs in the fit's scatter."""
     floor_px: float = 0.1
     """Smallest position bound of a view, px (with ``floor_width`` x the grout's half-depth
     width and ``floor_rise`` x its edge rise added)."""
     floor_width: float = 0.02
+    """Part of the grout's half-depth width (px per px) added to the position bound."""
     part_sigmas: float = 4.0
     """A part's own bound: this many of its predicted standard errors (its profile's
     roughness over its edges' slopes) plus the spread of its 25/50/75 % midpoints."""
     floor_rise: float = 0.05
+    """Part of the grout's 20-80 % edge rise (px per px) added to the position bound."""
     floor_rad: float = 0.0005
     """Smallest heading bound of a view, rad."""
     max_bound_px: float = 5.0
@@ -99,7 +102,6 @@ class RobustSettings:
     heading_sigmas: float = 6.0
     """The heading bound is this many standard errors of the fitted tilt (plus ``floor_rad``):
     the tilt's error has heavier tails than the positions' (bench/vision_study.py)."""
-    """Smallest heading bound of a view, rad."""
 
 
 DEFAULT_SETTINGS = RobustSettings()
