@@ -155,6 +155,9 @@ def test_each_floor_family_is_read_within_its_declared_bound(family: str) -> Non
                       "one side out of the view beside its last 15 px: its sides read beside "
                       "its last 47 px (was a foreign line)"),
         ("photo", 51, "the same (was a step edge)"),
+        ("photo", 8_000_268, "a light mortar ridge at the edge, the next mortar line 8 px "
+                             "beside it: the ridge the edge bounds is the one at the edge, "
+                             "unlike the grout (was a foreign line)"),
     ],
 )
 def test_views_once_refused_are_read_within_their_bound(family: str, seed: int, why: str) -> None:
@@ -250,13 +253,15 @@ def _read(view: np.ndarray, spec: floorgen.FloorSpec, cam: CameraConfig, pose: P
     return True
 
 
-@pytest.mark.parametrize("seed", [7_000_098, 7_000_183])
+@pytest.mark.parametrize(("seed", "min_refused"), [(7_000_098, 8), (7_000_183, 8), (8_000_268, 0)])
 def test_a_grout_gray_cable_on_views_read_by_their_light_mortar_ridge_stays_in_bound(
-        seed: int) -> None:
+        seed: int, min_refused: int) -> None:
     """Views whose mortar edges the foreign-edge search lets pass because the object beside
     them is a light ridge unlike the grout (the bricks beside it nearly the grout's gray): a
     cable of the grout's own gray, 3 or 8 px wide, laid across at eight angles, is a dark
-    ridge of the grout's level and must be refused or read within the declared bound."""
+    ridge of the grout's level and must be refused or read within the declared bound (on
+    the first two views mostly refused; on 8 000 268, whose ridge is told from the next
+    mortar line 8 px beside it, 11 of the 16 are read, each within its bound)."""
     spec, img, cam, pose = _photo_view(seed)
     h, w = img.shape[:2]
     yy, xx = np.mgrid[0:h, 0:w].astype(np.float32)
@@ -266,7 +271,7 @@ def test_a_grout_gray_cable_on_views_read_by_their_light_mortar_ridge_stays_in_b
             d = -(xx - (w - 1) / 2) * math.sin(ang) + (yy - (h - 1) / 2) * math.cos(ang) + 20.0
             cov = np.clip(0.5 * width + 0.5 - np.abs(d), 0.0, 1.0)[..., None]
             refused += not _read(img + cov * (spec.grout_shade - img), spec, cam, pose)
-    assert refused >= 8
+    assert refused >= min_refused
 
 
 @pytest.mark.parametrize("seed", [6_000_069, 7_000_286])

@@ -599,7 +599,8 @@ def conclusive(run: RobustRun, px: float, py: float, dx: float, dy: float, grout
 
     - one covering the grout with its own level (a cable, a box): no level seen beside the
       edge lies within that margin of the grout's; or the two sides agree within ``limit``
-      and the edge bounds a ridge (the levels more than ``limit`` off the sides') whose every
+      and the edge bounds a ridge (the levels more than ``limit`` off the sides', the run of
+      them that reaches the edge: :func:`at_edge`) whose every
       level differs from the grout's by that margin: the object there is the ridge (a mortar
       line, a cable), and the sides are the tile; or, when the edge is seen again beyond the
       band (``beyond``: the steps along its line, t from its end, where it is read there),
@@ -643,7 +644,7 @@ def conclusive(run: RobustRun, px: float, py: float, dx: float, dy: float, grout
         if abs(a - b) > limit:
             covered = True
         else:
-            ridge = seen & (np.abs(lv - 0.5 * (a + b)) > limit)
+            ridge = at_edge(seen & (np.abs(lv - 0.5 * (a + b)) > limit))
             covered = not (bool(ridge.any()) and float(np.abs(lv[ridge] - grout).min()) > need)
         if covered:
             past = far_profile()
@@ -670,6 +671,25 @@ def conclusive(run: RobustRun, px: float, py: float, dx: float, dy: float, grout
         return False
     # a shadow edge going on across the grout darkens the far tile by the same ratio
     return abs(a2 * b - b2 * a) / max(b, a, 1e-9) > limit
+
+
+def at_edge(off: np.ndarray) -> np.ndarray:
+    """The runs of consecutive True of ``off`` (one per offset -8..8 px across an edge) that
+    reach the edge (offsets -1..1): the ridge the edge bounds; levels off the sides farther
+    out, apart from it, belong to something else beside the edge (the next mortar line)."""
+    out = np.zeros_like(off)
+    c = off.size // 2
+    for i in (c - 1, c, c + 1):
+        if not off[i] or out[i]:
+            continue
+        lo = i
+        while lo > 0 and off[lo - 1]:
+            lo -= 1
+        hi = i
+        while hi < off.size - 1 and off[hi + 1]:
+            hi += 1
+        out[lo : hi + 1] = True
+    return out
 
 
 def row_medians(v: np.ndarray, count: np.ndarray) -> np.ndarray:
