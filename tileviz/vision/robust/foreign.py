@@ -644,7 +644,9 @@ def conclusive(run: RobustRun, px: float, py: float, dx: float, dy: float, grout
         if abs(a - b) > limit:
             covered = True
         else:
-            ridge = at_edge(seen & (np.abs(lv - 0.5 * (a + b)) > limit))
+            ridge = seen & (np.abs(lv - 0.5 * (a + b)) > limit)
+            if at_edge(ridge).any():
+                ridge = at_edge(ridge)  # the ridge the edge bounds, not another one beside
             covered = not (bool(ridge.any()) and float(np.abs(lv[ridge] - grout).min()) > need)
         if covered:
             past = far_profile()
@@ -676,7 +678,8 @@ def conclusive(run: RobustRun, px: float, py: float, dx: float, dy: float, grout
 def at_edge(off: np.ndarray) -> np.ndarray:
     """The runs of consecutive True of ``off`` (one per offset -8..8 px across an edge) that
     reach the edge (offsets -1..1): the ridge the edge bounds; levels off the sides farther
-    out, apart from it, belong to something else beside the edge (the next mortar line)."""
+    out, apart from it, belong to something else beside the edge (the next mortar line).
+    :func:`conclusive` keeps every level off the sides when no run reaches the edge."""
     out = np.zeros_like(off)
     c = off.size // 2
     for i in (c - 1, c, c + 1):
