@@ -291,7 +291,7 @@ def test_the_foreign_edge_medians_are_numpys(
     """The foreign-edge search's medians (the grout's levels, median of 3 neighbours; the
     levels beside an edge, the median of each row's seen samples) are numpy's bit for bit, on
     gray levels with and without fractions and any share of unseen (NaN) samples."""
-    from tileviz.vision.robust import foreign
+    from tileviz.vision.robust import grout_levels
 
     rng = np.random.default_rng(seed)
     v = rng.integers(0, 256, (rows, cols)).astype(np.float64)
@@ -302,11 +302,11 @@ def test_the_foreign_edge_medians_are_numpys(
     seen = count >= 1
     if seen.any():
         want = np.nanmedian(v[seen], axis=1)
-        assert want.tobytes() == foreign.row_medians(v[seen], count[seen]).tobytes()
+        assert want.tobytes() == grout_levels.row_medians(v[seen], count[seen]).tobytes()
     line = v[0][np.isfinite(v[0])]
     if line.size >= 3:
         want3 = np.median(np.stack([line[:-2], line[1:-1], line[2:]]), axis=0)
-        assert want3.tobytes() == foreign.neighbour_medians(line).tobytes()
+        assert want3.tobytes() == grout_levels.neighbour_medians(line).tobytes()
 
 
 @pytest.mark.skipif(not kernel.AVAILABLE, reason="numba is not installed")
@@ -478,7 +478,7 @@ def test_the_compiled_stretch_range_matches_numpy(
     """Random gray levels along a grout line (any stretch of it in view, the crossing inside
     or outside it): the compiled largest range of the stretches clear of the crossing is
     numpy's, NaN when too few stretches are clear."""
-    from tileviz.vision.robust import foreign, foreign_kernel
+    from tileviz.vision.robust import foreign_kernel, grout_levels
 
     rng = np.random.default_rng(seed)
     u = np.arange(-reach, reach + 1) * step
@@ -486,7 +486,7 @@ def test_the_compiled_stretch_range_matches_numpy(
     b = max(b, a + 20)
     idx = np.arange(a, b + 1)
     lv = np.floor(rng.uniform(0.0, 256.0, idx.size - 2))
-    args = (lv, idx, u, foreign.VARIATION_CLEAR, foreign.VARIATION_STRETCHES)
+    args = (lv, idx, u, grout_levels.VARIATION_CLEAR, grout_levels.VARIATION_STRETCHES)
     got = foreign_kernel.stretch_range(*args)
-    ref = foreign.stretch_range_numpy(*args)
+    ref = grout_levels.stretch_range_numpy(*args)
     assert float(got).hex() == float(ref).hex() or (np.isnan(got) and np.isnan(ref))

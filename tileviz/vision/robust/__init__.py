@@ -4,9 +4,10 @@ Modules, one per job: :mod:`.settings` (thresholds), :mod:`.state` (one frame's 
 :mod:`.statistics` (step 1), :mod:`.heading` (step 2), :mod:`.projection` (step 3),
 :mod:`.profiles` (step 4), :mod:`.periodic` (step 4's tile period), :mod:`.fit` (step 5 and
 the line checks), :mod:`.lattice` (spacing, the observation), :mod:`.bound` (the view's error
-bound), :mod:`.foreign` (the last checks) and :mod:`.extractor` (the entry point, the result
-and the stage images); the compiled loops are in :mod:`.kernel`, :mod:`.projection_kernel`,
-:mod:`.heading_kernel`, :mod:`.fit_kernel` and :mod:`.lattice_kernel`.
+bound), :mod:`.foreign` (the last checks; :mod:`.grout_levels` reads the grout where an edge
+meets it) and :mod:`.extractor` (the entry point, the result and the stage images); the
+compiled loops are in :mod:`.kernel`, :mod:`.projection_kernel`, :mod:`.heading_kernel`,
+:mod:`.fit_kernel`, :mod:`.lattice_kernel` and :mod:`.foreign_kernel`.
 
 How it measures (vectorised numpy/OpenCV; timings in ``bench/bench_vision.py``):
 

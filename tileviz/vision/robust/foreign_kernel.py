@@ -178,7 +178,7 @@ def end_steps(dx: np.ndarray, dy: np.ndarray, edges: np.ndarray, px: float, py: 
 @compiled
 def stretch_range(lv: np.ndarray, idx: np.ndarray, u: np.ndarray, clear: int,
                   stretches: int) -> float:
-    """:func:`~tileviz.vision.robust.foreign.stretch_range_numpy` compiled (bit-identical):
+    """:func:`~tileviz.vision.robust.grout_levels.stretch_range_numpy` compiled (bit-identical):
     the largest range of 19 consecutive levels ``lv`` (at the samples ``idx[1:-1]`` of the
     positions ``u`` along the line) among the stretches ``clear`` samples clear of the
     crossing's own (u = 0 +- 9), NaN when fewer than ``stretches`` are."""
