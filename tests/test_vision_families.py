@@ -211,9 +211,8 @@ def test_a_cable_of_the_grouts_own_gray_on_brick_floors_is_never_read_outside_it
         cam = CameraConfig(ppm=spec.ppm, width=spec.width, height=spec.height,
                            offset=(0.0, 0.0))
         h, w = img.shape[:2]
-        yy, xx = np.mgrid[0:h, 0:w].astype(np.float32)
         for ang in np.linspace(0.1, 3.0, 8):
-            d = -(xx - (w - 1) / 2) * math.sin(ang) + (yy - (h - 1) / 2) * math.cos(ang) - 15.0
+            d = _offsets(img.shape, ang, (w - 1) / 2, (h - 1) / 2) - 15.0
             cov = np.clip(3.0 - np.abs(d), 0.0, 1.0)[..., None]
             view = np.clip(np.rint(img + cov * (spec.grout_shade - img)), 0, 255)
             res = extract(view.astype(np.uint8), camera=cam, tile_size=spec.tile_size,
@@ -253,6 +252,31 @@ def _read(view: np.ndarray, spec: floorgen.FloorSpec, cam: CameraConfig, pose: P
     return True
 
 
+def _clean_lines(img: np.ndarray, spec: floorgen.FloorSpec, cam: CameraConfig) -> np.ndarray:
+    """The measured grout lines (segments, px) of the clean view ``img`` (float RGB), which
+    must be accepted."""
+    clean = extract(np.clip(np.rint(img), 0, 255).astype(np.uint8), camera=cam,
+                    tile_size=spec.tile_size, vision=VisionConfig(extractor="robust"))
+    assert clean.accepted, clean.reason
+    return clean.segments
+
+
+def _offsets(shape: tuple[int, ...], ang: float, x0: float, y0: float) -> np.ndarray:
+    """Each pixel's signed offset (px) from the line through (x0, y0) at angle ``ang`` (rad,
+    image axes), for a view of ``shape``."""
+    yy, xx = np.mgrid[0 : shape[0], 0 : shape[1]].astype(np.float32)
+    return -(xx - x0) * math.sin(ang) + (yy - y0) * math.cos(ang)
+
+
+def _box_edge_refused(img: np.ndarray, d: np.ndarray, spec: floorgen.FloorSpec,
+                      cam: CameraConfig, pose: Pose) -> None:
+    """A box (as dark or as light as the renderer's boxes) covering the view where the offset
+    ``d`` > 0 is refused."""
+    cov = np.clip(d + 0.5, 0.0, 1.0)[..., None]
+    for level in (70.0, 190.0):
+        assert not _read(img + cov * (level - img), spec, cam, pose), level
+
+
 @pytest.mark.parametrize(("seed", "min_refused"), [(7_000_098, 8), (7_000_183, 8), (8_000_268, 0)])
 def test_a_grout_gray_cable_on_views_read_by_their_light_mortar_ridge_stays_in_bound(
         seed: int, min_refused: int) -> None:
@@ -264,11 +288,10 @@ def test_a_grout_gray_cable_on_views_read_by_their_light_mortar_ridge_stays_in_b
     mortar line 8 px beside it, 11 of the 16 are read, each within its bound)."""
     spec, img, cam, pose = _photo_view(seed)
     h, w = img.shape[:2]
-    yy, xx = np.mgrid[0:h, 0:w].astype(np.float32)
     refused = 0
     for width in (3.0, 8.0):
         for ang in np.linspace(0.1, 3.0, 8):
-            d = -(xx - (w - 1) / 2) * math.sin(ang) + (yy - (h - 1) / 2) * math.cos(ang) + 20.0
+            d = _offsets(img.shape, ang, (w - 1) / 2, (h - 1) / 2) + 20.0
             cov = np.clip(0.5 * width + 0.5 - np.abs(d), 0.0, 1.0)[..., None]
             refused += not _read(img + cov * (spec.grout_shade - img), spec, cam, pose)
     assert refused >= min_refused
@@ -282,11 +305,10 @@ def test_a_shadow_edge_on_views_read_by_the_far_sides_ratio_stays_in_bound(seed:
     shadows, 35-60 %) nearly always refused."""
     spec, img, cam, pose = _photo_view(seed)
     h, w = img.shape[:2]
-    yy, xx = np.mgrid[0:h, 0:w].astype(np.float32)
     refused = {0.15: 0, 0.45: 0}
     for k in refused:
         for ang in np.linspace(0.1, 3.0, 8):
-            d = -(xx - (w - 1) / 2) * math.sin(ang) + (yy - (h - 1) / 2) * math.cos(ang) + 30.0
+            d = _offsets(img.shape, ang, (w - 1) / 2, (h - 1) / 2) + 30.0
             t = np.clip(d / 2.0 + 0.5, 0.0, 1.0)[..., None]
             refused[k] += not _read(img * (1.0 - k * t), spec, cam, pose)
     assert refused[0.45] >= 6
@@ -301,18 +323,10 @@ def test_a_box_edge_along_the_grout_on_views_read_through_a_trend_stays_in_bound
     it and crossing it in the middle of the view, the box as dark or as light as the
     renderer's boxes, covers the grout on one side of the crossing and must be refused."""
     spec, img, cam, pose = _photo_view(seed)
-    clean = extract(np.clip(np.rint(img), 0, 255).astype(np.uint8), camera=cam,
-                    tile_size=spec.tile_size, vision=VisionConfig(extractor="robust"))
-    assert clean.accepted, clean.reason
-    h, w = img.shape[:2]
-    yy, xx = np.mgrid[0:h, 0:w].astype(np.float32)
-    x1, y1, x2, y2 = clean.segments[0]
-    a = math.atan2(y2 - y1, x2 - x1) + tilt
-    mx, my = 0.5 * (x1 + x2), 0.5 * (y1 + y2)
-    d = -(xx - mx) * math.sin(a) + (yy - my) * math.cos(a)
-    cov = np.clip(d + 0.5, 0.0, 1.0)[..., None]
-    for level in (70.0, 190.0):
-        assert not _read(img + cov * (level - img), spec, cam, pose), level
+    x1, y1, x2, y2 = _clean_lines(img, spec, cam)[0]
+    d = _offsets(img.shape, math.atan2(y2 - y1, x2 - x1) + tilt, 0.5 * (x1 + x2),
+                 0.5 * (y1 + y2))
+    _box_edge_refused(img, d, spec, cam, pose)
 
 
 @pytest.mark.parametrize("seed", [6_000_106, 240])
@@ -326,18 +340,10 @@ def test_a_box_edge_crossing_the_grout_shallowly_on_views_read_about_the_trend_i
     edge (45 % dark) or a cable (5 px, the grout's gray or dark) laid the same way must be
     refused or read within the declared bound."""
     spec, img, cam, pose = _photo_view(seed)
-    clean = extract(np.clip(np.rint(img), 0, 255).astype(np.uint8), camera=cam,
-                    tile_size=spec.tile_size, vision=VisionConfig(extractor="robust"))
-    assert clean.accepted, clean.reason
-    h, w = img.shape[:2]
-    yy, xx = np.mgrid[0:h, 0:w].astype(np.float32)
-    x1, y1, x2, y2 = clean.segments[0]
-    a = math.atan2(y2 - y1, x2 - x1) + tilt
-    mx, my = 0.5 * (x1 + x2), 0.5 * (y1 + y2)
-    d = -(xx - mx) * math.sin(a) + (yy - my) * math.cos(a)
-    cov = np.clip(d + 0.5, 0.0, 1.0)[..., None]
-    for level in (70.0, 190.0):
-        assert not _read(img + cov * (level - img), spec, cam, pose), level
+    x1, y1, x2, y2 = _clean_lines(img, spec, cam)[0]
+    d = _offsets(img.shape, math.atan2(y2 - y1, x2 - x1) + tilt, 0.5 * (x1 + x2),
+                 0.5 * (y1 + y2))
+    _box_edge_refused(img, d, spec, cam, pose)
     _read(img * (1.0 - 0.45 * np.clip(d / 2.0 + 0.5, 0.0, 1.0)[..., None]), spec, cam, pose)
     for shade in (spec.grout_shade, 30.0):
         cable = np.clip(3.0 - np.abs(d - 3.0), 0.0, 1.0)[..., None]
@@ -377,12 +383,9 @@ def test_a_short_cable_beside_the_grout_on_views_read_without_a_stray_part_stays
     the whole line (moving every part alike: no single part to leave out), must be refused
     or read within the declared bound."""
     spec, img, cam, pose = _photo_view(seed)
-    clean = extract(np.clip(np.rint(img), 0, 255).astype(np.uint8), camera=cam,
-                    tile_size=spec.tile_size, vision=VisionConfig(extractor="robust"))
-    assert clean.accepted, clean.reason
     h, w = img.shape[:2]
     yy, xx = np.mgrid[0:h, 0:w].astype(np.float32)
-    for x1, y1, x2, y2 in clean.segments[:2]:
+    for x1, y1, x2, y2 in _clean_lines(img, spec, cam)[:2]:
         length = math.hypot(x2 - x1, y2 - y1)
         ux, uy = (x2 - x1) / length, (y2 - y1) / length
         across = -(xx - x1) * uy + (yy - y1) * ux
