@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import cv2
@@ -206,9 +207,12 @@ def _surface(spec: FloorSpec, i: np.ndarray, j: np.ndarray, fx: np.ndarray, fy: 
 
 
 def render(spec: FloorSpec, cx: float, cy: float, theta: float,
-           rng: np.random.Generator, corruption: str | None = None) -> np.ndarray:
+           rng: np.random.Generator, corruption: str | None = None,
+           overlay: Callable[[np.ndarray], np.ndarray] | None = None) -> np.ndarray:
     """The view (HxWx3 uint8 RGB) of a camera centred on floor point ``(cx, cy)`` (metres)
-    with heading ``theta`` (rad), with optional ``corruption`` (one of :data:`CORRUPTIONS`)."""
+    with heading ``theta`` (rad), with optional ``corruption`` (one of :data:`CORRUPTIONS`)
+    and ``overlay`` (an object on the floor: the HxW float32 floor's shades in, the shades
+    with the object out; lit and seen through the optics as the floor is)."""
     w, h, ppm, L = spec.width, spec.height, spec.ppm, spec.tile_size
     sub = (np.arange(SS) + 0.5) / SS - 0.5
     u = (np.arange(w)[None, :, None, None] - (w - 1) / 2.0) + sub[None, None, None, :]
@@ -233,6 +237,8 @@ def render(spec: FloorSpec, cx: float, cy: float, theta: float,
     img = val.mean(axis=(2, 3)).astype(np.float32)
     if corruption is not None:
         img = _corrupt(img, corruption, rng, spec)
+    if overlay is not None:
+        img = overlay(img).astype(np.float32)
     # lighting: a linear gradient across the view and vignetting
     uu = (np.arange(w) - (w - 1) / 2.0)[None, :] / (0.5 * w)
     vv = (np.arange(h) - (h - 1) / 2.0)[:, None] / (0.5 * h)
@@ -284,6 +290,30 @@ def _corrupt(img: np.ndarray, kind: str, rng: np.random.Generator, spec: FloorSp
     if kind == "motion_blur":
         return img  # applied after the optics (see render)
     raise ValueError(f"unknown corruption {kind!r}")
+
+
+def line_offset(spec: FloorSpec, cx: float, cy: float, theta: float, family: int
+                ) -> tuple[tuple[float, float], float]:
+    """The grout line of ``family`` (0: x = mL, 1: y = mL) nearest the view's centre: its unit
+    normal ``(gu, gv)`` in image pixels (u right, v down from the centre) and its offset
+    ``s`` (px), the line being ``gu u + gv v = s``."""
+    lp = spec.tile_size * spec.ppm
+    ct, st = math.cos(theta), math.sin(theta)
+    g0, gu, gv = (cx * spec.ppm, st, -ct) if family == 0 else (cy * spec.ppm, -ct, -st)
+    return (gu, gv), round(g0 / lp) * lp - g0
+
+
+def band(spec: FloorSpec, normal: tuple[float, float], s: float, width: float, shade: float
+         ) -> Callable[[np.ndarray], np.ndarray]:
+    """An overlay for :func:`render`: a straight band (a cable) of ``width`` px and gray level
+    ``shade`` along ``gu u + gv v = s`` (px, image coordinates of :func:`line_offset`),
+    anti-aliased by its coverage of each pixel."""
+    h, w = spec.height, spec.width
+    u = (np.arange(w, dtype=np.float32) - (w - 1) / 2.0)[None, :]
+    v = (np.arange(h, dtype=np.float32) - (h - 1) / 2.0)[:, None]
+    d = normal[0] * u + normal[1] * v - s
+    cov = np.clip(0.5 * width + 0.5 - np.abs(d), 0.0, 1.0)
+    return lambda img: img + cov * (shade - img)
 
 
 def _motion_blur(img: np.ndarray, rng: np.random.Generator) -> np.ndarray:

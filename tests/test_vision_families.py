@@ -15,6 +15,7 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
 
 import floorgen  # noqa: E402
+from cable_along import run_view as along_view  # noqa: E402
 from vision_study import FAMILY_SALT, run_view  # noqa: E402
 
 from tileviz.config import CameraConfig, VisionConfig  # noqa: E402
@@ -425,6 +426,45 @@ def test_a_cable_along_the_grout_off_the_tile_period_is_refused(seed: int, bag: 
     cv2.line(view, a, b, (int(spec.grout_shade),) * 3, width, cv2.LINE_AA)
     res = extract(view, camera=cam, tile_size=spec.tile_size, vision=vision)
     assert not res.accepted, res.reason
+
+
+@pytest.mark.parametrize(
+    ("seed", "family", "refused", "why"),
+    [
+        (16, "light_grout", True, "a light cable 3 px beside a light grout line: two bands"),
+        (41, "photo", True, "a dark cable 3 px beside the grout of a gravel photograph"),
+        (1065, "light_grout", True, "a bright cable 20 px off a light grout line, three times "
+                                    "as deep: the grout, measured in every part, is no "
+                                    "texture to drop off the tile period"),
+        (2063, "wood", True, "a dark cable touching the grout, which is a shoulder below half "
+                             "the cable's depth in every part"),
+        (2091, "degraded", True, "the same under blur and noise"),
+        (7, "wide_grout", False, "a cable overlapping an 18 px band widens it by 5 px on one "
+                                 "side"),
+        (33, "terrazzo", False, "a 3 px cable touching a 6 px grout line widens it to 10 px"),
+        (37, "plain", False, "a 6 px cable 1 px off a 6 px grout line widens it by 1 px"),
+    ],
+)
+def test_a_cable_along_a_grout_line_is_refused_or_read_within_its_bound(
+        seed: int, family: str, refused: bool, why: str) -> None:
+    """``bench/cable_along.py``'s views that were accepted outside their bound: a cable
+    beside the grout (a second band in its window, or a shoulder on one side of it) is
+    refused; a cable lying on the grout line's edge makes it wider than the view's other
+    lines, and half that excess is in the bound."""
+    r = along_view(seed, family)
+    assert r["inside"], (why, r)
+    if refused:
+        assert r["reason"] == "foreign line", (why, r)
+    else:
+        assert r["accepted"], (why, r)
+
+
+def test_the_studys_cable_beside_the_grout_of_a_gravel_photograph_is_refused() -> None:
+    """Seed 9 000 015's corrupted photo view (the fresh7 split): a dark cable about 10 px
+    from a grout line, one line of that family in view, was read at the cable (10.3 px off,
+    bound 1.1 px); the grout is a second dip inside the line's window."""
+    r = run_view(9_000_015, "photo", "cable")
+    assert r["reason"] == "foreign line", r
 
 
 @pytest.mark.parametrize("corruption", floorgen.CORRUPTIONS)

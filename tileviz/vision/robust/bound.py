@@ -11,13 +11,14 @@ def frame_bound(run: RobustRun, se: float) -> tuple[float, float]:
     """This view's error bound (px, rad) from its own evidence (docs/vision.md, "The
     bound of a view"): ``sigmas`` standard errors of the fit (the scatter of every line's
     parts about one straight lattice), plus the largest deviations the fit could not
-    explain (a line off the lattice spacing, half the worst part off its line), plus a
+    explain (a line off the lattice spacing, half the worst part off its line, half a
+    line's width beyond the narrowest line's, chord-weighted as the lines' offsets are), plus a
     floor for what the scatter cannot show (interpolation, a band's width under uneven
     light, blur)."""
     st = run.st
     d = run.details
     pos = (st.sigmas * se + d["spacing_residual_px"] + 0.5 * d["straightness_px"]
-           + d["position_parts"]
+           + d["position_parts"] + d["width_excess_px"]
            + st.floor_px + st.floor_width * d["width"] + st.floor_rise * d["rise"])
     head = st.heading_sigmas * d["heading_se"] + d["heading_parts"] + st.floor_rad
     return pos, head

@@ -9,10 +9,11 @@ import numpy as np
 
 from tileviz.vision.robust import fit_kernel, kernel
 from tileviz.vision.robust.crossings import crossings_agree
+from tileviz.vision.robust.profiles import beside_dip
 from tileviz.vision.robust.state import Fail, Line, RobustRun
 from tileviz.vision.robust.statistics import list_median
 
-__all__ = ["check_lines", "drop_stray_part", "fit_arrays_numpy", "fit_tilt"]
+__all__ = ["check_lines", "drop_stray_part", "fit_arrays_numpy", "fit_tilt", "shoulder_px"]
 
 
 def fit_tilt(run: RobustRun, lines: list[list[Line]]) -> float:
@@ -198,6 +199,24 @@ def check_lines(run: RobustRun, lines: list[list[Line]]) -> None:
     if run.details["contrast_spread"] > st.contrast_ratio and not (
             run.inverted and crossings_agree(run, lines)):
         raise Fail("foreign line")
+    # one grout line is one band: a second band just beside it (a cable along the grout)
+    # darkens the plateaus its position is measured against
+    beside = max(beside_dip(run, k, ln) for k in range(2) for ln in lines[k])
+    run.details["beside"] = beside
+    if beside >= st.beside_share:
+        raise Fail("foreign line")
+    shoulder = max(shoulder_px(ln) for ln in every)
+    run.details["shoulder_px"] = shoulder
+    if shoulder > st.shoulder_px:
+        raise Fail("foreign line")
+
+
+def shoulder_px(line: Line) -> float:
+    """The smallest, over the measured parts of ``line`` (0.0 with fewer than two), of the
+    distance of its 25 / 75 % midpoints from its 50 % midpoint (px): a shoulder beside the
+    band that every part shows."""
+    spread = line.spread[(line.wpart > 0) & np.isfinite(line.spread)]
+    return float(spread.min()) if spread.size >= 2 else 0.0
 
 
 def spread(values: list[float]) -> float:

@@ -67,6 +67,11 @@ def lattice_offsets(run: RobustRun, lines: list[list[Line]], y3: float) -> None:
     ys: list[float] = []
     worst = 0.0
     se = 0.0
+    # a line wider than the view's narrowest may be the grout and something beside it (a
+    # cable along its edge) read as one band: its midpoint may be off by half the excess
+    narrowest = min((ln.width for fam in lines for ln in fam if math.isfinite(ln.width)),
+                    default=math.nan)
+    run.details["width_excess_px"] = 0.0
     for k, fam in enumerate(lines):
         # signed offsets s_k (px) at the image centre: s1 = -(Y - Y0), s2 = -(X - X0)
         s_arr = np.array([-(ln.pos - (y0 if k == 0 else x0)) for ln in fam])
@@ -85,6 +90,10 @@ def lattice_offsets(run: RobustRun, lines: list[list[Line]], y3: float) -> None:
         parts_k = float(np.dot(np.abs(g), run.part_bound))
         run.details["position_parts"] = max(run.details.get("position_parts", 0.0),
                                              parts_k)
+        excess = np.array([max(ln.width - narrowest, 0.0) if math.isfinite(ln.width) else 0.0
+                           for ln in fam])
+        run.details["width_excess_px"] = max(run.details["width_excess_px"],
+                                             0.5 * float(np.dot(w_arr, excess) / w_arr.sum()))
         var = np.array([ln.var for ln in fam])
         se = max(se, math.sqrt(float(np.dot(w_arr * w_arr, var))) / float(w_arr.sum()))
         ys.append(-ref / run.ppm)  # eq. 4.6 corrected: y_k = -s_k mod L

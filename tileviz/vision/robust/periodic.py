@@ -32,7 +32,8 @@ def on_lattice(run: RobustRun, lines: list[list[Line]]) -> list[list[Line]]:
     docstring)."""
     lp = run.lp
     out: list[list[Line]] = []
-    for fam in lines:
+    deepest = [max((ln.depth for ln in fam), default=0.0) for fam in lines]
+    for k, fam in enumerate(lines):
         if len(fam) < 2:
             out.append(fam)
             continue
@@ -51,6 +52,8 @@ def on_lattice(run: RobustRun, lines: list[list[Line]]) -> list[list[Line]]:
         votes = near @ weight
         member = near[int(np.argmax(votes))]
         strongest = float(weight[member].max())
-        keep = member | (weight >= WEAK_SHARE * strongest)
-        out.append([ln for ln, k in zip(fam, keep.tolist(), strict=True) if k])
+        keep = member | (weight >= WEAK_SHARE * strongest) | (
+            ((wp > 0).sum(axis=1) >= 3)
+            & (np.array([ln.depth for ln in fam]) >= 0.8 * deepest[1 - k]))
+        out.append([ln for ln, kept in zip(fam, keep.tolist(), strict=True) if kept])
     return out

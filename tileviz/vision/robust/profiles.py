@@ -14,7 +14,7 @@ from tileviz.vision.robust.projection import Projection, project
 from tileviz.vision.robust.state import PARTS, Line, RobustRun
 from tileviz.vision.robust.statistics import list_median
 
-__all__ = ["centroid", "crossings", "dip_recentre_numpy", "dip_rows_numpy", "dips",
+__all__ = ["beside_dip", "centroid", "crossings", "dip_recentre_numpy", "dip_rows_numpy", "dips",
            "grout_contrast", "measure", "measure_parts", "midpoints", "nanmedian",
            "part_layout_numpy", "part_profiles_numpy", "part_rows_numpy", "part_summary_numpy",
            "plateaus", "select_lines"]
@@ -362,6 +362,40 @@ def select_lines(run: RobustRun, lines: list[list[Line]]) -> list[list[Line]]:
         ])
         for fam in lines
     ]
+
+
+def beside_dip(run: RobustRun, k: int, line: Line) -> float:
+    """The darkness of the deepest dip of family ``k``'s whole profile (the last projection)
+    apart from ``line``'s own within its measurement window (``run.window`` samples each side
+    of the line's centre), over the line's depth (0.0 when there is none). Apart: every
+    sample between the line's own deepest sample (within half its width + 2 of its centre)
+    and that dip's is lighter than half that dip's darkness, so their half-depth bands do not
+    touch. A grout line is one band; a cable or a seam along it, a few px beside it, is a
+    second band that every part of the line shows (a texture's dip beside one part of it is
+    a quarter as deep in the whole profile), and the line's measurement window, whose
+    plateaus it darkens, cannot tell which band is the grout."""
+    proj = run.projection
+    at = list_median([p for p in line.parts.tolist() if p == p] or [math.nan])
+    if proj is None or not math.isfinite(at) or not line.depth > 0.0:
+        return 0.0
+    d = np.where(np.isnan(proj.prof[k]), -np.inf, proj.dark[k])
+    c = int(round(at)) + proj.pad
+    r = run.window
+    lo, hi = max(c - r, 0), min(c + r + 1, d.size)
+    near = max(int(math.ceil(0.5 * line.width)) + 2, 1) if math.isfinite(line.width) else 2
+    a, b = max(c - near, lo), min(c + near + 1, hi)
+    if a >= b:
+        return 0.0
+    own = a + int(np.argmax(d[a:b]))
+    best = 0.0
+    for step, end in ((-1, lo - 1), (1, hi)):
+        col = math.inf
+        for i in range(own + step, end, step):
+            v = float(d[i])
+            if col < 0.5 * v:
+                best = max(best, v)
+            col = min(col, v)
+    return best / line.depth
 
 
 def distinct(fam: list[Line]) -> list[Line]:

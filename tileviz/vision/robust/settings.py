@@ -49,6 +49,16 @@ class RobustSettings:
     width_ratio: float = 1.5
     """Lines may differ in half-depth width at most by this factor (+ ``width_slack`` px)."""
     width_slack: float = 1.0
+    beside_share: float = 0.5
+    """A line is foreign when its family's profile holds, within the line's measurement
+    window, another dip at least this share of the line's depth, apart from it (the darkness
+    between them falls below half of that dip's): a cable laid a few px beside a grout line
+    (:func:`~tileviz.vision.robust.profiles.beside_dip`)."""
+    shoulder_px: float = 1.0
+    """A line is foreign when, in every part of it measured (two or more), its 25 % and
+    75 % midpoints lie more than this many px off its 50 % midpoint: a band with a shoulder
+    (a dark cable touching a grout line, the grout shallower than half the cable's depth,
+    is read as the cable; clean grout keeps them within a few tenths of a px)."""
     contrast_ratio: float = 1.7
     """Lines may differ in contrast (depth / level) at most by this factor."""
     crossing_ratio: float = 1.3
