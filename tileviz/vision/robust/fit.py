@@ -200,8 +200,12 @@ def check_lines(run: RobustRun, lines: list[list[Line]]) -> None:
             run.inverted and crossings_agree(run, lines)):
         raise Fail("foreign line")
     # one grout line is one band: a second band just beside it (a cable along the grout)
-    # darkens the plateaus its position is measured against
-    beside = max(beside_dip(run, k, ln) for k in range(2) for ln in lines[k])
+    # darkens the plateaus its position is measured against, and may be read instead of
+    # it; with two lines or more of a family in view, one read off the grout is off the
+    # lattice spacing (a brick photograph's mortar line beside the grout all along a line
+    # that spans one tile is a second band too)
+    beside = max((beside_dip(run, k, lines[k][0]) for k in range(2) if len(lines[k]) == 1),
+                 default=0.0)
     run.details["beside"] = beside
     if beside >= st.beside_share:
         raise Fail("foreign line")

@@ -17,14 +17,21 @@ import numpy as np
 
 from tileviz.vision.robust.state import Line, RobustRun
 
-__all__ = ["PHASE_TOLERANCE", "WEAK_SHARE", "on_lattice"]
+__all__ = ["LIKE_DEPTH", "LIKE_WIDTH", "PHASE_TOLERANCE", "WEAK_SHARE", "like", "on_lattice"]
 
 PHASE_TOLERANCE = 0.04
 """A dip is on a phase when within this fraction of the tile period of it (modulo the period);
 a dip kept a little off (more than the spacing check allows) is refused there."""
 WEAK_SHARE = 0.5
 """A dip off the phase is dropped when its evidence (depth x measured length) is under this
-share of the strongest line on the phase."""
+share of the strongest line on the phase, unless it runs along its whole line (measured in
+three parts or more) and looks like the other family's grout (:func:`like`): a grout line
+beside a bright cable, three times as deep, that took the phase."""
+LIKE_DEPTH = 0.8
+"""A dip as deep as this share of the other family's deepest is as deep as the grout."""
+LIKE_WIDTH = 1.3
+"""A dip whose half-depth width is within this factor (+ 1 px) of the other family's deepest
+dip's is as wide as the grout."""
 
 
 def on_lattice(run: RobustRun, lines: list[list[Line]]) -> list[list[Line]]:
@@ -32,7 +39,8 @@ def on_lattice(run: RobustRun, lines: list[list[Line]]) -> list[list[Line]]:
     docstring)."""
     lp = run.lp
     out: list[list[Line]] = []
-    deepest = [max((ln.depth for ln in fam), default=0.0) for fam in lines]
+    # each family's deepest dip: the template of a grout line for the other family
+    template = [max(fam, key=lambda ln: ln.depth) if fam else None for fam in lines]
     for k, fam in enumerate(lines):
         if len(fam) < 2:
             out.append(fam)
@@ -53,7 +61,18 @@ def on_lattice(run: RobustRun, lines: list[list[Line]]) -> list[list[Line]]:
         member = near[int(np.argmax(votes))]
         strongest = float(weight[member].max())
         keep = member | (weight >= WEAK_SHARE * strongest) | (
-            ((wp > 0).sum(axis=1) >= 3)
-            & (np.array([ln.depth for ln in fam]) >= 0.8 * deepest[1 - k]))
+            ((wp > 0).sum(axis=1) >= 3) & np.array([like(ln, template[1 - k]) for ln in fam]))
         out.append([ln for ln, kept in zip(fam, keep.tolist(), strict=True) if kept])
     return out
+
+
+def like(line: Line, grout: Line | None) -> bool:
+    """Whether ``line`` looks like the grout line ``grout`` of the other family: at least
+    :data:`LIKE_DEPTH` of its depth, and its half-depth width within ``LIKE_WIDTH`` x (1 px
+    slack) of it either way (a brick photograph's mortar lines, as deep as low-contrast
+    grout, are narrower)."""
+    if grout is None:
+        return False
+    w, g = line.width, grout.width
+    return bool(line.depth >= LIKE_DEPTH * grout.depth
+                and w <= LIKE_WIDTH * g + 1.0 and g <= LIKE_WIDTH * w + 1.0)

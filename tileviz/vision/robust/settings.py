@@ -50,7 +50,7 @@ class RobustSettings:
     """Lines may differ in half-depth width at most by this factor (+ ``width_slack`` px)."""
     width_slack: float = 1.0
     beside_share: float = 0.5
-    """A line is foreign when its family's profile holds, within the line's measurement
+    """The one line of its family in view is foreign when the profile holds, within its measurement
     window, another dip at least this share of the line's depth, apart from it (the darkness
     between them falls below half of that dip's): a cable laid a few px beside a grout line
     (:func:`~tileviz.vision.robust.profiles.beside_dip`)."""
