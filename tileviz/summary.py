@@ -11,7 +11,7 @@ from typing import Protocol
 
 from tileviz.types import BoxSet
 
-__all__ = ["RunTally"]
+__all__ = ["SCALE_FRAMES", "SCALE_TOLERANCE", "RunTally"]
 
 
 class _Record(Protocol):
@@ -36,6 +36,9 @@ class RunTally:
     vouched: int = 0
     inside: int = 0
     widths: list[tuple[float, float, float]] = field(default_factory=list)
+    periods: list[float] = field(default_factory=list)
+    """The tile period each view's lines showed over the declared one (robust extractor,
+    views with two lines of a family or more: ``details["period_ratio"]``)."""
 
     @property
     def frames(self) -> int:
@@ -51,6 +54,10 @@ class RunTally:
         hull = rec.updated.hull()
         if hull is not None and rec.status != "lost":
             self.widths.append(hull.widths)
+        vision = getattr(rec, "vision", None)
+        ratio = getattr(vision, "details", {}).get("period_ratio")
+        if ratio is not None and math.isfinite(ratio):
+            self.periods.append(float(ratio))
 
     def parts(self) -> list[str]:
         """The summary's pieces: statuses, median set size, containment (when known)."""
@@ -64,4 +71,31 @@ class RunTally:
         if self.vouched:
             out.append(f"truth inside the set in {100.0 * self.inside / self.vouched:.1f} % of "
                        f"the {self.vouched} frames it vouched for")
+        scale = self.scale_warning()
+        if scale:
+            out.append(scale)
         return out
+
+    def scale_warning(self) -> str:
+        """A warning when the grout lines of the run's views lie consistently closer together
+        or farther apart than ``tile_size`` x ``ppm`` says (:data:`SCALE_FRAMES` views or more
+        measured it, their median off by more than :data:`SCALE_TOLERANCE`); "" otherwise.
+        The views' bounds assume the scale exact (docs/vision.md, "What it reads")."""
+        if len(self.periods) < SCALE_FRAMES:
+            return ""
+        ratio = statistics.median(self.periods)
+        if abs(ratio - 1.0) <= SCALE_TOLERANCE:
+            return ""
+        way = "farther apart" if ratio > 1.0 else "closer together"
+        return (f"WARNING: the grout lines of {len(self.periods)} views lie "
+                f"{100.0 * abs(ratio - 1.0):.1f} % {way} than tile_size x ppm says (median): "
+                f"check the camera's ppm and the tile size (views read at a wrong scale can "
+                f"lie outside their bound)")
+
+
+SCALE_FRAMES = 5
+"""Views that measured the tile period before :meth:`RunTally.scale_warning` speaks."""
+SCALE_TOLERANCE = 0.003
+"""Largest relative difference of the measured tile period from the declared one that
+:meth:`RunTally.scale_warning` lets pass: a view's lines measure it within about 0.02 %; at
+0.3 % a line 100 px from the view's centre is read 0.3 px off, most of a clean view's bound."""

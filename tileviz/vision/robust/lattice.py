@@ -12,8 +12,8 @@ from tileviz.vision.robust import kernel, lattice_kernel
 from tileviz.vision.robust.bound import frame_bound
 from tileviz.vision.robust.state import Fail, Line, RobustRun
 
-__all__ = ["chords", "clip_line", "lattice_offsets", "missing_line_numpy", "missing_lines",
-           "normalise"]
+__all__ = ["chords", "clip_line", "lattice_offsets", "measured_period", "missing_line_numpy",
+           "missing_lines", "normalise"]
 
 
 def normalise(y1: float, y2: float, y3: float, tile_size: float) -> tuple[float, float, float]:
@@ -97,6 +97,7 @@ def lattice_offsets(run: RobustRun, lines: list[list[Line]], y3: float) -> None:
         var = np.array([ln.var for ln in fam])
         se = max(se, math.sqrt(float(np.dot(w_arr * w_arr, var))) / float(w_arr.sum()))
         ys.append(-ref / run.ppm)  # eq. 4.6 corrected: y_k = -s_k mod L
+        measured_period(run, s_arr, ref)
         missing_lines(run, k, ref, s_arr, y3)
     run.details["spacing_residual_px"] = worst
     if worst > st.spacing_fraction * run.bound_px:
@@ -112,6 +113,25 @@ def lattice_offsets(run: RobustRun, lines: list[list[Line]], y3: float) -> None:
             or head > max(run.vision.heading_error, st.max_bound_rad)):
         raise Fail("imprecise")
     run.y = normalise(ys[0], ys[1], y3, run.tile_size)
+
+
+def measured_period(run: RobustRun, s: np.ndarray, ref: float) -> None:
+    """The tile period that one family's lines show (signed offsets ``s``, px, about the
+    family's phase ``ref``), over the declared one (``tile_size`` x ``ppm``): the slope of a
+    least-squares line through the offsets against their lattice indices, when they span at
+    least one period; kept in ``details["period_ratio"]`` (with ``period_span``, the indices
+    spanned) when it spans more periods than the family read before. Lines a period apart
+    are read 2 % of a period closer or farther when ``ppm`` or ``tile_size`` is 2 % off;
+    such a view is refused (``inconsistent spacing``) or, with one line per family in view,
+    cannot show it: the ratio over many frames can (:class:`tileviz.summary.RunTally`)."""
+    lp = run.lp
+    n = np.rint((s - ref) / lp)
+    span = float(n.max() - n.min()) if n.size else 0.0
+    if span < 1.0 or span <= run.details.get("period_span", 0.0):
+        return
+    dn = n - n.mean()
+    run.details["period_ratio"] = float(np.dot(dn, s - s.mean()) / np.dot(dn, dn)) / lp
+    run.details["period_span"] = span
 
 
 def missing_lines(run: RobustRun, k: int, ref: float, found: np.ndarray, y3: float) -> None:
