@@ -208,11 +208,13 @@ def _surface(spec: FloorSpec, i: np.ndarray, j: np.ndarray, fx: np.ndarray, fy: 
 
 def render(spec: FloorSpec, cx: float, cy: float, theta: float,
            rng: np.random.Generator, corruption: str | None = None,
-           overlay: Callable[[np.ndarray], np.ndarray] | None = None) -> np.ndarray:
+           overlay: Callable[[np.ndarray], np.ndarray] | None = None,
+           motion: tuple[float, float] | None = None) -> np.ndarray:
     """The view (HxWx3 uint8 RGB) of a camera centred on floor point ``(cx, cy)`` (metres)
-    with heading ``theta`` (rad), with optional ``corruption`` (one of :data:`CORRUPTIONS`)
-    and ``overlay`` (an object on the floor: the HxW float32 floor's shades in, the shades
-    with the object out; lit and seen through the optics as the floor is)."""
+    with heading ``theta`` (rad), with optional ``corruption`` (one of :data:`CORRUPTIONS`),
+    ``overlay`` (an object on the floor: the HxW float32 floor's shades in, the shades
+    with the object out; lit and seen through the optics as the floor is) and ``motion``
+    (a motion blur of a given length, px, and angle, rad: :func:`motion_blur`)."""
     w, h, ppm, L = spec.width, spec.height, spec.ppm, spec.tile_size
     sub = (np.arange(SS) + 0.5) / SS - 0.5
     u = (np.arange(w)[None, :, None, None] - (w - 1) / 2.0) + sub[None, None, None, :]
@@ -250,6 +252,8 @@ def render(spec: FloorSpec, cx: float, cy: float, theta: float,
         img = cv2.GaussianBlur(img, (0, 0), spec.blur)
     if corruption == "motion_blur":
         img = _motion_blur(img, rng)
+    if motion is not None:
+        img = motion_blur(img, *motion)
     img = img + rng.normal(0.0, spec.noise, img.shape).astype(np.float32)
     out = np.clip(np.rint(img), 0, 255).astype(np.uint8)
     # the light's colour cast, before the sensor clips each channel at 255: a surface brighter
@@ -318,7 +322,12 @@ def band(spec: FloorSpec, normal: tuple[float, float], s: float, width: float, s
 
 def _motion_blur(img: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     length = rng.uniform(15.0, 40.0)
-    ang = rng.uniform(0, math.pi)
+    return motion_blur(img, length, rng.uniform(0, math.pi))
+
+
+def motion_blur(img: np.ndarray, length: float, ang: float) -> np.ndarray:
+    """``img`` smeared along a straight path of ``length`` px at angle ``ang`` (rad, from the
+    image's u axis towards v): the camera moving during the exposure."""
     n = int(math.ceil(length)) | 1
     k = np.zeros((n + 2, n + 2), np.float32)
     c = (n + 1) / 2.0

@@ -1,6 +1,6 @@
 """Domain-randomised accuracy study of the robust extractor on independently rendered floors.
 
-    python bench/vision_study.py [--views-per-family 500] [--split fresh2|...|fresh6|fresh7]
+    python bench/vision_study.py [--views-per-family 500] [--split fresh2|...|fresh7|fresh8]
                                  [--corrupted-per-family 100] [--jobs 1] [--csv out.csv]
     python bench/vision_study.py --report out.csv     # the tables of a (partial) run
 
@@ -20,8 +20,9 @@ once, then its refusals were read: no longer held out); ``--split fresh4`` seeds
 (reported once, then its refusals were read: no longer held out); ``--split fresh5`` seeds from
 7 * 10**6 (reported once, then its refusals were read: no longer held out); ``--split fresh6``
 seeds from 8 * 10**6 (reported once, then its refusals were read: no longer held out);
-``--split fresh7`` seeds from 9 * 10**6, kept unseen while tuning, for the study that reports
-them.
+``--split fresh7`` seeds from 9 * 10**6 (reported once, then its false accept was read: no
+longer held out); ``--split fresh8`` seeds from 10**7, kept unseen while tuning, for the study
+that reports them.
 
 For each family: the share of readable clean views accepted (``readable``: each line family
 crosses the view over at least 0.75 x its smaller side, ``floorgen.readable``), the error of the
@@ -55,7 +56,7 @@ from tileviz.vision import extract, observation_error  # noqa: E402
 
 SPLITS = {"tuning": 0, "heldout": 10**6, "fresh": 3 * 10**6, "fresh2": 4 * 10**6,
           "fresh3": 5 * 10**6, "fresh4": 6 * 10**6, "fresh5": 7 * 10**6,
-          "fresh6": 8 * 10**6, "fresh7": 9 * 10**6}
+          "fresh6": 8 * 10**6, "fresh7": 9 * 10**6, "fresh8": 10**7}
 """First seed of each split."""
 
 

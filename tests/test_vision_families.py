@@ -468,6 +468,15 @@ def test_the_studys_cable_beside_the_grout_of_a_gravel_photograph_is_refused() -
     assert r["reason"] == "foreign line", r
 
 
+def test_light_grout_smeared_by_motion_blur_into_a_ramp_is_refused() -> None:
+    """Tuning seed 39's corrupted shade-steps view: light grout on tiles of strongly
+    different shades, smeared by motion blur across one family, was read 8.2 px off against
+    a bound of 3.9 px. The smeared band's 25 / 75 % midpoints lie about 1 px off its 50 %
+    one in every part (a shoulder, ``RobustSettings.shoulder_px``): it is refused."""
+    r = run_view(39, "shade_steps", "motion_blur")
+    assert not r["accepted"], r
+
+
 @pytest.mark.parametrize("corruption", floorgen.CORRUPTIONS)
 def test_corrupted_views_are_never_accepted_outside_their_bound(corruption: str) -> None:
     refused = 0

@@ -54,7 +54,7 @@ class RobustSettings:
     window, another dip at least this share of the line's depth, apart from it (the darkness
     between them falls below half of that dip's): a cable laid a few px beside a grout line
     (:func:`~tileviz.vision.robust.profiles.beside_dip`)."""
-    shoulder_px: float = 1.0
+    shoulder_px: float = 0.75
     """A line is foreign when, in every part of it measured (two or more), its 25 % and
     75 % midpoints lie more than this many px off its 50 % midpoint: a band with a shoulder
     (a dark cable touching a grout line, the grout shallower than half the cable's depth,
