@@ -27,7 +27,7 @@ KERNELS = ("dip_rows", "part_profiles", "part_rows", "part_summary")
 PROJECTION_KERNELS = ("grout_score", "profile_arrays", "profile_dips", "view_spans")
 
 
-HEADING_KERNELS = ("heading_magnitudes", "heading_votes")
+HEADING_KERNELS = ("heading_magnitudes", "heading_votes", "kth_largest")
 FIT_KERNELS = ("fit_arrays",)
 LATTICE_KERNELS = ("clip_lines", "missing_line")
 

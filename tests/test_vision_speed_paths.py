@@ -282,6 +282,22 @@ def test_the_compiled_heading_votes_match_numpy_on_any_gradients(
         assert abs(np.remainder(y_clean - want + np.pi / 4, np.pi / 2) - np.pi / 4) < 1e-9
 
 
+@pytest.mark.skipif(not kernel.AVAILABLE, reason="numba is not installed")
+@settings(max_examples=200, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), n=st.integers(1, 3000), bits=st.integers(1, 62),
+       zero_share=st.sampled_from([0.0, 0.5, 0.95]), share=st.floats(0.0, 1.0))
+def test_the_compiled_voters_threshold_is_numpys_partition(
+    seed: int, n: int, bits: int, zero_share: float, share: float
+) -> None:
+    """The first heading's voters: the compiled k-th largest squared magnitude is numpy's
+    partition's, on any values (a few bits up to 62, mostly zero or not) and any share."""
+    rng = np.random.default_rng(seed)
+    q = rng.integers(0, 2**bits, n).astype(np.int64)
+    q[rng.random(n) < zero_share] = 0
+    k = min(max(20, int(share * n)), n)
+    assert heading_kernel.kth_largest(q, k) == int(np.partition(q, n - k)[n - k])
+
+
 @settings(max_examples=80, deadline=None)
 @given(seed=st.integers(0, 2**31 - 1), rows=st.integers(1, 20), cols=st.integers(1, 20),
        missing=st.floats(0.0, 0.9), fractional=st.booleans())

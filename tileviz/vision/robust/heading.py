@@ -75,11 +75,16 @@ HEADING_BINS = 90
 
 
 def voters(q: np.ndarray, share: float) -> int:
-    """The smallest squared magnitude among the top ``share`` (at least 20) of ``q``: every
-    gradient at least as strong votes."""
+    """The smallest squared magnitude among the top ``share`` (at least 20) of ``q`` (int64):
+    every gradient at least as strong votes. Compiled when numba is present
+    (:func:`~tileviz.vision.robust.heading_kernel.kth_largest`, the same value as numpy's
+    partition)."""
     n = q.size
     k = min(max(20, int(share * n)), n)
-    thr = int(np.partition(q, n - k)[n - k])
+    if kernel.AVAILABLE:
+        thr = int(heading_kernel.kth_largest(q, k))
+    else:
+        thr = int(np.partition(q, n - k)[n - k])
     if thr > 0:
         return thr
     # a noise-free view (a clean render, a drawing) is flat but for its edges: fewer than

@@ -14,7 +14,7 @@ import numpy as np
 
 from tileviz.vision.robust.kernel import compiled
 
-__all__ = ["ATAN", "NEAR", "heading_magnitudes", "heading_votes"]
+__all__ = ["ATAN", "NEAR", "heading_magnitudes", "heading_votes", "kth_largest"]
 
 NEAR = 0.35
 """Heading votes within this angle (rad, of 4 phi) of their histogram's peak are averaged."""
@@ -51,6 +51,41 @@ def heading_magnitudes(dx: np.ndarray, dy: np.ndarray) -> np.ndarray:
             q[i] = gx * gx + gy * gy
             i += 1
     return q
+
+
+@compiled
+def kth_largest(q: np.ndarray, k: int) -> int:
+    """The ``k``-th largest value of ``q`` (int64, >= 0; 1 <= ``k`` <= its size), exactly
+    ``np.partition(q, q.size - k)[q.size - k]``: a radix selection, 12 bits a pass from the
+    top (a histogram of the values that share the bits found so far picks the next 12)."""
+    mx = np.int64(0)
+    for v in q:
+        if v > mx:
+            mx = v
+    shift = 0
+    while (mx >> shift) >= 4096:
+        shift += 1
+    hist = np.zeros(4096, np.int64)
+    for v in q:
+        hist[v >> shift] += 1
+    prefix = np.int64(0)
+    need = k
+    while True:
+        b = 4095
+        while hist[b] < need:
+            need -= hist[b]
+            b -= 1
+        prefix += b  # the value's bits above ``shift``
+        if shift == 0:
+            return int(prefix)
+        low = max(shift - 12, 0)
+        hist[:] = 0
+        base = prefix << (shift - low)
+        for v in q:
+            if (v >> shift) == prefix:
+                hist[(v >> low) - base] += 1
+        prefix = base
+        shift = low
 
 
 @compiled
