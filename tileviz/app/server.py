@@ -18,6 +18,7 @@ import queue
 import socket
 import threading
 import time
+import warnings
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -38,6 +39,12 @@ from tileviz.core.localizer import FAULT_MAX_REJECTIONS, LocalizerStep
 
 if TYPE_CHECKING:
     from viser import GuiButtonGroupHandle, GuiEvent, ViserServer
+
+# A browser tab closed between listing the clients and moving their views (following the robot)
+# is expected: viser would warn in the user's terminal that the move "will never be
+# delivered". Nothing is lost (the tab is gone).
+warnings.filterwarnings("ignore", message=r"Queued a \w+ on a closed connection",
+                        category=UserWarning)
 
 __all__ = ["App", "fault_line", "port_free"]
 
