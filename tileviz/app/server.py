@@ -40,12 +40,6 @@ from tileviz.core.localizer import FAULT_MAX_REJECTIONS, LocalizerStep
 if TYPE_CHECKING:
     from viser import GuiButtonGroupHandle, GuiEvent, ViserServer
 
-# A browser tab closed between listing the clients and moving their views (following the robot)
-# is expected: viser would warn in the user's terminal that the move "will never be
-# delivered". Nothing is lost (the tab is gone).
-warnings.filterwarnings("ignore", message=r"Queued a \w+ on a closed connection",
-                        category=UserWarning)
-
 __all__ = ["App", "fault_line", "port_free"]
 
 _COL = {name: i for i, name in enumerate(METRIC_NAMES)}
@@ -119,6 +113,11 @@ class App:
         from tileviz.app.plots import Plots
         from tileviz.app.scene import SceneView
 
+        # A browser tab closed between listing the clients and moving their views (following
+        # the robot) is expected: viser would warn in the user's terminal that the move "will
+        # never be delivered". Nothing is lost (the tab is gone).
+        warnings.filterwarnings("ignore", message=r"Queued a \w+ on a closed connection",
+                                category=UserWarning)
         if self.strict_port and self.requested_port != 0 and not port_free(self.host,
                                                                             self.requested_port):
             raise CliError(f"port {self.requested_port} on {self.host} is busy (another tileviz "
