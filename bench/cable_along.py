@@ -65,8 +65,7 @@ def run_view(seed: int, family: str) -> dict:
 
 
 def run_motion(seed: int, family: str) -> dict:
-    """One view of ``family`` from ``seed`` under a short motion blur; the outcome (``gap``
-    holds the blur's length, px)."""
+    """One view of ``family`` from ``seed`` under a short motion blur; the outcome."""
     rng = np.random.default_rng([seed, FAMILY_SALT[family], 3])
     spec = floorgen.draw_floor(family, rng)
     cx, cy, th = floorgen.draw_view(rng)
@@ -74,7 +73,7 @@ def run_motion(seed: int, family: str) -> dict:
     ang = float(rng.uniform(0.0, math.pi))
     img = floorgen.render(spec, cx, cy, th, rng, motion=(length, ang))
     out = {"seed": seed, "family": family, "length": length, "angle": ang,
-           "grout_px": spec.grout_px, "gap": length}
+           "grout_px": spec.grout_px}
     return _outcome(out, img, spec, Pose(cx, cy, th))
 
 
@@ -107,10 +106,11 @@ def report(rows: list[dict], motion: bool = False) -> str:
     """Markdown: per gap (``motion``: blur length) bucket and per family, views, accepted,
     accepted outside the bound."""
     head = "motion blur length (px)" if motion else "gap between cable and grout (px)"
+    key, buckets = ("length", LENGTHS) if motion else ("gap", GAPS)
     out = [f"| {head} | views | accepted | outside own bound | "
            "largest error / bound |", "|---|---|---|---|---|"]
-    for lo, hi in LENGTHS if motion else GAPS:
-        sel = [r for r in rows if lo <= r["gap"] < hi]
+    for lo, hi in buckets:
+        sel = [r for r in rows if lo <= r[key] < hi]
         out.append(_row(f"{lo:g} .. {hi:g}", sel))
     out += ["", "| family | views | accepted | outside own bound | largest error / bound |",
             "|---|---|---|---|---|"]

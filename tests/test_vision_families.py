@@ -15,6 +15,7 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
 
 import floorgen  # noqa: E402
+from cable_along import run_motion  # noqa: E402
 from cable_along import run_view as along_view  # noqa: E402
 from vision_study import FAMILY_SALT, run_view  # noqa: E402
 
@@ -466,6 +467,17 @@ def test_the_studys_cable_beside_the_grout_of_a_gravel_photograph_is_refused() -
     bound 1.1 px); the grout is a second dip inside the line's window."""
     r = run_view(9_000_015, "photo", "cable")
     assert r["reason"] == "foreign line", r
+
+
+@pytest.mark.parametrize("family", floorgen.FAMILIES)
+def test_a_short_motion_blur_is_read_within_its_bound_or_refused(family: str) -> None:
+    """``bench/cable_along.py --motion``'s views (a motion blur of 2-15 px at any angle,
+    smearing one family's lines more than the other's): none accepted outside its bound, and
+    the blur does not make every view unreadable."""
+    rows = [run_motion(seed, family) for seed in range(4)]
+    for r in rows:
+        assert r["inside"], r
+    assert sum(r["accepted"] for r in rows) >= 1, rows
 
 
 def test_light_grout_smeared_by_motion_blur_into_a_ramp_is_refused() -> None:
