@@ -132,7 +132,7 @@ def _row(name: str, sel: list[dict]) -> str:
     acc = [r for r in sel if r["accepted"]]
     bad = [r for r in acc if not r["inside"]]
     worst = max((r["err_px"] / r["bound_px"] for r in acc), default=math.nan)
-    return f"| {name} | {len(sel)} | {len(acc)} | {len(bad)} | {worst:.2f} |"
+    return f"| {name} | {len(sel)} | {len(acc)} | {len(bad)} | {floorgen.cell(worst, '.2f')} |"
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -147,8 +147,12 @@ def main(argv: list[str] | None = None) -> int:
     tasks = [(args.first_seed + i, fam) for i in range(args.views_per_family)
              for fam in floorgen.FAMILIES]
     task = _motion_task if args.motion else _task
-    with ProcessPoolExecutor(args.jobs) if args.jobs > 1 else nullcontext() as pool:
-        rows = list(pool.map(task, tasks, chunksize=8) if pool else map(task, tasks))
+    try:
+        with ProcessPoolExecutor(args.jobs) if args.jobs > 1 else nullcontext() as pool:
+            rows = list(pool.map(task, tasks, chunksize=8) if pool else map(task, tasks))
+    except ImportError as exc:
+        print(f"cable_along.py: {exc}")
+        return 2
     if args.csv:
         with open(args.csv, "w", newline="") as f:
             wr = csv.DictWriter(f, fieldnames=list(rows[0]))

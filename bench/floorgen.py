@@ -44,7 +44,11 @@ SS = 3
 @functools.cache
 def photo(name: str) -> np.ndarray:
     """A photograph shipped by scikit-image (CC0), gray float32 0..1, 512 x 512."""
-    import skimage.data
+    try:
+        import skimage.data
+    except ImportError as exc:
+        raise ImportError("the photo floors need scikit-image (a test dependency: "
+                          "pip install -e '.[test]')") from exc
 
     img = getattr(skimage.data, name)()
     if img.ndim == 3:
@@ -334,6 +338,12 @@ def motion_blur(img: np.ndarray, length: float, ang: float) -> np.ndarray:
     for t in np.linspace(-length / 2, length / 2, 4 * n):
         k[int(round(c + t * math.sin(ang))), int(round(c + t * math.cos(ang)))] += 1.0
     return cv2.filter2D(img, -1, k / k.sum())
+
+
+def cell(x: float, spec: str) -> str:
+    """``x`` formatted by ``spec`` for a Markdown table; a dash where there is no value (NaN:
+    no accepted view to measure)."""
+    return format(x, spec) if math.isfinite(x) else "—"
 
 
 def readable(spec: FloorSpec, cx: float, cy: float, theta: float) -> bool:

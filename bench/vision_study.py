@@ -157,12 +157,14 @@ def report(rows: list[dict]) -> str:
         reasons = collections.Counter(r["reason"] for r in rd if not r["accepted"])
         top = ", ".join(f"{k} {v}" for k, v in reasons.most_common(3))
         share = 100.0 * len(acc) / max(len(rd), 1)
+        c = floorgen.cell
         lines.append(
             f"| {fam} | {len(sel)} ({len(rd)}) | {len(acc)} ({share:.1f} %) | "
-            f"{q(ep, 50):.3f} / {q(eh, 50):.4f} | {max(ep, default=math.nan):.3f} / "
-            f"{max(eh, default=math.nan):.4f} | {q(bp, 50):.3f} / {q(bh, 50):.4f} | "
-            f"{max(rp, default=math.nan):.2f}, {max(rh, default=math.nan):.2f} | {out} | "
-            f"{top} |")
+            f"{c(q(ep, 50), '.3f')} / {c(q(eh, 50), '.4f')} | "
+            f"{c(max(ep, default=math.nan), '.3f')} / {c(max(eh, default=math.nan), '.4f')} | "
+            f"{c(q(bp, 50), '.3f')} / {c(q(bh, 50), '.4f')} | "
+            f"{c(max(rp, default=math.nan), '.2f')}, {c(max(rh, default=math.nan), '.2f')} | "
+            f"{out} | {top} |")
     lines += ["", "| corruption | views | accepted | max err / own bound px, rad | "
               "accepted outside own bound | top refusals |", "|---|---|---|---|---|---|"]
     for kind in floorgen.CORRUPTIONS:
@@ -175,14 +177,17 @@ def report(rows: list[dict]) -> str:
         rh = max((r["err_rad"] / r["bound_rad"] for r in acc), default=math.nan)
         reasons = collections.Counter(r["reason"] for r in sel if not r["accepted"])
         top = ", ".join(f"{k} {v}" for k, v in reasons.most_common(3))
-        lines.append(f"| {kind} | {len(sel)} | {len(acc)} | {rp:.2f}, {rh:.2f} | {bad} | {top} |")
+        lines.append(f"| {kind} | {len(sel)} | {len(acc)} | {floorgen.cell(rp, '.2f')}, "
+                     f"{floorgen.cell(rh, '.2f')} | {bad} | {top} |")
     return "\n".join(lines)
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--views-per-family", type=int, default=500)
-    ap.add_argument("--corrupted-per-family", type=int, default=100)
+    ap.add_argument("--corrupted-per-family", type=int, default=100,
+                    help="corrupted views per family; view i gets corruption i mod 5 (cable, "
+                         "box, shadow, glare, motion blur): 5 or more to see each")
     ap.add_argument("--split", choices=tuple(SPLITS), default="fresh2")
     ap.add_argument("--jobs", type=int, default=1)
     ap.add_argument("--families", default=",".join(floorgen.FAMILIES))
@@ -215,6 +220,9 @@ def main(argv: list[str] | None = None) -> int:
                         wr.writeheader()
                     wr.writerow(row)
                     out.flush()
+    except ImportError as exc:
+        print(f"vision_study.py: {exc}")
+        return 2
     finally:
         if out is not None:
             out.close()
