@@ -6,11 +6,11 @@ from __future__ import annotations
 import sys
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import replace
+from pathlib import Path
 
 import pytest
 
 from tileviz.config import Config
-from tileviz.pipeline.worker_start import synthetic_view
 from tileviz.pipeline.workers import worker_context
 from tileviz.vision import extract
 from tileviz.vision.robust import (
@@ -20,6 +20,7 @@ from tileviz.vision.robust import (
     lattice_kernel,
     projection_kernel,
 )
+from tileviz.vision.warmup import synthetic_view
 
 KERNELS = ("dip_rows", "part_profiles", "part_rows", "part_summary")
 
@@ -93,13 +94,13 @@ def test_workers_come_from_the_server_started_ahead() -> None:
 
 def _runs_ok(code: str) -> None:
     """Run ``code`` in a fresh Python process (what is imported there is its own); it must
-    succeed and print ``ok``."""
+    succeed and print ``ok`` last."""
     import subprocess
 
     out = subprocess.run([sys.executable, "-c", code + "; print('ok')"], capture_output=True,
                          text=True, check=False)
     assert out.returncode == 0, out.stderr
-    assert out.stdout.strip() == "ok"
+    assert out.stdout.strip().splitlines()[-1:] == ["ok"], out.stdout
 
 
 def test_replay_main_process_does_not_load_the_extractor_kernels() -> None:
@@ -120,4 +121,28 @@ def test_pipeline_package_loads_the_frame_loop_on_first_use() -> None:
             "sys.modules, sorted(m for m in sys.modules if m.startswith(('cv2', 'tileviz'))); "
             "from tileviz.pipeline import FrameLoop, FrameRecord; "
             "import tileviz.pipeline.frame_loop as f; assert FrameLoop is f.FrameLoop")
+    _runs_ok(code)
+
+
+@pytest.mark.skipif(not kernel.AVAILABLE, reason="numba not installed: no compiled kernels")
+def test_extract_loads_the_kernels_before_its_first_image(tmp_path: Path) -> None:
+    """``tileviz extract`` warms the robust extractor up before the first image, so that image's
+    stage timings (``--json``) are its own and not the kernels' one-off loading: in a fresh
+    process, when the command extracts its first image every kernel the replay's workers
+    start with is loaded already."""
+    import cv2
+
+    image = tmp_path / "view.png"
+    cv2.imwrite(str(image), synthetic_view(Config()))
+    names = {"kernel": KERNELS, "projection_kernel": PROJECTION_KERNELS,
+             "heading_kernel": HEADING_KERNELS, "fit_kernel": FIT_KERNELS,
+             "lattice_kernel": LATTICE_KERNELS}
+    loaded = " + ".join(f"[len(getattr({m}, n).signatures) for n in {v!r}]"
+                        for m, v in names.items())
+    code = ("from tileviz.vision.robust import kernel, projection_kernel, heading_kernel, "
+            "fit_kernel, lattice_kernel; import tileviz.vision.cli as cli; seen = []; "
+            "real = cli.extract; "
+            f"cli.extract = lambda *a, **k: (seen.append({loaded}), real(*a, **k))[1]; "
+            f"status = cli.main('extract', [{str(image)!r}, '--json']); "
+            "assert status == 0 and len(seen) == 1 and all(seen[0]), (status, seen)")
     _runs_ok(code)
