@@ -14,11 +14,9 @@ from __future__ import annotations
 
 import tileviz.pipeline.workers  # noqa: F401 - what a worker runs, imported once in the server
 from tileviz.pipeline.heap import keep_freed_memory
-from tileviz.vision import set_opencv_threads
-from tileviz.vision.warmup import synthetic_view
-from tileviz.vision.warmup import warm_up as load_kernels
+from tileviz.vision import set_opencv_threads, warmup
 
-__all__ = ["synthetic_view", "warm_up"]
+__all__ = ["warm_up"]
 
 
 def warm_up() -> None:
@@ -27,7 +25,7 @@ def warm_up() -> None:
     pool). A failure is ignored: the warm-up only saves time, and a worker then loads what it
     needs itself."""
     set_opencv_threads(1)
-    load_kernels(("robust", "faithful"))
+    warmup.warm_up(("robust", "faithful"))
 
 
 keep_freed_memory()

@@ -189,10 +189,11 @@ def main(command: str, argv: list[str]) -> int:
         status = 0
         stems: dict[str, int] = {}
         with notice_if_slow(f"{prog}: {FIRST_RUN_NOTICE}", after=10.0) as slow:
-            from tileviz.vision.warmup import warm_up
+            if args.extractor != "faithful":
+                from tileviz.vision.warmup import warm_up
 
-            # the kernels' one-off loading out of the first image's stage timings
-            warm_up(() if args.extractor == "faithful" else ("robust",))
+                # the kernels' one-off loading out of the first image's stage timings
+                warm_up()
             for path in args.images:
                 try:
                     res = _extract_one(args, path, base, rectify, keep_stages=folder is not None)

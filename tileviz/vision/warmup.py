@@ -14,7 +14,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from tileviz.config import Config
+from tileviz.config import Config, Extractor
 from tileviz.vision import extract
 
 __all__ = ["synthetic_view", "warm_up"]
@@ -34,7 +34,8 @@ def synthetic_view(cfg: Config) -> np.ndarray:
     return view
 
 
-def warm_up(extractors: Iterable[str] = ("robust",), cfg: Config | None = None) -> None:
+def warm_up(extractors: Iterable[Extractor] = ("robust",), cfg: Config | None = None
+            ) -> None:
     """Run each of ``extractors`` once on :func:`synthetic_view` of ``cfg`` (default: the
     default configuration) with OpenCV's current thread count. A failure is ignored: the
     warm-up only moves a one-off cost, and the first real view then loads what it needs."""
@@ -43,6 +44,6 @@ def warm_up(extractors: Iterable[str] = ("robust",), cfg: Config | None = None) 
     for extractor in extractors:
         try:
             extract(view, camera=cfg.camera, tile_size=cfg.floor.tile_size,
-                    vision=replace(cfg.vision, extractor=extractor))  # type: ignore[arg-type]
+                    vision=replace(cfg.vision, extractor=extractor))
         except Exception:  # noqa: BLE001, S112 - an optimisation only (docstring)
             continue
