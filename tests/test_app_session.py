@@ -416,5 +416,5 @@ def test_relocalize_in_a_region_from_the_gui_and_after_lost(cfg, tmp_path):
         rec = s.shown_entry().record
         assert rec.status == "contracted" and rec.truth_inside() and len(rec.updated) > 1
         assert fault_line(rec.step, s.cfg.localizer).startswith(
-            f"re-localizing: {len(rec.updated)} candidate(s)")
+            f"re-localizing: {len(rec.updated)} candidates")
         s.close()

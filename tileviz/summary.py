@@ -11,7 +11,7 @@ from typing import Protocol
 
 from tileviz.types import BoxSet
 
-__all__ = ["SCALE_FRAMES", "SCALE_TOLERANCE", "RunTally"]
+__all__ = ["SCALE_FRAMES", "SCALE_TOLERANCE", "RunTally", "frame_ranges", "outside_region"]
 
 
 class _Record(Protocol):
@@ -39,6 +39,10 @@ class RunTally:
     periods: list[float] = field(default_factory=list)
     """The tile period each view's lines showed over the declared one (robust extractor,
     views with two lines of a family or more: ``details["period_ratio"]``)."""
+    outside_region: list[int] = field(default_factory=list)
+    """Frame indices at which the localizer held re-localization candidates cut to a region
+    (``LocalizerStep.region``) while the true pose, where known, was outside that region: the
+    hypothesis of re-localization was broken there (docs/guarantees.md)."""
 
     @property
     def frames(self) -> int:
@@ -54,6 +58,8 @@ class RunTally:
         hull = rec.updated.hull()
         if hull is not None and rec.status != "lost":
             self.widths.append(hull.widths)
+        if outside_region(rec):
+            self.outside_region.append(int(getattr(rec, "index", self.frames - 1)))
         vision = getattr(rec, "vision", None)
         ratio = getattr(vision, "details", {}).get("period_ratio")
         if ratio is not None and math.isfinite(ratio):
@@ -71,6 +77,10 @@ class RunTally:
         if self.vouched:
             out.append(f"truth inside the set in {100.0 * self.inside / self.vouched:.1f} % of "
                        f"the {self.vouched} frames it vouched for")
+        if self.outside_region:
+            out.append(f"the robot was outside the re-localization region at "
+                       f"{len(self.outside_region)} frames ({frame_ranges(self.outside_region)}):"
+                       f" the set could not vouch for the truth there")
         scale = self.scale_warning()
         if scale:
             out.append(scale)
@@ -91,6 +101,30 @@ class RunTally:
                 f"{100.0 * abs(ratio - 1.0):.1f} % {way} than tile_size x ppm says (median): "
                 f"check the camera's ppm and the tile size (views read at a wrong scale can "
                 f"lie outside their bound)")
+
+
+def outside_region(rec: object) -> bool:
+    """True when ``rec`` (a frame record) knows the true pose and its localizer step cut the set
+    to a re-localization region (``LocalizerStep.region``) that does not hold the truth's x, y."""
+    step = getattr(rec, "step", None)
+    truth = getattr(rec, "truth", None)
+    region = getattr(step, "region", None)
+    if region is None or truth is None:
+        return False
+    x0, y0, x1, y1 = region
+    return not (x0 <= truth.x <= x1 and y0 <= truth.y <= y1)
+
+
+def frame_ranges(frames: list[int], most: int = 3) -> str:
+    """Sorted frame indices as at most ``most`` ranges, e.g. ``245-256, 300, ...``."""
+    runs: list[list[int]] = []
+    for k in frames:
+        if runs and k == runs[-1][1] + 1:
+            runs[-1][1] = k
+        else:
+            runs.append([k, k])
+    text = ", ".join(f"{a}-{b}" if b > a else f"{a}" for a, b in runs[:most])
+    return text + (", ..." if len(runs) > most else "")
 
 
 SCALE_FRAMES = 5

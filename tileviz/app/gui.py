@@ -42,7 +42,7 @@ if TYPE_CHECKING:
         ViserServer,
     )
 
-__all__ = ["Controls"]
+__all__ = ["Controls", "format_region"]
 
 FAULTS = ODOMETRY_FAULTS + FAULT_KINDS
 """Faults the simulator can inject (``SimSource.inject``): its odometry faults, then the
@@ -105,7 +105,8 @@ class Controls:
 
     def __init__(self, server: ViserServer, submit: Callable[[C.Command], None], cfg: Config, *,
                  layers: dict[str, bool], display: bool, playing: bool, speed: float = 1.0,
-                 max_speed: bool = False, mcl: bool = False, replay: str | None = None) -> None:
+                 max_speed: bool = False, mcl: bool = False, replay: str | None = None,
+                 region: tuple[float, float, float, float] = (-2.0, -2.0, 2.0, 2.0)) -> None:
         self.server = server
         self._submit = submit
         gui = server.gui
@@ -146,7 +147,11 @@ class Controls:
             self.set_waypoints = gui.add_button("Drive the waypoints")
             self.kidnap = gui.add_button("Kidnap (teleport the robot)")
             self.relocalize = gui.add_button("Relocalize (tell the true pose)")
-            self.region = gui.add_text("Region x0, y0, x1, y1 (m)", "-2, -2, 2, 2")
+            self._region_default = format_region(region)
+            """The region the page offered last; the text follows the default until edited."""
+            self.region = gui.add_text("Region x0, y0, x1, y1 (m)", self._region_default,
+                                       hint="where the robot is, as far as you know: "
+                                            "re-localization assumes it stays in here")
             self.relocalize_region = gui.add_button("Re-localize in the region")
             self.seed = gui.add_number("Seed", cfg.sim.seed, min=SEED_RANGE[0], max=SEED_RANGE[1],
                                       step=1)
@@ -309,7 +314,8 @@ class Controls:
 
     # ------------------------------------------------------------------ refresh (loop thread)
     def refresh(self, *, first: int, last: int, shown: int, playing: bool, setpoint: str,
-                target: tuple[float, float], recording: bool, status: str) -> None:
+                target: tuple[float, float], recording: bool, status: str,
+                region: tuple[float, float, float, float] | None = None) -> None:
         """Bring the controls the loop changes up to date (values set here are not echoed back
         as commands)."""
         # (*) a handle's value is settable; mypy sees viser's props field as read-only
@@ -331,12 +337,23 @@ class Controls:
         if setpoint == "manual" and tuple(self.target.value) != tuple(target):
             self.target.value = target  # type: ignore[misc]  # (*)
             self.gizmo.position = (target[0], target[1], 0.05)
+        if region is not None:
+            offered = format_region(region)
+            if offered != self._region_default:
+                if self.region.value == self._region_default:  # not edited: follow the floor
+                    self.region.value = offered  # type: ignore[misc]  # (*)
+                self._region_default = offered
         self._recording = recording
         label = "Stop recording" if recording else "Start recording"
         if self.record.label != label:
             self.record.label = label
         if self.status.content != status:
             self.status.content = status
+
+
+def format_region(region: tuple[float, float, float, float]) -> str:
+    """A region (x0, y0, x1, y1, metres) as the text the region field takes."""
+    return ", ".join(f"{v:g}" for v in region)
 
 
 def floor_point(origin: tuple[float, float, float],

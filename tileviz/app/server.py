@@ -148,7 +148,8 @@ class App:
         self.controls = Controls(server, self.submit, self.cfg, layers=s.layers,
                                  display=s.display, playing=s.playing, speed=s.speed,
                                  max_speed=s.max_speed, mcl=s.mcl is not None,
-                                 replay=None if s.source.simulator else s.source.describe())
+                                 replay=None if s.source.simulator else s.source.describe(),
+                                 region=s.default_region())
         panel = server.gui.add_panel()
         with panel.add_tab("The set, camera and plots"):
             self.inset = InsetView(server.gui)
@@ -281,7 +282,7 @@ class App:
                 try:
                     s.apply(cmd)
                 except Exception as e:  # noqa: BLE001 - a bad command must not stop the loop
-                    s.note(f"{type(cmd).__name__}: {e}", "error")
+                    s.note(f"{C.label(cmd)}: {e}", "error")
             try:
                 cmd = self.queue.get_nowait()
             except queue.Empty:
@@ -351,7 +352,8 @@ class App:
                               playing=s.playing, setpoint=s.setpoint_kind,
                               target=tuple(s.cfg.sim.manual_target),  # type: ignore[arg-type]
                               recording=s.recording_active,
-                              status=self.status_text(entry, live=s.shown == s.history.last))
+                              status=self.status_text(entry, live=s.shown == s.history.last),
+                              region=s.default_region())
 
     def _follow(self, entry: Entry) -> None:
         """Move every client's view with the robot (its true pose, else the set's centre),
@@ -459,7 +461,9 @@ def fault_line(step: LocalizerStep | None, loc: LocalizerConfig) -> str:
         return ""
     parts = []
     if step.relocalizing:
-        parts.append(f"re-localizing: {len(step.updated)} candidate(s) in the region")
+        merged = " (merged into one box: more than the limit)" if step.hulled else ""
+        n = len(step.updated)
+        parts.append(f"re-localizing: {n} candidate{'' if n == 1 else 's'} in the region{merged}")
     if not (loc.fault_speed or loc.fault_yaw_rate) or loc.max_slip != (0.0, 0.0) or (
             loc.mode != "autonomous"):
         return "; ".join(parts)

@@ -99,8 +99,9 @@ class LocalizerStep(NamedTuple):
     taken from the fault set (module docstring, "Fault model"). ``fault_frame``: fault model
     only: k >= 1 while the localizer follows a noticed fault (the k-th frame since the view or
     compass rejected the set and the fault set was taken; ``slip_window`` frames after the last
-    such rejection), 0 otherwise. ``relocalizing``: the set still holds the candidates of a
-    re-localization (:meth:`Localizer.relocalize`), cut to its region.
+    such rejection), 0 otherwise. ``region``: the re-localization region (x0, y0, x1, y1,
+    metres) this step's sets were cut to while its candidates remain (:meth:`Localizer.relocalize`;
+    the hypothesis: the robot is in it), else None.
     """
 
     predicted: BoxSet
@@ -112,24 +113,39 @@ class LocalizerStep(NamedTuple):
     rejections: int = 0
     reinflated: bool = False
     fault_frame: int = 0
-    relocalizing: bool = False
+    region: tuple[float, float, float, float] | None = None
+
+    @property
+    def relocalizing(self) -> bool:
+        """The set still holds the candidates of a re-localization, cut to :attr:`region`."""
+        return self.region is not None
 
 
 def region_candidates(region: tuple[float, float, float, float], tile_size: float,
-                      heading: tuple[float, float] | None = None) -> int:
+                      heading: tuple[float, float] | None = None, lever: float = 0.0) -> int:
     """The most candidate boxes a re-localization in ``region`` (x0, y0, x1, y1, metres) can
-    leave on a floor of ``tile_size`` m tiles: the tile cells the region meets times the heading
-    branches (a view's heading repeats every quarter turn) that ``heading`` (lo, hi rad; None: a
-    whole turn) meets. ValueError when that exceeds :data:`RELOCALIZE_MAX_CANDIDATES`."""
+    leave on a floor of ``tile_size`` m tiles, with the camera ``lever`` metres from the robot
+    point (the norm of ``camera_offset``): the tile cells that the camera centre's range (the
+    region widened by the lever) meets times the heading branches (a view's heading repeats
+    every quarter turn) that ``heading`` (lo, hi rad; None: a whole turn) meets. After the first
+    view every candidate is narrower than a tile and its motion and the next views never split
+    it (docs/method.md, "Re-localization"), so the set never holds more boxes than this.
+    ValueError, in words a user reads, when that exceeds :data:`RELOCALIZE_MAX_CANDIDATES`."""
     x0, y0, x1, y1 = region
     t_lo, t_hi = (-math.pi, math.pi) if heading is None else heading
-    cells = (math.floor((x1 - x0) / tile_size) + 2) * (math.floor((y1 - y0) / tile_size) + 2)
+    reach = 2.0 * abs(lever)
+    nx = math.floor((x1 - x0 + reach) / tile_size) + 2
+    ny = math.floor((y1 - y0 + reach) / tile_size) + 2
     branches = min(4, math.floor((t_hi - t_lo) / (math.pi / 2)) + 2)
-    need = cells * branches
+    need = nx * ny * branches
     if need > RELOCALIZE_MAX_CANDIDATES:
-        raise ValueError(f"region spans up to {need} candidate boxes (tile cells x heading "
-                         f"branches), more than {RELOCALIZE_MAX_CANDIDATES}: give a smaller "
-                         f"region")
+        side = tile_size * max(1, math.isqrt(RELOCALIZE_MAX_CANDIDATES // branches) - 2) - reach
+        hint = (f"a region of at most about {side:.3g} m x {side:.3g} m" if side > 0 else
+                "a smaller region")
+        raise ValueError(f"the region ({x0:g}, {y0:g})-({x1:g}, {y1:g}) m spans {nx} x {ny} "
+                         f"tiles of {tile_size:g} m and {branches} heading branches: up to "
+                         f"{need} candidate boxes, more than the {RELOCALIZE_MAX_CANDIDATES} "
+                         f"re-localization can follow; give {hint}")
     return need
 
 
@@ -207,33 +223,67 @@ class Localizer:
         self._cap = self._cfg.max_boxes
 
     def relocalize(self, region: tuple[float, float, float, float],
-                   heading: tuple[float, float] | None = None) -> int:
+                   heading: tuple[float, float] | None = None, *,
+                   compass: float | None = None) -> int:
         """Start again from "somewhere in ``region``" = (x0, y0, x1, y1), metres, x0 <= x1,
-        y0 <= y1 (the robot's point between the wheels), heading within ``heading`` = (lo, hi),
-        rad, or anywhere (None: the compass of the next frames cuts it). Clears the ``lost``
-        state like :meth:`reset`.
+        y0 <= y1 (the robot's point between the wheels, at the pose of the last step), heading
+        within ``heading`` = (lo, hi), rad, or within ``compass_error`` of ``compass`` (that
+        step's reading, rad), or anywhere (both None: the compass of the next frames cuts it).
+        Clears the ``lost`` state like :meth:`reset`.
 
         The next view cuts the region into one candidate box per lattice cell (the floor repeats:
         every tile in the region offers a pose that fits the view), so the set may hold that many
-        boxes: the box cap is raised to the count the region needs while candidates remain. Until
-        one candidate remains (a single box narrower than a tile in x and y), every set is cut to
-        the region: candidates whose motion takes them out of it are dropped, which breaks the
-        floor's symmetry. Hypothesis (H1 for this start): the robot is in the region from now until
-        one candidate remains. Returns the number of candidate boxes allowed; ValueError when the
-        region would need more than :data:`RELOCALIZE_MAX_CANDIDATES`, or on a bad bound."""
+        boxes: the box cap becomes the count :func:`region_candidates` bounds while candidates
+        remain (never a hull of candidates). Until one candidate remains (a single box narrower
+        than a tile in x and y), every set is cut to the region: candidates whose motion takes
+        them out of it are dropped, which breaks the floor's symmetry. Hypothesis (H1 for this
+        start, ``docs/guarantees.md``): the robot is in the region from now until one candidate
+        remains. Returns the number of candidate boxes allowed; ValueError (nothing changed)
+        when the region would need more than :data:`RELOCALIZE_MAX_CANDIDATES`, or on a bad
+        bound."""
+        x0, y0, x1, y1 = region = self._region_of(region)
+        t_lo, t_hi = heading = self._heading_of(heading, compass)
+        need = self.candidates(region, heading)
+        self.reset(Box(x0, x1, y0, y1, t_lo, t_hi))
+        self._region = region
+        self._cap = max(self._cfg.max_boxes, need)
+        return self._cap
+
+    def candidates(self, region: tuple[float, float, float, float],
+                   heading: tuple[float, float] | None = None, *,
+                   compass: float | None = None) -> int:
+        """The candidate boxes :meth:`relocalize` would allow for these arguments
+        (:func:`region_candidates` with this floor and camera), changing nothing; ValueError as
+        :meth:`relocalize`."""
+        lever = 0.0 if self._lever is None else self._lever[1]
+        return region_candidates(self._region_of(region), self._L,
+                                 self._heading_of(heading, compass), lever)
+
+    @staticmethod
+    def _region_of(region: tuple[float, float, float, float]) -> tuple[float, float, float, float]:
+        """``region`` checked: four finite numbers, x0 <= x1, y0 <= y1 (ValueError)."""
         if len(region) != 4:
             raise ValueError(f"region must be (x0, y0, x1, y1), got {region!r}")
         x0, y0, x1, y1 = (finite(f"region[{i}]", v) for i, v in enumerate(region))
         if x0 > x1 or y0 > y1:
             raise ValueError(f"region must have x0 <= x1 and y0 <= y1, got {region!r}")
+        return (x0, y0, x1, y1)
+
+    def _heading_of(self, heading: tuple[float, float] | None,
+                    compass: float | None) -> tuple[float, float]:
+        """The heading interval of a re-localization (rad): ``heading``, else ``compass`` +-
+        ``compass_error`` (outward), else a whole turn."""
+        if heading is None and compass is not None:
+            c = finite("compass", compass)
+            heading = (_nextafter(c - self._ec, -_INF), _nextafter(c + self._ec, _INF))
         t_lo, t_hi = (-math.pi, math.pi) if heading is None else heading
-        t_lo = finite("heading[0]", t_lo)
-        t_hi = finite("heading[1]", t_hi)
-        need = region_candidates((x0, y0, x1, y1), self._L, (t_lo, t_hi))
-        self.reset(Box(x0, x1, y0, y1, t_lo, t_hi))
-        self._region = (x0, y0, x1, y1)
-        self._cap = max(self._cfg.max_boxes, need)
-        return self._cap
+        return (finite("heading[0]", t_lo), finite("heading[1]", t_hi))
+
+    @property
+    def region(self) -> tuple[float, float, float, float] | None:
+        """The re-localization region (x0, y0, x1, y1, metres) while its candidates remain, else
+        None (:meth:`relocalize`)."""
+        return self._region
 
     def _in_region(self, boxes: list[Box]) -> list[Box]:
         """The parts of ``boxes`` whose x and y lie in the re-localization region (exact: min and
@@ -401,7 +451,8 @@ class Localizer:
                         boxes, h2 = tidy(boxes + extra, cap)
                         hulled = hulled or h or h2
                         reinflated = True
-        relocalizing = self._region is not None and not self._lost
+        region = None if self._lost else self._region
+        relocalizing = region is not None
         if relocalizing:
             # re-localization: the robot is in the region (Localizer.relocalize)
             cut = self._in_region(boxes)
@@ -536,7 +587,7 @@ class Localizer:
             self._rejections,
             reinflated,
             self._fault_frame,
-            relocalizing,
+            region,
         )
 
     def _compass_cut(self, boxes: list[Box], compass: float) -> list[Box]:
@@ -582,7 +633,7 @@ class Localizer:
         hulled = False
         for b in boxes:
             got, p, h = contract_view(b, view, None, self._L, self._lever, cfg.passes,
-                                      cfg.max_boxes)
+                                      self._cap)
             out.extend(got)
             if p > passes:
                 passes = p
