@@ -35,3 +35,28 @@ def test_help_and_one_line_errors_without_the_ros_extra(tmp_path: Path) -> None:
              str(tmp_path / "r.mcap"), "--quiet", "--jobs", "1")
     lines = r.stderr.strip().splitlines()
     assert r.returncode == 2 and len(lines) == 1 and "pip install -e '.[ros]'" in lines[0]
+
+
+def test_the_pages_mcap_button_is_greyed_with_the_install_line_without_the_extra(
+        monkeypatch) -> None:
+    import viser
+
+    from tileviz.app.commands import LAYERS
+    from tileviz.app.gui import Controls
+    from tileviz.config import preset
+    from tileviz.datasets.mcap_export import mcap_missing
+
+    assert mcap_missing() is None  # the test extra has it
+    for m in ("mcap", "mcap_protobuf", "foxglove_schemas_protobuf"):
+        monkeypatch.setitem(sys.modules, m, None)  # as if not installed
+    line = mcap_missing()
+    assert line is not None and "pip install -e '.[ros]'" in line and "--mcap" not in line
+    server = viser.ViserServer(port=0, verbose=False)
+    try:
+        c = Controls(server, lambda cmd: None, preset("default"),
+                     layers=dict.fromkeys(LAYERS, True), display=True,
+                     playing=False)
+        assert c.export.disabled and "not installed" in c.export.label
+        assert c.export.hint == line
+    finally:
+        server.stop()

@@ -208,7 +208,7 @@ def test_simulator_commands_leave_a_note_and_change_nothing(dataset, tmp_path):
     assert {type(c) for c in commands} == set(SIMULATOR_ONLY)
     for cmd in commands:
         s.apply(cmd)
-        assert type(cmd).__name__ in s.notes[-1].text and "nothing changed" in s.notes[-1].text
+        assert C.label(cmd) in s.notes[-1].text and "nothing changed" in s.notes[-1].text
     assert (s.cfg, s.shown, s.world_version, len(s.history)) == (cfg, shown, version, 3)
     assert s.setpoint_kind == "dataset" and not s.recording_active
     assert not (tmp_path / "out").exists() or not any((tmp_path / "out").iterdir())

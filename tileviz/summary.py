@@ -11,7 +11,8 @@ from typing import Protocol
 
 from tileviz.types import BoxSet
 
-__all__ = ["SCALE_FRAMES", "SCALE_TOLERANCE", "RunTally", "frame_ranges", "outside_region"]
+__all__ = ["SCALE_FRAMES", "SCALE_TOLERANCE", "RunTally", "counted", "frame_ranges",
+           "outside_region"]
 
 
 class _Record(Protocol):
@@ -113,6 +114,12 @@ def outside_region(rec: object) -> bool:
         return False
     x0, y0, x1, y1 = region
     return not (x0 <= truth.x <= x1 and y0 <= truth.y <= y1)
+
+
+def counted(n: int, singular: str, plural: str | None = None) -> str:
+    """``n`` and the noun in the right number: ``1 box``, ``2 boxes`` (``plural`` defaults to
+    ``singular + "s"``)."""
+    return f"{n} {singular if n == 1 else (plural or singular + 's')}"
 
 
 def frame_ranges(frames: list[int], most: int = 3) -> str:

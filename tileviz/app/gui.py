@@ -27,6 +27,7 @@ from tileviz.config import (
     TILE_SIZE_RANGE,
     Config,
 )
+from tileviz.datasets.mcap_export import mcap_missing
 from tileviz.sim.camera import FAULT_KINDS
 from tileviz.sim.source import ODOMETRY_FAULTS
 
@@ -70,9 +71,11 @@ at the end). *Step back* and the *timeline* show stored frames as they were; not
 recomputed. *Go live* jumps to the newest frame.
 
 **The left panel.** The camera view and each stage of the image pipeline (report Fig 4.2 and
-4.3), or the plots: *Does the view agree with the true pose?* draws the six equivalence
-residuals of report table 6.1 (Fig 6.3; zero when the view fits the true pose), *Size of the
-set* the widths of the blue set, *Distance from the set's centre to the truth* its error.
+4.3), or the plots: *Is the view within its bound of the true pose?* draws, per coordinate,
+how far the view is from the truth (at the tile and quarter turn that fit best) over the bound
+the view declared: at or below the grey line at 1, the view agrees (report Fig 6.3 draws the
+same as six residuals; `--output-file` writes those), *Size of the set* the widths of the
+blue set, *Distance from the set's centre to the truth* its error.
 Orange: the Monte Carlo Localization baseline, calibrated to the views' measured errors
 (particles and 95 % ellipse), when switched on.
 """
@@ -241,9 +244,14 @@ class Controls:
         with gui.add_folder("Record") as folders["record"]:
             self.record_name = gui.add_text("Dataset name", "live-run")
             self.record = gui.add_button("Start recording")
+            missing = mcap_missing()
             self.export = gui.add_button(
-                "Export MCAP", hint="Write the last recording as NAME.mcap beside its folder, "
+                "Export MCAP" if missing is None else "Export MCAP (not installed)",
+                disabled=missing is not None,
+                hint=missing or "Write the last recording as NAME.mcap beside its folder, "
                 "for Foxglove (as `python -m tileviz replay NAME --mcap` does)")
+            if missing is not None:
+                gui.add_markdown(f"*{missing}*")
         self._recording = False
         self._on_click(self.record, lambda: (C.StopRecording() if self._recording
                                              else C.StartRecording(self.record_name.value)))

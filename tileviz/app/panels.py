@@ -41,6 +41,11 @@ STAGE_TITLES: dict[str, str] = {
 """Panel titles of the stage names the extractors use (other names are shown as they are)."""
 
 
+EMPTY_LEVEL = 12
+"""A stage image whose brightest pixel is at most this level (0..255; JPEG's ringing on black
+stays well below it) shows nothing: its label says "none found"."""
+
+
 def decode_jpeg(data: bytes) -> np.ndarray:
     """HxWx3 uint8 RGB pixels of JPEG ``data``; ValueError when they do not decode."""
     bgr = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
@@ -57,12 +62,16 @@ class ImageSlot:
         self.handle: GuiImageHandle = gui.add_image(blank, label=label, format="jpeg",
                                                     jpeg_quality=JPEG_QUALITY, visible=visible)
         self._data = b""
+        self.empty = False
+        """The image shown is black all over (a stage that found nothing to draw)."""
 
     def show(self, data: bytes) -> None:
         """Show the image ``data`` (JPEG bytes); nothing is sent when it is already shown."""
         if data != self._data:
-            self.handle.image = decode_jpeg(data)
+            pixels = decode_jpeg(data)
+            self.handle.image = pixels
             self._data = data
+            self.empty = int(pixels.max(initial=0)) <= EMPTY_LEVEL
 
     def forget(self) -> None:
         """The next :meth:`show` sends its image even if the bytes are the same."""
@@ -93,10 +102,10 @@ class ImagePanels:
         names = tuple(n for n, _ in entry.images if n not in ("camera", "input")) \
             if display and stages else ()
         for slot, name in zip(self.stages, names, strict=False):
-            title = STAGE_TITLES.get(name, name)
+            slot.show(images[name])
+            title = STAGE_TITLES.get(name, name) + (": none found" if slot.empty else "")
             if slot.handle.label != title:
                 slot.handle.label = title
-            slot.show(images[name])
             slot.handle.visible = True
         for slot in self.stages[len(names):]:
             slot.handle.visible = False

@@ -53,6 +53,7 @@ from tileviz.config import (
     preset,
 )
 from tileviz.sim.lens import LENSES
+from tileviz.summary import counted
 
 __all__ = ["main", "options_from_args", "parser", "serve_config"]
 
@@ -212,7 +213,7 @@ def _summary(s: Session, wanted: int, frames: int, seconds: float) -> int:
     if frames < wanted and s.ended is not None:
         parts.append(f"stopped early: {s.ended}")
     if s.errors:
-        parts.append(f"{s.errors} frame(s) failed")
+        parts.append(f"{counted(s.errors, 'frame')} failed")
     print("tileviz serve: " + "; ".join(parts), flush=True)
     return 1 if failed else 0
 

@@ -36,6 +36,7 @@ from tileviz.config import (
     LocalizerConfig,
 )
 from tileviz.core.localizer import FAULT_MAX_REJECTIONS, LocalizerStep
+from tileviz.summary import counted
 
 if TYPE_CHECKING:
     from viser import GuiButtonGroupHandle, GuiEvent, ViserServer
@@ -396,7 +397,7 @@ class App:
             lines.append(f"<b>frame {r.index}</b>, t = {r.t:.2f} s, {state}"
                          f"{'' if live else ' (from the history)'}")
             lines.append(f"status <b>{r.status}</b>: {html.escape(STATUS_WORDS.get(r.status, ''))}"
-                         f", {len(r.updated)} box(es)")
+                         f", {counted(len(r.updated), 'box', 'boxes')}")
             fault = fault_line(r.step, s.cfg.localizer)
             if fault:
                 lines.append(fault)
@@ -462,8 +463,8 @@ def fault_line(step: LocalizerStep | None, loc: LocalizerConfig) -> str:
     parts = []
     if step.relocalizing:
         merged = " (merged into one box: more than the limit)" if step.hulled else ""
-        n = len(step.updated)
-        parts.append(f"re-localizing: {n} candidate{'' if n == 1 else 's'} in the region{merged}")
+        parts.append(f"re-localizing: {counted(len(step.updated), 'candidate')} in the "
+                     f"region{merged}")
     if not (loc.fault_speed or loc.fault_yaw_rate) or loc.max_slip != (0.0, 0.0) or (
             loc.mode != "autonomous"):
         return "; ".join(parts)
@@ -471,7 +472,8 @@ def fault_line(step: LocalizerStep | None, loc: LocalizerConfig) -> str:
         parts.append(f"tracking through a fault: frame {step.fault_frame} of the fault set")
     if step.rejections > 0:
         limit = min(loc.max_rejections, FAULT_MAX_REJECTIONS)
-        parts.append(f"{step.rejections} view(s) in a row fit neither set ({limit} make it lost)")
+        parts.append(f"{counted(step.rejections, 'view')} in a row fit neither set ({limit} make "
+                     f"it lost)")
     return "; ".join(parts)
 
 

@@ -631,7 +631,8 @@ class Session:
         cfg = with_floor_style(cfg, cmd.style)
         self._new_run(cfg)
         self.compute()
-        self.note(f"new run: tile size {cmd.tile_size:g} m, {cmd.ppm:g} px/m")
+        self.note(f"new run: tile size {cmd.tile_size:g} m, {cmd.ppm:g} px/m, floor style "
+                  f"{cmd.style}")
 
     def _reconfigure(self, cfg: Config, what: str = "new settings") -> None:
         """New localizer or vision settings: from the next frame on (the simulator), or from frame

@@ -22,6 +22,7 @@ from tileviz.evaluation.cluster import parse_scheduler
 from tileviz.evaluation.report import figures, write_outputs
 from tileviz.evaluation.scenarios import DEFAULT_SCENARIOS, SCENARIOS
 from tileviz.evaluation.store import RunStore
+from tileviz.summary import counted
 
 __all__ = ["main"]
 
@@ -126,7 +127,8 @@ def main(command: str, argv: list[str]) -> int:
                  f"roughening, KLD-sampling of {min(CAL_MIN_PARTICLES, args.particles)} to "
                  f"{args.particles} particles, AMCL recovery with sensor resetting in place "
                  f"(tileviz/baselines/mcl.py); "
-                 f"{args.runs} run(s) of {args.duration:g} s per scenario, seeds {args.seed}.."
+                 f"{counted(args.runs, 'run')} of {args.duration:g} s per scenario, seeds "
+                 f"{args.seed}.."
                  f"{args.seed + args.runs - 1}.",
                  "interval (autonomous): " + (
                      f"fault model {model[0]:g} m/s, {model[1]:g} rad/s beyond the odometry "
