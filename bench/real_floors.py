@@ -87,7 +87,7 @@ class Floor:
 
 
 def load_floors(folder: Path, only: set[str] | None = None) -> list[Floor]:
-    """The floors of ``folder/floors.json`` (``only``: these ids)."""
+    """The floors of ``folder/floors.json`` (``only``: these ids, all of them there)."""
     index = folder / "floors.json"
     if not index.is_file():
         raise SystemExit(f"real_floors: {index} not found: pass --floors DIR (the folder of the "
@@ -332,7 +332,9 @@ def _pct(a: int, b: int) -> str:
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--floors", type=Path, default=Path("../shared/real_floors"))
+    p.add_argument("--floors", type=Path, action="append", default=None,
+                   help="a folder of floors and their floors.json (repeat for several; "
+                        "default ../shared/real_floors)")
     p.add_argument("--stills", type=int, default=40)
     p.add_argument("--frames", type=int, default=400, help="frames of the drive (0: none)")
     p.add_argument("--only", default="", help="comma-separated floor ids")
@@ -345,7 +347,14 @@ def main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
     set_opencv_threads()
     only = {s for s in args.only.split(",") if s} or None
-    floors = load_floors(args.floors, only)
+    folders = args.floors or [Path("../shared/real_floors")]
+    floors = [f for folder in folders for f in load_floors(folder, None)]
+    if only:
+        missing = only - {f.id for f in floors}
+        if missing:
+            raise SystemExit(f"real_floors: no floor {', '.join(sorted(missing))} in "
+                             f"{', '.join(map(str, folders))}")
+        floors = [f for f in floors if f.id in only]
     seed0 = SPLITS[args.split]
     print(f"real floors: {len(floors)} floors, {args.stills} stills and a {args.frames}-frame "
           f"drive each; scale {args.scale:g}, camera {args.camera}, split {args.split}, "
