@@ -25,19 +25,15 @@ from __future__ import annotations
 import argparse
 import collections
 import math
-import sys
 import time
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from tileviz.config import VisionConfig  # noqa: E402
-from tileviz.sim.camera import FloorRenderer, random_camera, random_floor  # noqa: E402
-from tileviz.types import Pose  # noqa: E402
-from tileviz.vision import extract, observation_error, set_opencv_threads  # noqa: E402
+from tileviz.config import VisionConfig
+from tileviz.sim.camera import FloorRenderer, random_camera, random_floor
+from tileviz.types import Pose
+from tileviz.vision import extract, observation_error, set_opencv_threads
 
 set_opencv_threads()  # as every tileviz entry point (workers re-run this on import)
 

@@ -10,25 +10,21 @@ the floor's appearance is computed once per renderer (its time is printed too).
 from __future__ import annotations
 
 import statistics
-import sys
 from dataclasses import replace
-from pathlib import Path
 
 import cv2
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from tileviz.config import preset  # noqa: E402
-from tileviz.sim.camera import Fault, FloorRenderer  # noqa: E402
-from tileviz.types import Pose  # noqa: E402
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-import bench_vision  # noqa: E402  (its option parsing and clock)
+from tileviz.config import preset
+from tileviz.sim.camera import Fault, FloorRenderer
+from tileviz.testing import timing
+from tileviz.types import Pose
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = bench_vision.parse(__doc__, argv)
+    ap = timing.parser(__doc__)
+    args = ap.parse_args(argv)
+    timing.use_clock(args.clock)
     cfg = preset("default")
     print(f"OpenCV {cv2.__version__}, {cv2.getNumThreads()} threads, {args.clock} clock; "
           f"{args.frames} frames per case; medians in ms")
@@ -42,16 +38,16 @@ def main(argv: list[str] | None = None) -> int:
             "motion blur fault": (base, [Fault("motion_blur")]),
         }
         for name, (cam, faults) in cases.items():
-            t0 = bench_vision.clock()
+            t0 = timing.clock()
             r = FloorRenderer(cfg.floor, cam)
-            init = (bench_vision.clock() - t0) * 1e3
+            init = (timing.clock() - t0) * 1e3
             rng = np.random.default_rng(1)
             times = []
             for _ in range(args.frames):
                 pose = Pose(rng.uniform(-5, 5), rng.uniform(-5, 5), rng.uniform(-4, 4))
-                t0 = bench_vision.clock()
+                t0 = timing.clock()
                 r.render(pose, rng, faults=faults)
-                times.append((bench_vision.clock() - t0) * 1e3)
+                times.append((timing.clock() - t0) * 1e3)
             print(f"{w}x{h} {name:<18} {statistics.median(times):6.3f} ms/frame "
                   f"(renderer init {init:.0f} ms)")
     return 0

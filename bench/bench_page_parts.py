@@ -29,16 +29,11 @@ import argparse
 import math
 import os
 import re
-import sys
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
-sys.path.insert(0, str(REPO / "bench"))
-
-from bench_page import ARGS, COUNT, _cpu, _descendants  # noqa: E402
+from tileviz.testing.browser import ARGS, CHROMIUM, COUNT_FRAMES, chromium_pids, cpu_seconds
 
 
 def _kind(pid: int) -> str:
@@ -151,13 +146,12 @@ def main() -> None:
     results: dict[str, list[tuple[float, float, float]]] = {c: [] for c in args.configs}
     try:
         with sync_playwright() as p:
-            browser = p.chromium.launch(executable_path="/usr/bin/chromium", args=ARGS)
+            browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS)
             page = browser.new_page(viewport={"width": 1400, "height": 900})
             page.goto(app.url)
             page.wait_for_selector("canvas", timeout=120_000)
             page.wait_for_timeout(args.warmup * 1000)
-            pids = [q for q in _descendants(os.getpid())
-                    if b"chrom" in Path(f"/proc/{q}/cmdline").read_bytes()[:200]]
+            pids = chromium_pids()
             gpu = [q for q in pids if _kind(q) == "gpu-process"]
             for _ in range(args.repeat):
                 for config in args.configs:
@@ -168,11 +162,11 @@ def main() -> None:
                     else:
                         parts.apply(config)
                         page.wait_for_timeout(1500)
-                    g0, a0 = _cpu(gpu), _cpu(pids)
-                    n, span = page.evaluate(COUNT, args.window * 1000)
+                    g0, a0 = cpu_seconds(gpu), cpu_seconds(pids)
+                    n, span = page.evaluate(COUNT_FRAMES, args.window * 1000)
                     n = max(int(n), 1)
-                    results[config].append((n / span, 1e3 * (_cpu(gpu) - g0) / n,
-                                            1e3 * (_cpu(pids) - a0) / n))
+                    results[config].append((n / span, 1e3 * (cpu_seconds(gpu) - g0) / n,
+                                            1e3 * (cpu_seconds(pids) - a0) / n))
                     if config == "bare":
                         page.goto(app.url)
                         page.wait_for_selector("canvas", timeout=120_000)

@@ -22,20 +22,14 @@ import argparse
 import asyncio
 import os
 import subprocess
-import sys
 import tempfile
 import time
 from collections import Counter
 from pathlib import Path
 from typing import Any
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
-
-from tests.wsclient import ViserClient, decode_window, start_serve  # noqa: E402
-
-ARGS = ["--headless", "--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
-        "--disable-background-networking", "--disable-component-update", "--no-first-run"]
+from tileviz.testing.browser import ARGS, CHROMIUM
+from tileviz.testing.wsclient import ViserClient, decode_window, start_serve
 
 
 def cpu_seconds(pid: int) -> float:
@@ -133,7 +127,7 @@ def browser_run(url: str, seconds: float, viewport: tuple[int, int] = (1400, 900
         ws.on("framereceived", on_frame)
 
     with sync_playwright() as p:
-        browser = p.chromium.launch(executable_path="/usr/bin/chromium", args=ARGS)
+        browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS)
         page = browser.new_page(viewport={"width": viewport[0], "height": viewport[1]})
         page.add_init_script(PAGE_COUNTERS)
         page.on("websocket", on_ws)

@@ -13,10 +13,10 @@ The per-stage figures are the extractor's own timings (``VisionResult.timings``,
 
 Frames are rendered once (default floor, random poses, camera noise on) and reused, so only the
 vision is timed. Each figure is the median over frames of the per-frame time. Per floor family
-(``bench/floorgen.py``, all nine), ``min(frames, 60)`` clean views, each extracted 3 times:
-median and 90th percentile of those times, the bare chain's median on the same views and the
-costliest stages; a family that cannot be rendered (scikit-image
-missing for ``photo``) is reported as skipped, the others still run. The bare chain is
+(``tileviz/testing/floorgen.py``, all nine), ``min(frames, 60)`` clean views, each extracted 3
+times: median and 90th percentile of those times, the bare chain's median on the same views and
+the costliest stages; a family that cannot be rendered (scikit-image missing for ``photo``) is
+reported as skipped, the others still run. The bare chain is
 exactly what the original called (report chapter 4, ``docs/seed-code.md``): cvtColor,
 Laplacian(CV_8U, ksize 1), Canny(50, 255, 3), morphologyEx(CLOSE, 1x1), dilate(3x3), and
 HoughLinesP(1, pi/180, 60, 100, 50); ours adds everything around them (input checks, segment
@@ -28,23 +28,16 @@ from __future__ import annotations
 import argparse
 import math
 import statistics
-import sys
-import time
 from dataclasses import replace
-from pathlib import Path
 
 import cv2
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from tileviz.config import CameraConfig, FloorConfig, VisionConfig, preset  # noqa: E402
-from tileviz.sim.camera import FloorRenderer  # noqa: E402
-from tileviz.types import Pose  # noqa: E402
-
-clock = time.perf_counter
-"""The clock every figure is read from (``--clock``)."""
-from tileviz.vision import OPENCV_THREADS, extract, set_opencv_threads  # noqa: E402
+from tileviz.config import CameraConfig, FloorConfig, VisionConfig, preset
+from tileviz.sim.camera import FloorRenderer
+from tileviz.testing import timing
+from tileviz.types import Pose
+from tileviz.vision import OPENCV_THREADS, extract, set_opencv_threads
 
 SEED_KERNEL_1 = np.ones((1, 1), np.uint8)
 
@@ -77,9 +70,9 @@ def stage_table(imgs: list[np.ndarray], cam: CameraConfig, floor: FloorConfig,
     per: dict[str, list[float]] = {}
     total = []
     for img in imgs:
-        t0 = clock()
+        t0 = timing.clock()
         res = extract(img, camera=cam, tile_size=floor.tile_size, vision=vision)
-        total.append((clock() - t0) * 1e3)
+        total.append((timing.clock() - t0) * 1e3)
         for k, v in res.timings.items():
             per.setdefault(k, []).append(v)
     return {k: med(v) for k, v in per.items()}, med(total)
@@ -94,46 +87,35 @@ def compare(imgs: list[np.ndarray], cam: CameraConfig, tile_size: float,
     for rep in range(4):
         for i, img in enumerate(imgs):
             for which in ((0, 1) if (i + rep) % 2 else (1, 0)):
-                t0 = clock()
+                t0 = timing.clock()
                 if which == 0:
                     extract(img, camera=cam, tile_size=tile_size, vision=vision)
                 else:
                     bare_chain(img)
-                (ours if which == 0 else bare).append((clock() - t0) * 1e3)
+                (ours if which == 0 else bare).append((timing.clock() - t0) * 1e3)
     return med(ours), med(bare)
 
 
-def parse(doc: str, argv: list[str] | None, threads: bool = False) -> argparse.Namespace:
-    """The options shared by the benchmarks (``--frames``, ``--clock``), applied: with
-    ``--clock cpu`` this module's ``clock`` becomes the thread's CPU time (the caller sets
-    OpenCV to one thread, :func:`~tileviz.vision.set_opencv_threads`, so that the thread's
-    CPU time holds all of OpenCV's work)."""
-    ap = argparse.ArgumentParser(description=doc.split("\n\n")[0].replace("\n", " "))
-    ap.add_argument("--frames", type=int, default=200)
-    ap.add_argument("--clock", choices=("wall", "cpu"), default="wall",
-                    help="wall: time.perf_counter; cpu: this thread's CPU time "
-                    "(time.thread_time) with OpenCV on one thread, which a busy shared machine "
-                    "does not inflate")
-    if threads:
-        ap.add_argument("--only", default="stages,families,chain",
-                        help="comma-separated parts to run: stages, families, chain")
-        ap.add_argument("--threads", type=int, default=None,
-                        help="cv2.setNumThreads for both chains (default: 1, as every tileviz "
-                        "entry point sets it)")
+def parse(argv: list[str] | None) -> argparse.Namespace:
+    """This bench's options (``--frames``, ``--clock``, ``--only``, ``--threads``), the clock
+    applied (:func:`tileviz.testing.timing.use_clock`)."""
+    ap = timing.parser(__doc__)
+    ap.add_argument("--only", default="stages,families,chain",
+                    help="comma-separated parts to run: stages, families, chain")
+    ap.add_argument("--threads", type=int, default=None,
+                    help="cv2.setNumThreads for both chains (default: 1, as every tileviz "
+                    "entry point sets it)")
     args = ap.parse_args(argv)
-    global clock
-    if args.clock == "cpu":
-        clock = time.thread_time
+    timing.use_clock(args.clock)
     return args
 
 
 def family_table(frames: int) -> None:
-    """The robust extractor per floor family of the vision study (``bench/floorgen.py``):
+    """The robust extractor per floor family of the vision study (``tileviz/testing/floorgen.py``):
     median and 90th percentile over ``min(frames, 60)`` clean views x 3 runs, ms; the bare
     OpenCV chain on the same views (timed after them) and the extractor's four costliest
     stages."""
-    sys.path.insert(0, str(Path(__file__).resolve().parent))
-    import floorgen
+    from tileviz.testing import floorgen
 
     vis = VisionConfig(extractor="robust")
     for fam in floorgen.FAMILIES:
@@ -155,9 +137,9 @@ def family_table(frames: int) -> None:
         accepted = 0
         for img, cam, tile_size in views:
             for _ in range(3):
-                t0 = clock()
+                t0 = timing.clock()
                 res = extract(img, camera=cam, tile_size=tile_size, vision=vis)
-                times.append((clock() - t0) * 1e3)
+                times.append((timing.clock() - t0) * 1e3)
                 for k, v in res.timings.items():
                     stages.setdefault(k, []).append(v)
             accepted += res.accepted
@@ -165,9 +147,9 @@ def family_table(frames: int) -> None:
         # from the caches and both read slower)
         for img, _, _ in views:
             for _ in range(3):
-                t0 = clock()
+                t0 = timing.clock()
                 bare_chain(img)
-                bare.append((clock() - t0) * 1e3)
+                bare.append((timing.clock() - t0) * 1e3)
         top = sorted(stages.items(), key=lambda kv: -med(kv[1]))[:4]
         print(f"320x240 robust, floor family {fam:<12} median {med(times):.3f} ms, "
               f"p90 {float(np.percentile(times, 90)):.3f} ms "
@@ -177,7 +159,7 @@ def family_table(frames: int) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = parse(__doc__, argv, threads=True)
+    args = parse(argv)
     set_opencv_threads(args.threads if args.threads is not None else OPENCV_THREADS)
     print(f"OpenCV {cv2.__version__}, {cv2.getNumThreads()} threads, {args.clock} clock; "
           f"numpy {np.__version__}; {args.frames} frames per case; medians in ms")

@@ -4,17 +4,17 @@
     python bench/fault_defaults.py --skip-dataset
 
 1. CPU: ``Localizer.step`` per frame, fault model off and on, on the drive of
-   ``bench/bench_localizer.py`` (both presets, mode autonomous, sensors within their bounds),
-   best of ``--repeats``.
+   ``bench/bench_localizer.py`` (:func:`tileviz.testing.drives.make_run`: both presets, mode
+   autonomous, sensors within their bounds), best of ``--repeats``.
 2. Clean runs: every output of every frame (both box sets bit for bit, status, flags) with the
    model off and on, on those drives and on the recorded inputs of
    ``tests/data/localizer_golden.npz`` (outlier views, missing compass readings and views, wide
    heading bounds; some sequences also hold slips and kidnaps: those are expected to differ).
-3. The fault dataset of ``tests/fault_dataset.py`` (a 2 s slip of 0.15 m/s beyond the speed
-   bound, a kidnap of (0.37, -0.21) m, 0.3 rad, a 2 s dropout) replayed (``tileviz replay``) with
-   several fault models: longest run of vouched frames without the truth, ``lost`` frames from 20
-   frames after the slip to the kidnap, median hull width there, frames from the kidnap to
-   ``lost``, and the widest hull vouched as one box.
+3. The fault dataset of ``tileviz/testing/fault_dataset.py`` (a 2 s slip of 0.15 m/s beyond the
+   speed bound, a kidnap of (0.37, -0.21) m, 0.3 rad, a 2 s dropout) replayed (``tileviz
+   replay``) with several fault models: longest run of vouched frames without the truth,
+   ``lost`` frames from 20 frames after the slip to the kidnap, median hull width there, frames
+   from the kidnap to ``lost``, and the widest hull vouched as one box.
 
 The figures go to stdout (docs/faults.md quotes them with the command).
 """
@@ -24,20 +24,16 @@ from __future__ import annotations
 import argparse
 import csv
 import statistics
-import sys
 import tempfile
 from dataclasses import replace
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+import numpy as np
 
-import numpy as np  # noqa: E402
-from bench_localizer import make_run, time_step  # noqa: E402
-
-from tileviz.config import LocalizerConfig, preset, with_overrides  # noqa: E402
-from tileviz.core.localizer import Localizer  # noqa: E402
-from tileviz.types import Box, SensorBounds  # noqa: E402
+from tileviz.config import LocalizerConfig, preset, with_overrides
+from tileviz.testing.drives import localizer_of, make_run, time_step
+from tileviz.testing.golden import first_difference, load, run_localizer
+from tileviz.types import Box
 
 MODELS = ((0.0, 0.0), (0.1, 0.05), (0.2, 0.1), (0.3, 0.2), (0.5, 0.3))
 """Fault models tried on the fault dataset (m/s, rad/s)."""
@@ -48,11 +44,7 @@ def _with_model(c: LocalizerConfig, model: tuple[float, float]) -> LocalizerConf
 
 
 def _outputs(cfg, run) -> list[tuple]:
-    bounds = SensorBounds(cfg.noise.speed_error, cfg.noise.yaw_rate_error, cfg.noise.compass_error)
-    from bench_localizer import initial_box
-
-    loc = Localizer(tile_size=cfg.floor.tile_size, camera_offset=cfg.camera.offset, bounds=bounds,
-                    config=cfg.localizer, initial=initial_box(cfg))
+    loc = localizer_of(cfg)
     out = []
     for f in run:
         s = loc.step(f["odometry"], f["compass"], f["observation"], f["truth"])
@@ -76,9 +68,6 @@ def cpu_and_clean(model: tuple[float, float], frames: int, repeats: int) -> None
 
 
 def golden(model: tuple[float, float]) -> None:
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-    from test_localizer_golden import first_difference, load, run_localizer
-
     print("== recorded inputs of tests/data/localizer_golden.npz, model off vs on")
     for name, (setup, inputs, _) in load().items():
         off = dict(setup, config=dict(setup["config"], fault_speed=0.0, fault_yaw_rate=0.0))
@@ -92,9 +81,9 @@ def golden(model: tuple[float, float]) -> None:
 
 
 def dataset(models: tuple[tuple[float, float], ...]) -> None:
-    from tests.exact_truth import in_box
-    from tests.fault_dataset import FaultPlan, make_fault_dataset
     from tileviz.pipeline.replay import replay
+    from tileviz.testing.exact_truth import in_box
+    from tileviz.testing.fault_dataset import FaultPlan, make_fault_dataset
 
     plan = FaultPlan()
     print(f"== fault dataset ({plan.frames} frames: slip {plan.slip_at}-"

@@ -61,17 +61,15 @@ from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+import numpy as np
 
-import numpy as np  # noqa: E402
-
-from tileviz.config import Config, LocalizerConfig, preset  # noqa: E402
-from tileviz.evaluation import RECOVERY_MAX_SLIP, event_outcomes, noticed  # noqa: E402
-from tileviz.pipeline import FrameLoop, FrameRecord  # noqa: E402
-from tileviz.sim.sensors import prediction_encloses  # noqa: E402
-from tileviz.sim.source import SimSource  # noqa: E402
-from tileviz.types import Box  # noqa: E402
-from tileviz.vision import observation_error, set_opencv_threads  # noqa: E402
+from tileviz.config import Config, LocalizerConfig, preset
+from tileviz.evaluation import RECOVERY_MAX_SLIP, event_outcomes, noticed
+from tileviz.pipeline import FrameLoop, FrameRecord
+from tileviz.sim.sensors import prediction_encloses
+from tileviz.sim.source import SimSource
+from tileviz.types import Box
+from tileviz.vision import observation_error, set_opencv_threads
 
 set_opencv_threads()  # as every tileviz entry point (workers re-run this on import)
 

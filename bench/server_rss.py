@@ -14,7 +14,7 @@ import sys
 import time
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
+from tileviz.testing import REPO
 
 
 def rss_mb(pid: int) -> float:

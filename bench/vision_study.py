@@ -4,7 +4,7 @@
                                  [--corrupted-per-family 100] [--jobs 1] [--csv out.csv]
     python bench/vision_study.py --report out.csv     # the tables of a (partial) run
 
-Floors come from ``bench/floorgen.py`` (its own renderer, no code shared with
+Floors come from ``tileviz/testing/floorgen.py`` (its own renderer, no code shared with
 ``tileviz.sim.camera``): nine families (plain, light grout, wide grout, strong shade steps, real
 photographs on the tiles, terrazzo, wood grain, degraded optics, thin grout at a coarse ppm), a
 new random floor and camera for every view, the camera centre and heading uniform. Corrupted
@@ -37,22 +37,14 @@ import argparse
 import collections
 import csv
 import math
-import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
 from contextlib import nullcontext
-from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
-import floorgen  # noqa: E402
-
-from tileviz.config import CameraConfig, VisionConfig  # noqa: E402
-from tileviz.types import Pose  # noqa: E402
-from tileviz.vision import extract, observation_error  # noqa: E402
+from tileviz.testing import floorgen
+from tileviz.testing.views import study_view
 
 SPLITS = {"tuning": 0, "heldout": 10**6, "fresh": 3 * 10**6, "fresh2": 4 * 10**6,
           "fresh3": 5 * 10**6, "fresh4": 6 * 10**6, "fresh5": 7 * 10**6,
@@ -60,42 +52,8 @@ SPLITS = {"tuning": 0, "heldout": 10**6, "fresh": 3 * 10**6, "fresh2": 4 * 10**6
 """First seed of each split."""
 
 
-def run_view(seed: int, family: str, corruption: str | None,
-             vision: VisionConfig | None = None) -> dict:
-    """Render one view of ``family`` from ``seed`` and extract it; a dict of the outcome."""
-    rng = np.random.default_rng([seed, FAMILY_SALT[family], 0 if corruption is None else 1])
-    spec = floorgen.draw_floor(family, rng)
-    cx, cy, th = floorgen.draw_view(rng)
-    img = floorgen.render(spec, cx, cy, th, rng, corruption)
-    cam = CameraConfig(ppm=spec.ppm, width=spec.width, height=spec.height, offset=(0.0, 0.0))
-    res = extract(img, camera=cam, tile_size=spec.tile_size,
-                  vision=vision or VisionConfig(extractor="robust"))
-    out = {
-        "seed": seed, "family": family, "corruption": corruption or "",
-        "readable": floorgen.readable(spec, cx, cy, th), "accepted": res.accepted,
-        "reason": res.reason, "err_px": math.nan, "err_rad": math.nan, "bound_px": math.nan,
-        "bound_rad": math.nan, "inside": True, "ms": sum(res.timings.values()),
-        "ppm": spec.ppm, "tile": spec.tile_size, "grout_px": spec.grout_px,
-    }
-    for k in ("position_se_px", "heading_se", "straightness_px", "spacing_residual_px", "rise",
-              "noise_sigma", "width", "step", "heading_parts", "position_parts", "tilt_gap",
-              "depth"):
-        out[k] = float(res.details.get(k, math.nan))
-    if res.accepted:
-        obs = res.observation
-        e1, e2, e3 = observation_error(obs, Pose(cx, cy, th), spec.tile_size, (0.0, 0.0))
-        ep = max(abs(e1), abs(e2))
-        out.update(err_px=ep * spec.ppm, err_rad=abs(e3), bound_px=obs.position_error * spec.ppm,
-                   bound_rad=obs.heading_error,
-                   inside=ep <= obs.position_error and abs(e3) <= obs.heading_error)
-    return out
-
-
-FAMILY_SALT = {f: i + 1 for i, f in enumerate(floorgen.FAMILIES)}
-
-
 def _task(args: tuple[int, str, str | None]) -> dict:
-    return run_view(*args)
+    return study_view(*args)
 
 
 def tasks(split: str, per_family: int, corrupted: int) -> list[tuple[int, str, str | None]]:

@@ -14,7 +14,6 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from tests.wsclient import ViserClient, serving, stop_serve
 from tileviz.app import commands as C
 from tileviz.app.commands import SIMULATOR_ONLY
 from tileviz.app.scene import SceneView, ribbon_centreline
@@ -23,6 +22,7 @@ from tileviz.cli import main as cli
 from tileviz.datasets import DatasetSource, read_meta, replay_config
 from tileviz.pipeline import FrameLoop
 from tileviz.pipeline.outputs import replay_row
+from tileviz.testing.wsclient import ViserClient, serving, stop_serve
 from tileviz.types import Box, BoxSet
 
 DURATION = 1.5
