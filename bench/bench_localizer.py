@@ -1,7 +1,7 @@
 """Benchmark: predict + contract of one box per frame, ours against codac 2.
 
 Usage: ``python bench/bench_localizer.py [--frames N] [--repeats R] [--clock wall|cpu]
-[--no-codac]``
+[--no-codac] [--write-figures]`` (or ``python -m bench.bench_localizer ...``)
 
 For each scenario (the ``default`` and ``seed`` presets' tile size, lever arm and bounds; mode
 ``autonomous``, i.e. tracking, and mode ``truth``, where every frame starts from the truth
@@ -44,6 +44,7 @@ from tileviz.core.prediction import compass_pieces, predict_box
 from tileviz.pipeline import initial_box
 from tileviz.testing import codac_oracle_worker, timing
 from tileviz.testing.drives import localizer_of, make_run, time_step
+from tileviz.testing.figures import Machine, write_block
 from tileviz.types import Box
 
 
@@ -127,7 +128,11 @@ def main() -> int:
     ap.add_argument("--seed", type=int, default=7)
     timing.add_clock(ap)
     ap.add_argument("--no-codac", action="store_true", help="time ours only")
+    ap.add_argument("--write-figures", action="store_true",
+                    help="also write the figures into docs/figures.md (figures:localizer)")
     args = ap.parse_args()
+    machine = Machine()
+    rows: list[tuple[str, str]] = []
     timing.use_clock(args.clock)
     for name, mode in (("default", "autonomous"), ("seed", "autonomous"),
                        ("default", "truth"), ("seed", "truth")):
@@ -149,6 +154,12 @@ def main() -> int:
         for variant, us in codac["us_per_box"].items():
             print(f"   codac {variant:<28s} (contract only): {us:7.1f} us/frame   "
                   f"ours step / codac = {step_us / us:4.2f}   core / codac = {core_us / us:4.2f}")
+        rows.append((f"{name}, {mode}: Localizer.step", f"{step_us:.1f} us/frame"))
+        rows += [(f"{name}, {mode}: codac {variant} (contraction only)", f"{us:.1f} us/frame")
+                 for variant, us in codac["us_per_box"].items()]
+    if args.write_figures:
+        write_block("localizer", "Localizer step against codac", rows, machine=machine,
+                    note=f"{args.frames} frames, best of {args.repeats}, {args.clock} clock.")
     return 0
 
 

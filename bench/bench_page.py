@@ -26,6 +26,7 @@ import threading
 import time
 
 from tileviz.testing.browser import ARGS, CHROMIUM, COUNT_FRAMES, chromium_pids, cpu_seconds
+from tileviz.testing.figures import Machine, write_block
 from tileviz.testing.wsclient import start_serve, stop_serve
 
 
@@ -58,8 +59,12 @@ def main() -> None:
                     "environment map (image-based lighting) or without it")
     ap.add_argument("--moving", action="store_true",
                     help="with --bare --box: the box moves 20 times a second")
+    ap.add_argument("--write-figures", action="store_true",
+                    help="also write the figure into docs/figures.md (figures:page, "
+                    "figures:page_bare with --bare)")
     ap.add_argument("serve", nargs="*", help="serve.py options (after --)")
     args = ap.parse_args()
+    machine = Machine()
     if args.bare:
         import viser
 
@@ -92,6 +97,10 @@ def main() -> None:
             f"one box, {args.box}{', moving 20 times a second' if args.moving else ''}")
         print(f"bare viser page ({what}): {rate:.1f} frames painted a second, browser CPU "
               f"{1e3 * cpu:.0f} ms a painted frame")
+        if args.write_figures:
+            write_block("page_bare", "Headless chromium painting a bare viser page",
+                        [(f"bare viser page, {what}", f"{rate:.1f} frames/s, "
+                          f"{1e3 * cpu:.0f} ms browser CPU a frame")], machine=machine)
         return
     proc, url = start_serve(["--port", "0", *args.serve])
     try:
@@ -103,6 +112,11 @@ def main() -> None:
     print(f"tileviz page ({' '.join(args.serve) or 'default options'}): {rate:.1f} frames "
           f"painted a second, browser CPU {1e3 * cpu:.0f} ms a painted frame (over "
           f"{args.seconds:g} s after {args.warmup:g} s; {wall:.0f} s in all)")
+    if args.write_figures:
+        write_block("page", "Headless chromium painting the live page", [
+            (f"live page, {' '.join(args.serve) or 'default options'}",
+             f"{rate:.1f} frames/s, {1e3 * cpu:.0f} ms browser CPU a frame")],
+            machine=machine, note="1400x900, software WebGL (SwiftShader), playing in real time.")
 
 
 if __name__ == "__main__":

@@ -34,6 +34,7 @@ from pathlib import Path
 from typing import Any
 
 from tileviz.testing.browser import ARGS, CHROMIUM, COUNT_FRAMES, chromium_pids, cpu_seconds
+from tileviz.testing.figures import Machine, fmt_range, write_block
 
 
 def _kind(pid: int) -> str:
@@ -129,7 +130,11 @@ def main() -> None:
     ap.add_argument("--window", type=float, default=4.0, help="seconds counted per measurement")
     ap.add_argument("--repeat", type=int, default=2)
     ap.add_argument("--warmup", type=float, default=6.0)
+    ap.add_argument("--write-figures", action="store_true",
+                    help="also write the figures into docs/figures.md (figures:page_parts)")
     args = ap.parse_args()
+    machine = Machine()
+    figures: list[tuple[str, str]] = []
 
     import cv2
     from playwright.sync_api import sync_playwright
@@ -181,6 +186,8 @@ def main() -> None:
         print(f"{config:{width}s}  frames/s " + " ".join(f"{r[0]:5.1f}" for r in rows)
               + "  | GPU process ms/frame " + " ".join(f"{r[1]:4.0f}" for r in rows)
               + "  | all ms/frame " + " ".join(f"{r[2]:4.0f}" for r in rows))
+        figures.append((config, fmt_range([r[0] for r in rows], ".1f", "frames/s") + ", "
+                        + fmt_range([r[2] for r in rows], ".0f", "ms") + " browser CPU a frame"))
     if "bare" in results:
         ref = sum(r[0] for r in results["bare"]) / len(results["bare"])
         for config, rows in results.items():
@@ -188,7 +195,12 @@ def main() -> None:
                 mean = sum(r[0] for r in rows) / len(rows)
                 print(f"{config:{width}s}  {mean:5.1f} frames/s = {mean / ref:.2f} x the bare "
                       f"page's {ref:.1f}")
+                figures.append((f"{config} / bare page", f"{mean / ref:.2f}x"))
     print(f"load average {os.getloadavg()[0]:.1f}")
+    if args.write_figures:
+        write_block("page_parts", "What each part of the live page costs headless chromium",
+                    figures, machine=machine, note=f"{args.repeat} repeats of {args.window:g} "
+                    "s each, configurations in turn in one browser tab.")
 
 
 if __name__ == "__main__":

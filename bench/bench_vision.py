@@ -3,7 +3,8 @@ the full faithful chain against the bare OpenCV calls with the seed constants (s
 interleaved).
 
     python bench/bench_vision.py [--frames 200] [--threads N] [--clock wall|cpu]
-                                 [--only stages,families,chain]
+                                 [--only stages,families,chain] [--write-figures]
+    python -m bench.bench_vision --only families --clock cpu
 
 OpenCV runs on one thread unless ``--threads N`` is given (this script sets it: importing
 tileviz.vision leaves OpenCV's thread count alone); both chains then run on N threads. With
@@ -36,6 +37,7 @@ import numpy as np
 from tileviz.config import CameraConfig, FloorConfig, VisionConfig, preset
 from tileviz.sim.camera import FloorRenderer
 from tileviz.testing import timing
+from tileviz.testing.figures import Machine, write_block
 from tileviz.types import Pose
 from tileviz.vision import OPENCV_THREADS, extract, set_opencv_threads
 
@@ -105,18 +107,22 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
     ap.add_argument("--threads", type=int, default=None,
                     help="cv2.setNumThreads for both chains (default: 1, as every tileviz "
                     "entry point sets it)")
+    ap.add_argument("--write-figures", action="store_true",
+                    help="also write the figures into docs/figures.md (figures:vision_stages, "
+                    "figures:vision_families, figures:vision_chain: the parts run)")
     args = ap.parse_args(argv)
     timing.use_clock(args.clock)
     return args
 
 
-def family_table(frames: int) -> None:
+def family_table(frames: int) -> list[tuple[str, ...]]:
     """The robust extractor per floor family of the vision study (``tileviz/testing/floorgen.py``):
     median and 90th percentile over ``min(frames, 60)`` clean views x 3 runs, ms; the bare
     OpenCV chain on the same views (timed after them) and the extractor's four costliest
-    stages."""
+    stages. Returns the figure rows."""
     from tileviz.testing import floorgen
 
+    rows: list[tuple[str, ...]] = []
     vis = VisionConfig(extractor="robust")
     for fam in floorgen.FAMILIES:
         try:
@@ -130,6 +136,7 @@ def family_table(frames: int) -> None:
                 views.append((img, cam, spec.tile_size))
         except ImportError as exc:  # photo needs scikit-image's sample images
             print(f"320x240 robust, floor family {fam:<12} skipped: {exc}")
+            rows.append((fam, "skipped: no scikit-image", "", ""))
             continue
         times: list[float] = []
         bare: list[float] = []
@@ -156,6 +163,9 @@ def family_table(frames: int) -> None:
               f"({len(views)} views x 3, {accepted} accepted); the bare OpenCV chain on the "
               f"same views {med(bare):.3f} ms ({med(times) / med(bare):.2f}x); stages "
               f"(wall clock) " + ", ".join(f"{k} {med(v):.2f}" for k, v in top))
+        rows.append((fam, f"{med(times):.2f} / {float(np.percentile(times, 90)):.2f}",
+                     f"{med(bare):.2f}", ", ".join(f"{k} {med(v):.2f}" for k, v in top[:3])))
+    return rows
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -163,6 +173,8 @@ def main(argv: list[str] | None = None) -> int:
     set_opencv_threads(args.threads if args.threads is not None else OPENCV_THREADS)
     print(f"OpenCV {cv2.__version__}, {cv2.getNumThreads()} threads, {args.clock} clock; "
           f"numpy {np.__version__}; {args.frames} frames per case; medians in ms")
+    machine = Machine()
+    blocks: dict[str, list[tuple[str, ...]]] = {}
     parts = set(args.only.split(","))
     unknown = parts - {"stages", "families", "chain"}
     if unknown:
@@ -176,8 +188,10 @@ def main(argv: list[str] | None = None) -> int:
             stages, total = stage_table(imgs, cam, base.floor, replace(base.vision, extractor=ext))
             row = "  ".join(f"{k} {v:.3f}" for k, v in stages.items())
             print(f"{w}x{h} {ext:<8} total {total:.3f} | stages (wall clock) {row}")
+            blocks.setdefault("vision_stages", []).append(
+                (f"{w}x{h}, {ext} extractor, per frame", f"{total:.2f} ms"))
     if "families" in parts:
-        family_table(args.frames)
+        blocks["vision_families"] = family_table(args.frames)
     # the faithful chain vs the bare OpenCV calls, seed constants, interleaved
     chains = (("seed 256x384", (256, 384)), ("default 320x240", (320, 240)),
               ("default 640x480", (640, 480)))
@@ -189,6 +203,19 @@ def main(argv: list[str] | None = None) -> int:
         o, b = compare(imgs, cam, cfg.floor.tile_size, vision)
         print(f"faithful chain vs bare OpenCV calls, {name}: ours {o:.3f} ms, bare {b:.3f} ms, "
               f"ratio {o / b:.3f}x")
+        blocks.setdefault("vision_chain", []).append(
+            (f"{name}: faithful chain / bare OpenCV calls", f"{o:.2f} / {b:.2f} ms "
+             f"({o / b:.2f}x)"))
+    titles = {"vision_stages": "Vision per frame, by image size",
+              "vision_families": "The robust extractor per floor family, 320x240",
+              "vision_chain": "The faithful chain against the original's bare OpenCV calls"}
+    headers = {"vision_families": ("floor family", "robust extractor, median / p90 (ms)",
+                                   "the original's bare OpenCV chain (ms)",
+                                   "costliest stages (ms, wall clock)")}
+    for name, rows in blocks.items() if args.write_figures else ():
+        write_block(name, titles[name], rows, machine=machine,
+                    header=headers.get(name, ("what", "figure")),
+                    note=f"Medians, {args.clock} clock, {cv2.getNumThreads()} OpenCV thread(s).")
     return 0
 
 

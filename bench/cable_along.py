@@ -2,7 +2,8 @@
 often outside its own declared bound (a false accept).
 
     python bench/cable_along.py [--views-per-family 100] [--first-seed 0] [--jobs 1]
-                                [--csv out.csv] [--motion]
+                                [--csv out.csv] [--motion] [--write-figures]
+    python -m bench.cable_along --motion --views-per-family 80
 
 Floors and cameras as in ``bench/vision_study.py`` (``tileviz/testing/floorgen.py``, every
 family; the views are :func:`tileviz.testing.views.cable_view` and
@@ -28,6 +29,7 @@ from concurrent.futures import ProcessPoolExecutor
 from contextlib import nullcontext
 
 from tileviz.testing import floorgen
+from tileviz.testing.figures import Machine, write_block
 from tileviz.testing.views import cable_view, motion_view
 
 GAPS = ((-math.inf, 0.0), (0.0, 3.0), (3.0, 6.0), (6.0, 10.0), (10.0, math.inf))
@@ -71,10 +73,22 @@ def report(rows: list[dict], motion: bool = False) -> str:
 
 
 def _row(name: str, sel: list[dict]) -> str:
+    return "| " + " | ".join(_cells(name, sel)) + " |"
+
+
+def _cells(name: str, sel: list[dict]) -> tuple[str, str, str, str, str]:
+    """(name, views, accepted, accepted outside their bound, largest error / bound)."""
     acc = [r for r in sel if r["accepted"]]
     bad = [r for r in acc if not r["inside"]]
     worst = max((r["err_px"] / r["bound_px"] for r in acc), default=math.nan)
-    return f"| {name} | {len(sel)} | {len(acc)} | {len(bad)} | {floorgen.cell(worst, '.2f')} |"
+    return name, str(len(sel)), str(len(acc)), str(len(bad)), floorgen.cell(worst, ".2f")
+
+
+def figure_rows(rows: list[dict], motion: bool) -> list[tuple[str, ...]]:
+    """The figures: per bucket of the gap (``motion``: the blur's length), then all views."""
+    key, buckets = ("length", LENGTHS) if motion else ("gap", GAPS)
+    return [*(_cells(f"{lo:g} .. {hi:g} px", [r for r in rows if lo <= r[key] < hi])
+              for lo, hi in buckets), _cells("all", rows)]
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -85,7 +99,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--csv", default="")
     ap.add_argument("--motion", action="store_true",
                     help="a short motion blur instead of a cable along the grout")
+    ap.add_argument("--write-figures", action="store_true",
+                    help="also write the figures into docs/figures.md (figures:cable_along, "
+                    "figures:motion_blur with --motion)")
     args = ap.parse_args(argv)
+    machine = Machine()
     tasks = [(args.first_seed + i, fam) for i in range(args.views_per_family)
              for fam in floorgen.FAMILIES]
     task = _motion_task if args.motion else _task
@@ -103,6 +121,15 @@ def main(argv: list[str] | None = None) -> int:
     print(report(rows, args.motion))
     reasons = collections.Counter(r["reason"] for r in rows if not r["accepted"])
     print("\nrefusals: " + ", ".join(f"{k} {v}" for k, v in reasons.most_common()))
+    if args.write_figures:
+        what = "motion blur length" if args.motion else "gap between cable and grout"
+        write_block("motion_blur" if args.motion else "cable_along",
+                    "A short motion blur" if args.motion else "A cable along a grout line",
+                    figure_rows(rows, args.motion), machine=machine,
+                    header=(what, "views", "accepted", "accepted outside own bound",
+                            "largest error / bound"),
+                    note=f"Seeds {args.first_seed}..{args.first_seed + args.views_per_family - 1}"
+                    " of every family.")
     return 0
 
 

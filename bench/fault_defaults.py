@@ -1,7 +1,8 @@
-"""The fault model's default (issue 18): what turning it on costs and changes.
+"""The fault model's default: what turning it on costs and changes.
 
     python bench/fault_defaults.py              # all three measures
     python bench/fault_defaults.py --skip-dataset
+    python -m bench.fault_defaults --frames 500 --repeats 2 --write-figures
 
 1. CPU: ``Localizer.step`` per frame, fault model off and on, on the drive of
    ``bench/bench_localizer.py`` (:func:`tileviz.testing.drives.make_run`: both presets, mode
@@ -16,7 +17,8 @@
    ``lost`` frames from 20 frames after the slip to the kidnap, median hull width there, frames
    from the kidnap to ``lost``, and the widest hull vouched as one box.
 
-The figures go to stdout (docs/faults.md quotes them with the command).
+The figures go to stdout; ``--write-figures`` also writes them into ``docs/figures.md``
+(``figures:fault_defaults``).
 """
 
 from __future__ import annotations
@@ -32,6 +34,7 @@ import numpy as np
 
 from tileviz.config import LocalizerConfig, preset, with_overrides
 from tileviz.testing.drives import localizer_of, make_run, time_step
+from tileviz.testing.figures import Machine, write_block
 from tileviz.testing.golden import first_difference, load, run_localizer
 from tileviz.types import Box
 
@@ -53,7 +56,10 @@ def _outputs(cfg, run) -> list[tuple]:
     return out
 
 
-def cpu_and_clean(model: tuple[float, float], frames: int, repeats: int) -> None:
+def cpu_and_clean(model: tuple[float, float], frames: int,
+                  repeats: int) -> list[tuple[str, str]]:
+    """Measure 1 and 2 on the drives; their figure rows."""
+    rows = []
     print(f"== CPU and clean drives ({frames} frames, model {model[0]} m/s, {model[1]} rad/s)")
     for name in ("default", "seed"):
         cfg = with_overrides(preset(name), localizer={"mode": "autonomous"})
@@ -65,6 +71,10 @@ def cpu_and_clean(model: tuple[float, float], frames: int, repeats: int) -> None
         same = _outputs(cfg_off, run) == _outputs(cfg_on, run)
         print(f"   {name}: Localizer.step {off_us:.1f} us/frame off, {on_us:.1f} on "
               f"(x{on_us / off_us:.2f}); outputs identical: {same}")
+        rows += [(f"{name} drive: Localizer.step, model off / on",
+                  f"{off_us:.1f} / {on_us:.1f} us/frame"),
+                 (f"{name} drive: outputs with the model on", "identical" if same else "differ")]
+    return rows
 
 
 def golden(model: tuple[float, float]) -> None:
@@ -80,7 +90,9 @@ def golden(model: tuple[float, float]) -> None:
               f"statuses (contracted, predicted, rejected, lost) off {counts[0]} on {counts[1]}")
 
 
-def dataset(models: tuple[tuple[float, float], ...]) -> None:
+def dataset(models: tuple[tuple[float, float], ...]) -> list[tuple[str, str]]:
+    """Measure 3; its figure rows."""
+    rows = []
     from tileviz.pipeline.replay import replay
     from tileviz.testing.exact_truth import in_box
     from tileviz.testing.fault_dataset import FaultPlan, make_fault_dataset
@@ -123,6 +135,13 @@ def dataset(models: tuple[tuple[float, float], ...]) -> None:
                   f"lost {lost}/{b - a} from slip end + 20 to the kidnap, median width there "
                   f"{100 * med:.1f} cm; kidnap -> lost in {to_lost} frames; widest one-box "
                   f"vouched hull {100 * one_box_width:.1f} cm")
+            rows += [(f"fault dataset, model {model[0]:g} m/s, {model[1]:g} rad/s: longest "
+                      "vouched run without the truth; kidnap to lost", f"{best} frames; {to_lost}"
+                      " frames"),
+                     (f"fault dataset, model {model[0]:g} m/s, {model[1]:g} rad/s: lost after "
+                      "the slip; median width there", f"{lost} of {b - a} frames; "
+                      f"{100 * med:.1f} cm")]
+    return rows
 
 
 def main() -> int:
@@ -130,14 +149,20 @@ def main() -> int:
     ap.add_argument("--frames", type=int, default=2000)
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--skip-dataset", action="store_true")
+    ap.add_argument("--write-figures", action="store_true",
+                    help="also write the figures into docs/figures.md (figures:fault_defaults)")
     args = ap.parse_args()
+    machine = Machine()
     model = (LocalizerConfig().fault_speed, LocalizerConfig().fault_yaw_rate)
     if model == (0.0, 0.0):
         model = (0.2, 0.1)
-    cpu_and_clean(model, args.frames, args.repeats)
+    rows = cpu_and_clean(model, args.frames, args.repeats)
     golden(model)
     if not args.skip_dataset:
-        dataset(MODELS)
+        rows += dataset(MODELS)
+    if args.write_figures:
+        write_block("fault_defaults", "The default fault model: what it costs and changes",
+                    rows, machine=machine)
     return 0
 
 

@@ -1,4 +1,4 @@
-"""The live loop's frame rate with and without 20 websocket clients churning (issue 7).
+"""The live loop's frame rate with and without 20 websocket clients churning.
 
     python bench/server_load.py                    # 8 s unloaded, then 60 s of churn
     python bench/server_load.py --seconds 30 --clients 20

@@ -1,4 +1,4 @@
-"""Memory of the live server over a long run (issue 7): RSS at start and end.
+"""Memory of the live server over a long run: RSS at start and end.
 
     python bench/server_rss.py --minutes 10
 

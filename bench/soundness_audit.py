@@ -1,4 +1,4 @@
-"""The long adversarial soundness run (issue 13): >= 1e5 frames of runs that respect every declared
+"""The long adversarial soundness run: >= 1e5 frames of runs that respect every declared
 bound at its nastiest, the truth in exact arithmetic, every frame's predicted set, updated set and
 written hull checked (``tileviz/testing/adversary.py`` describes the adversary; the test suite
 runs a few hundred frames of it, ``tests/test_soundness_adversarial.py``).

@@ -3,6 +3,7 @@
     python bench/vision_study.py [--views-per-family 500] [--split fresh2|...|fresh7|fresh8]
                                  [--corrupted-per-family 100] [--jobs 1] [--csv out.csv]
     python bench/vision_study.py --report out.csv     # the tables of a (partial) run
+    python -m bench.vision_study --split fresh8 --views-per-family 20 --corrupted-per-family 5
 
 Floors come from ``tileviz/testing/floorgen.py`` (its own renderer, no code shared with
 ``tileviz.sim.camera``): nine families (plain, light grout, wide grout, strong shade steps, real
@@ -44,6 +45,7 @@ from contextlib import nullcontext
 import numpy as np
 
 from tileviz.testing import floorgen
+from tileviz.testing.figures import Machine, write_block
 from tileviz.testing.views import study_view
 
 SPLITS = {"tuning": 0, "heldout": 10**6, "fresh": 3 * 10**6, "fresh2": 4 * 10**6,
@@ -89,6 +91,42 @@ def read_csv(path: str) -> list[dict]:
 
 def q(values: list[float], p: float) -> float:
     return float(np.percentile(values, p)) if values else math.nan
+
+
+def figure_rows(rows: list[dict]) -> list[tuple[str, ...]]:
+    """The figures of a study: per family (clean views) the readable views accepted, the median
+    and largest error, the largest error over its own bound and how many were accepted outside
+    it; then the corrupted views."""
+    out: list[tuple[str, ...]] = []
+    c = floorgen.cell
+    for fam in dict.fromkeys(r["family"] for r in rows):
+        sel = [r for r in rows if not r["corruption"] and r["family"] == fam]
+        rd = [r for r in sel if r["readable"]]
+        acc = [r for r in sel if r["accepted"]]
+        ok = sum(1 for r in rd if r["accepted"])
+        ep = [r["err_px"] for r in acc]
+        rp = max((r["err_px"] / r["bound_px"] for r in acc), default=math.nan)
+        rh = max((r["err_rad"] / r["bound_rad"] for r in acc), default=math.nan)
+        out.append((fam, f"{ok} of {len(rd)} ({100.0 * ok / max(len(rd), 1):.1f} %)",
+                    f"{c(q(ep, 50), '.3f')} / {c(max(ep, default=math.nan), '.3f')}",
+                    f"{c(rp, '.2f')}, {c(rh, '.2f')}",
+                    str(sum(1 for r in acc if not r["inside"]))))
+    bad = [r for r in rows if r["corruption"]]
+    if bad:
+        acc = [r for r in bad if r["accepted"]]
+        kinds = ", ".join(f"{k} {sum(r['accepted'] for r in bad if r['corruption'] == k)}/"
+                          f"{sum(1 for r in bad if r['corruption'] == k)}"
+                          for k in floorgen.CORRUPTIONS if any(r["corruption"] == k for r in bad))
+        rp = max((r["err_px"] / r["bound_px"] for r in acc), default=math.nan)
+        rh = max((r["err_rad"] / r["bound_rad"] for r in acc), default=math.nan)
+        out.append(("corrupted", f"{len(acc)} of {len(bad)} accepted ({kinds})", "",
+                    f"{c(rp, '.2f')}, {c(rh, '.2f')}",
+                    str(sum(1 for r in acc if not r["inside"]))))
+    return out
+
+
+FIGURE_HEADER = ("family", "clean views accepted", "median / max error (px)",
+                 "largest error / own bound (position, heading)", "accepted outside own bound")
 
 
 def report(rows: list[dict]) -> str:
@@ -154,11 +192,16 @@ def main(argv: list[str] | None = None) -> int:
                          "keeps what it measured)")
     ap.add_argument("--report", default=None, metavar="CSV",
                     help="only print the tables of a study's CSV (finished or interrupted)")
+    ap.add_argument("--write-figures", action="store_true",
+                    help="also write the figures into docs/figures.md (figures:vision_study)")
     args = ap.parse_args(argv)
+    machine = Machine()
     if args.report:
         rows = read_csv(args.report)
         print(f"{len(rows)} views (from {args.report})")
         print(report(rows))
+        if args.write_figures:
+            write_figures(rows, machine, f"views of {args.report}")
         return 0
     fams = args.families.split(",")
     work = [t for t in tasks(args.split, args.views_per_family, args.corrupted_per_family)
@@ -184,9 +227,19 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         if out is not None:
             out.close()
-    print(f"{len(rows)} views ({args.split} split) in {time.perf_counter() - t0:.0f} s")
+    elapsed = time.perf_counter() - t0
+    print(f"{len(rows)} views ({args.split} split) in {elapsed:.0f} s")
     print(report(rows))
+    if args.write_figures:
+        write_figures(rows, machine, f"{len(rows)} views of the {args.split} split, "
+                      f"{elapsed:.0f} s")
     return 0
+
+
+def write_figures(rows: list[dict], machine: Machine, what: str) -> None:
+    """The study's block of docs/figures.md."""
+    write_block("vision_study", "Vision on any tiled floor", figure_rows(rows),
+                machine=machine, header=FIGURE_HEADER, note=f"{what}.")
 
 
 if __name__ == "__main__":

@@ -17,6 +17,7 @@ Nothing in the product imports this package. Its modules:
   websocket clients that connect and leave again and again;
 - :mod:`~tileviz.testing.browser`: headless chromium's options and CPU accounting;
 - :mod:`~tileviz.testing.timing`: the benches' clock and shared options;
+- :mod:`~tileviz.testing.figures`: the blocks the benches write into ``docs/figures.md``;
 - :mod:`~tileviz.testing.codac_oracle_worker`: codac's side of the oracle (a subprocess only).
 
 Some need packages of the ``test`` extra (``pip install -e '.[test]'``); those are imported where
