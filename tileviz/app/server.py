@@ -137,8 +137,8 @@ class App:
                                           FOLLOW_OFFSET[2])
         server.initial_camera.look_at = (rx, ry, 0.0)
         server.scene.configure_default_lights(enabled=True, cast_shadow=False)
-        # no image-based lighting: with software WebGL (no GPU) the environment map made every lit
-        # mesh cost seconds a frame (bench/bench_page.py); the default lights light the scene
+        # no image-based lighting: with software WebGL (no GPU) the environment map makes every
+        # lit mesh costly to draw (docs/demo.md, "Without a GPU"); the default lights light it
         server.scene.configure_environment_map(None)
         self.scene = SceneView(server.scene, pool=max(1, self.cfg.localizer.max_boxes),
                                particles=self.options.mcl_particles)
@@ -159,7 +159,7 @@ class App:
         panel.set_width(380)
         # the controls docked at the right edge, not floating over the scene: the 3-D view gets
         # only the window's middle, which it does not share, and without a GPU every pixel of
-        # the view costs the browser on every frame (bench/bench_page_parts.py)
+        # the view costs the browser on every frame (docs/demo.md, "Without a GPU")
         server.gui.main_panel.dock_right()
         self._panel_view = s.panel
         view_of_label = {label: view for view, label in VIEW_LABELS.items()}

@@ -140,7 +140,7 @@ def run_on_cluster(
                            "(or pip install 'dask[distributed]')") from None
     target, n = parse_scheduler(scheduler)
     # (a local cluster's workers get this configuration: no statistical profiler sampling the
-    # runs' stacks every 10 ms)
+    # runs' stacks)
     with dask.config.set({"distributed.scheduler.allowed-failures": ALLOWED_FAILURES,
                           "distributed.worker.profile.enabled": False}):
         cluster = None
