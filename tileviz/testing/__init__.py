@@ -36,5 +36,5 @@ REPO = Path(__file__).resolve().parents[2]
 
 def missing(package: str, what: str) -> str:
     """The one-line error for ``what`` when ``package`` cannot be imported."""
-    return (f"{what} needs {package}, a package of tileviz's test extra: "
-            f"pip install -e '.[test]'")
+    return (f"{package} is missing ({what} needs it; it comes with tileviz's test extra: "
+            f"pip install -e '.[test]')")
