@@ -92,7 +92,7 @@ def golden(model: tuple[float, float]) -> None:
 
 def dataset(models: tuple[tuple[float, float], ...]) -> list[tuple[str, str]]:
     """Measure 3; its figure rows."""
-    rows = []
+    figs = []
     from tileviz.pipeline.replay import replay
     from tileviz.testing.exact_truth import in_box
     from tileviz.testing.fault_dataset import FaultPlan, make_fault_dataset
@@ -135,13 +135,13 @@ def dataset(models: tuple[tuple[float, float], ...]) -> list[tuple[str, str]]:
                   f"lost {lost}/{b - a} from slip end + 20 to the kidnap, median width there "
                   f"{100 * med:.1f} cm; kidnap -> lost in {to_lost} frames; widest one-box "
                   f"vouched hull {100 * one_box_width:.1f} cm")
-            rows += [(f"fault dataset, model {model[0]:g} m/s, {model[1]:g} rad/s: longest "
-                      "vouched run without the truth; kidnap to lost", f"{best} frames; {to_lost}"
-                      " frames"),
+            width_cm = "-" if med != med else f"{100 * med:.1f} cm"
+            kidnap = "never" if to_lost is None else f"{to_lost} frames"
+            figs += [(f"fault dataset, model {model[0]:g} m/s, {model[1]:g} rad/s: longest "
+                      "vouched run without the truth; kidnap to lost", f"{best} frames; {kidnap}"),
                      (f"fault dataset, model {model[0]:g} m/s, {model[1]:g} rad/s: lost after "
-                      "the slip; median width there", f"{lost} of {b - a} frames; "
-                      f"{100 * med:.1f} cm")]
-    return rows
+                      "the slip; median width there", f"{lost} of {b - a} frames; {width_cm}")]
+    return figs
 
 
 def main() -> int:
