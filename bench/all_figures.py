@@ -2,15 +2,18 @@
 ``--write-figures``, one after the other (each block records its own command, date, commit and
 the machine's load).
 
-    python bench/all_figures.py              # the quick forms (see QUICK): about 20 minutes
-    python bench/all_figures.py --full       # the forms the docs quote: about 3 hours
+    python bench/all_figures.py              # the quick forms (see QUICK): 10-15 minutes
+    python bench/all_figures.py --full       # the forms of FULL: about 2 hours
     python -m bench.all_figures --only vision_study,evaluation --full
     python bench/all_figures.py --list       # the commands, without running them
 
-Times are on a 2-core machine shared with other jobs; the quick forms measure the same things
-on fewer frames, views and runs (their figures are noisier, and the block says which command made
-it). A bench that fails is reported and the others still run; the exit status is 1 then. At the
-end each bench's wall time is printed. The browser benches need Debian's chromium.
+Times are on a 2-core machine shared with other jobs (load average 5-12). The full forms'
+longest are acceptance (three 10-minute runs, about half an hour), faults (about 25 minutes),
+vision_study (5040 views: a few minutes idle, half an hour loaded) and evaluation (about half an
+hour); the other twenty together take under half an hour. The quick forms measure the same
+things on fewer frames, views and runs (their figures are noisier, and each block says which
+command made it). A bench that fails is reported and the others still run; the exit status is 1
+then. At the end each bench's wall time is printed. The browser benches need Debian's chromium.
 """
 
 from __future__ import annotations
