@@ -357,7 +357,7 @@ def test_the_fault_model_is_set_from_the_gui_and_the_page_says_when_it_is_used(c
     """The settings' fault model (SetFaultModel) reaches the localizer; the status readout says
     when the fault set is followed (frame k of it) and counts the views that fit neither set
     before ``lost`` (a kidnap)."""
-    from tileviz.app.server import fault_line
+    from tileviz.app.status import fault_line
 
     with pytest.raises(ValueError, match="fault model speed"):
         C.SetFaultModel(-0.1, 0.1)
@@ -393,7 +393,7 @@ def test_relocalize_in_a_region_from_the_gui_and_after_lost(cfg, tmp_path):
     """The GUI's "Re-localize in the region" (RelocalizeRegion) restarts a lost localizer with
     candidates that hold the truth; with ``relocalize_region`` (``serve --relocalize-region``)
     that happens by itself at the frame after ``lost``."""
-    from tileviz.app.server import fault_line
+    from tileviz.app.status import fault_line
 
     assert C.parse_region("-1, -2, 3 4") == (-1.0, -2.0, 3.0, 4.0)
     with pytest.raises(ValueError, match="region"):

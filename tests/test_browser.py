@@ -14,12 +14,10 @@ from tileviz.app.scene import grid_colour
 from tileviz.app.server import App
 from tileviz.app.session import SessionOptions
 from tileviz.config import preset
+from tileviz.testing.browser import ARGS, CHROMIUM
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
-CHROMIUM = "/usr/bin/chromium"
-ARGS = ["--headless", "--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
-        "--disable-background-networking", "--disable-component-update", "--no-first-run"]
 CONTROLS = ("Play", "Step", "Step back", "Go live", "Click the floor to set the target",
             "Drive the waypoints", "Kidnap (teleport the robot)",
             "Relocalize (tell the true pose)", "Reset the run", "Start recording")

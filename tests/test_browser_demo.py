@@ -18,12 +18,10 @@ import pytest
 from tileviz.app.server import App
 from tileviz.app.session import SessionOptions
 from tileviz.config import preset
+from tileviz.testing.browser import ARGS, CHROMIUM
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
-CHROMIUM = "/usr/bin/chromium"
-ARGS = ["--headless", "--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
-        "--disable-background-networking", "--disable-component-update", "--no-first-run"]
 WAIT = 300_000
 """Milliseconds a condition may take to come true on a loaded machine (a hang guard only)."""
 

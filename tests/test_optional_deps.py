@@ -60,3 +60,18 @@ def test_the_pages_mcap_button_is_greyed_with_the_install_line_without_the_extra
         assert c.export.hint == line
     finally:
         server.stop()
+
+
+def test_a_bench_without_the_test_extra_names_it_in_one_line() -> None:
+    """The vision study's photo floors need scikit-image (the test extra): without it, the bench
+    says so in one line and exits 2, instead of a traceback."""
+    block = ("import runpy, sys\n"
+             "sys.modules['skimage'] = None  # as if not installed\n"
+             "sys.argv = ['bench/vision_study.py', '--families', 'photo',\n"
+             "            '--views-per-family', '1', '--corrupted-per-family', '0']\n"
+             "runpy.run_path('bench/vision_study.py', run_name='__main__')\n")
+    r = subprocess.run([sys.executable, "-c", block], capture_output=True, text=True,
+                       timeout=300, cwd=Path(__file__).resolve().parents[1])
+    lines = r.stdout.strip().splitlines()
+    assert r.returncode == 2 and len(lines) == 1, (r.stdout, r.stderr[-2000:])
+    assert "scikit-image is missing" in lines[0] and "pip install -e '.[test]'" in lines[0]

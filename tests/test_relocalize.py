@@ -5,7 +5,7 @@ next view cuts the region into one candidate box per tile cell, the candidates t
 takes out of the region are dropped, and plain tracking resumes when one is left. Three levels:
 the localizer on a synthetic drive (exact motion, views and compass within their bounds), a
 hypothesis test of the first cut, and ``tileviz replay --relocalize-region`` on the fault dataset
-of ``tests/fault_dataset.py`` (slip, kidnap, dropout).
+of ``tileviz/testing/fault_dataset.py`` (slip, kidnap, dropout).
 
 Honesty: with the default fault model, a kidnap beyond it ends ``lost`` (or in candidates that
 hold the truth), never more than 5 frames vouching for a set without the truth, never one wide box
@@ -22,12 +22,12 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from tests.exact_truth import in_box
-from tests.fault_dataset import FaultPlan, make_fault_dataset
-from tests.test_faults import BOUNDS, DT, Drive, _compass, _view
 from tileviz.__main__ import main as tileviz_main
 from tileviz.config import LocalizerConfig
 from tileviz.core.localizer import RELOCALIZE_MAX_CANDIDATES, Localizer
+from tileviz.testing.drives import BOUNDS, DT, Drive, noisy_compass, noisy_view
+from tileviz.testing.exact_truth import in_box
+from tileviz.testing.fault_dataset import FaultPlan, make_fault_dataset
 from tileviz.types import Box, Odometry, Pose
 
 L = 1.0
@@ -59,7 +59,7 @@ def test_candidates_hold_the_truth_and_drop_out_as_the_robot_nears_the_region_ed
                     initial=Box(9.0, 9.1, 9.0, 9.1, 0.0, 0.1))  # a wrong start: lost below
     for _ in range(6):
         u = rng.uniform(-1, 1, 4)
-        loc.step(None, _compass(truth.theta, u[3]), _view(truth, L, OFFSET, u[:3]))
+        loc.step(None, noisy_compass(truth.theta, u[3]), noisy_view(truth, L, OFFSET, u[:3]))
     assert loc.lost
     cap = loc.relocalize(region)
     assert cap >= 4 and not loc.lost
@@ -68,7 +68,7 @@ def test_candidates_hold_the_truth_and_drop_out_as_the_robot_nears_the_region_ed
     odo = None
     for _ in range(120):
         u = rng.uniform(-1, 1, 6)
-        step = loc.step(odo, _compass(truth.theta, u[3]), _view(truth, L, OFFSET, u[:3]))
+        step = loc.step(odo, noisy_compass(truth.theta, u[3]), noisy_view(truth, L, OFFSET, u[:3]))
         assert step.status == "contracted"
         assert step.updated.contains(*truth.as_tuple())
         for b in step.updated.boxes:  # candidates, never a hull of them
@@ -113,9 +113,9 @@ def test_the_first_view_after_relocalizing_keeps_the_truth_among_the_candidates(
     truth = Pose(x, y, th)
     loc = Localizer(tile_size=L_, camera_offset=offset, bounds=BOUNDS, config=LocalizerConfig(),
                     initial=Box(x, x, y, y, th, th))
-    compass = _compass(th, u[3])
+    compass = noisy_compass(th, u[3])
     cap = loc.relocalize(region, compass=compass if u[0] > 0 else None)
-    step = loc.step(None, compass, _view(truth, L_, offset, np.array(u[:3])))
+    step = loc.step(None, compass, noisy_view(truth, L_, offset, np.array(u[:3])))
     assert step.status == "contracted" and step.relocalizing or len(step.updated) == 1
     assert not step.hulled and len(step.updated) <= cap
     assert any(in_box(b, x, y, th) for b in step.updated.boxes)

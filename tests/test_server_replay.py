@@ -14,7 +14,6 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from tests.wsclient import ViserClient, serving, stop_serve
 from tileviz.app import commands as C
 from tileviz.app.commands import SIMULATOR_ONLY
 from tileviz.app.scene import SceneView, ribbon_centreline
@@ -23,6 +22,7 @@ from tileviz.cli import main as cli
 from tileviz.datasets import DatasetSource, read_meta, replay_config
 from tileviz.pipeline import FrameLoop
 from tileviz.pipeline.outputs import replay_row
+from tileviz.testing.wsclient import ViserClient, serving, stop_serve
 from tileviz.types import Box, BoxSet
 
 DURATION = 1.5
@@ -147,17 +147,15 @@ def test_the_end_of_the_dataset_pauses_and_the_stored_frames_stay(dataset, frame
 
 
 def test_the_readout_keeps_saying_the_dataset_ended(dataset, frames, tmp_path):
-    from tileviz.app.server import App
+    from tileviz.app.status import StatusState, render_status
 
-    app = App(replay_config(read_meta(dataset)), port=0)  # not started: the readout alone
-    app.session = s = session(dataset, tmp_path)
-    app._contained = None
+    s = session(dataset, tmp_path)  # no server: the readout alone
     play_to_end(s)
-    text = app.status_text(s.shown_entry(), live=True)
+    text = render_status(StatusState.of(s, s.shown_entry(), None, live=True))
     assert text.count(f"end of dataset, {frames} frames") == 1
     for _ in range(3):
         s.apply(C.Kidnap())  # newer notes push the end's note out of view
-    text = app.status_text(s.shown_entry(), live=True)
+    text = render_status(StatusState.of(s, s.shown_entry(), None, live=True))
     assert f"end of dataset, {frames} frames" in text and f"frame {frames - 1}" in text
     s.close()
 

@@ -14,10 +14,10 @@ from pathlib import Path
 
 import pytest
 
-from tests.wsclient import ViserClient, serving, stop_serve
 from tileviz.app.server import App
 from tileviz.app.session import Session, SessionOptions
 from tileviz.config import preset
+from tileviz.testing.wsclient import ViserClient, serving, stop_serve
 
 REPO = Path(__file__).resolve().parents[1]
 UPDATE_TYPES = {

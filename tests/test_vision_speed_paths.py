@@ -75,14 +75,9 @@ def test_the_shortcuts_give_the_full_computation(
 
 
 def _floor_views(n: int) -> list[tuple[np.ndarray, object, float]]:
-    """``n`` clean views of every floor family of ``bench/floorgen.py``."""
-    import sys
-    from pathlib import Path
-
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
-    import floorgen
-
+    """``n`` clean views of every floor family of ``tileviz/testing/floorgen.py``."""
     from tileviz.config import CameraConfig
+    from tileviz.testing import floorgen
 
     out = []
     for fam in floorgen.FAMILIES:

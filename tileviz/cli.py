@@ -79,8 +79,8 @@ def record_parser() -> Parser:
                    "lens; meta.json gets its camera_model and replay rectifies them")
     p.add_argument("--jpg", action="store_true", help="write JPEG images instead of PNG")
     p.add_argument("--png-level", type=int, choices=range(10), default=0, metavar="0..9",
-                   help="PNG compression (default 0: pixels stored, 7x faster to write and 25x "
-                   "to decode; 1 to 9: about 0.45x the disk)")
+                   help="PNG compression (default 0: pixels stored, the fastest to write and to "
+                   "decode; 1 to 9: smaller files, slower)")
     p.add_argument("--floor-style", choices=tuple(FLOOR_STYLES), default="default",
                    help="the floor's look: light grout, wide grout, a photograph on the tiles, "
                    "uneven lighting (default: the preset's floor)")

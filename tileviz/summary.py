@@ -138,5 +138,5 @@ SCALE_FRAMES = 5
 """Views that measured the tile period before :meth:`RunTally.scale_warning` speaks."""
 SCALE_TOLERANCE = 0.003
 """Largest relative difference of the measured tile period from the declared one that
-:meth:`RunTally.scale_warning` lets pass: a view's lines measure it within about 0.02 %; at
-0.3 % a line 100 px from the view's centre is read 0.3 px off, most of a clean view's bound."""
+:meth:`RunTally.scale_warning` lets pass, far above what a view's lines read on a correct scale:
+at 0.3 % a line 100 px from the view's centre is read 0.3 px off, most of a clean view's bound."""

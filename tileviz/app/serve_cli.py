@@ -270,7 +270,7 @@ def main(command: str = "serve", argv: list[str] | None = None) -> int:
             signal.signal(signal.SIGTERM, previous)
             signal.signal(signal.SIGINT, previous_int)
             # a watchdog: once the files are closed, a server that does not shut down in time
-            # (seen once in CI-like runs, not reproduced) must not keep the terminal
+            # must not keep the terminal
             watchdog = threading.Timer(20.0, _force_exit)
             watchdog.daemon = True
             watchdog.start()

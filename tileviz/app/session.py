@@ -152,8 +152,7 @@ class Session:
         """Why the source has no more frames (a replay's end or bad row), or None."""
         self._build(cfg)
         # the floor as its tile grid; the textured floor is a layer to switch on: without a GPU
-        # (software WebGL) a floor filling the view costs the browser as much as the rest of
-        # the page together (bench/bench_page_parts.py)
+        # (software WebGL) every pixel it fills costs the browser (docs/demo.md, "Without a GPU")
         self.layers["floor"] = False
         if not self.source.simulator:
             self.layers["setpoint"] = False  # a dataset has none

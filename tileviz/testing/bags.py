@@ -1,4 +1,4 @@
-"""Test helper: a tileviz dataset written as a ROS 1 or ROS 2 bag with rosbags' writers
+"""A tileviz dataset written as a ROS 1 or ROS 2 bag with rosbags' writers (the ros extra)
 (sensor_msgs/Image or CompressedImage, nav_msgs/Odometry, sensor_msgs/Imu)."""
 
 from __future__ import annotations
@@ -6,6 +6,7 @@ from __future__ import annotations
 import csv
 import math
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -32,7 +33,7 @@ def write_bag(dataset: Path, out: Path, *, ros1: bool = False, storage: str = "s
         rows = list(csv.DictReader(f))
     times = [float(r["t"]) for r in rows]
 
-    def header(t: float, frame: str) -> object:
+    def header(t: float, frame: str) -> Any:
         ns = T0_NS + round(t * 1e9)
         stamp = ty["builtin_interfaces/msg/Time"](sec=ns // 1_000_000_000,
                                                   nanosec=ns % 1_000_000_000)
@@ -44,12 +45,14 @@ def write_bag(dataset: Path, out: Path, *, ros1: bool = False, storage: str = "s
     quat = ty["geometry_msgs/msg/Quaternion"]
     cov36 = np.zeros(36)
     cov9 = np.zeros(9)
-    msgs: list[tuple[float, str, str, object]] = []
+    msgs: list[tuple[float, str, str, Any]] = []
+    m: Any
     for k, (r, t) in enumerate(zip(rows, times, strict=True)):
         if image_limit is not None and k >= image_limit:
             break
         stamp = t + (stamp_shift or {}).get(k, 0.0)
         img = cv2.imread(str(dataset / r["image"]), cv2.IMREAD_COLOR)
+        assert img is not None, r["image"]
         if compressed:
             ok, buf = cv2.imencode(".png", img)
             assert ok
@@ -79,7 +82,7 @@ def write_bag(dataset: Path, out: Path, *, ros1: bool = False, storage: str = "s
             msgs.append((t, "/odom", "nav_msgs/msg/Odometry", m))
     comp = [float(r["compass"]) for r in rows]
 
-    def imu(t: float, yaw: float) -> object:
+    def imu(t: float, yaw: float) -> Any:
         return ty["sensor_msgs/msg/Imu"](
             header=header(t, "imu"),
             orientation=quat(x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2)),
