@@ -201,3 +201,34 @@ def test_recording_while_paused_says_what_happened(browser, app):
     button(page, "Stop recording").click()
     expect(page.locator(".tileviz-notes")).to_contain_text("recorded 1 frames to", timeout=WAIT)
     page.close()
+
+
+def test_a_laptop_sized_page_reads_whole_and_a_late_tab_shows_the_frame(browser, app):
+    """At 1280 x 720: the left tab's label is whole, viser's software-WebGL notice does not
+    cover the scene, the scene keeps about half the width; a tab opened after 25 steps shows
+    that frame in its timeline box and status."""
+    from playwright.sync_api import expect
+
+    from tileviz.app import commands as C
+
+    page = browser.new_page(viewport={"width": 1280, "height": 720})
+    page.set_default_timeout(WAIT)
+    page.goto(app.url)
+    page.wait_for_selector("canvas", timeout=WAIT)
+    expect(page.get_by_text("frame 0,")).to_be_visible(timeout=WAIT)
+    expect(page.get_by_text("Set, camera, plots", exact=True)).to_be_visible()
+    assert page.locator("#webgl-software-rendering:visible").count() == 0
+    box = page.locator("canvas").first.bounding_box()
+    assert box is not None and box["width"] >= 600
+    for _ in range(25):
+        app.submit(C.Step())
+    expect(page.get_by_text("frame 25,")).to_be_visible(timeout=WAIT)
+    late = browser.new_page(viewport={"width": 1280, "height": 720})
+    late.set_default_timeout(WAIT)
+    late.goto(app.url)
+    expect(late.get_by_text("frame 25,")).to_be_visible(timeout=WAIT)
+    values = [late.locator("input").nth(i).input_value()
+              for i in range(late.locator("input").count())]
+    assert "25" in values  # the timeline's box
+    late.close()
+    page.close()

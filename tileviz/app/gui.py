@@ -78,6 +78,9 @@ same as six residuals; `--output-file` writes those), *Size of the set* the widt
 blue set, *Distance from the set's centre to the truth* its error.
 Orange: the Monte Carlo Localization baseline, calibrated to the views' measured errors
 (particles and 95 % ellipse), when switched on.
+
+**Without a GPU** the browser draws in software and the page runs slower: the floor's texture is
+a layer to switch on (Layers), off at the start.
 """
 """The page's "How to read this page" text (markdown)."""
 
@@ -113,7 +116,9 @@ class Controls:
         self.server = server
         self._submit = submit
         gui = server.gui
-        self.status = gui.add_html("starting...")
+        self.status = gui.add_html("<b>starting</b>: computing the first frame (the first start "
+                                   "after an install compiles the vision kernels: up to a "
+                                   "minute, once)")
         with gui.add_folder("How to read this page", expand_by_default=False):
             gui.add_markdown(HELP)
         if replay is not None:

@@ -14,9 +14,12 @@ Its command line (``python -m tileviz serve``) is :mod:`tileviz.app.serve_cli`.
 
 from __future__ import annotations
 
+import contextlib
+import io
 import math
 import queue
 import socket
+import sys
 import threading
 import time
 import warnings
@@ -42,8 +45,21 @@ __all__ = ["App", "port_free"]
 _COL = {name: i for i, name in enumerate(METRIC_NAMES)}
 VIEW_LABELS = {"camera": "Camera", "stages": "Camera and stages", "plots": "Plots"}
 """The left panel's choices (``commands.PANEL_VIEWS``) as the button group shows them."""
-FOLLOW_OFFSET = (0.0, -2.2, 2.6)
+FOLLOW_OFFSET = (0.0, -3.0, 3.4)
 """Where the initial view stands relative to the robot, metres (behind it to the south, up)."""
+PANEL_TAB = "Set, camera, plots"
+"""The left panel's tab (short enough to be read whole)."""
+LEFT_PANEL_PX = 345
+"""The left panel's width: the 320 px camera view and its margins."""
+RIGHT_PANEL_PX = 300
+"""The control panel's width: the scene keeps half of a 1280 px wide window."""
+STARTING_NOTE = ("**Starting: computing the first frame.** The first start after an install "
+                 "compiles the vision kernels (up to a minute, once); the set, the camera view "
+                 "and the plots appear here when it is done.")
+"""What the left panel says until the first frame is shown."""
+HIDE_SOFTWARE_WEBGL_NOTICE = "<style>#webgl-software-rendering{display:none !important}</style>"
+"""Hides viser's notice that WebGL runs in software (it would cover the scene on a machine
+without a GPU); ``docs/demo.md``, "Without a GPU", says what that costs."""
 DEFAULT_PORT = 8080
 """Where ``serve`` listens unless ``--port`` says otherwise (the next free port if it is busy)."""
 QUEUE_SIZE = 1000
@@ -121,8 +137,11 @@ class App:
                            "serve?): stop it or choose another --port")
         self.session = Session(self.cfg, self.options)
         s = self.session
-        self.server = viser.ViserServer(host=self.host, port=self.requested_port,
-                                        verbose=self.verbose)
+        # viser prints its address as it starts listening; tileviz says where to go once the
+        # first frame is shown (serve's 'open ...' line), so that banner is kept unless verbose
+        with contextlib.redirect_stdout(sys.stdout if self.verbose else io.StringIO()):
+            self.server = viser.ViserServer(host=self.host, port=self.requested_port,
+                                            verbose=self.verbose)
         server = self.server
         if self.strict_port and self.requested_port not in (0, self.port):
             self.stop()
@@ -147,8 +166,12 @@ class App:
                                  max_speed=s.max_speed, mcl=s.mcl is not None,
                                  replay=None if s.source.simulator else s.source.describe(),
                                  region=s.default_region())
+        # no GPU: the browser's notice that WebGL runs in software would cover the scene; the
+        # page's help says what that costs (the floor texture layer is off by default)
+        server.gui.add_html(HIDE_SOFTWARE_WEBGL_NOTICE)
         panel = server.gui.add_panel()
-        with panel.add_tab("The set, camera and plots"):
+        with panel.add_tab(PANEL_TAB):
+            self.starting = server.gui.add_markdown(STARTING_NOTE)
             self.inset = InsetView(server.gui)
             self.view = server.gui.add_button_group("Below", tuple(VIEW_LABELS.values()))
             with server.gui.add_folder("Camera and image pipeline") as self.images_folder:
@@ -157,11 +180,12 @@ class App:
             with server.gui.add_folder("Plots", visible=False) as self.plots_folder:
                 self.plots = Plots(server.gui)
         panel.dock_left()
-        panel.set_width(380)
+        panel.set_width(LEFT_PANEL_PX)
         # the controls docked at the right edge, not floating over the scene: the 3-D view gets
         # only the window's middle, which it does not share, and without a GPU every pixel of
         # the view costs the browser on every frame (docs/demo.md, "Without a GPU")
         server.gui.main_panel.dock_right()
+        server.gui.main_panel.set_width(RIGHT_PANEL_PX)
         self._panel_view = s.panel
         view_of_label = {label: view for view, label in VIEW_LABELS.items()}
 
@@ -303,6 +327,8 @@ class App:
         pos = s.display_position()
         entry = s.history.get(pos) if pos in s.history else None
         if entry is not None:
+            if self.starting.visible:
+                self.starting.visible = False  # the first frame is shown: the panels take over
             rows = s.history.window(pos, self.plot_window)
             self._contained = summary(rows)
             trail = rows[-(TRAIL_SEGMENTS + 1):]
