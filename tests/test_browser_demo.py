@@ -114,30 +114,40 @@ def test_the_default_port_serves_its_own_page_when_taken(browser, tmp_path):
             a.stop()
 
 
+INSET_IMG = "img[src^='blob:']"
+"""The inset: the first image the server sent (viser's own logo is an inline SVG image)."""
+
+
 def _inset_pixels(page: object) -> np.ndarray:
-    img = page.locator("img").first  # type: ignore[attr-defined]
+    img = page.locator(INSET_IMG).first  # type: ignore[attr-defined]
     png = img.screenshot()
     return cv2.cvtColor(cv2.imdecode(np.frombuffer(png, np.uint8), cv2.IMREAD_COLOR),
                         cv2.COLOR_BGR2RGB)
 
 
 def test_the_inset_shows_the_boxes_and_follows_each_step(browser, app):
+    """The inset (the first image the server sends; viser's logo is an inline SVG): a few
+    frames in, the centimetre-wide set fills a good part of it, with the prediction and the
+    truth; every step sends a new picture."""
     from playwright.sync_api import expect
 
     page = open_page(browser, app.url)
     expect(page.get_by_text("the set around the truth, magnified")).to_be_visible(timeout=WAIT)
-    src0 = page.locator("img").first.get_attribute("src")
+    for k in range(1, 6):
+        button(page, "Step").click()
+        expect(page.get_by_text(f"frame {k},")).to_be_visible(timeout=WAIT)
+    src0 = page.locator(INSET_IMG).first.get_attribute("src")
     shot = _inset_pixels(page)
+    assert min(shot.shape[:2]) >= 300  # the inset itself, not an icon
     r, g, b = (shot[..., i].astype(int) for i in range(3))
     blue = (b > r + 40) & (b > g + 15)
     green = (g > r + 25) & (g > b + 25)
     pink = (r > 200) & (b > 100) & (g < 140)
-    # the centimetre-wide set fills a good part of the inset, with the prediction and the truth
     assert blue.mean() > 0.05 and green.any() and pink.any()
     button(page, "Step").click()
-    expect(page.get_by_text("frame 1,")).to_be_visible(timeout=WAIT)
-    page.wait_for_function("(src) => document.querySelector('img').src !== src", arg=src0,
-                           timeout=WAIT)
+    expect(page.get_by_text("frame 6,")).to_be_visible(timeout=WAIT)
+    page.wait_for_function(f"(src) => document.querySelector(\"{INSET_IMG}\").src !== src",
+                           arg=src0, timeout=WAIT)
     page.close()
 
 
