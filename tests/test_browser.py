@@ -35,7 +35,9 @@ def _floor_drawn(shot: np.ndarray) -> bool:
     middle = shot[h // 4: 3 * h // 4, 400: w - 400]
     grout = np.array(grid_colour(preset("default").floor)[::-1])  # BGR
     lines = (np.abs(middle.astype(int) - grout).max(axis=2) < 40).sum()
-    return (middle.std() > 8 and len(np.unique(middle.reshape(-1, 3), axis=0)) > 500
+    # a blank or half-drawn canvas holds a few flat colours; the scene's anti-aliased lines,
+    # the robot and its footprint some hundreds
+    return (middle.std() > 8 and len(np.unique(middle.reshape(-1, 3), axis=0)) > 200
             and lines > 500)
 
 
