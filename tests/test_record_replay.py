@@ -151,10 +151,10 @@ def test_replay_stops_at_bad_row_keeping_rows_written(
     cells = lines[11].split(",")
     if damage == "row":
         cells[3] = "fast"
-        needle = "frames.csv row 12: speed is not a number ('fast')"
+        needle = "frames.csv line 12 (frame 10): speed is not a number ('fast')"
     else:
         (folder / cells[2]).unlink()
-        needle = f"frames.csv row 12: image '{cells[2]}' is missing"
+        needle = f"frames.csv line 12 (frame 10): image '{cells[2]}' is missing"
     lines[11] = ",".join(cells)
     (folder / "frames.csv").write_text("\n".join(lines) + "\n")
     out = tmp_path / "partial.csv"
