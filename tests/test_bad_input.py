@@ -174,7 +174,7 @@ def test_extract_bad_options_and_images(args: list[str], needle: str, images: Pa
 
 def test_extract_of_a_constant_image_is_a_refusal_not_an_error(images: Path) -> None:
     r = _cli(["extract", "constant.png"], images)
-    assert r.returncode == 0 and r.stderr == ""
+    assert r.returncode == 1 and r.stderr == ""  # 1: no observation found (not bad input)
     assert r.stdout.strip() == "constant.png: no observation (constant image); 0 lines"
 
 
