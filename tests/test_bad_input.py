@@ -111,7 +111,6 @@ def test_record_into_a_file(tmp_path: Path) -> None:
         (["--out", "x.csv", "--max-boxes", "0"], "--max-boxes must be >= 1"),
         (["--out", "x.csv", "--max-boxes", "abc"], "--max-boxes must be an integer"),
         (["--out", "x.csv", "--extractor", "magic"], "invalid choice: 'magic'"),
-        ([], "required: --out"),
         (["--out", "no/such/dir/x.csv"], "output directory does not exist"),
     ],
 )

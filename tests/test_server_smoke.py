@@ -18,6 +18,7 @@ from tests.wsclient import ViserClient, serving, stop_serve
 from tileviz.app.server import App
 from tileviz.app.session import Session, SessionOptions
 from tileviz.config import preset
+from tileviz.summary import FAITHFUL_NOTE
 
 REPO = Path(__file__).resolve().parents[1]
 UPDATE_TYPES = {
@@ -239,7 +240,16 @@ def test_frames_runs_n_frames_prints_a_summary_and_exits_0(tmp_path):
     assert len(summary) == 1, r.stdout
     assert summary[0].startswith("tileviz serve: 5 frames in ")
     assert "statuses: " in summary[0] and "truth inside the set in" in summary[0]
+    assert FAITHFUL_NOTE not in summary[0]  # the robust extractor's views keep their bounds
     assert "Traceback" not in r.stderr
+
+
+def test_frames_with_the_faithful_extractor_says_its_views_break_their_bounds(tmp_path):
+    r = run_cli("--frames", "5", "--port", "0", "--max-speed", "--out-dir", str(tmp_path),
+                "--extractor", "faithful")
+    assert r.returncode == 0, r.stderr
+    (summary,) = [line for line in r.stdout.splitlines() if "frames/s" in line]
+    assert f"vouched for; {FAITHFUL_NOTE}" in summary
 
 
 def test_a_requested_busy_port_is_one_line_and_the_default_says_where_it_went(tmp_path):

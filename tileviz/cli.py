@@ -92,7 +92,7 @@ def record(argv: list[str]) -> int:
     args = record_parser().parse_args(argv)
 
     def body() -> int:
-        from tileviz.datasets import DatasetMeta, DatasetWriter
+        from tileviz.datasets import DatasetMeta, DatasetWriter, dataset_mb
         from tileviz.sim.source import SimSource
 
         cfg = config_from_args(args)
@@ -124,7 +124,7 @@ def record(argv: list[str]) -> int:
         finally:
             bar.close()  # type: ignore[attr-defined]
             writer.close()
-        print(f"wrote {writer.count} frames to {out}")
+        print(f"wrote {writer.count} frames ({dataset_mb(out):.1f} MB) to {out}")
         return 0
 
     return run_cli("tileviz record", body)
@@ -132,10 +132,12 @@ def record(argv: list[str]) -> int:
 
 def replay_parser() -> Parser:
     p = Parser(prog="tileviz replay", description="Replay a tileviz-dataset/1 folder through "
-               "vision and the localizer; write one CSV row per frame.")
+               "vision and the localizer; write one CSV row per frame (--out) and print a "
+               "one-line summary.")
     p.add_argument("dataset", help="dataset folder")
     p.add_argument("--mode", choices=MODES, default="autonomous")
-    p.add_argument("--out", required=True, help="replay output CSV (docs/dataset-format.md)")
+    p.add_argument("--out", default=None, help="replay output CSV (docs/dataset-format.md); "
+                   "without it only the summary is printed")
     p.add_argument("--output-file", help="CSV of the six equivalence residuals per frame "
                    "(report table 6.1, corrected signs; needs ground truth)")
     p.add_argument("--extractor", choices=EXTRACTORS, default=None,
@@ -198,7 +200,8 @@ def replay(argv: list[str]) -> int:
         finally:
             if bar is not None:
                 bar.close()  # type: ignore[attr-defined]
-        print("; ".join([f"replayed {n} frames into {args.out}", *tally.parts()]))
+        into = f" into {args.out}" if args.out is not None else ""
+        print("; ".join([f"replayed {n} frames{into}", *tally.parts()]))
         return 0
 
     return run_cli("tileviz replay", body)
