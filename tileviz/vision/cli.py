@@ -38,6 +38,7 @@ from tileviz.cliutil import (
     Parser,
     notice_if_slow,
     positive_float,
+    read_json,
     run_cli,
 )
 from tileviz.config import EXTRACTORS, PRESETS, Config, preset
@@ -79,13 +80,7 @@ def _camera_model(path: str, base: Config) -> tuple[Config, Rectifier]:
     CliError naming the file when it has none or is not valid."""
     from tileviz.datasets import DatasetMeta
 
-    try:
-        meta = DatasetMeta.from_json(json.loads(Path(path).read_text(encoding="utf-8")),
-                                     where=path)
-    except OSError as e:
-        raise CliError(f"--camera-model: cannot read {path} ({e.strerror or e})") from None
-    except (json.JSONDecodeError, UnicodeDecodeError):
-        raise CliError(f"--camera-model: {path} is not valid JSON") from None
+    meta = DatasetMeta.from_json(read_json(path, "--camera-model"), where=path)
     rectifier = meta.rectifier()
     if rectifier is None:
         raise CliError(f"--camera-model: {path} has no camera_model block")
