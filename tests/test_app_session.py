@@ -14,7 +14,7 @@ from tileviz.app.history import Entry, History
 from tileviz.app.outputs import output_path, sanitize_name
 from tileviz.app.session import Session, SessionOptions
 from tileviz.config import preset
-from tileviz.datasets import DatasetSource, read_meta
+from tileviz.datasets import DatasetSource, dataset_mb, read_meta
 
 
 @pytest.fixture(scope="module")
@@ -224,7 +224,10 @@ def test_recording_while_paused_says_what_happened(cfg, tmp_path):
     s.apply(C.Step())
     s.apply(C.Step())
     s.apply(C.StopRecording())
-    assert s.notes[-1].text.startswith("recorded 2 frames to")
+    # the note gives the dataset's size, as record does
+    mb = dataset_mb(tmp_path / "out" / "two")
+    assert mb > 0.1  # two images of the default camera
+    assert s.notes[-1].text.startswith(f"recorded 2 frames ({mb:.1f} MB) to")
     assert len((tmp_path / "out" / "two" / "frames.csv").read_text().splitlines()) == 3
     s.close()
 

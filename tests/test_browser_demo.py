@@ -209,7 +209,7 @@ def test_recording_while_paused_says_what_happened(browser, app):
     button(page, "Step").click()
     expect(page.get_by_text("frame 1,")).to_be_visible(timeout=WAIT)
     button(page, "Stop recording").click()
-    expect(page.locator(".tileviz-notes")).to_contain_text("recorded 1 frames to", timeout=WAIT)
+    expect(page.locator(".tileviz-notes")).to_contain_text("recorded 1 frames (", timeout=WAIT)
     page.close()
 
 

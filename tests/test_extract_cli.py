@@ -50,7 +50,7 @@ def _run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]
 
 def test_one_line_per_image_with_the_design_md_parameters(capsys, images) -> None:
     rc, out, err = _run(capsys, images["default"], images["constant"])
-    assert rc == 0 and err == ""
+    assert rc == 1 and err == ""  # the constant image gave no observation
     lines = out.strip().splitlines()
     assert len(lines) == 2
     y = tiles.observe(POSE, 1.0, preset("default").camera.offset)
@@ -143,6 +143,26 @@ def test_module_entry_point_never_tracebacks(images, tmp_path: Path) -> None:
     obj = json.loads(proc.stdout)  # the seed image, read with the default camera settings
     assert obj["image"] == images["seed"]
     assert math.isfinite(obj["lines"])
+
+
+def test_exit_status_says_whether_an_observation_was_found(images) -> None:
+    """0: every image gave an observation; 1: one gave none (a result, stderr empty); 2: bad
+    input wins, one line on stderr. --help says so."""
+
+    def run(*argv: str) -> subprocess.CompletedProcess[str]:
+        return subprocess.run([sys.executable, "-m", "tileviz", "extract", *argv],
+                              capture_output=True, text=True, cwd=REPO, timeout=600)
+
+    found = run(images["default"])
+    assert found.returncode == 0 and found.stderr == "" and "y1=" in found.stdout
+    none = run(images["constant"])
+    assert none.returncode == 1 and none.stderr == ""
+    assert none.stdout.strip() == f"{images['constant']}: no observation (constant image); 0 lines"
+    assert run(images["default"], images["constant"]).returncode == 1
+    bad = run(images["constant"], images["broken"])
+    assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1
+    assert "exit status: 0 when every image gave an observation, 1 when an image gave none" \
+        in " ".join(run("--help").stdout.split())
 
 
 def test_damaged_odd_and_misplaced_files_each_give_one_line(images, tmp_path: Path) -> None:

@@ -7,11 +7,8 @@ import subprocess
 import sys
 from pathlib import Path
 
-BLOCK = ("import sys\n"
-         "for m in ('rosbags', 'mcap', 'mcap_protobuf', 'foxglove_schemas_protobuf'):\n"
-         "    sys.modules[m] = None  # as if not installed\n"
-         "from tileviz.__main__ import main\n"
-         "raise SystemExit(main(sys.argv[1:]))\n")
+from tileviz.testing.extras import ROS_MODULES
+from tileviz.testing.extras import WITHOUT_ROS as BLOCK
 
 
 def _run(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
@@ -47,7 +44,7 @@ def test_the_pages_mcap_button_is_greyed_with_the_install_line_without_the_extra
     from tileviz.datasets.mcap_export import mcap_missing
 
     assert mcap_missing() is None  # the test extra has it
-    for m in ("mcap", "mcap_protobuf", "foxglove_schemas_protobuf"):
+    for m in ROS_MODULES[1:]:  # the MCAP writer's
         monkeypatch.setitem(sys.modules, m, None)  # as if not installed
     line = mcap_missing()
     assert line is not None and "pip install -e '.[ros]'" in line and "--mcap" not in line

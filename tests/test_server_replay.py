@@ -183,10 +183,10 @@ def test_a_bad_row_keeps_the_frames_before_it_and_names_file_and_row(damage, dat
     play_to_end(s)
     assert [s.history.get(p).record.index for p in range(len(s.history))] == list(range(bad))
     note = s.notes[-1]
-    assert note.level == "error" and f"frames.csv row {bad + 2}" in note.text
+    assert note.level == "error" and f"frames.csv line {bad + 2} (frame {bad})" in note.text
     assert not s.playing and s.ended is not None
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and f"frames.csv row {bad + 2}" in err[0]
+    assert len(err) == 1 and f"frames.csv line {bad + 2} (frame {bad})" in err[0]
     # the frames before it are those of the undamaged dataset
     assert shown_rows(s) == cli_replay(dataset, tmp_path / "r.csv")[1: bad + 1]
     s.apply(C.StepBack())

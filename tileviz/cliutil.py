@@ -207,6 +207,20 @@ FIRST_RUN_NOTICE = ("still starting: the first run after an install compiles the
 """The second half of the line :func:`notice_if_slow` prints while the kernels compile."""
 
 
+def read_json(path: str, option: str) -> Any:
+    """The JSON document of the file ``path`` given to ``option``; CliError naming both when the
+    file cannot be read or is not JSON text."""
+    import json
+    from pathlib import Path
+
+    try:
+        return json.loads(Path(path).read_text(encoding="utf-8"))
+    except OSError as e:
+        raise CliError(f"{option}: cannot read {path} ({e.strerror or e})") from None
+    except (json.JSONDecodeError, UnicodeDecodeError):
+        raise CliError(f"{option}: {path} is not valid JSON") from None
+
+
 def run_cli(prog: str, body: Callable[[], int]) -> int:
     """Run ``body`` as the command ``prog`` (every ``python -m tileviz`` command and ``serve.py``
     go through here): first the process set-up (:func:`tileviz.vision.set_opencv_threads`: OpenCV

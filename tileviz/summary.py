@@ -11,8 +11,19 @@ from typing import Protocol
 
 from tileviz.types import BoxSet
 
-__all__ = ["SCALE_FRAMES", "SCALE_TOLERANCE", "RunTally", "counted", "frame_ranges",
-           "outside_region"]
+__all__ = ["FAITHFUL_NOTE", "SCALE_FRAMES", "SCALE_TOLERANCE", "RunTally", "counted",
+           "extractor_note", "frame_ranges", "outside_region"]
+
+FAITHFUL_NOTE = ("the faithful extractor's views can break their declared bounds, so with it the "
+                 "set can miss the truth (containment below 100 % is expected, not a broken "
+                 "guarantee)")
+"""What every summary of a run with the faithful extractor says (docs/guarantees.md, H4)."""
+
+
+def extractor_note(extractor: str) -> str:
+    """The sentence a summary or a status adds for views made by ``extractor`` (a
+    ``VisionConfig.extractor`` name): :data:`FAITHFUL_NOTE` for ``faithful``, "" otherwise."""
+    return FAITHFUL_NOTE if extractor == "faithful" else ""
 
 
 class _Record(Protocol):
@@ -40,6 +51,8 @@ class RunTally:
     periods: list[float] = field(default_factory=list)
     """The tile period each view's lines showed over the declared one (robust extractor,
     views with two lines of a family or more: ``details["period_ratio"]``)."""
+    extractors: Counter[str] = field(default_factory=Counter)
+    """Frames by the extractor that made their view (``VisionResult.extractor``)."""
     outside_region: list[int] = field(default_factory=list)
     """Frame indices at which the localizer held re-localization candidates cut to a region
     (``LocalizerStep.region``) while the true pose, where known, was outside that region: the
@@ -62,12 +75,17 @@ class RunTally:
         if outside_region(rec):
             self.outside_region.append(int(getattr(rec, "index", self.frames - 1)))
         vision = getattr(rec, "vision", None)
+        extractor = getattr(vision, "extractor", "")
+        if extractor:
+            self.extractors[extractor] += 1
         ratio = getattr(vision, "details", {}).get("period_ratio")
         if ratio is not None and math.isfinite(ratio):
             self.periods.append(float(ratio))
 
     def parts(self) -> list[str]:
-        """The summary's pieces: statuses, median set size, containment (when known)."""
+        """The summary's pieces: statuses, median set size, containment (when known), what the
+        extractor's views promise (:func:`extractor_note`), the frames outside the
+        re-localization region, the scale warning."""
         out = [f"statuses: {', '.join(f'{n} {k}' for k, n in self.statuses.most_common())}"
                if self.statuses else "no frame"]
         finite = [w for w in self.widths if all(math.isfinite(v) for v in w)]
@@ -78,6 +96,7 @@ class RunTally:
         if self.vouched:
             out.append(f"truth inside the set in {100.0 * self.inside / self.vouched:.1f} % of "
                        f"the {self.vouched} frames it vouched for")
+        out += [note for note in map(extractor_note, sorted(self.extractors)) if note]
         if self.outside_region:
             out.append(f"the robot was outside the re-localization region at "
                        f"{len(self.outside_region)} frames ({frame_ranges(self.outside_region)}):"

@@ -10,7 +10,6 @@ an error keeps what it had. The MCAP export runs on its own thread (:class:`Mcap
 
 from __future__ import annotations
 
-import os
 import threading
 from collections.abc import Callable
 from dataclasses import replace
@@ -104,8 +103,11 @@ class Recorder:
         w.close()
         if w.count > 0:
             self.last = self.path
+        from tileviz.datasets import dataset_mb
+
         tail = f" ({why})" if why else ""
-        self._note(f"recorded {w.count} frames to {self.path}{tail}", level)
+        self._note(f"recorded {w.count} frames ({dataset_mb(w.folder):.1f} MB) to {self.path}"
+                   f"{tail}", level)
 
     def cancel(self, why: str) -> None:
         """The run restarted or the server stops: stop the recording and forget one asked for."""
@@ -169,7 +171,7 @@ class McapJob:
 
         try:
             # the replay table is not kept: the MCAP file is what was asked for
-            self.frames = replay(self.dataset, out=os.devnull, mcap=self.out, jobs=1)
+            self.frames = replay(self.dataset, mcap=self.out, jobs=1)
         except Exception as e:  # noqa: BLE001 - reported as one line by Recorder.poll
             self.error = f"{type(e).__name__}: {e}" if not isinstance(e, (OSError, ValueError)) \
                 else str(e)

@@ -35,7 +35,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from tileviz.cliutil import CliError, Parser, nonneg_float, positive_float, run_cli
+from tileviz.cliutil import CliError, Parser, nonneg_float, positive_float, read_json, run_cli
 
 __all__ = ["IMAGE_TYPES", "combine_compass", "combine_odometry", "import_bag", "main"]
 
@@ -154,12 +154,7 @@ def camera_model_file(path: str) -> tuple[Any, tuple[int, int] | None]:
     ``image_height``), or None (then the raw size). CliError naming the file."""
     from tileviz.datasets.camera_model import CameraModel, CameraModelError
 
-    try:
-        doc = json.loads(Path(path).read_text(encoding="utf-8"))
-    except OSError as e:
-        raise CliError(f"--camera-model: cannot read {path} ({e.strerror or e})") from None
-    except (json.JSONDecodeError, UnicodeDecodeError):
-        raise CliError(f"--camera-model: {path} is not valid JSON") from None
+    doc = read_json(path, "--camera-model")
     if not isinstance(doc, dict) or doc.get("camera_model") is None:
         raise CliError(f"--camera-model: {path} has no camera_model block")
     try:

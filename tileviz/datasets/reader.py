@@ -95,7 +95,7 @@ class DatasetSource:
                         out[int(cells[0])] = tuple(x for x in cells[1].split(";") if x)
                     except (ValueError, IndexError):
                         raise DatasetError(
-                            f"{path} row {lineno}: expected 'index,labels'") from None
+                            f"{path} line {lineno}: expected 'index,labels'") from None
         except UnicodeDecodeError:
             raise DatasetError(f"{path}: not UTF-8 text") from None
         return out
@@ -123,11 +123,16 @@ class DatasetSource:
             next(reader)
             expected_index = 0
             last_t = -math.inf
-            for lineno, cells in enumerate(reader, start=2):
-                where = f"{self.frames_path} row {lineno}"
+            for cells in reader:
+                lineno = reader.line_num  # the line where the row ends (quotes may span lines)
+                where = self._where(lineno)
                 if not cells or all(not c.strip() for c in cells):
                     continue
                 if len(cells) < len(self.columns):
+                    first = self.columns.index("index")
+                    given = cells[first].strip() if first < len(cells) else ""
+                    if given.isdigit():  # the frame, when its index is there to read
+                        where = self._where(lineno, int(given))
                     raise DatasetError(f"{where}: truncated ({len(cells)} of "
                                        f"{len(self.columns)} columns)")
                 rec = {c: cells[i].strip() for i, c in enumerate(self.columns)}
@@ -139,6 +144,7 @@ class DatasetSource:
                 if index != expected_index:
                     raise DatasetError(f"{where}: index {index}, expected {expected_index}")
                 expected_index += 1
+                where = self._where(lineno, index)
                 t = parse_float(rec["t"], "t", where)
                 if t <= last_t:
                     raise DatasetError(f"{where}: t={t!r} does not increase")
@@ -159,6 +165,12 @@ class DatasetSource:
                     truth = Pose(*(parse_float(v, c, where)
                                    for v, c in zip(cells_truth, ("x", "y", "theta"), strict=True)))
                 yield _Row(lineno, index, t, rec["image"], speed, yaw_rate, compass, truth)
+
+    def _where(self, line: int, index: int | None = None) -> str:
+        """How an error names a row of frames.csv: its line in the file (the header is line 1)
+        and, once its index is read, the frame (``frames.csv line 52 (frame 50)``)."""
+        frame = f" (frame {index})" if index is not None else ""
+        return f"{self.frames_path} line {line}{frame}"
 
     def load_image(self, name: str, where: str) -> np.ndarray:
         """Read one image as HxWx3 RGB uint8 (rectified: HxW gray, see the class docstring);
@@ -195,7 +207,7 @@ class DatasetSource:
         rows = self._rows()
         current = next(rows, None)
         while current is not None:
-            where = f"{self.frames_path} row {current.line}"
+            where = self._where(current.line, current.index)
             try:
                 nxt = next(rows, None)
             except DatasetError:

@@ -17,7 +17,7 @@ from tileviz.types import FrameInput
 if TYPE_CHECKING:
     from tileviz.pipeline import FrameRecord
 
-__all__ = ["DatasetWriter"]
+__all__ = ["DatasetWriter", "dataset_mb"]
 
 
 class DatasetWriter:
@@ -115,3 +115,16 @@ class DatasetWriter:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def dataset_mb(folder: str | os.PathLike[str]) -> float:
+    """The size of the files under ``folder`` (a dataset: meta.json, frames.csv, images),
+    megabytes (10^6 bytes); files that vanish while it counts are left out."""
+    total = 0
+    for path in Path(folder).rglob("*"):
+        try:
+            if path.is_file():
+                total += path.stat().st_size
+        except OSError:
+            continue
+    return total / 1e6

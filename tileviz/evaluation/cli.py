@@ -22,7 +22,7 @@ from tileviz.evaluation.cluster import parse_scheduler
 from tileviz.evaluation.report import figures, write_outputs
 from tileviz.evaluation.scenarios import DEFAULT_SCENARIOS, SCENARIOS
 from tileviz.evaluation.store import RunStore
-from tileviz.summary import counted
+from tileviz.summary import FAITHFUL_NOTE, counted
 
 __all__ = ["main"]
 
@@ -135,6 +135,9 @@ def main(command: str, argv: list[str]) -> int:
                      "bounds (--fault-model)" if model[0] > 0 or model[1] > 0 else
                      "no fault model (--fault-model 0,0)") + "; interval (recovery on): "
                  "max_slip recovery, no fault model."]
+        faithful = [s for s in scenarios if SCENARIOS[s].config(0).vision.extractor == "faithful"]
+        if faithful:
+            notes.append(f"Scenario {', '.join(faithful)}: {FAITHFUL_NOTE}.")
         rows = write_outputs(results, out, cmd.strip(), notes)
         for line in figures(rows):
             print(line)

@@ -30,7 +30,7 @@ __all__ = ["default_jobs", "replay"]
 def replay(
     dataset: str | os.PathLike[str],
     *,
-    out: str | os.PathLike[str],
+    out: str | os.PathLike[str] | None = None,
     output_file: str | os.PathLike[str] | None = None,
     mode: Mode | None = None,
     extractor: Extractor | None = None,
@@ -42,8 +42,9 @@ def replay(
     on_total: Callable[[int | None], None] | None = None,
     on_frame: Callable[[FrameRecord], None] | None = None,
 ) -> int:
-    """Replay ``dataset`` and write the replay CSV ``out`` (one row per frame) and, when given,
-    the equivalence-residual CSV ``output_file``; returns the number of frames replayed. ``mode``,
+    """Replay ``dataset`` and write the replay CSV ``out`` (one row per frame; None: no CSV)
+    and, when given, the equivalence-residual CSV ``output_file``; returns the number of frames
+    replayed. ``mode``,
     ``extractor``, ``max_boxes`` override the dataset's configuration
     (:func:`tileviz.datasets.replay_config`); ``jobs``: vision processes (default
     :func:`default_jobs`). ``mcap``: also write the run for Foxglove to this MCAP file
@@ -72,7 +73,7 @@ def replay(
         # too large even with a compass reading to cut the heading: refused now (a lost frame
         # without a compass reading whose region needs one stays lost until a reading comes)
         loop.primary.localizer.candidates(relocalize_region, compass=0.0)
-    csv_out = CsvOut(out, REPLAY_COLUMNS)
+    csv_out = CsvOut(out, REPLAY_COLUMNS) if out is not None else None
     eq = CsvOut(output_file, RESIDUAL_COLUMNS) if output_file else None
     if on_total is not None:
         on_total(source.row_count() or None)
@@ -92,7 +93,8 @@ def replay(
         mcap_out = McapExport(mcap, source.folder)
     try:
         for rec in records:
-            csv_out.row(replay_row(rec))
+            if csv_out is not None:
+                csv_out.row(replay_row(rec))
             if mcap_out is not None:
                 mcap_out.write(rec, rec.image_name)
             if eq is not None:
@@ -103,7 +105,8 @@ def replay(
             if on_frame is not None:
                 on_frame(rec)
     finally:
-        csv_out.close()
+        if csv_out is not None:
+            csv_out.close()
         if eq is not None:
             eq.close()
         if mcap_out is not None:

@@ -12,12 +12,12 @@ Nothing in the product imports this package. Its modules:
 - :mod:`~tileviz.testing.golden`: the recorded localizer sequences (``tests/data``) and their
   bit-for-bit comparison;
 - :mod:`~tileviz.testing.fault_dataset`: a dataset with a slip, a kidnap and a dropout;
-- :mod:`~tileviz.testing.bags`: a dataset written as a ROS 1 or ROS 2 bag;
 - :mod:`~tileviz.testing.wsclient`, :mod:`~tileviz.testing.churn`: a viser websocket client and
   websocket clients that connect and leave again and again;
 - :mod:`~tileviz.testing.browser`: headless chromium's options and CPU accounting;
 - :mod:`~tileviz.testing.timing`: the benches' clock and shared options;
 - :mod:`~tileviz.testing.figures`: the blocks the benches write into ``docs/figures.md``;
+- :mod:`~tileviz.testing.extras`: the command line run as if the ``ros`` extra were missing;
 - :mod:`~tileviz.testing.codac_oracle_worker`: codac's side of the oracle (a subprocess only).
 
 Some need packages of the ``test`` extra (``pip install -e '.[test]'``); those are imported where

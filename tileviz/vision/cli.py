@@ -10,8 +10,10 @@ META`` (a dataset's meta.json with a ``camera_model`` block: each image is a raw
 rectified first; the meta's ppm, view size, tile size and widened view bound are used).
 
 An image that cannot be used (unreadable, wrong size) gives a one-line error on stderr and the
-others are still processed; the exit status is then 2. A frame the extractor refuses (e.g. a
-constant image) is a normal result: ``no observation (reason)``. The JSON's ``timings_ms`` are
+others are still processed. A frame the extractor refuses (e.g. a constant image) is a result:
+``no observation (reason)``. Exit status (:data:`EXIT_HELP`): 0 when every image gave an
+observation, 1 when an image gave none (and none was bad input), 2 when an image or an option
+could not be used. The JSON's ``timings_ms`` are
 the view's own: the robust extractor's compiled kernels are loaded before the first image
 (:func:`tileviz.vision.warmup.warm_up`), not counted in its stages.
 """
@@ -36,6 +38,7 @@ from tileviz.cliutil import (
     Parser,
     notice_if_slow,
     positive_float,
+    read_json,
     run_cli,
 )
 from tileviz.config import EXTRACTORS, PRESETS, Config, preset
@@ -44,11 +47,17 @@ from tileviz.vision import VisionResult, extract
 if TYPE_CHECKING:
     from tileviz.datasets.camera_model import Rectifier
 
-__all__ = ["main"]
+__all__ = ["EXIT_HELP", "main"]
+
+EXIT_HELP = ("exit status: 0 when every image gave an observation, 1 when an image gave none "
+             "(the extractor refused it: the line says why), 2 when an image or an option could "
+             "not be used (one line on stderr each; the other images are still read)")
+"""What ``extract --help`` says of its exit status."""
 
 
 def _parser(prog: str) -> Parser:
-    p = Parser(prog=prog, description="Extract the tile parameters (y1, y2, y3) from images.")
+    p = Parser(prog=prog, description="Extract the tile parameters (y1, y2, y3) from images.",
+               epilog=EXIT_HELP)
     p.add_argument("images", nargs="+", metavar="IMAGE", help="image files (PNG, JPEG, ...)")
     p.add_argument("--preset", choices=PRESETS, default=None,
                    help="camera/vision constants; given, every image must have the "
@@ -71,13 +80,7 @@ def _camera_model(path: str, base: Config) -> tuple[Config, Rectifier]:
     CliError naming the file when it has none or is not valid."""
     from tileviz.datasets import DatasetMeta
 
-    try:
-        meta = DatasetMeta.from_json(json.loads(Path(path).read_text(encoding="utf-8")),
-                                     where=path)
-    except OSError as e:
-        raise CliError(f"--camera-model: cannot read {path} ({e.strerror or e})") from None
-    except (json.JSONDecodeError, UnicodeDecodeError):
-        raise CliError(f"--camera-model: {path} is not valid JSON") from None
+    meta = DatasetMeta.from_json(read_json(path, "--camera-model"), where=path)
     rectifier = meta.rectifier()
     if rectifier is None:
         raise CliError(f"--camera-model: {path} has no camera_model block")
@@ -187,6 +190,7 @@ def main(command: str, argv: list[str]) -> int:
         if args.camera_model is not None:
             base, rectify = _camera_model(args.camera_model, preset(args.preset or "default"))
         status = 0
+        refused = False
         stems: dict[str, int] = {}
         with notice_if_slow(f"{prog}: {FIRST_RUN_NOTICE}", after=10.0) as slow:
             if args.extractor != "faithful":
@@ -203,12 +207,13 @@ def main(command: str, argv: list[str]) -> int:
                     status = 2
                     continue
                 slow.cancel()  # a first result is in: no notice of a slow start
+                refused = refused or res.observation is None
                 if folder is not None:
                     _write_stages(folder, _stage_stem(path, stems), res)
                 if args.json:
                     print(json.dumps({"image": path, **res.as_dict()}))
                 else:
                     print(_line(path, res))
-        return status
+        return status or int(refused)
 
     return run_cli(prog, body)
