@@ -58,3 +58,19 @@ def test_the_notes_show_the_newest_first_errors_marked_and_a_replay_end_kept(tmp
     text = render_status(replace(base, recording=("runs/rec", 42), degraded=True))
     assert "recording to <code>runs/rec</code> (42 frames)" in text
     assert "a frame failed: the set may miss the truth" in text
+
+
+def test_with_the_faithful_extractor_the_readout_says_its_views_can_break_their_bounds(tmp_path):
+    from tileviz.summary import FAITHFUL_NOTE
+
+    cfg = preset("default")
+    faithful = replace(cfg, vision=replace(cfg.vision, extractor="faithful"))
+    for c, said in ((faithful, True), (cfg, False)):
+        s = Session(c, SessionOptions(out_dir=tmp_path, interactive=True))
+        try:
+            s.apply(C.Step())
+            text = render_status(StatusState.of(s, s.shown_entry(),
+                                                {"contained": 0.6, "frames": 1.0}, live=True))
+            assert (FAITHFUL_NOTE.replace("'", "&#x27;") in text) is said
+        finally:
+            s.close()

@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING
 from tileviz.app.history import Entry
 from tileviz.config import LocalizerConfig
 from tileviz.core.localizer import FAULT_MAX_REJECTIONS, LocalizerStep
-from tileviz.summary import counted
+from tileviz.summary import counted, extractor_note
 
 if TYPE_CHECKING:
     from tileviz.app.session import Note, Session
@@ -92,6 +92,9 @@ def render_status(st: StatusState) -> str:
     if entry is not None and c is not None and c["frames"] > 0:
         lines.append(f"truth inside the set in {100 * c['contained']:.1f} % of the last "
                      f"{c['frames']:.0f} frames it vouched for")
+        note = extractor_note(st.extractor)
+        if note:
+            lines.append(f"<i>{html.escape(note)}</i>")
     rate = f"{st.rate:.0f} frames/s" if st.playing else "-"
     lines.append(f"loop {rate}, history {st.history[0]}/{st.history[1]}, "
                  f"mode {st.localizer.mode}, extractor {st.extractor}")
