@@ -56,7 +56,6 @@ def test_warm_up_view_is_read_by_both_extractors(extractor: str) -> None:
 
 @pytest.mark.skipif(sys.platform != "linux", reason="the fork server is used where it exists; "
                     "this test checks it on Linux")
-@pytest.mark.skipif(not kernel.AVAILABLE, reason="numba not installed: no compiled kernels")
 def test_workers_start_with_the_kernels_loaded() -> None:
     """A worker of the replay's context holds every compiled kernel before its first frame."""
     ctx = worker_context()
@@ -124,7 +123,6 @@ def test_pipeline_package_loads_the_frame_loop_on_first_use() -> None:
     _runs_ok(code)
 
 
-@pytest.mark.skipif(not kernel.AVAILABLE, reason="numba not installed: no compiled kernels")
 def test_extract_loads_the_kernels_before_its_first_image(tmp_path: Path) -> None:
     """``tileviz extract`` warms the robust extractor up before the first image, so that image's
     stage timings (``--json``) are its own and not the kernels' one-off loading: in a fresh

@@ -16,11 +16,11 @@ from tileviz.types import Observation
 from tileviz.vision import draw
 from tileviz.vision.geometry import QUARTER, family_normals
 from tileviz.vision.result import BAG_HORIZONTAL, BAG_VERTICAL, VisionResult
-from tileviz.vision.robust import kernel, lattice_kernel
+from tileviz.vision.robust import lattice_kernel
 from tileviz.vision.robust.fit import check_lines, drop_stray_part, fit_tilt
 from tileviz.vision.robust.foreign import foreign_edges
 from tileviz.vision.robust.heading import first_heading, lattice_headings, smoothed_headings
-from tileviz.vision.robust.lattice import clip_line, lattice_offsets
+from tileviz.vision.robust.lattice import lattice_offsets
 from tileviz.vision.robust.periodic import on_lattice
 from tileviz.vision.robust.profiles import measure, select_lines
 from tileviz.vision.robust.settings import DEFAULT_SETTINGS, RobustSettings
@@ -274,16 +274,7 @@ def clip_all(n: tuple[float, float], s: list[float], width: int, height: int
     for every offset of ``s`` (px): their endpoints (k, 4) and whether each meets the view
     (its row is unset otherwise); compiled when numba is present
     (:func:`~tileviz.vision.robust.lattice_kernel.clip_lines`, bit-identical)."""
-    if kernel.AVAILABLE:
-        return lattice_kernel.clip_lines(n[0], n[1], np.array(s, np.float64), width, height)
-    out = np.zeros((len(s), 4))
-    hit = np.zeros(len(s), bool)
-    for i, v in enumerate(s):
-        seg = clip_line(n, v, width, height)
-        if seg is not None:
-            out[i] = seg
-            hit[i] = True
-    return out, hit
+    return lattice_kernel.clip_lines(n[0], n[1], np.array(s, np.float64), width, height)
 
 
 def stage_images(

@@ -7,13 +7,13 @@ import math
 
 import numpy as np
 
-from tileviz.vision.robust import fit_kernel, kernel
+from tileviz.vision.robust import fit_kernel
 from tileviz.vision.robust.crossings import crossings_agree
 from tileviz.vision.robust.profiles import beside_dip
 from tileviz.vision.robust.state import Fail, Line, RobustRun
 from tileviz.vision.robust.statistics import list_median
 
-__all__ = ["check_lines", "drop_stray_part", "fit_arrays_numpy", "fit_tilt", "shoulder_px"]
+__all__ = ["check_lines", "drop_stray_part", "fit_tilt", "shoulder_px"]
 
 
 def fit_tilt(run: RobustRun, lines: list[list[Line]]) -> float:
@@ -21,8 +21,8 @@ def fit_tilt(run: RobustRun, lines: list[list[Line]]) -> float:
     family-2 columns by -eps) and one intercept per line, weighted by part lengths; set each
     line's ``pos`` (at t = 0), ``var`` and ``infl``, and ``run.part_bound``; return eps (rad).
     Also records the tilt of each family on its own (``tilt_gap``: their difference in
-    standard errors). All lines at once (:func:`fit_arrays_numpy`; compiled:
-    :func:`~tileviz.vision.robust.fit_kernel.fit_arrays`)."""
+    standard errors). All lines at once, compiled
+    (:func:`~tileviz.vision.robust.fit_kernel.fit_arrays`)."""
     every = lines[0] + lines[1]
     m = len(every)
     st = run.st
@@ -33,8 +33,7 @@ def fit_tilt(run: RobustRun, lines: list[list[Line]]) -> float:
         run.details["heading_se"] = math.inf
         run.details["tilt_gap"] = 0.0
         return 0.0
-    fit = fit_kernel.fit_arrays if kernel.AVAILABLE else fit_arrays_numpy
-    eps, pos, var, g, d_eps, part_bound, straight, heading_se, tilt_gap = fit(
+    eps, pos, var, g, d_eps, part_bound, straight, heading_se, tilt_gap = fit_kernel.fit_arrays(
         np.array([ln.wpart for ln in every]), np.array([ln.tpart for ln in every]),
         np.array([ln.parts for ln in every]), np.array([ln.sigma for ln in every]),
         np.array([ln.spread for ln in every]), len(lines[0]), st.part_sigmas,
@@ -49,66 +48,6 @@ def fit_tilt(run: RobustRun, lines: list[list[Line]]) -> float:
     run.details["heading_se"] = heading_se
     run.details["tilt_gap"] = tilt_gap
     return eps
-
-
-def fit_arrays_numpy(
-    wp: np.ndarray, tp: np.ndarray, pp: np.ndarray, sig: np.ndarray, spr: np.ndarray, n0: int,
-    part_sigmas: float, prior: float, prior_dof: float
-) -> tuple[float, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, float, float,
-           float]:
-    """The fit of :func:`fit_tilt` on the (lines, PARTS) arrays of the parts' lengths ``wp``
-    (0: not measured, weighing nothing), tangent coordinates ``tp``, positions ``pp``,
-    standard errors ``sig`` and spreads ``spr`` (the first ``n0`` lines of family 1): eps
-    (rad); each line's pos and var; its influence row ``g`` (d pos / d every measured part);
-    d eps / d every measured part; every measured part's own bound (``part_sigmas`` sigma +
-    spread); the straightness (px), the heading's standard error and the tilt gap. ``prior``
-    is ``prior_dof`` x the prior sigma squared. :func:`~tileviz.vision.robust.fit_kernel.
-    fit_arrays` is the same computation compiled (bit-identical)."""
-    m = wp.shape[0]
-    ok = wp > 0
-    w = np.where(ok, wp, 0.0)
-    t = np.where(ok, tp, 0.0)
-    p = np.where(ok, pp, 0.0)
-    sign = np.ones(m)
-    sign[n0:] = -1.0
-    sw = w.sum(axis=1)
-    tb = (w * t).sum(axis=1) / sw
-    pb = (w * p).sum(axis=1) / sw
-    dt = np.where(ok, t - tb[:, None], 0.0)
-    num_l = sign * (w * dt * (p - pb[:, None])).sum(axis=1)
-    den_l = (w * dt * dt).sum(axis=1)
-    first = np.arange(m) < n0
-    num = (float(num_l[first].sum()), float(num_l[~first].sum()))
-    den = (float(den_l[first].sum()), float(den_l[~first].sum()))
-    dall = den[0] + den[1]
-    eps = (num[0] + num[1]) / dall if dall > 1e-9 else 0.0
-    pos = pb - sign * eps * tb
-    res = np.where(ok, p - (pos[:, None] + sign[:, None] * eps * t), 0.0)
-    ss = float((w * res * res).sum())
-    nobs = int(ok.sum())
-    big = ok & (wp >= 0.25 * wp.max(axis=1)[:, None])
-    straight = float(np.abs(res[big]).max()) if big.any() else 0.0
-    # The fit is linear in the part positions: d eps / d p_i = sign w_i (t_i - tb) / dall,
-    # d pos / d p_i = w_i / sum(w) [its own line] - sign tb d eps / d p_i. With every part
-    # within its own bound b_i, eps and pos are within sum |d / d p_i| b_i. (Parts in the
-    # order of the lines, then of their parts; only the measured ones.)
-    d_eps = (sign[:, None] * w * dt)[ok] / max(dall, 1e-9)
-    part_bound = (part_sigmas * sig + spr)[ok]
-    g = -(sign * tb)[:, None] * d_eps[None, :]
-    own = np.repeat(np.arange(m), ok.sum(axis=1))
-    g[own, np.arange(own.size)] += (w / sw[:, None])[ok]
-    # Scatter of the parts about the fit, per unit of part length (px^2 px), with a weak
-    # prior so that a fit with few degrees of freedom is not trusted blindly.
-    dof = max(nobs - (m + 1), 0)
-    sigma2 = (ss + prior) / (dof + prior_dof)
-    var_eps = sigma2 / dall if dall > 1e-9 else math.inf
-    var = sigma2 / sw + tb * tb * var_eps
-    # the two families must be perpendicular: their own tilts agree within their errors
-    gap = 0.0
-    if den[0] > 1e-9 and den[1] > 1e-9:
-        gap = abs(num[0] / den[0] - num[1] / den[1])
-        gap = gap / math.sqrt(sigma2 / den[0] + sigma2 / den[1])
-    return eps, pos, var, g, d_eps, part_bound, straight, math.sqrt(var_eps), gap
 
 
 def drop_stray_part(run: RobustRun, lines: list[list[Line]], eps: float) -> bool:

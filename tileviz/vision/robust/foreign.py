@@ -7,13 +7,12 @@ levels where such an edge meets a grout line (:func:`straddle`, :func:`conclusiv
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 
 import cv2
 import numpy as np
 
 from tileviz.vision.geometry import family_normals
-from tileviz.vision.robust import foreign_kernel, kernel
+from tileviz.vision.robust import foreign_kernel
 from tileviz.vision.robust.grout_levels import (
     STRADDLE_ONE_SIDED,
     conclusive,
@@ -145,62 +144,13 @@ sample of their profiles (:func:`clear_of_lattice`)."""
 def edge_share(run: RobustRun, seg: np.ndarray) -> np.ndarray:
     """For each straight edge (rows of ``seg``: x1, y1, x2, y2, px), the share of the points
     along it (1 px apart) within 1 px of an edge pixel whose gradient is normal to it within
-    :data:`NORMAL_TOLERANCE` (:func:`oriented_hits`): about 1 for the edge of one object (a
-    cable, a box, a shadow), much less for a chance alignment of a texture's edges (grains,
-    chips, a wavy grain), whose directions scatter. Compiled
-    (:func:`~tileviz.vision.robust.foreign_kernel.edge_shares`) when numba is installed, else
-    :func:`edge_shares_numpy`: the same values."""
+    :data:`NORMAL_TOLERANCE`, of either sign: about 1 for the edge of one object (a cable, a
+    box, a shadow), much less for a chance alignment of a texture's edges (grains, chips, a
+    wavy grain), whose directions scatter (compiled:
+    :func:`~tileviz.vision.robust.foreign_kernel.edge_shares`)."""
     assert run.edges is not None and run.dxy is not None
-    shares = foreign_kernel.edge_shares if kernel.AVAILABLE else edge_shares_numpy
-    return shares(run.dxy[0], run.dxy[1], run.edges, np.ascontiguousarray(seg, np.float64),
-                  _COS_TOL)
-
-
-def edge_shares_numpy(dx: np.ndarray, dy: np.ndarray, edges: np.ndarray, seg: np.ndarray,
-                      cos_tol: float) -> np.ndarray:
-    """:func:`edge_share` on the gradients ``dx``, ``dy`` and edge pixels ``edges`` (HxW),
-    with the tolerance's cosine ``cos_tol``: the share of each edge's points (1 px apart)
-    that :func:`oriented_points` sees with its normal; 0 for an edge under 1 px."""
-    out = np.zeros(len(seg))
-    for i, (x1, y1, x2, y2) in enumerate(seg[:, :4].tolist()):
-        ln = math.hypot(x2 - x1, y2 - y1)
-        if ln < 1.0:
-            continue
-        t = np.arange(0.0, ln + 0.5, 1.0) / ln
-        xs = np.rint(x1 + t * (x2 - x1)).astype(np.intp)
-        ys = np.rint(y1 + t * (y2 - y1)).astype(np.intp)
-        hit = oriented_points(dx, dy, edges, xs, ys, -(y2 - y1) / ln, (x2 - x1) / ln, cos_tol)
-        out[i] = float(hit.mean())
-    return out
-
-
-def oriented_hits(run: RobustRun, xs: np.ndarray, ys: np.ndarray, nx: float, ny: float
-                  ) -> np.ndarray:
-    """Whether each pixel (xs, ys) lies within 1 px (its 3 x 3 neighbourhood) of an edge pixel
-    of ``run.edges`` whose gradient is within :data:`NORMAL_TOLERANCE` of the unit normal
-    (nx, ny), of either sign: the points where a straight edge with that normal is seen."""
-    assert run.edges is not None and run.dxy is not None
-    return oriented_points(run.dxy[0], run.dxy[1], run.edges, xs, ys, nx, ny, _COS_TOL)
-
-
-def oriented_points(dx: np.ndarray, dy: np.ndarray, edges: np.ndarray, xs: np.ndarray,
-                    ys: np.ndarray, nx: float, ny: float, cos_tol: float) -> np.ndarray:
-    """:func:`oriented_hits` on the gradients ``dx``, ``dy`` and edge pixels ``edges`` (HxW),
-    with the tolerance's cosine ``cos_tol``."""
-    h, w = edges.shape
-    # the 3 x 3 neighbours of every pixel at once (rows: the 9 offsets), as flat indices
-    xx = np.clip(xs[None, :] + _NX[:, None], 0, w - 1)
-    yy = np.clip(ys[None, :] + _NY[:, None], 0, h - 1)
-    flat = yy * w + xx
-    gx = dx.ravel()[flat].astype(np.float64)
-    gy = dy.ravel()[flat].astype(np.float64)
-    g = np.hypot(gx, gy)
-    along = np.abs(gx * nx + gy * ny) >= cos_tol * g
-    return ((edges.ravel()[flat] > 0) & along & (g > 0)).any(axis=0)
-
-
-_NX = np.array([-1, -1, -1, 0, 0, 0, 1, 1, 1], np.intp)
-_NY = np.array([-1, 0, 1, -1, 0, 1, -1, 0, 1], np.intp)
+    return foreign_kernel.edge_shares(run.dxy[0], run.dxy[1], run.edges,
+                                      np.ascontiguousarray(seg, np.float64), _COS_TOL)
 
 
 TEXTURE_SHARE = 0.75
@@ -248,8 +198,8 @@ def ends(run: RobustRun, px: float, py: float, dx: float, dy: float, band: float
     (``band``: :func:`measurement_band`; ``normals``, ``shift``: each family's unit normal and
     offset, px, so that its lines lie where ``n . (p - centre) + shift`` is a multiple of the
     tile period). A step *sees the edge* when it lies within 1 px of an edge pixel whose
-    gradient is normal to the edge (:func:`oriented_hits`; a texture's edges across it do not
-    count).
+    gradient is normal to the edge within :data:`NORMAL_TOLERANCE` (a texture's edges across
+    it do not count; compiled: :func:`~tileviz.vision.robust.foreign_kernel.end_steps`).
 
     - The border of the view comes before any band: True.
     - At least 4 steps lead to the next band and at most half of them see the edge: it ends
@@ -285,8 +235,7 @@ def ends(run: RobustRun, px: float, py: float, dx: float, dy: float, band: float
     far side is out of view; within that limit otherwise), or whose step darkens the tiles
     by less than that limit, is not told from texture at that end."""
     assert run.edges is not None and run.dxy is not None
-    steps = foreign_kernel.end_steps if kernel.AVAILABLE else end_steps_numpy
-    done, xs, ys, i0, i1, i2, far, k, dmin = steps(
+    done, xs, ys, i0, i1, i2, far, k, dmin = foreign_kernel.end_steps(
         run.dxy[0], run.dxy[1], run.edges, px, py, dx, dy, band, normals[0][0], normals[0][1],
         normals[1][0], normals[1][1], shift[0], shift[1], run.lp, _COS_TOL)
     if done:
@@ -336,79 +285,6 @@ def ends(run: RobustRun, px: float, py: float, dx: float, dy: float, band: float
     return conclusive(run, px, py, dx, dy, float(np.median(core)), limit, seen_beyond)
 
 
-def end_steps_numpy(dx: np.ndarray, dy: np.ndarray, edges: np.ndarray, px: float, py: float,
-                    ux: float, uy: float, band: float, n00: float, n01: float, n10: float,
-                    n11: float, sh0: float, sh1: float, lp: float, cos_tol: float
-                    ) -> tuple[int, np.ndarray, np.ndarray, int, int, int, bool, int, float]:
-    """The steps of :func:`ends` from a straight edge's end (px, py) along the unit vector
-    (ux, uy), 1 px apart, to the border of the view (``edges``: the edge pixels, HxW; ``dx``,
-    ``dy``: the gradients), and where they meet the grout bands (half-width ``band``, px; the
-    families' unit normals (n00, n01), (n10, n11) and offsets sh0, sh1, px, so that a line
-    lies where ``n . (p - centre) + sh`` is a multiple of the period ``lp``, px).
-
-    Returns (done, xs, ys, i0, i1, i2, far, k, dmin): ``done`` (1) when the border of the view
-    comes before any band, or at least 4 steps lead to the first band and at most half of them
-    see the edge (:func:`oriented_hits` with tolerance cosine ``cos_tol``); else the steps
-    (xs, ys, pixels), the first step in a band ``i0``, the first after it out of the bands
-    ``i1``, the first in a band again ``i2`` (the number of steps when none), whether at
-    least 6 steps lie between and at least half of them see the edge (``far``), the family
-    ``k`` whose lines come nearest in ``i0..i1`` and that distance ``dmin`` (px)."""
-    h, w = edges.shape
-    empty = np.zeros(0, np.intp)
-    # the steps to the border: t = 1 .. tmax, inside [-0.5, W - 0.5) x [-0.5, H - 0.5)
-    lim = []
-    for p, d, size in ((px, ux, w), (py, uy, h)):
-        if d > 1e-12:
-            lim.append((size - 0.5 - p) / d)
-        elif d < -1e-12:
-            lim.append((-0.5 - p) / d)
-    tmax = int(math.floor(min(lim) - 1e-9)) if lim else 0
-    if tmax < 1:
-        return 1, empty, empty, 0, 0, 0, False, 0, 0.0
-    t = np.arange(1.0, tmax + 1.0)
-    xs = np.rint(px + t * ux).astype(np.intp)
-    ys = np.rint(py + t * uy).astype(np.intp)
-    keep = (xs >= 0) & (xs < w) & (ys >= 0) & (ys < h)
-    xs, ys = xs[keep], ys[keep]
-    m = int(xs.size)
-    if m == 0:
-        return 1, empty, empty, 0, 0, 0, False, 0, 0.0
-    cx, cy = (w - 1) / 2.0, (h - 1) / 2.0
-    # distance of each step to the nearest line of each family (px), from the offsets
-    dk = []
-    for n0, n1, sh in ((n00, n01, sh0), (n10, n11, sh1)):
-        o = n0 * (xs - cx) + n1 * (ys - cy) + sh
-        dk.append(np.abs(o - lp * np.rint(o / lp)))
-    inb = np.minimum(dk[0], dk[1]) < band
-    i0 = int(np.argmax(inb)) if inb.any() else m
-    if i0 == m:
-        return 1, xs, ys, i0, m, m, False, 0, 0.0  # the border comes first
-    hit = _oriented(dx, dy, edges, -uy, ux, cos_tol)
-    if i0 >= 4 and int(hit(xs[:i0], ys[:i0]).sum()) <= 0.5 * i0:
-        return 1, xs, ys, i0, m, m, False, 0, 0.0  # it ends inside the tile
-    out = np.flatnonzero(~inb[i0:])
-    i1 = i0 + int(out[0]) if out.size else m
-    back = np.flatnonzero(inb[i1:])
-    i2 = i1 + int(back[0]) if back.size else m
-    n2 = i2 - i1
-    far = n2 >= 6 and int(hit(xs[i1:i2], ys[i1:i2]).sum()) >= 0.5 * n2
-    k = 0 if float(dk[0][i0:i1].min()) <= float(dk[1][i0:i1].min()) else 1
-    return 0, xs, ys, i0, i1, i2, far, k, float(dk[k][i0:i1].min())
-
-
-def _oriented(dx: np.ndarray, dy: np.ndarray, edges: np.ndarray, nx: float, ny: float,
-              cos_tol: float) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
-    """:func:`oriented_hits` on the given gradients and edge pixels, for the unit normal
-    (nx, ny) (tolerance cosine ``cos_tol``)."""
-
-    def hit(xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
-        return oriented_points(dx, dy, edges, xs, ys, nx, ny, cos_tol)
-
-    return hit
-
-
-
-
 def classify_edge(run: RobustRun, seg: np.ndarray) -> str:
     """``step edge`` when the longest foreign segment separates two different levels (a box,
     a shadow), ``foreign line`` when it is a dark or bright ridge with the same level on
@@ -427,7 +303,6 @@ def classify_edge(run: RobustRun, seg: np.ndarray) -> str:
     a, b = prof[0], prof[-1]
     ridge = max(min(a, b) - prof.min(), prof.max() - max(a, b))
     return "step edge" if abs(a - b) > ridge else "foreign line"
-
 
 
 def draw_lattice_mask(

@@ -13,12 +13,12 @@ import cv2
 import numpy as np
 
 from tileviz.vision.geometry import family_normals
-from tileviz.vision.robust import foreign_kernel, kernel
+from tileviz.vision.robust import foreign_kernel
 from tileviz.vision.robust.state import RobustRun
 
 __all__ = ["alongside", "at_edge", "conclusive", "cross_profile", "gray_levels",
            "grout_variation", "neighbour_medians", "on_grout", "pass_unchanged", "row_medians",
-           "side_level", "straddle", "straddle_limit", "stretch_range_numpy", "trend_range"]
+           "side_level", "straddle", "straddle_limit", "trend_range"]
 
 
 def pass_unchanged(run: RobustRun, xs: np.ndarray, ys: np.ndarray, i0: int, i1: int,
@@ -111,24 +111,7 @@ def grout_variation(run: RobustRun, qx: float, qy: float, g: tuple[float, float]
     if idx.size < 21:
         return math.nan
     lv = gray_levels(run, xs[idx], ys[idx])  # at the samples idx[1:-1]
-    ranges = foreign_kernel.stretch_range if kernel.AVAILABLE else stretch_range_numpy
-    return float(ranges(lv, idx, u, VARIATION_CLEAR, VARIATION_STRETCHES))
-
-
-def stretch_range_numpy(lv: np.ndarray, idx: np.ndarray, u: np.ndarray, clear: int,
-                        stretches: int) -> float:
-    """The largest range of 19 consecutive gray levels ``lv`` (at the samples ``idx[1:-1]``,
-    indices into the positions ``u`` along a line, px, one interval in view, at least 19
-    levels) among the stretches that keep ``clear`` samples clear of the crossing's own
-    samples -9..9 about u = 0; NaN when fewer than ``stretches`` stretches are clear."""
-    win = np.lib.stride_tricks.sliding_window_view(lv, 19)
-    first = idx[1 : 1 + win.shape[0]]
-    zero = int(np.argmin(np.abs(u)))
-    lim = 9 + clear
-    far = (first + 18 < zero - lim) | (first > zero + lim)
-    if int(far.sum()) < stretches:
-        return math.nan
-    return float((win.max(axis=1) - win.min(axis=1))[far].max())
+    return float(foreign_kernel.stretch_range(lv, idx, u, VARIATION_CLEAR, VARIATION_STRETCHES))
 
 
 VARIATION_CLEAR = 19

@@ -7,11 +7,11 @@ import math
 import cv2
 import numpy as np
 
-from tileviz.vision.robust import heading_kernel, kernel
+from tileviz.vision.robust import heading_kernel
 from tileviz.vision.robust.state import Fail, RobustRun
 
-__all__ = ["HEADING_BINS", "SMOOTHING", "first_heading", "angles", "gradient_votes",
-           "heading_votes_numpy", "lattice_headings", "lattice_power", "smoothed_headings",
+__all__ = ["HEADING_BINS", "SMOOTHING", "first_heading", "gradient_votes",
+           "lattice_headings", "lattice_power", "smoothed_headings",
            "voters"]
 
 
@@ -25,9 +25,8 @@ def first_heading(run: RobustRun, dx: np.ndarray, dy: np.ndarray) -> float:
     Grout lines, tile-to-tile shade steps and a surface laid along the tiles all vote for
     the lattice direction (mod pi/2); isotropic texture adds a flat floor. Every other row
     and column votes: a quarter of the votes is plenty for a first estimate (the fit over
-    the lattice refines it). :func:`heading_votes_numpy` computes the votes;
-    :func:`~tileviz.vision.robust.heading_kernel.heading_votes` is the same computation compiled
-    (bit-identical)."""
+    the lattice refines it). The votes are compiled
+    (:func:`~tileviz.vision.robust.heading_kernel.heading_votes`)."""
     found = gradient_votes(dx, dy, run.st.heading_share)
     if found is None:
         raise Fail("no lines")
@@ -39,16 +38,12 @@ def first_heading(run: RobustRun, dx: np.ndarray, dy: np.ndarray) -> float:
 def gradient_votes(dx: np.ndarray, dy: np.ndarray, share: float) -> tuple[float, float] | None:
     """The votes of :func:`first_heading` on the Scharr gradients ``dx``, ``dy`` (int16): the
     heading (rad, modulo pi/2) and the share of the votes' weight near the peak; None when no
-    gradient is non-zero. Compiled when numba is present (bit-identical to
-    :func:`heading_votes_numpy`)."""
-    if kernel.AVAILABLE:
-        q = heading_kernel.heading_magnitudes(dx, dy)
-        thr = voters(q, share)
-        if thr <= 0:
-            return None
-        return heading_kernel.heading_votes(dx, dy, q, thr, HEADING_BINS)
-    found, y0, near = heading_votes_numpy(dx, dy, share, HEADING_BINS)
-    return (y0, near) if found else None
+    gradient is non-zero."""
+    q = heading_kernel.heading_magnitudes(dx, dy)
+    thr = voters(q, share)
+    if thr <= 0:
+        return None
+    return heading_kernel.heading_votes(dx, dy, q, thr, HEADING_BINS)
 
 
 def smoothed_headings(run: RobustRun) -> list[float]:
@@ -81,78 +76,12 @@ def voters(q: np.ndarray, share: float) -> int:
     partition)."""
     n = q.size
     k = min(max(20, int(share * n)), n)
-    if kernel.AVAILABLE:
-        thr = int(heading_kernel.kth_largest(q, k))
-    else:
-        thr = int(np.partition(q, n - k)[n - k])
+    thr = int(heading_kernel.kth_largest(q, k))
     if thr > 0:
         return thr
     # a noise-free view (a clean render, a drawing) is flat but for its edges: fewer than
     # ``share`` of the gradients are non-zero, and every non-zero one votes
     return 1 if int(q.max()) > 0 else 0
-
-
-def angles(y: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """atan2(y, x) within 3e-4 rad (never both 0), as
-    :func:`~tileviz.vision.robust.heading_kernel._angle` computes it: an odd polynomial of
-    min / max on the octant, then the octant."""
-    ax = np.abs(x)
-    ay = np.abs(y)
-    a = np.minimum(ax, ay) / np.maximum(ax, ay)
-    z = a * a
-    c0, c1, c2 = heading_kernel.ATAN
-    r = ((c0 * z + c1) * z + c2) * z * a + a
-    r = np.where(ay > ax, 0.5 * math.pi - r, r)
-    r = np.where(x < 0.0, math.pi - r, r)
-    return np.where(y < 0.0, -r, r)
-
-
-def heading_votes_numpy(dx: np.ndarray, dy: np.ndarray, share: float, nb: int
-                        ) -> tuple[bool, float, float]:
-    """The votes of :func:`first_heading` from the Scharr gradients ``dx``, ``dy`` (int16) of
-    every other row and column: whether any gradient is non-zero; the heading (rad, modulo
-    pi / 2); the share of the votes' weight near the histogram's peak.
-
-    The squared magnitude q = gx^2 + gy^2 and the doubled-angle vector (c2, s2) = (gx^2 -
-    gy^2, 2 gx gy) are exact integers, so is 4 phi's vector (c2^2 - s2^2, 2 c2 s2) (length
-    q^2): the pixels in the top ``share`` of q vote with weight sqrt(q) in ``nb`` bins of
-    4 phi = atan2 of that vector; the peak of the 3-bin smoothed histogram; the votes within
-    :data:`~tileviz.vision.robust.heading_kernel.NEAR` of it are averaged as vectors (weight x
-    unit vector, each its integer vector / q^1.5). Sums run in pixel order (row by row), one
-    term after the other."""
-    gx = dx[::2, ::2].astype(np.int64).ravel()
-    gy = dy[::2, ::2].astype(np.int64).ravel()
-    q = gx * gx + gy * gy
-    thr = voters(q, share)
-    if thr <= 0:
-        return False, 0.0, 0.0
-    sel = np.flatnonzero(q >= thr)
-    gx, gy, qs = gx[sel], gy[sel], q[sel]
-    c2 = gx * gx - gy * gy
-    s2 = 2 * gx * gy
-    cc = (c2 * c2 - s2 * s2).astype(np.float64)
-    ss = (2 * c2 * s2).astype(np.float64)
-    qf = qs.astype(np.float64)
-    g = np.sqrt(qf)
-    r = qf * g
-    theta = angles(ss, cc)
-    vc = cc / r
-    vs = ss / r
-    b = ((theta + math.pi) * (nb / (2.0 * math.pi))).astype(np.intp) % nb
-    hist = np.bincount(b, weights=g, minlength=nb)
-    smooth = (hist + np.roll(hist, 1)) + np.roll(hist, -1)
-    peak = (int(np.argmax(smooth)) + 0.5) * (2.0 * math.pi / nb) - math.pi
-    d = theta - peak
-    d = np.where(d > math.pi, d - 2.0 * math.pi, np.where(d < -math.pi, d + 2.0 * math.pi, d))
-    near = np.abs(d) < heading_kernel.NEAR
-
-    def total(a: np.ndarray) -> float:
-        # one term after the other, from 0.0 (as the compiled loop adds)
-        return float(np.cumsum(np.concatenate(([0.0], a)))[-1])
-
-    sw = total(g)
-    return (True, math.atan2(total(vs[near]), total(vc[near])) / 4.0,
-            total(g[near]) / max(sw, 1e-9))
 
 
 def lattice_power(img: np.ndarray, period: float, angles: np.ndarray, *, detrend: bool = True
