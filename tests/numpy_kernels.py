@@ -31,8 +31,8 @@ def angles(y: np.ndarray, x: np.ndarray) -> np.ndarray:
     return np.where(y < 0.0, -r, r)
 
 
-def heading_votes_numpy(dx: np.ndarray, dy: np.ndarray, share: float, nb: int
-                        ) -> tuple[bool, float, float]:
+def heading_votes_numpy(dx: np.ndarray, dy: np.ndarray, share: float, nb: int,
+                        near_peak: float, least: int) -> tuple[bool, float, float]:
     """The votes of :func:`first_heading` from the Scharr gradients ``dx``, ``dy`` (int16) of
     every other row and column: whether any gradient is non-zero; the heading (rad, modulo
     pi / 2); the share of the votes' weight near the histogram's peak.
@@ -41,13 +41,13 @@ def heading_votes_numpy(dx: np.ndarray, dy: np.ndarray, share: float, nb: int
     gy^2, 2 gx gy) are exact integers, so is 4 phi's vector (c2^2 - s2^2, 2 c2 s2) (length
     q^2): the pixels in the top ``share`` of q vote with weight sqrt(q) in ``nb`` bins of
     4 phi = atan2 of that vector; the peak of the 3-bin smoothed histogram; the votes within
-    :data:`~tileviz.vision.robust.heading_kernel.NEAR` of it are averaged as vectors (weight x
+    ``near_peak`` of it are averaged as vectors (weight x
     unit vector, each its integer vector / q^1.5). Sums run in pixel order (row by row), one
     term after the other."""
     gx = dx[::2, ::2].astype(np.int64).ravel()
     gy = dy[::2, ::2].astype(np.int64).ravel()
     q = gx * gx + gy * gy
-    thr = voters(q, share)
+    thr = voters(q, share, least)
     if thr <= 0:
         return False, 0.0, 0.0
     sel = np.flatnonzero(q >= thr)
@@ -68,7 +68,7 @@ def heading_votes_numpy(dx: np.ndarray, dy: np.ndarray, share: float, nb: int
     peak = (int(np.argmax(smooth)) + 0.5) * (2.0 * math.pi / nb) - math.pi
     d = theta - peak
     d = np.where(d > math.pi, d - 2.0 * math.pi, np.where(d < -math.pi, d + 2.0 * math.pi, d))
-    near = np.abs(d) < heading_kernel.NEAR
+    near = np.abs(d) < near_peak
 
     def total(a: np.ndarray) -> float:
         # one term after the other, from 0.0 (as the compiled loop adds)
@@ -82,7 +82,7 @@ def heading_votes_numpy(dx: np.ndarray, dy: np.ndarray, share: float, nb: int
 
 def fit_arrays_numpy(
     wp: np.ndarray, tp: np.ndarray, pp: np.ndarray, sig: np.ndarray, spr: np.ndarray, n0: int,
-    part_sigmas: float, prior: float, prior_dof: float
+    part_sigmas: float, prior: float, prior_dof: float, big_share: float
 ) -> tuple[float, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, float, float,
            float]:
     """The fit of :func:`fit_tilt` on the (lines, PARTS) arrays of the parts' lengths ``wp``
@@ -115,7 +115,7 @@ def fit_arrays_numpy(
     res = np.where(ok, p - (pos[:, None] + sign[:, None] * eps * t), 0.0)
     ss = float((w * res * res).sum())
     nobs = int(ok.sum())
-    big = ok & (wp >= 0.25 * wp.max(axis=1)[:, None])
+    big = ok & (wp >= big_share * wp.max(axis=1)[:, None])
     straight = float(np.abs(res[big]).max()) if big.any() else 0.0
     # The fit is linear in the part positions: d eps / d p_i = sign w_i (t_i - tb) / dall,
     # d pos / d p_i = w_i / sum(w) [its own line] - sign tb d eps / d p_i. With every part
@@ -144,7 +144,7 @@ def fit_arrays_numpy(
 def missing_line_numpy(n0: float, n1: float, hyp: float, ref: float, lp: float, reach: float,
                        margin: int, width: int, height: int, min_chord: float,
                        found: np.ndarray, peak: np.ndarray, fam: np.ndarray, k: int, pad: int,
-                       centre: float, near: float) -> bool:
+                       centre: float, near: float, found_share: float) -> bool:
     """Whether a line of family ``k`` that the lattice predicts at the signed offsets ``ref + j
     lp`` (px; ``(n0, n1)`` the family's unit normal, ``hyp`` its ``math.hypot``) within
     ``reach`` of the centre is missing: visible along at least ``min_chord`` of the longest
@@ -163,7 +163,7 @@ def missing_line_numpy(n0: float, n1: float, hyp: float, ref: float, lp: float, 
     visible = (ch[1:].reshape(3, -1) >= need).all(axis=0)
     dips = -(peak[fam == k] - pad - centre).astype(np.float64)
     for sj in s[visible].tolist():
-        if found.size == 0 or float(np.min(np.abs(found - sj))) > 0.25 * lp:
+        if found.size == 0 or float(np.min(np.abs(found - sj))) > found_share * lp:
             if dips.size and float(np.min(np.abs(dips - sj))) <= near:
                 continue
             return True
@@ -235,7 +235,8 @@ _NY = np.array([-1, 0, 1, -1, 0, 1, -1, 0, 1], np.intp)
 
 def end_steps_numpy(dx: np.ndarray, dy: np.ndarray, edges: np.ndarray, px: float, py: float,
                     ux: float, uy: float, band: float, n00: float, n01: float, n10: float,
-                    n11: float, sh0: float, sh1: float, lp: float, cos_tol: float
+                    n11: float, sh0: float, sh1: float, lp: float, cos_tol: float,
+                    inside_steps: int, far_steps: int, seen_share: float
                     ) -> tuple[int, np.ndarray, np.ndarray, int, int, int, bool, int, float]:
     """The steps of :func:`ends` from a straight edge's end (px, py) along the unit vector
     (ux, uy), 1 px apart, to the border of the view (``edges``: the edge pixels, HxW; ``dx``,
@@ -281,14 +282,14 @@ def end_steps_numpy(dx: np.ndarray, dy: np.ndarray, edges: np.ndarray, px: float
     if i0 == m:
         return 1, xs, ys, i0, m, m, False, 0, 0.0  # the border comes first
     hit = _oriented(dx, dy, edges, -uy, ux, cos_tol)
-    if i0 >= 4 and int(hit(xs[:i0], ys[:i0]).sum()) <= 0.5 * i0:
+    if i0 >= inside_steps and int(hit(xs[:i0], ys[:i0]).sum()) <= seen_share * i0:
         return 1, xs, ys, i0, m, m, False, 0, 0.0  # it ends inside the tile
     out = np.flatnonzero(~inb[i0:])
     i1 = i0 + int(out[0]) if out.size else m
     back = np.flatnonzero(inb[i1:])
     i2 = i1 + int(back[0]) if back.size else m
     n2 = i2 - i1
-    far = n2 >= 6 and int(hit(xs[i1:i2], ys[i1:i2]).sum()) >= 0.5 * n2
+    far = n2 >= far_steps and int(hit(xs[i1:i2], ys[i1:i2]).sum()) >= seen_share * n2
     k = 0 if float(dk[0][i0:i1].min()) <= float(dk[1][i0:i1].min()) else 1
     return 0, xs, ys, i0, i1, i2, far, k, float(dk[k][i0:i1].min())
 

@@ -294,14 +294,15 @@ def centroid(
 
 
 
-def grout_score_numpy(sums: np.ndarray, length: np.ndarray, closing: int) -> tuple[bool, float]:
+def grout_score_numpy(sums: np.ndarray, length: np.ndarray, closing: int, min_row: float,
+                      min_row_share: float, min_rows: int) -> tuple[bool, float]:
     """One family's term of :func:`light_grout`: whether the family has 8 rows long enough
     (at least 8 px and 15 % of the longest), and then the highest narrow peak of its profile
     (``sums / length`` over those rows, float32) above a grey opening minus the deepest
     narrow dip below a grey closing, both ``closing`` samples wide. :func:`~tileviz.vision.
     robust.projection_kernel.grout_score` is the same computation compiled (bit-identical)."""
-    ok = length >= max(8.0, 0.15 * float(length.max()))
-    if int(ok.sum()) < 8:
+    ok = length >= max(min_row, min_row_share * float(length.max()))
+    if int(ok.sum()) < min_rows:
         return False, 0.0
     prof = (sums[ok] / length[ok]).astype(np.float32)[None, :]
     # beyond the view: the median level (the tiles'), so that a stretch of tile or a line cut
@@ -341,7 +342,7 @@ def view_spans(
 
 def profile_arrays_numpy(
     sums0: np.ndarray, sums1: np.ndarray, lo0: np.ndarray, hi0: np.ndarray, lo1: np.ndarray,
-    hi1: np.ndarray, r: int, mean: float
+    hi1: np.ndarray, r: int, mean: float, min_row: float, min_row_share: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The (2, size) arrays of a :class:`Projection` (family k in row k, samples shifted by
     ``r``): the profile (``sums`` / in-view length + ``mean``, NaN beyond the data and where a
@@ -361,14 +362,15 @@ def profile_arrays_numpy(
         lo[k, r : r + n], hi[k, r : r + n] = spans[k]
         length = np.maximum(hi[k, r : r + n] - lo[k, r : r + n], 0.0)
         total[k, r : r + n] = length
-        valid = length >= max(8.0, 0.15 * float(length.max()))
+        valid = length >= max(min_row, min_row_share * float(length.max()))
         with np.errstate(invalid="ignore", divide="ignore"):  # length 0: not valid, NaN
             prof[k, r : r + n] = np.where(valid, sums[k] / length + mean, np.nan)
     return prof, lo, hi, total
 
 
 def profile_dips_numpy(
-    prof: np.ndarray, mean: float, closing: int, min_depth: float
+    prof: np.ndarray, mean: float, closing: int, min_depth: float, min_rows: int,
+    dip_noise: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The dips of both family profiles (rows of ``prof``, NaN where there is no data): the
     darkness ``dark`` below a grey closing of ``closing`` samples (max then min filter along
@@ -391,13 +393,13 @@ def profile_dips_numpy(
     peaks: list[tuple[int, int]] = []
     for k in range(prof.shape[0]):
         ok = ~missing[k]
-        if int(ok.sum()) < 8:
+        if int(ok.sum()) < min_rows:
             continue
         diffs = np.abs(np.diff(prof[k][ok]))
         kth = diffs.size // 2
         sig = 1.4826 * float(np.partition(diffs, kth)[kth]) / math.sqrt(2.0)
         noise[k] = sig
-        thr = max(0.5 * min_depth, 5.0 * sig)
+        thr = max(0.5 * min_depth, dip_noise * sig)
         dk = np.where(ok, dark[k], -np.inf)
         above = dk > thr
         if not above.any():

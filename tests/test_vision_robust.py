@@ -227,10 +227,10 @@ def test_missing_profile_samples_continue_the_nearest_level() -> None:
     row[44:48] = 20.0
     row[48:60] = 60.0
     prof = np.vstack([row, row])
-    dark, _, fam, peak = profile_dips_numpy(prof, 140.0, 21, 15.0)
+    dark, _, fam, peak = profile_dips_numpy(prof, 140.0, 21, 15.0, 8, 5.0)
     assert sorted(set(peak.tolist())) == [44]
     assert np.all(dark[0, 48:60] == 0.0)
-    kd, _, kf, kp = projection_kernel.profile_dips(prof, 140.0, 21, 15.0)
+    kd, _, kf, kp = projection_kernel.profile_dips(prof, 140.0, 21, 15.0, 8, 5.0)
     assert np.array_equal(kd, dark, equal_nan=True)
     assert kp.tolist() == peak.tolist() and kf.tolist() == fam.tolist()
 

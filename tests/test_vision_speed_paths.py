@@ -20,6 +20,7 @@ from tileviz.sim.camera import FloorRenderer
 from tileviz.types import Pose
 from tileviz.vision import extract
 from tileviz.vision.robust import (
+    DEFAULT_SETTINGS,
     extractor,
     fit_kernel,
     heading_kernel,
@@ -224,8 +225,8 @@ def test_the_compiled_light_grout_score_matches_numpy_on_any_profile(
     rng = np.random.default_rng(seed)
     sums = rng.normal(0.0, 3000.0, n)
     length = rng.uniform(0.0, 300.0, n)
-    used, value = projection_kernel.grout_score(sums, length, closing)
-    used_np, value_np = npf.grout_score_numpy(sums, length, closing)
+    used, value = projection_kernel.grout_score(sums, length, closing, 8.0, 0.15, 8)
+    used_np, value_np = npf.grout_score_numpy(sums, length, closing, 8.0, 0.15, 8)
     assert used == used_np
     assert not used or value.hex() == value_np.hex()
 
@@ -248,17 +249,18 @@ def test_the_compiled_heading_votes_match_numpy_on_any_gradients(
     mag[rng.random((h, w)) < zero_share] = 0.0
     dx = np.rint(mag * np.cos(phi)).astype(np.int16)
     dy = np.rint(mag * np.sin(phi)).astype(np.int16)
-    ref = nk.heading_votes_numpy(dx, dy, 0.2, heading.HEADING_BINS)
+    hst = DEFAULT_SETTINGS.heading
+    ref = nk.heading_votes_numpy(dx, dy, 0.2, hst.bins, hst.near, hst.min_voters)
     q = heading_kernel.heading_magnitudes(dx, dy)
-    thr = heading.voters(q, 0.2)
+    thr = heading.voters(q, 0.2, hst.min_voters)
     assert (thr > 0) == ref[0]
     if thr > 0:
-        y0, share = heading_kernel.heading_votes(dx, dy, q, thr, heading.HEADING_BINS)
+        y0, share = heading_kernel.heading_votes(dx, dy, q, thr, hst.bins, hst.near)
         assert y0.hex() == ref[1].hex() and share.hex() == ref[2].hex()
     clean_dx = np.full((40, 40), int(round(3000 * np.cos(angle))), np.int16)
     clean_dy = np.full((40, 40), int(round(3000 * np.sin(angle))), np.int16)
-    found, y_clean, _ = nk.heading_votes_numpy(clean_dx, clean_dy, 0.2,
-                                                    heading.HEADING_BINS)
+    found, y_clean, _ = nk.heading_votes_numpy(clean_dx, clean_dy, 0.2, hst.bins, hst.near,
+                                               hst.min_voters)
     if found:
         # gradient directions are normal to the lines; y3 is modulo pi / 2
         want = np.arctan2(float(clean_dy[0, 0]), float(clean_dx[0, 0]))
@@ -331,7 +333,7 @@ def test_the_compiled_missing_line_check_matches_numpy_on_any_lattice(
     args = (float(n[0]), float(n[1]), float(np.hypot(-n[1], n[0])), ref, lp, reach,
             int(rng.integers(5, 40)), w, h, float(rng.uniform(0.2, 0.9)))
     tail = (peak, fam, k, int(rng.integers(0, 40)), float(rng.uniform(0.0, 400.0)),
-            float(rng.uniform(1.0, 10.0)))
+            float(rng.uniform(1.0, 10.0)), 0.25)
     for got in (found, every, np.zeros(0)):
         assert lattice_kernel.missing_line(*args, got, *tail) == nk.missing_line_numpy(
             *args, got, *tail)
@@ -357,14 +359,14 @@ def test_the_compiled_fit_matches_numpy_on_any_parts(
     pp = np.where(wp > 0, straight + rng.normal(0.0, 0.3, (m, 4)), np.nan)
     sig = np.where(wp > 0, rng.random((m, 4)), 0.0)
     spr = np.where(wp > 0, rng.random((m, 4)), 0.0)
-    args = (wp, tp, pp, sig, spr, n0, 4.0, 4.5, 2.0)
+    args = (wp, tp, pp, sig, spr, n0, 4.0, 4.5, 2.0, 0.25)
     with np.errstate(invalid="ignore", divide="ignore"):
         ref = nk.fit_arrays_numpy(*args)
     got = fit_kernel.fit_arrays(*args)
     assert all(_bits(a) == _bits(b) for a, b in zip(got, ref, strict=True))
     exact = np.where(wp > 0, straight, np.nan)
     with np.errstate(invalid="ignore", divide="ignore"):
-        eps = nk.fit_arrays_numpy(wp, tp, exact, sig, spr, n0, 4.0, 4.5, 2.0)[0]
+        eps = nk.fit_arrays_numpy(wp, tp, exact, sig, spr, n0, 4.0, 4.5, 2.0, 0.25)[0]
     if ((wp > 0).sum(axis=1) >= 2).all():  # every line measured in two parts or more
         assert abs(eps - tilt) < 1e-6
 
@@ -408,7 +410,7 @@ def test_the_compiled_edge_shares_match_numpy(
     """Random straight edges (some under 1 px, some along the pixel axes) on random gradients
     and edge pixels: the compiled shares are numpy's bit for bit; an edge drawn along a column
     of edge pixels whose gradients are normal to it is seen on every point."""
-    from tileviz.vision.robust import foreign, foreign_kernel
+    from tileviz.vision.robust import foreign_kernel
 
     rng = np.random.default_rng(seed)
     h, w = size
@@ -418,7 +420,7 @@ def test_the_compiled_edge_shares_match_numpy(
     if count >= 2:
         seg[0, 2:] = seg[0, :2] + rng.uniform(-0.6, 0.6, 2)  # under 1 px
         seg[1, 2] = seg[1, 0]  # along a column
-    cos_tol = float(np.cos(foreign.NORMAL_TOLERANCE))
+    cos_tol = float(np.cos(DEFAULT_SETTINGS.foreign.normal_tolerance))
     got = foreign_kernel.edge_shares(dx, dy, edges, seg, cos_tol)
     assert got.tobytes() == nk.edge_shares_numpy(dx, dy, edges, seg, cos_tol).tobytes()
     col = w // 2
@@ -440,7 +442,7 @@ def test_the_compiled_end_steps_match_numpy(
     """Random edge ends (in the view and on its border, any direction, along the pixel axes
     too) on random lattices, gradients and edge pixels: the compiled steps to the border, the
     bands met and the edge seen before and beyond them are numpy's bit for bit."""
-    from tileviz.vision.robust import foreign, foreign_kernel
+    from tileviz.vision.robust import foreign_kernel
 
     rng = np.random.default_rng(seed)
     h, w = 240, 320
@@ -450,7 +452,8 @@ def test_the_compiled_end_steps_match_numpy(
     n = (np.sin(y3), -np.cos(y3)), (-np.cos(y3), -np.sin(y3))
     args = (px, py, float(np.cos(angle)), float(np.sin(angle)), band, float(n[0][0]),
             float(n[0][1]), float(n[1][0]), float(n[1][1]), float(rng.uniform(-lp, lp)),
-            float(rng.uniform(-lp, lp)), lp, float(np.cos(foreign.NORMAL_TOLERANCE)))
+            float(rng.uniform(-lp, lp)), lp,
+            float(np.cos(DEFAULT_SETTINGS.foreign.normal_tolerance)), 4, 6, 0.5)
     got = foreign_kernel.end_steps(dx, dy, edges, *args)
     ref = nk.end_steps_numpy(dx, dy, edges, *args)
     assert got[0] == ref[0] and tuple(got[3:8]) == tuple(ref[3:8])
@@ -470,7 +473,7 @@ def test_the_compiled_stretch_range_matches_numpy(
     """Random gray levels along a grout line (any stretch of it in view, the crossing inside
     or outside it): the compiled largest range of the stretches clear of the crossing is
     numpy's, NaN when too few stretches are clear."""
-    from tileviz.vision.robust import foreign_kernel, grout_levels
+    from tileviz.vision.robust import foreign_kernel
 
     rng = np.random.default_rng(seed)
     u = np.arange(-reach, reach + 1) * step
@@ -478,7 +481,8 @@ def test_the_compiled_stretch_range_matches_numpy(
     b = max(b, a + 20)
     idx = np.arange(a, b + 1)
     lv = np.floor(rng.uniform(0.0, 256.0, idx.size - 2))
-    args = (lv, idx, u, grout_levels.VARIATION_CLEAR, grout_levels.VARIATION_STRETCHES)
+    fst = DEFAULT_SETTINGS.foreign
+    args = (lv, idx, u, fst.variation_clear, fst.variation_stretches)
     got = foreign_kernel.stretch_range(*args)
     ref = nk.stretch_range_numpy(*args)
     assert float(got).hex() == float(ref).hex() or (np.isnan(got) and np.isnan(ref))

@@ -47,7 +47,7 @@ How it measures (vectorised numpy/OpenCV; timings in ``bench/bench_vision.py``):
    ``inconsistent spacing`` (line offsets not multiples of L apart, or a well-visible
    lattice line missing), ``too few segments`` (too little line length per
    family), ``imprecise`` (the view's own bound, :mod:`.bound`, exceeds the largest a view
-   may declare: ``RobustSettings.max_bound_px`` / ``max_bound_rad``, 5 px / 0.05 rad, or the
+   may declare: ``RobustSettings.bound.max_px`` / ``max_rad``, 5 px / 0.05 rad, or the
    configured ``VisionConfig`` bounds when larger), then
    ``foreign line`` / ``step edge`` again for a long straight edge that is not on the lattice
    (a cable; a box or shadow edge), found by a probabilistic Hough transform on the Canny edges

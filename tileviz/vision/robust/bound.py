@@ -15,9 +15,9 @@ def frame_bound(run: RobustRun, se: float) -> tuple[float, float]:
     line's width beyond the narrowest line's, chord-weighted as the lines' offsets are), plus a
     floor for what the scatter cannot show (interpolation, a band's width under uneven
     light, blur)."""
-    st = run.st
+    st = run.st.bound
     d = run.details
-    pos = (st.sigmas * se + d["spacing_residual_px"] + 0.5 * d["straightness_px"]
+    pos = (run.st.fit.sigmas * se + d["spacing_residual_px"] + 0.5 * d["straightness_px"]
            + d["position_parts"] + d["width_excess_px"]
            + st.floor_px + st.floor_width * d["width"] + st.floor_rise * d["rise"])
     head = st.heading_sigmas * d["heading_se"] + d["heading_parts"] + st.floor_rad

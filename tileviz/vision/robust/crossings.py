@@ -19,13 +19,6 @@ from tileviz.vision.robust.state import Line, RobustRun
 
 __all__ = ["crossing_depths", "crossing_spread", "crossings_agree"]
 
-REACH = 20
-"""Longest stretch (px) of each line read on each side of a crossing, beyond the other
-line's band."""
-MIN_REACH = 6
-"""Shortest such stretch (px): a crossing nearer the border of the view is not read."""
-
-
 def crossings_agree(run: RobustRun, lines: list[list[Line]]) -> bool:
     """Whether the lines of lighter grout (an inverted view) are one grout by their depths
     beside the crossings (:func:`crossing_spread`): the two lines of every crossing read
@@ -33,7 +26,7 @@ def crossings_agree(run: RobustRun, lines: list[list[Line]]) -> bool:
     border of the view) agrees in contrast (depth over the tiles' inverted level, or over
     the grout's own level) within ``contrast_ratio`` with one that was. Records
     ``crossing_spread`` and ``crossing_lines`` (how many lines were read) in the details."""
-    st = run.st
+    st = run.st.lines
     worst, read = crossing_spread(run, lines)
     run.details["crossing_spread"] = worst
     run.details["crossing_lines"] = float(len(read))
@@ -70,14 +63,14 @@ def crossing_spread(run: RobustRun, lines: list[list[Line]]) -> tuple[float, lis
 
 def crossing_depths(run: RobustRun, a: Line, b: Line) -> tuple[float, float] | None:
     """The depths (levels of the warped view, as the profiles read them) of line ``a``
-    (family 1, a warp row) and line ``b`` (family 2, a warp column) beside their crossing,
-    read between the same tiles: each band's profile averaged along its line over up to
-    ``REACH`` px (as far as the view allows, alike) on both sides of the crossing, beyond the
-    other band's window, its depth the mean of the 4 samples beyond its own window on each
-    side minus the band's lowest sample. Where the view holds only one side of the crossing
-    for either line (near its border), each line is read on one side and its depth taken
-    over the plateau of the one tile both readings share (of the quarters the view holds,
-    the one where the two depths agree best). None when no quarter can be read."""
+    (family 1, a warp row) and line ``b`` (family 2, a warp column) beside their crossing, read
+    between the same tiles: each band's profile averaged along its line over up to
+    ``lines.crossing_reach`` px (as far as the view allows, alike) on both sides of the crossing,
+    beyond the other band's window, its depth the mean of the 4 samples beyond its own window on
+    each side minus the band's lowest sample. Where the view holds only one side of the crossing for
+    either line (near its border), each line is read on one side and its depth taken over the
+    plateau of the one tile both readings share (of the quarters the view holds, the one where the
+    two depths agree best). None when no quarter can be read."""
     proj = run.projection
     if proj is None or run.y3 is None:
         return None
@@ -119,12 +112,12 @@ def ratio(a: float, b: float) -> float:
 def band_profiles(run: RobustRun, k: int, at: float, along: float, half: float,
                   other: float) -> list[tuple[float, float, float] | None] | None:
     """The family-``k`` band centred at profile coordinate ``at`` (a warp row for k = 0, a
-    column for k = 1), read along the band beside the tangent position ``along`` (warp
-    column for k = 0, row for k = 1), beyond ``other`` px (the crossing band's half window)
-    + 2; ``half``: this band's own half window. Three readings: on both sides alike, on the
-    lower side only, on the higher side only; each (depth over both plateaus, depth over
-    the lower-side plateau, depth over the higher-side plateau), or None where the view does
-    not hold ``MIN_REACH`` px of it. None when the band's window leaves the warped view."""
+    column for k = 1), read along the band beside the tangent position ``along`` (warp column for k
+    = 0, row for k = 1), beyond ``other`` px (the crossing band's half window) + 2; ``half``: this
+    band's own half window. Three readings: on both sides alike, on the lower side only, on the
+    higher side only; each (depth over both plateaus, depth over the lower-side plateau, depth over
+    the higher-side plateau), or None where the view does not hold ``lines.crossing_min_reach`` px
+    of it. None when the band's window leaves the warped view."""
     proj = run.projection
     integ = proj.integ
     r0 = int(math.ceil(other + 2.0))
@@ -143,8 +136,9 @@ def band_profiles(run: RobustRun, k: int, at: float, along: float, half: float,
     gap_lo = mid - r0
     gap_hi = mid + r0 + 1  # exclusive
     # (a side whose start lies beyond the view has no room)
-    room_lo = min(REACH, int(math.floor(gap_lo - lo))) if gap_lo <= hi + 1.0 else 0
-    room_hi = min(REACH, int(math.floor(hi + 1.0 - gap_hi))) if gap_hi >= lo else 0
+    reach, least = run.st.lines.crossing_reach, run.st.lines.crossing_min_reach
+    room_lo = min(reach, int(math.floor(gap_lo - lo))) if gap_lo <= hi + 1.0 else 0
+    room_hi = min(reach, int(math.floor(hi + 1.0 - gap_hi))) if gap_hi >= lo else 0
     cum = integ[idx + 1] - integ[idx] if k == 0 else (integ[:, idx + 1] - integ[:, idx]).T
     j = idx - at
     core = np.abs(j) <= max(1.0, 0.5 * (half - 1.5) / 1.5 + 1.0)
@@ -155,7 +149,7 @@ def band_profiles(run: RobustRun, k: int, at: float, along: float, half: float,
         return None
 
     def read(lo_n: int, hi_n: int) -> tuple[float, float, float] | None:
-        if min(r for r in (lo_n, hi_n) if r) < MIN_REACH:
+        if min(r for r in (lo_n, hi_n) if r) < least:
             return None
         tot = np.zeros(idx.size)
         if lo_n:
@@ -168,6 +162,6 @@ def band_profiles(run: RobustRun, k: int, at: float, along: float, half: float,
         return 0.5 * (pl + pr) - bottom, pl - bottom, pr - bottom
 
     both = min(room_lo, room_hi)
-    return [read(both, both) if both >= MIN_REACH else None,
-            read(room_lo, 0) if room_lo >= MIN_REACH else None,
-            read(0, room_hi) if room_hi >= MIN_REACH else None]
+    return [read(both, both) if both >= least else None,
+            read(room_lo, 0) if room_lo >= least else None,
+            read(0, room_hi) if room_hi >= least else None]

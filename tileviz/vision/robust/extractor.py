@@ -102,7 +102,8 @@ def execute(run: RobustRun) -> None:
         tried = [(y0, run.inverted)]
         for alt in retry_headings(run):
             t = run.lap("heading", t)
-            if any(abs(math.remainder(alt - y, QUARTER)) < 0.004 for y, _ in tried):
+            if any(abs(math.remainder(alt - y, QUARTER)) < run.st.heading.same_heading
+                   for y, _ in tried):
                 continue
             run.details["heading_retry"] = float(len(tried))
             lines, y3, t, ok = read_again(run, start, alt, t)
@@ -195,7 +196,9 @@ def read_lines(run: RobustRun, y3: float, t: float) -> tuple[list[list[Line]], f
     (up to three times) while the correction exceeds ``refine_tilt``; the lines, the corrected
     heading and the time (perf_counter) after the "profiles" lap. Sets ``run.lines`` and
     ``run.y3``."""
-    for attempt in range(3):
+    pst = run.st.profiles
+    last = run.st.heading.max_warps - 1
+    for attempt in range(last + 1):
         lines = on_lattice(run, select_lines(run, measure(run, y3, attempt)))
         # a window too narrow for the grout (a wide band): measure again with a wider one
         width = run.details.get("width", math.nan) if lines[0] or lines[1] else math.nan
@@ -203,20 +206,20 @@ def read_lines(run: RobustRun, y3: float, t: float) -> tuple[list[list[Line]], f
             # the deepest dip was too wide for the window: the lines kept are shallower
             # ones (a texture's), the grout band is measured with a window fitting it
             width = max(width, run.unmeasured_width) if math.isfinite(width) else width
-        need = run.closing + 8
+        need = run.widest
         if math.isfinite(width):
-            need = min(int(math.ceil(1.5 * width + 12.0)), need)
+            need = min(int(math.ceil(pst.window_per_width * width + pst.window_margin)), need)
         if need > run.window:
             run.window = need
             lines = on_lattice(run, select_lines(run, measure(run, y3, attempt + 1)))
         tilt = fit_tilt(run, lines)
-        if run.details["straightness_px"] > run.st.straight_fraction * run.bound_px:
+        if run.details["straightness_px"] > run.st.lines.straight_fraction * run.bound_px:
             run.not_straight = True
             if run.drop_stray and drop_stray_part(run, lines, tilt):
                 tilt = fit_tilt(run, lines)  # without the part that kept them from straight
         t = run.lap("profiles", t)
         y3 += tilt
-        if abs(tilt) <= run.st.refine_tilt or attempt == 2:
+        if abs(tilt) <= run.st.heading.refine_tilt or attempt == last:
             break
     run.lines = lines
     run.y3 = y3

@@ -25,7 +25,7 @@ def fit_tilt(run: RobustRun, lines: list[list[Line]]) -> float:
     (:func:`~tileviz.vision.robust.fit_kernel.fit_arrays`)."""
     every = lines[0] + lines[1]
     m = len(every)
-    st = run.st
+    st = run.st.fit
     if m == 0:
         run.details["straightness_px"] = 0.0
         run.part_bound = np.zeros(0)
@@ -37,7 +37,7 @@ def fit_tilt(run: RobustRun, lines: list[list[Line]]) -> float:
         np.array([ln.wpart for ln in every]), np.array([ln.tpart for ln in every]),
         np.array([ln.parts for ln in every]), np.array([ln.sigma for ln in every]),
         np.array([ln.spread for ln in every]), len(lines[0]), st.part_sigmas,
-        st.prior_dof * st.prior_sigma**2, st.prior_dof)
+        st.prior_dof * st.prior_sigma**2, st.prior_dof, run.st.lines.straight_part_share)
     run.details["straightness_px"] = straight
     run.part_bound = part_bound
     run.details["heading_parts"] = float(np.dot(np.abs(d_eps), part_bound))
@@ -53,16 +53,18 @@ def fit_tilt(run: RobustRun, lines: list[list[Line]]) -> float:
 def drop_stray_part(run: RobustRun, lines: list[list[Line]], eps: float) -> bool:
     """Leave out (``wpart`` 0, position NaN) the one part that keeps the lines from being
     straight, when it is unambiguous: exactly one part of the whole view (among those the
-    straightness weighs, a quarter of its line's longest part or more) lies farther than the
-    straightness limit (``straight_fraction`` x ``run.bound_px``) from the common fit of tilt
-    ``eps`` (rad) and its line's other parts, which are at least 2 (of those so weighed) and
-    lie within half that limit of their own mean offset from that fit; no other line has a
+    straightness weighs, ``lines.straight_part_share`` of its line's longest part or more) lies
+    farther than the straightness limit (``lines.straight_fraction`` x ``run.bound_px``) from
+    the common fit of tilt ``eps`` (rad) and its line's other parts, which are at least
+    ``lines.stray_min_rest`` (of those so weighed) and lie within ``lines.stray_share`` of that
+    limit of their own mean offset from that fit; no other line has a
     part beyond the limit. A dip of the texture (a mortar joint of a brick
     photograph a few px beside the grout) measured instead of the grout in one part of a short
     line moves that part alone; the line is then measured by its other parts. True when a
     part was left out (the caller fits again; every check then applies as before). Used only
     in a second reading of a view the first refused (``RobustRun.drop_stray``)."""
-    limit = run.st.straight_fraction * run.bound_px
+    st = run.st.lines
+    limit = st.straight_fraction * run.bound_px
     stray: list[tuple[Line, int]] = []
     for k, fam in enumerate(lines):
         sign = 1.0 if k == 0 else -1.0
@@ -70,19 +72,20 @@ def drop_stray_part(run: RobustRun, lines: list[list[Line]], eps: float) -> bool
             ok = ln.wpart > 0
             if not ok.any():
                 continue
-            big = np.flatnonzero(ok & (ln.wpart >= 0.25 * float(ln.wpart.max())))
+            big = np.flatnonzero(ok & (ln.wpart >= st.straight_part_share
+                                       * float(ln.wpart.max())))
             res = ln.parts[big] - (ln.pos + sign * eps * ln.tpart[big])
             if float(np.abs(res).max()) <= limit:
                 continue
             found = []
             for j in range(big.size):
                 rest = np.delete(np.arange(big.size), j)
-                if rest.size < 2:
+                if rest.size < st.stray_min_rest:
                     continue
                 # the line without part j: its parts' mean offset from the common fit
                 m = float(np.average(res[rest], weights=ln.wpart[big[rest]]))
                 if (abs(res[j] - m) > limit
-                        and float(np.abs(res[rest] - m).max()) <= 0.5 * limit):
+                        and float(np.abs(res[rest] - m).max()) <= st.stray_share * limit):
                     found.append(int(big[j]))
             if len(found) != 1:
                 return False
@@ -99,7 +102,7 @@ def drop_stray_part(run: RobustRun, lines: list[list[Line]], eps: float) -> bool
 
 def check_lines(run: RobustRun, lines: list[list[Line]]) -> None:
     """Refuse (the first failing check) unless the lines look like one lattice's grout."""
-    st = run.st
+    st = run.st.lines
     if not lines[0] and not lines[1]:
         raise Fail("no lines")
     if run.details["depth"] < st.min_depth:
@@ -118,7 +121,7 @@ def check_lines(run: RobustRun, lines: list[list[Line]]) -> None:
         raise Fail("step edge")
     if (
         run.details["straightness_px"] > st.straight_fraction * run.bound_px
-        or run.details["tilt_gap"] > st.sigmas
+        or run.details["tilt_gap"] > run.st.fit.sigmas
     ):
         raise Fail("inconsistent angle")
     # Grout lines of both families share one width and one colour: a line unlike the

@@ -20,7 +20,7 @@ __all__ = ["fit_arrays"]
 @compiled
 def fit_arrays(
     wp: np.ndarray, tp: np.ndarray, pp: np.ndarray, sig: np.ndarray, spr: np.ndarray, n0: int,
-    part_sigmas: float, prior: float, prior_dof: float
+    part_sigmas: float, prior: float, prior_dof: float, big_share: float
 ) -> tuple[float, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, float, float,
            float]:
     """The fit of :func:`~tileviz.vision.robust.fit.fit_tilt` on the (lines, PARTS) arrays of
@@ -29,7 +29,7 @@ def fit_arrays(
     family 1): eps (rad); each line's pos and var; its influence row ``g`` (d pos / d every
     measured part); d eps / d every measured part; every measured part's own bound
     (``part_sigmas`` sigma + spread); the straightness (px: the largest residual of the parts
-    a quarter of their line's longest or more), the heading's standard error and the tilt gap
+    ``big_share`` of their line's longest or more), the heading's standard error and the tilt gap
     (the two families' own tilts apart, in standard errors). ``prior`` is ``prior_dof`` x the
     prior sigma squared.
 
@@ -104,7 +104,7 @@ def fit_arrays(
             flat[i * parts + j] = w[i, j] * r * r
             if ok[i, j]:
                 nobs += 1
-                if wp[i, j] >= 0.25 * wmax:
+                if wp[i, j] >= big_share * wmax:
                     straight = _max(straight, abs(r))
                     anybig = True
                 d_eps[k] = sign[i] * w[i, j] * dt[i, j] / dmax

@@ -14,7 +14,6 @@ import numpy as np
 from tileviz.vision.geometry import family_normals
 from tileviz.vision.robust import foreign_kernel
 from tileviz.vision.robust.grout_levels import (
-    STRADDLE_ONE_SIDED,
     conclusive,
     pass_unchanged,
     straddle,
@@ -30,26 +29,26 @@ __all__ = ["classify_edge", "clear_of_lattice", "draw_lattice_mask", "foreign_ed
 def foreign_edges(run: RobustRun) -> None:
     """Refuse when a long straight edge is not explained by the predicted grout lines."""
     assert run.y is not None and run.dxy is not None
-    # Edges at least ``foreign_contrast`` of the grout's own contrast (in gray levels: a
-    # texture's fine edges are not objects) and above the noise. Scharr answers 16 x a unit
-    # step; its noise is about 15.4 sigma per component.
+    # Edges at least ``foreign.contrast`` of the grout's own contrast (in gray levels: a
+    # texture's fine edges are not objects) and above the noise.
+    st = run.st.foreign
     dx, dy = run.dxy
-    high = max(240.0, 6.0 * 15.4 * run.details["noise_sigma"],
-               16.0 * run.st.foreign_contrast * run.details["depth"])
-    run.edges = cv2.Canny(dx, dy, 0.5 * high, high, L2gradient=True)
+    high = max(st.min_edge, st.edge_noise * SCHARR_NOISE * run.details["noise_sigma"],
+               SCHARR_STEP * st.contrast * run.details["depth"])
+    run.edges = cv2.Canny(dx, dy, st.canny_low * high, high, L2gradient=True)
     free = run.edges.copy()
     wmax = max(ln.width for fam in run.lines for ln in fam)
     thick = int(math.ceil(wmax + 2.0 * max(2.0, 0.5 * wmax) + 2.0))
     draw_lattice_mask(free, run.y, run.ppm, run.tile_size, thick)
     run.free_edges = free
-    minlen = max(25.0, run.st.foreign_length * run.side)
-    votes = int(0.5 * minlen)
+    minlen = max(st.min_length, st.length * run.side)
+    votes = int(st.vote_share * minlen)
     # a segment needs that many votes, at most one per edge pixel: with fewer free edge
     # pixels (a clean view: every edge lies on the grout) the search finds none
     if cv2.countNonZero(free) < votes:
         return
     seg = cv2.HoughLinesP(
-        free, 1.0, math.pi / 180.0, votes, minLineLength=minlen, maxLineGap=3.0
+        free, 1.0, math.pi / 180.0, votes, minLineLength=minlen, maxLineGap=st.max_gap
     )
     if seg is None:
         return
@@ -69,14 +68,14 @@ def clear_of_lattice(run: RobustRun, seg: np.ndarray) -> np.ndarray:
     could have moved a measured grout line. Exempt:
 
     - a chance alignment of a texture's edges (grains, chips, a wavy grain): fewer than
-      :data:`TEXTURE_SHARE` of its points lie on an edge pixel whose gradient is normal to it
+      ``foreign.texture_share`` of its points lie on an edge pixel whose gradient is normal to it
       (:func:`edge_share`); the edge of one object has nearly all of them;
-    - an edge along one line family (within :data:`PARALLEL`) whose whole line, extended
-      across the view, stays between two measurement bands of that family (a dip's position
-      reads its profile only within its band, :func:`measurement_band`), where that family's
-      profile shows no dip a quarter as deep as the other family's grout (a missed grout
-      line would, whatever the lines were taken for): the mortar of a brick photograph, a
-      plank's edge, a cable or a shadow along the grout in the middle of a tile;
+    - an edge along one line family (within ``foreign.parallel``) whose whole line, extended across
+      the view, stays between two measurement bands of that family (a dip's position reads its
+      profile only within its band, :func:`measurement_band`), where that family's profile shows no
+      dip ``foreign.grout_like`` as deep as the other family's grout (a missed grout line would,
+      whatever the lines were taken for): the mortar of a brick photograph, a plank's edge, a cable
+      or a shadow along the grout in the middle of a tile;
     - an edge whose object stops, on both sides, before or at the grout lines (:func:`ends`):
       its line, followed from each end, sees the edge on at most half the steps to the next
       band, or runs into the grout without changing the grout's gray level there
@@ -111,9 +110,10 @@ def clear_of_lattice(run: RobustRun, seg: np.ndarray) -> np.ndarray:
         return tuple(n[0] * (px - cx) + n[1] * (py - cy) + sh
                      for n, sh in zip(normals, shift, strict=True))
 
+    st = run.st.foreign
     share = edge_share(run, seg)
     for i, (x1, y1, x2, y2) in enumerate(seg.tolist()):
-        if share[i] < TEXTURE_SHARE:
+        if share[i] < st.texture_share:
             out[i] = True
             continue
         ln = max(math.hypot(x2 - x1, y2 - y1), 1e-9)
@@ -123,7 +123,7 @@ def clear_of_lattice(run: RobustRun, seg: np.ndarray) -> np.ndarray:
             continue
         ea, eb = offsets(e[0], e[1]), offsets(e[2], e[3])
         span = max(math.hypot(e[2] - e[0], e[3] - e[1]), 1e-9)
-        if any(abs(eb[k] - ea[k]) <= PARALLEL * span and free_cell(ea[k], eb[k])
+        if any(abs(eb[k] - ea[k]) <= st.parallel * span and free_cell(ea[k], eb[k])
                for k in range(2)) and not grout_like(run, proj, e):
             out[i] = True
             continue
@@ -135,30 +135,23 @@ def clear_of_lattice(run: RobustRun, seg: np.ndarray) -> np.ndarray:
     return out
 
 
-PARALLEL = 0.03
-"""An edge runs along a line family when its direction is within this angle (rad) of it: it
-crosses the other family's lines nearly at right angles, adding about the same to every
-sample of their profiles (:func:`clear_of_lattice`)."""
-
-
 def edge_share(run: RobustRun, seg: np.ndarray) -> np.ndarray:
     """For each straight edge (rows of ``seg``: x1, y1, x2, y2, px), the share of the points
     along it (1 px apart) within 1 px of an edge pixel whose gradient is normal to it within
-    :data:`NORMAL_TOLERANCE`, of either sign: about 1 for the edge of one object (a cable, a
+    ``foreign.normal_tolerance``, of either sign: about 1 for the edge of one object (a cable, a
     box, a shadow), much less for a chance alignment of a texture's edges (grains, chips, a
     wavy grain), whose directions scatter (compiled:
     :func:`~tileviz.vision.robust.foreign_kernel.edge_shares`)."""
     assert run.edges is not None and run.dxy is not None
     return foreign_kernel.edge_shares(run.dxy[0], run.dxy[1], run.edges,
-                                      np.ascontiguousarray(seg, np.float64), _COS_TOL)
+                                      np.ascontiguousarray(seg, np.float64),
+                                      math.cos(run.st.foreign.normal_tolerance))
 
 
-TEXTURE_SHARE = 0.75
-"""A straight edge with a smaller :func:`edge_share` is a chance alignment of texture edges."""
-NORMAL_TOLERANCE = math.radians(25.0)
-"""An edge pixel belongs to a straight edge when its gradient is this close to the edge's
-normal (rad)."""
-_COS_TOL = math.cos(NORMAL_TOLERANCE)
+SCHARR_STEP = 16.0
+"""Scharr's answer to a unit step of gray levels (its gain)."""
+SCHARR_NOISE = 15.4
+"""Scharr's noise per gray level of pixel noise std, per component."""
 
 
 def measurement_band(run: RobustRun) -> float:
@@ -172,7 +165,7 @@ def measurement_band(run: RobustRun) -> float:
 
 def grout_like(run: RobustRun, proj: object, e: tuple[float, float, float, float]) -> bool:
     """Whether the profile of the warp family that the line ``e`` (endpoints, px) runs along
-    dips there at least a quarter as deep as the other family's grout lines."""
+    dips there at least ``foreign.grout_like`` as deep as the other family's grout lines."""
     from tileviz.vision.robust.projection import Projection
 
     assert isinstance(proj, Projection)
@@ -187,7 +180,7 @@ def grout_like(run: RobustRun, proj: object, e: tuple[float, float, float, float
     dark = proj.dark[k, max(i0, 0) : max(i1 + 1, 0)]
     dark = dark[np.isfinite(dark)]
     grout = float(np.median([g.depth for g in run.lines[1 - k]]))
-    return dark.size > 0 and float(dark.max()) >= 0.25 * grout
+    return dark.size > 0 and float(dark.max()) >= run.st.foreign.grout_like * grout
 
 
 def ends(run: RobustRun, px: float, py: float, dx: float, dy: float, band: float,
@@ -198,46 +191,48 @@ def ends(run: RobustRun, px: float, py: float, dx: float, dy: float, band: float
     (``band``: :func:`measurement_band`; ``normals``, ``shift``: each family's unit normal and
     offset, px, so that its lines lie where ``n . (p - centre) + shift`` is a multiple of the
     tile period). A step *sees the edge* when it lies within 1 px of an edge pixel whose
-    gradient is normal to the edge within :data:`NORMAL_TOLERANCE` (a texture's edges across
+    gradient is normal to the edge within ``foreign.normal_tolerance`` (a texture's edges across
     it do not count; compiled: :func:`~tileviz.vision.robust.foreign_kernel.end_steps`).
 
     - The border of the view comes before any band: True.
-    - At least 4 steps lead to the next band and at most half of them see the edge: it ends
-      inside the tile (True).
+    - At least ``foreign.inside_steps`` steps lead to the next band and at most
+      ``foreign.seen_share`` of them see the edge: it ends inside the tile (True).
     - Where the line meets the grout's centre line, the grout's gray level beside the line
       (:func:`straddle`) tells: an object crossing the grout covers it on one side (a cable,
       a box) or darkens it (a shadow), so the level varies there by more than
-      :data:`STRADDLE_SIGMAS` x the image noise + :data:`STRADDLE_LEVELS` and more than the
+      ``foreign.straddle_sigmas`` x the image noise + ``straddle_levels`` and more than the
       grout varies by itself elsewhere on its line (:func:`grout_variation`; where that
       cannot be read, about the levels' straight trend, :func:`trend_range`) (False); a
       texture's edge stops at the grout and leaves it alike (True when both sides of the
       crossing are read and the edge is not seen beyond the band). Where the line crosses
-      the grout at under :data:`STRADDLE_ONE_SIDED`, or one side only is read, the far side
-      in view (at least 6 steps) without the edge is enough (True), as where the grout
-      cannot be read.
-    - Beyond the band, up to the next band (at least 6 steps in view), at least half the
-      steps see the edge (the object may go on across the grout, or the line runs along
-      another tile's texture), or only one side of the crossing is in view and the far side
-      is not: True only when the object, had it crossed, would have changed the grout's level
+      the grout at under ``foreign.straddle_one_sided``, or one side only is read, the far side
+      in view (at least ``foreign.far_steps`` steps) without the edge is enough (True), as
+      where the grout cannot be read.
+    - Beyond the band, up to the next band (at least ``far_steps`` steps in view), at least
+      ``seen_share`` of the steps see the edge (the object may go on across the grout, or the line
+      runs along another tile's texture), or only one side of the crossing is in view and the far
+      side is not: True only when the object, had it crossed, would have changed the grout's level
       there (:func:`conclusive`), else False.
-    - The line does not reach the grout's core in the view: False when the edge is seen
-      beyond the band; else True when the band runs to the border of the view or the far
-      side is in view (6 steps or more); else (it leaves the band within 6 steps of the
+    - The line does not reach the grout's core in the view: False when the edge is seen beyond the
+      band; else True when the band runs to the border of the view or the far side is in view
+      (``far_steps`` steps or more); else (it leaves the band within ``far_steps`` steps of the
       border or of another band) the grout's core beside its pass through the band
-      (:func:`pass_unchanged`) must not vary by more than that limit and be conclusive, as
-      where a crossing is read on one side only. The grout cannot be read where the line
-      meets it (within 0.05 rad of the grout, or the crossing out of the view): True when the
-      far side is in view without the edge, else the grout's core beside the line's pass
-      through the band decides in the same way (:func:`pass_unchanged`).
+      (:func:`pass_unchanged`) must not vary by more than that limit and be conclusive, as where a
+      crossing is read on one side only. The grout cannot be read where the line meets it (within
+      ``foreign.straddle_parallel`` of the grout, or the crossing out of the view): True when the
+      far side is in view without the edge, else the grout's core beside the line's pass through the
+      band decides in the same way (:func:`pass_unchanged`).
 
     Assumed: an object whose gray level matches the grout's where it crosses it (within
-    :data:`CONCLUSIVE` x the straddle's limit when the edge is seen beyond the band or the
+    ``foreign.conclusive`` x the straddle's limit when the edge is seen beyond the band or the
     far side is out of view; within that limit otherwise), or whose step darkens the tiles
     by less than that limit, is not told from texture at that end."""
     assert run.edges is not None and run.dxy is not None
+    st = run.st.foreign
     done, xs, ys, i0, i1, i2, far, k, dmin = foreign_kernel.end_steps(
         run.dxy[0], run.dxy[1], run.edges, px, py, dx, dy, band, normals[0][0], normals[0][1],
-        normals[1][0], normals[1][1], shift[0], shift[1], run.lp, _COS_TOL)
+        normals[1][0], normals[1][1], shift[0], shift[1], run.lp,
+        math.cos(st.normal_tolerance), st.inside_steps, st.far_steps, st.seen_share)
     if done:
         return True  # the border comes first, or the edge ends inside the tile
     n2 = i2 - i1
@@ -247,23 +242,23 @@ def ends(run: RobustRun, px: float, py: float, dx: float, dy: float, band: float
         # the line does not reach the grout of this band in the view
         if far:
             return False  # seen beyond the band
-        if i1 == xs.size or n2 >= 6:
+        if i1 == xs.size or n2 >= st.far_steps:
             return True
-        # it leaves the band within 6 steps of the border or of the next band: the grout
+        # it leaves the band within far_steps steps of the border or of the next band: the grout
         # beside its pass through the band decides, as at a crossing seen on one side only
         return pass_unchanged(run, xs, ys, i0, i1, px, py, dx, dy, normals[k], shift[k])
     read = straddle(run, px, py, dx, dy, normals[k], shift[k])
     if read is None:
-        if n2 >= 6 and not far:
+        if n2 >= st.far_steps and not far:
             return True
-        # the crossing cannot be read (the line meets the grout within STRADDLE_PARALLEL of
+        # the crossing cannot be read (the line meets the grout within straddle_parallel of
         # it, or where it lies out of view): the grout's core beside the line's whole pass
         # through the band decides, as where the line does not reach the core
         return pass_unchanged(run, xs, ys, i0, i1, px, py, dx, dy, normals[k], shift[k],
                               seen_beyond)
     core, both, own = read
-    steep = both and abs(normals[k][0] * dx + normals[k][1] * dy) >= STRADDLE_ONE_SIDED
-    if not far and n2 >= 6 and not steep:
+    steep = both and abs(normals[k][0] * dx + normals[k][1] * dy) >= st.straddle_one_sided
+    if not far and n2 >= st.far_steps and not steep:
         return True  # as where the grout cannot be read: the far side is in view, unseen
     limit = straddle_limit(run)
     allowed = max(limit, own) if math.isfinite(own) else limit

@@ -89,7 +89,8 @@ def edge_shares(dx: np.ndarray, dy: np.ndarray, edges: np.ndarray, seg: np.ndarr
 @compiled
 def end_steps(dx: np.ndarray, dy: np.ndarray, edges: np.ndarray, px: float, py: float,
               ux: float, uy: float, band: float, n00: float, n01: float, n10: float,
-              n11: float, sh0: float, sh1: float, lp: float, cos_tol: float
+              n11: float, sh0: float, sh1: float, lp: float, cos_tol: float,
+              inside_steps: int, far_steps: int, seen_share: float
               ) -> tuple[int, np.ndarray, np.ndarray, int, int, int, bool, int, float]:
     """The steps of :func:`~tileviz.vision.robust.foreign.ends` from a straight edge's end
     (px, py) along the unit vector (ux, uy), 1 px apart, to the border of the view (``edges``:
@@ -99,11 +100,12 @@ def end_steps(dx: np.ndarray, dy: np.ndarray, edges: np.ndarray, px: float, py: 
     period ``lp``, px).
 
     Returns (done, xs, ys, i0, i1, i2, far, k, dmin): ``done`` (1) when the border of the view
-    comes before any band, or at least 4 steps lead to the first band and at most half of them
-    see the edge (:func:`_hit` with tolerance cosine ``cos_tol``); else the steps (xs, ys,
-    pixels), the first step in a band ``i0``, the first after it out of the bands ``i1``, the
-    first in a band again ``i2`` (the number of steps when none), whether at least 6 steps lie
-    between and at least half of them see the edge (``far``), the family ``k`` whose lines
+    comes before any band, or at least ``inside_steps`` steps lead to the first band and at
+    most ``seen_share`` of them see the edge (:func:`_hit` with tolerance cosine ``cos_tol``);
+    else the steps (xs, ys, pixels), the first step in a band ``i0``, the first after it out of
+    the bands ``i1``, the first in a band again ``i2`` (the number of steps when none), whether
+    at least ``far_steps`` steps lie between and at least ``seen_share`` of them see the edge
+    (``far``), the family ``k`` whose lines
     come nearest in ``i0..i1`` and that distance ``dmin`` (px)."""
     h, w = edges.shape
     empty = np.zeros(0, np.intp)
@@ -158,7 +160,8 @@ def end_steps(dx: np.ndarray, dy: np.ndarray, edges: np.ndarray, px: float, py: 
         return 1, xs, ys, i0, m, m, False, 0, 0.0  # the border comes first
     nx = -uy
     ny = ux
-    if i0 >= 4 and _count_hits(dx, dy, edges, xs, ys, 0, i0, nx, ny, cos_tol) <= 0.5 * i0:
+    if (i0 >= inside_steps
+            and _count_hits(dx, dy, edges, xs, ys, 0, i0, nx, ny, cos_tol) <= seen_share * i0):
         return 1, xs, ys, i0, m, m, False, 0, 0.0  # it ends inside the tile
     i1 = m
     for i in range(i0, m):
@@ -171,7 +174,8 @@ def end_steps(dx: np.ndarray, dy: np.ndarray, edges: np.ndarray, px: float, py: 
             i2 = i
             break
     n2 = i2 - i1
-    far = n2 >= 6 and _count_hits(dx, dy, edges, xs, ys, i1, i2, nx, ny, cos_tol) >= 0.5 * n2
+    far = n2 >= far_steps and (
+        _count_hits(dx, dy, edges, xs, ys, i1, i2, nx, ny, cos_tol) >= seen_share * n2)
     m0 = dk0[i0]
     m1 = dk1[i0]
     for i in range(i0 + 1, i1):

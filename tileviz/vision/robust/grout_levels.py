@@ -49,12 +49,6 @@ def pass_unchanged(run: RobustRun, xs: np.ndarray, ys: np.ndarray, i0: int, i1: 
             and conclusive(run, px, py, dx, dy, float(np.median(core)), limit, beyond))
 
 
-STRADDLE_SIGMAS = 3.0
-STRADDLE_LEVELS = 4.0
-"""An edge crosses the grout when the grout's gray level differs on its two sides
-(:func:`straddle`) by more than this many times the image's noise plus this many levels."""
-
-
 def straddle(run: RobustRun, px: float, py: float, dx: float, dy: float,
              n: tuple[float, float], sh: float) -> tuple[np.ndarray, bool, float] | None:
     """The grout's gray levels where the line through (px, py) along (dx, dy) crosses the
@@ -66,13 +60,14 @@ def straddle(run: RobustRun, px: float, py: float, dx: float, dy: float,
 
     Returns the samples (median of 3 neighbours), whether both sides were read (3 samples
     or more each; one side is enough when the line crosses the grout at
-    :data:`STRADDLE_ONE_SIDED` or more) and the grout's own variation over as long a stretch
+    ``foreign.straddle_one_sided`` or more) and the grout's own variation over as long a stretch
     elsewhere on its line (:func:`grout_variation`, gray levels, NaN when not read). None
-    when the line runs within :data:`STRADDLE_PARALLEL` of the grout or neither side can be
+    when the line runs within ``foreign.straddle_parallel`` of the grout or neither side can be
     read."""
     cx, cy = (run.w - 1) / 2.0, (run.h - 1) / 2.0
     nd = n[0] * dx + n[1] * dy
-    if abs(nd) < STRADDLE_PARALLEL:
+    st = run.st.foreign
+    if abs(nd) < st.straddle_parallel:
         return None
     o = n[0] * (px - cx) + n[1] * (py - cy) + sh
     # the next grout centre line ahead: o + t nd = m lp
@@ -87,7 +82,7 @@ def straddle(run: RobustRun, px: float, py: float, dx: float, dy: float,
     ok = (xs >= 0) & (xs <= run.w - 1) & (ys >= 0) & (ys <= run.h - 1)
     sides = (int(ok[:9].sum()), int(ok[10:].sum()))
     both = min(sides) >= 3
-    if not both and (max(sides) < 3 or abs(nd) < STRADDLE_ONE_SIDED):
+    if not both and (max(sides) < 3 or abs(nd) < st.straddle_one_sided):
         return None
     return gray_levels(run, xs[ok], ys[ok]), both, grout_variation(run, qx, qy, g, 1.0 / abs(nd))
 
@@ -97,8 +92,8 @@ def grout_variation(run: RobustRun, qx: float, qy: float, g: tuple[float, float]
     """How much the grout's gray level varies by itself over a stretch as long as a straddle's
     (19 samples ``step`` px apart along the unit direction ``g``) elsewhere on the same grout
     centre line through the crossing (qx, qy): the largest range of the stretches in view that
-    keep :data:`VARIATION_CLEAR` samples clear of the crossing's own stretch (an object's
-    other edge lies within them), NaN when fewer than :data:`VARIATION_STRETCHES`. A thin
+    keep ``foreign.variation_clear`` samples clear of the crossing's own stretch (an object's
+    other edge lies within them), NaN when fewer than ``foreign.variation_stretches``. A thin
     grout band takes in the texture beside it (the mortar of a brick photograph brightens it
     where it meets it) and a lighting gradient runs along it, all along the line; an object
     changes it only where it crosses it (a cable) or on one side of that crossing (a box, a
@@ -111,20 +106,9 @@ def grout_variation(run: RobustRun, qx: float, qy: float, g: tuple[float, float]
     if idx.size < 21:
         return math.nan
     lv = gray_levels(run, xs[idx], ys[idx])  # at the samples idx[1:-1]
-    return float(foreign_kernel.stretch_range(lv, idx, u, VARIATION_CLEAR, VARIATION_STRETCHES))
-
-
-VARIATION_CLEAR = 19
-VARIATION_STRETCHES = 10
-"""The grout's own variation (:func:`grout_variation`) is read on at least 10 stretches of its
-line, each at least 19 samples clear of the crossing's."""
-
-
-STRADDLE_PARALLEL = 0.05
-STRADDLE_ONE_SIDED = 0.15
-"""The grout is read where a line crosses it at an angle (rad, sine) of at least
-``STRADDLE_PARALLEL`` when both sides of the crossing are in view, ``STRADDLE_ONE_SIDED`` when
-only one is (:func:`straddle`)."""
+    st = run.st.foreign
+    return float(foreign_kernel.stretch_range(lv, idx, u, st.variation_clear,
+                                              st.variation_stretches))
 
 
 def trend_range(v: np.ndarray) -> float:
@@ -169,8 +153,9 @@ def neighbour_medians(v: np.ndarray) -> np.ndarray:
 
 def straddle_limit(run: RobustRun) -> float:
     """How much the grout's gray level may vary where a texture's edge meets it (gray levels):
-    :data:`STRADDLE_SIGMAS` x the image noise + :data:`STRADDLE_LEVELS`."""
-    return STRADDLE_SIGMAS * run.details["noise_sigma"] + STRADDLE_LEVELS
+    ``foreign.straddle_sigmas`` x the image noise + ``foreign.straddle_levels``."""
+    st = run.st.foreign
+    return st.straddle_sigmas * run.details["noise_sigma"] + st.straddle_levels
 
 
 def cross_profile(run: RobustRun, px: float, py: float, dx: float, dy: float, t0: float,
@@ -201,7 +186,7 @@ def conclusive(run: RobustRun, px: float, py: float, dx: float, dy: float, grout
                limit: float, beyond: tuple[float, float] | None = None) -> bool:
     """Whether an object whose straight edge ends at (px, py) (a unit vector (dx, dy) pointing
     on along its line) would have changed the grout's gray level ``grout`` by more than
-    :data:`CONCLUSIVE` x ``limit`` had it gone on across the grout, from the levels across
+    ``foreign.conclusive`` x ``limit`` had it gone on across the grout, from the levels across
     the edge's last 15 px (:func:`cross_profile`; the two sides' levels by :func:`side_level`,
     5..8 px off). Two kinds of object are ruled out:
 
@@ -234,7 +219,7 @@ def conclusive(run: RobustRun, px: float, py: float, dx: float, dy: float, grout
         lv = cross_profile(run, px, py, dx, dy, -48.0, -2.0)
         seen = np.isfinite(lv)
         a, b = side_level(lv, seen, o), side_level(lv, seen, -o)
-    need = CONCLUSIVE * limit
+    need = run.st.foreign.conclusive * limit
     if not seen.any():
         return False
     if not (math.isfinite(a) and math.isfinite(b)):
@@ -337,7 +322,3 @@ def on_grout(run: RobustRun, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
     return out
 
 
-CONCLUSIVE = 2.0
-"""An edge seen beyond the grout is taken for texture only when the grout's level there
-(:func:`straddle`) shows no crossing, and any object seen beside the grout would have changed
-it by this many times the straddle's limit (:func:`conclusive`)."""

@@ -8,9 +8,10 @@ import cv2
 import numpy as np
 
 from tileviz.vision.robust import heading_kernel
+from tileviz.vision.robust.settings import HeadingSettings
 from tileviz.vision.robust.state import Fail, RobustRun
 
-__all__ = ["HEADING_BINS", "SMOOTHING", "first_heading", "gradient_votes",
+__all__ = ["first_heading", "gradient_votes",
            "lattice_headings", "lattice_power", "smoothed_headings",
            "voters"]
 
@@ -20,14 +21,14 @@ def first_heading(run: RobustRun, dx: np.ndarray, dy: np.ndarray) -> float:
 
     Every pixel votes (not only Canny's edge pixels: on a textured surface those are mostly
     the texture's): 4 phi of its gradient, weighted by the gradient magnitude, over the
-    pixels in the top ``heading_share`` of magnitudes; the peak of the smoothed histogram,
+    pixels in the top ``heading.share`` of magnitudes; the peak of the smoothed histogram,
     then the weighted circular mean of the votes near the peak (report eq. 4.4 per pixel).
     Grout lines, tile-to-tile shade steps and a surface laid along the tiles all vote for
     the lattice direction (mod pi/2); isotropic texture adds a flat floor. Every other row
     and column votes: a quarter of the votes is plenty for a first estimate (the fit over
     the lattice refines it). The votes are compiled
     (:func:`~tileviz.vision.robust.heading_kernel.heading_votes`)."""
-    found = gradient_votes(dx, dy, run.st.heading_share)
+    found = gradient_votes(dx, dy, run.st.heading)
     if found is None:
         raise Fail("no lines")
     y0, share = found
@@ -35,47 +36,41 @@ def first_heading(run: RobustRun, dx: np.ndarray, dy: np.ndarray) -> float:
     return y0
 
 
-def gradient_votes(dx: np.ndarray, dy: np.ndarray, share: float) -> tuple[float, float] | None:
+def gradient_votes(dx: np.ndarray, dy: np.ndarray, st: HeadingSettings
+                   ) -> tuple[float, float] | None:
     """The votes of :func:`first_heading` on the Scharr gradients ``dx``, ``dy`` (int16): the
     heading (rad, modulo pi/2) and the share of the votes' weight near the peak; None when no
     gradient is non-zero."""
     q = heading_kernel.heading_magnitudes(dx, dy)
-    thr = voters(q, share)
+    thr = voters(q, st.share, st.min_voters)
     if thr <= 0:
         return None
-    return heading_kernel.heading_votes(dx, dy, q, thr, HEADING_BINS)
+    return heading_kernel.heading_votes(dx, dy, q, thr, st.bins, st.near)
 
 
 def smoothed_headings(run: RobustRun) -> list[float]:
     """The votes of :func:`first_heading` again on the view smoothed by a Gaussian of each
-    :data:`SMOOTHING` std (px): headings (rad, modulo pi/2). Strong camera noise (and the
+    ``heading.smoothing`` std (px): headings (rad, modulo pi/2). Strong camera noise (and the
     8 x 8 blocks of a JPEG) outvotes a thin grout line pixel by pixel; smoothing weakens the
     noise's gradients far more than the grout's edges, which span several pixels."""
     out = []
-    for sigma in SMOOTHING:
+    for sigma in run.st.heading.smoothing:
         g = cv2.GaussianBlur(run.gray, (0, 0), sigma)
         dx = cv2.Scharr(g, cv2.CV_16S, 1, 0)
         dy = cv2.Scharr(g, cv2.CV_16S, 0, 1)
-        found = gradient_votes(dx, dy, run.st.heading_share)
+        found = gradient_votes(dx, dy, run.st.heading)
         if found is not None:
             out.append(found[0])
     return out
 
 
-SMOOTHING = (1.0, 2.0)
-"""Gaussian stds (px) of :func:`smoothed_headings`."""
-
-HEADING_BINS = 90
-"""Bins of the 4 phi histogram of :func:`first_heading` (4 degrees of 4 phi, 1 of phi)."""
-
-
-def voters(q: np.ndarray, share: float) -> int:
-    """The smallest squared magnitude among the top ``share`` (at least 20) of ``q`` (int64):
-    every gradient at least as strong votes. Compiled when numba is present
+def voters(q: np.ndarray, share: float, least: int) -> int:
+    """The smallest squared magnitude among the top ``share`` (at least ``least``) of ``q``
+    (int64): every gradient at least as strong votes
     (:func:`~tileviz.vision.robust.heading_kernel.kth_largest`, the same value as numpy's
     partition)."""
     n = q.size
-    k = min(max(20, int(share * n)), n)
+    k = min(max(least, int(share * n)), n)
     thr = int(heading_kernel.kth_largest(q, k))
     if thr > 0:
         return thr
@@ -84,14 +79,14 @@ def voters(q: np.ndarray, share: float) -> int:
     return 1 if int(q.max()) > 0 else 0
 
 
-def lattice_power(img: np.ndarray, period: float, angles: np.ndarray, *, detrend: bool = True
-                  ) -> np.ndarray:
+def lattice_power(img: np.ndarray, period: float, angles: np.ndarray, *, detrend: bool = True,
+                  harmonics: int = 4) -> np.ndarray:
     """How strongly ``img`` (float32, its mean removed) repeats with ``period`` (px) along the two
     directions of each of ``angles`` (rad): the row and the column means of the image turned by
     the angle, over the central square that every turn keeps inside the view, projected on the
-    first four harmonics of the period (summed power of both); with ``detrend``, blind to a
-    quadratic trend of the light across the square."""
-    return _Turns(img, period).power(angles, detrend)
+    first ``harmonics`` harmonics of the period (summed power of both); with ``detrend``, blind
+    to a quadratic trend of the light across the square."""
+    return _Turns(img, period, harmonics).power(angles, detrend)
 
 
 class _Turns:
@@ -99,7 +94,7 @@ class _Turns:
     :func:`lattice_power`), kept per angle: both variants of the search (blind to a trend of
     the light and not) read the same turns."""
 
-    def __init__(self, img: np.ndarray, period: float) -> None:
+    def __init__(self, img: np.ndarray, period: float, harmonics: int) -> None:
         self.img = img
         h, w = img.shape
         side = int(min(w, h) / math.sqrt(2.0)) - 2
@@ -107,8 +102,8 @@ class _Turns:
         self.cx, self.cy = (w - 1) / 2.0, (h - 1) / 2.0
         self.x0 = (side - 1) / 2.0
         n = np.arange(side) - self.x0
-        ks = np.arange(1, 5)[:, None] * (2.0 * math.pi / period) * n[None, :]
-        basis = np.concatenate([np.cos(ks), np.sin(ks)])  # (8, side)
+        ks = np.arange(1, harmonics + 1)[:, None] * (2.0 * math.pi / period) * n[None, :]
+        basis = np.concatenate([np.cos(ks), np.sin(ks)])  # (2 harmonics, side)
         # blind to a slope and a bow of the light across the square (a lighting gradient,
         # vignetting): the harmonics' part along 1, n, n^2 is removed
         q, _ = np.linalg.qr(np.stack([np.ones(side), n, n * n], axis=1))
@@ -143,20 +138,24 @@ class _Turns:
 def lattice_headings(run: RobustRun) -> list[float]:
     """Headings (rad, modulo pi/2) at which the view repeats most strongly with the tile
     period in both directions (:func:`lattice_power`), blind to a trend of the light and not:
-    every 0.01 rad on the image at half size, then every 0.002 rad around the best at full
-    size. Used when the gradient directions of :func:`first_heading` lead to no lattice
-    (texture can outvote the grout, blur and uneven light can hide it)."""
+    every ``heading.lattice_coarse_step`` on the image at ``heading.lattice_scale``, then every
+    ``lattice_fine_step`` within ``lattice_fine_span`` of the best at full size. Used when the
+    gradient directions of :func:`first_heading` lead to no lattice (texture can outvote the
+    grout, blur and uneven light can hide it)."""
+    st = run.st.heading
     img = run.gray.astype(np.float32)
     img -= float(img.mean())
-    small = cv2.resize(img, None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA)
-    coarse = np.arange(-0.25 * math.pi, 0.25 * math.pi, 0.01)
-    turns_small = _Turns(small, 0.5 * run.lp)
-    turns = _Turns(img, run.lp)
+    scale = st.lattice_scale
+    small = cv2.resize(img, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
+    coarse = np.arange(-0.25 * math.pi, 0.25 * math.pi, st.lattice_coarse_step)
+    turns_small = _Turns(small, scale * run.lp, st.lattice_harmonics)
+    turns = _Turns(img, run.lp, st.lattice_harmonics)
     out = []
     for detrend in (True, False):
         pw = turns_small.power(coarse, detrend)
         best = float(coarse[int(np.argmax(pw))])
-        fine = best + np.arange(-0.012, 0.0121, 0.002)
+        span, step = st.lattice_fine_span, st.lattice_fine_step
+        fine = best + np.arange(-span, span + 0.5 * step, step)
         pw = turns.power(fine, detrend)
         out.append(float(fine[int(np.argmax(pw))]))
     return out

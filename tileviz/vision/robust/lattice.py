@@ -100,17 +100,17 @@ def lattice_offsets(run: RobustRun, lines: list[list[Line]], y3: float) -> None:
         measured_period(run, s_arr, ref)
         missing_lines(run, k, ref, s_arr, y3)
     run.details["spacing_residual_px"] = worst
-    if worst > st.spacing_fraction * run.bound_px:
+    if worst > st.lattice.spacing_fraction * run.bound_px:
         raise Fail("inconsistent spacing")
     for fam in lines:
-        if sum(ln.chord for ln in fam) < st.min_evidence * run.side:
+        if sum(ln.chord for ln in fam) < st.lattice.min_evidence * run.side:
             raise Fail("too few segments")
     run.details["position_se_px"] = se
     pos_px, head = frame_bound(run, se)
     run.details["bound_px"] = pos_px
     run.details["bound_rad"] = head
-    if (pos_px > max(run.vision.position_error_px, st.max_bound_px)
-            or head > max(run.vision.heading_error, st.max_bound_rad)):
+    if (pos_px > max(run.vision.position_error_px, st.bound.max_px)
+            or head > max(run.vision.heading_error, st.bound.max_rad)):
         raise Fail("imprecise")
     run.y = normalise(ys[0], ys[1], y3, run.tile_size)
 
@@ -156,8 +156,8 @@ def missing_lines(run: RobustRun, k: int, ref: float, found: np.ndarray, y3: flo
     centre = run.centre[1] if k == 0 else run.centre[0]
     near = 0.5 * run.details["width"] + 1.5
     if lattice_kernel.missing_line(n[0], n[1], math.hypot(-n[1], n[0]), ref, run.lp, reach,
-                                   margin, run.w, run.h, run.st.min_chord, found, peak, fam, k,
-                                   pad, centre, near):
+                                   margin, run.w, run.h, run.st.lattice.min_chord, found, peak,
+                                   fam, k, pad, centre, near, run.st.lattice.found_share):
         raise Fail("inconsistent spacing")
 
 

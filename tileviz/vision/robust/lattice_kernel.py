@@ -60,12 +60,12 @@ def _nearest(values: np.ndarray, x: float) -> float:
 def missing_line(n0: float, n1: float, hyp: float, ref: float, lp: float, reach: float,
                  margin: int, width: int, height: int, min_chord: float, found: np.ndarray,
                  peak: np.ndarray, fam: np.ndarray, k: int, pad: int, centre: float,
-                 near: float) -> bool:
+                 near: float, found_share: float) -> bool:
     """Whether a line of family ``k`` that the lattice predicts at the signed offsets ``ref + j
     lp`` (px; ``(n0, n1)`` the family's unit normal, ``hyp`` its ``math.hypot``) within
     ``reach`` of the centre is missing: visible along at least ``min_chord`` of the longest
     chord at the offset and ``margin`` px each side of it, neither a line ``found`` (offsets,
-    px) within a quarter of the period nor a dip of the family (``peak``, ``fam``: the
+    px) within ``found_share`` of the period nor a dip of the family (``peak``, ``fam``: the
     projection's dips, padded by ``pad``; ``centre`` the warp centre's profile coordinate)
     within ``near`` px."""
     j0 = math.floor((-reach - ref) / lp)
@@ -87,7 +87,7 @@ def missing_line(n0: float, n1: float, hyp: float, ref: float, lp: float, reach:
                 and _chord(n0, n1, hyp, sj, width, height) >= need
                 and _chord(n0, n1, hyp, sj + margin, width, height) >= need):
             continue
-        if found.size == 0 or _nearest(found, sj) > 0.25 * lp:
+        if found.size == 0 or _nearest(found, sj) > found_share * lp:
             if ndips and _nearest(dips, sj) <= near:
                 continue
             return True

@@ -62,12 +62,12 @@ def dips(run: RobustRun, proj: Projection, *, every: bool = False) -> list[list[
         p0, depth, c0, half, u_lo, step, lev_l, lev_r = kernel.dip_rows(
             proj.prof, proj.dark, proj.lo, proj.hi, proj.fam, pk, r)
     cols = pk[:, None] + jj[None, :]  # padded profile index
-    usable = np.flatnonzero(np.isfinite(c0) & (step >= run.st.min_part / 2.0))
+    usable = np.flatnonzero(np.isfinite(c0) & (step >= run.st.profiles.min_part / 2.0))
     if usable.size == 0:
         return [[], []]
     # every row is measured on its own: a subset of the rows gives the same lines
     top = float(depth[usable].max())
-    strong = usable if every else usable[depth[usable] >= run.st.rel_depth * top]
+    strong = usable if every else usable[depth[usable] >= run.st.selection.rel_depth * top]
     meas = (p0, c0, half, depth, u_lo, step, lev_l, lev_r)
     out = measure_parts(run, proj, strong, cols, jf, *meas)
     if not any(ln.depth == top for fam_lines in out for ln in fam_lines):
@@ -163,18 +163,20 @@ def grout_contrast(pp: np.ndarray, jf: np.ndarray, cj: np.ndarray, hj: np.ndarra
 def select_lines(run: RobustRun, lines: list[list[Line]]) -> list[list[Line]]:
     """Keep the dips that look like grout lines: deep enough against the deepest, and not
     much wider than the strong ones (a broad shadow or stain is not a line)."""
+    st = run.st.selection
     every = lines[0] + lines[1]
     if not every:
         return [[], []]
     deepest = max(ln.depth for ln in every)
-    wref = list_median([ln.width for ln in every if ln.depth >= 0.5 * deepest])
+    wref = list_median([ln.width for ln in every if ln.depth >= st.strong_share * deepest])
     run.details["depth"] = deepest
     run.details["width"] = wref
     return [
         distinct([
             ln
             for ln in fam
-            if ln.depth >= run.st.rel_depth * deepest and ln.width <= 2.0 * wref + 2.0
+            if ln.depth >= st.rel_depth * deepest
+            and ln.width <= st.wide_ratio * wref + st.wide_slack
         ])
         for fam in lines
     ]

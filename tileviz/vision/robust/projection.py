@@ -27,10 +27,13 @@ def light_grout(run: RobustRun, sums: tuple[np.ndarray, np.ndarray],
     the in-view stretch of every row and column (:func:`view_spans`).
     :func:`~tileviz.vision.robust.projection_kernel.grout_score` computes a family's term
     compiled (bit-identical)."""
+    st = run.st.profiles
     score = 0.0
     for k in range(2):
         lo, hi = spans[k]
-        used, value = projection_kernel.grout_score(sums[k], np.maximum(hi - lo, 0.0), run.closing)
+        used, value = projection_kernel.grout_score(sums[k], np.maximum(hi - lo, 0.0),
+                                                    run.closing, st.min_row, st.min_row_share,
+                                                    st.min_rows)
         if used:
             score += value
     return score > 0.0
@@ -112,12 +115,14 @@ def profiles(
 ) -> Projection:
     """Both family profiles (row and column means of the warped image: ``sums`` over the
     in-view ``spans``), their baselines and their dips."""
-    r = run.closing + 8  # the widest window (see execute)
+    st = run.st.profiles
+    r = run.widest
     mean = run.mean
     prof, lo, hi, total = projection_kernel.profile_arrays(
-        sums[0], sums[1], spans[0][0], spans[0][1], spans[1][0], spans[1][1], r, mean)
-    dark, noise, fam, peak = projection_kernel.profile_dips(prof, mean, run.closing,
-                                                            run.st.min_depth)
+        sums[0], sums[1], spans[0][0], spans[0][1], spans[1][0], spans[1][1], r, mean,
+        st.min_row, st.min_row_share)
+    dark, noise, fam, peak = projection_kernel.profile_dips(
+        prof, mean, run.closing, run.st.lines.min_depth, st.min_rows, st.dip_noise)
     for sig in noise.tolist():
         if math.isfinite(sig):
             run.details["profile_noise"] = max(run.details.get("profile_noise", 0.0), sig)

@@ -61,9 +61,11 @@ def _morph(a: np.ndarray, half: int, border: np.float32, bigger: bool) -> np.nda
 
 
 @compiled
-def grout_score(sums: np.ndarray, length: np.ndarray, closing: int) -> tuple[bool, float]:
+def grout_score(sums: np.ndarray, length: np.ndarray, closing: int, min_row: float,
+                min_row_share: float, min_rows: int) -> tuple[bool, float]:
     """One family's term of :func:`~tileviz.vision.robust.projection.light_grout`: whether
-    the family has 8 rows long enough (at least 8 px and 15 % of the longest), and then the
+    the family has ``min_rows`` rows long enough (at least ``min_row`` px and ``min_row_share``
+    of the longest), and then the
     highest narrow peak of its profile (``sums / length`` over those rows, float32) above a
     grey opening minus the deepest narrow dip below a grey closing, both ``closing`` samples
     wide. Beyond the view the profile reads its median level (the tiles'), so that a stretch
@@ -72,13 +74,13 @@ def grout_score(sums: np.ndarray, length: np.ndarray, closing: int) -> tuple[boo
     for v in length:
         if v > lmax:
             lmax = v
-    thr = 0.15 * lmax
-    thr = thr if thr > 8.0 else 8.0
+    thr = min_row_share * lmax
+    thr = thr if thr > min_row else min_row
     n = 0
     for v in length:
         if v >= thr:
             n += 1
-    if n < 8:
+    if n < min_rows:
         return False, 0.0
     prof = np.empty(n, np.float32)
     k = 0
@@ -112,16 +114,17 @@ def grout_score(sums: np.ndarray, length: np.ndarray, closing: int) -> tuple[boo
 
 
 @compiled
-def profile_dips(prof: np.ndarray, mean: float, closing: int, min_depth: float
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def profile_dips(prof: np.ndarray, mean: float, closing: int, min_depth: float, min_rows: int,
+                 dip_noise: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The dips of both family profiles (rows of ``prof``, NaN where there is no data): the
     darkness ``dark`` below a grey closing of ``closing`` samples (max then min filter along
     each row, removing dips narrower than its window; a missing sample reads as the nearest
     valid sample of its row before it, else after it, ``mean`` in a row with none: a level
     beyond the view unlike the tiles at its border would make a dip of that tile's border),
     each family's profile noise (robust std of its sample-to-sample steps; NaN when the family
-    has fewer than 8 samples), and the dips: the deepest sample of every run of samples darker
-    than 5 x the noise (at least ``min_depth`` / 2), as (family, padded index) arrays."""
+    has fewer than ``min_rows`` samples), and the dips: the deepest sample of every run of
+    samples darker than ``dip_noise`` x the noise (at least ``min_depth`` / 2), as (family,
+    padded index) arrays."""
     fams, size = prof.shape
     half = closing // 2
     dark = np.empty((fams, size))
@@ -172,12 +175,12 @@ def profile_dips(prof: np.ndarray, mean: float, closing: int, min_depth: float
                     nd += 1
                 prev = row[x]
                 nok += 1
-        if nok < 8:
+        if nok < min_rows:
             continue
         srt = np.partition(diffs[:nd], nd // 2)  # the middle order statistic, exactly
         sig = 1.4826 * srt[nd // 2] / math.sqrt(2.0)
         noise[k] = sig
-        thr = 5.0 * sig
+        thr = dip_noise * sig
         if not thr > 0.5 * min_depth:
             thr = 0.5 * min_depth
         x = 0
@@ -241,13 +244,13 @@ def view_spans(n: int, off: float, c: float, s: float, w: int, h: int, along_row
 
 @compiled
 def profile_arrays(sums0: np.ndarray, sums1: np.ndarray, lo0: np.ndarray, hi0: np.ndarray,
-                   lo1: np.ndarray, hi1: np.ndarray, r: int, mean: float
-                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+                   lo1: np.ndarray, hi1: np.ndarray, r: int, mean: float, min_row: float,
+                   min_row_share: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The (2, size) arrays of a :class:`~tileviz.vision.robust.projection.Projection`
     (family k in row k, samples shifted by ``r``): the profile (``sums`` / in-view length +
-    ``mean``, NaN beyond the data and where a row or column is shorter than 8 px or 15 % of
-    the family's longest), the in-view spans ``lo``, ``hi`` (inf, -inf beyond the data) and
-    their length."""
+    ``mean``, NaN beyond the data and where a row or column is shorter than ``min_row`` px or
+    ``min_row_share`` of the family's longest), the in-view spans ``lo``, ``hi`` (inf, -inf beyond
+    the data) and their length."""
     size = max(sums0.size, sums1.size) + 2 * r
     prof = np.full((2, size), math.nan)
     lo = np.full((2, size), math.inf)
@@ -268,8 +271,8 @@ def profile_arrays(sums0: np.ndarray, sums1: np.ndarray, lo0: np.ndarray, hi0: n
                 lmax = math.nan
             elif length > lmax:
                 lmax = length
-        v = 0.15 * lmax
-        thr = v if v > 8.0 else 8.0  # Python's max(8.0, v): NaN gives 8.0
+        v = min_row_share * lmax
+        thr = v if v > min_row else min_row  # Python's max(min_row, v): NaN gives min_row
         for i in range(n):
             length = total[k, r + i]
             if length >= thr:

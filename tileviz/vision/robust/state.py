@@ -82,8 +82,8 @@ class RobustRun:
         self.lp = self.tile_size * self.ppm  # tile period, px
         # the consistency checks work at the smaller of the declared bounds and the check
         # scales (the declared bounds keep a margin over the errors the checks let through)
-        self.bound_px = min(float(vision.position_error_px), settings.check_position_px)
-        self.bound_rad = min(float(vision.heading_error), settings.check_heading)
+        self.bound_px = min(float(vision.position_error_px), settings.scale.position_px)
+        self.bound_rad = min(float(vision.heading_error), settings.scale.heading)
         self.mean = 0.0
         self.edges: np.ndarray | None = None
         self.free_edges: np.ndarray | None = None
@@ -97,14 +97,15 @@ class RobustRun:
         self.details: dict[str, float] = {}
         # each measured part's own error bound (px), in the fit's order of parts (set by it)
         self.part_bound: np.ndarray = np.zeros(0)
-        # grey-closing window of the profile baseline (wider than any grout dip) and the
-        # half-size of the window each dip is measured in, samples (px)
-        # (up to a third of the tile period: a grout band up to ~20 px wide on any floor whose
-        # tiles span 80 px or more)
-        self.closing = 2 * int(round(min(max(8.0, 0.17 * self.lp), 30.0))) + 1
-        # half-size of the window each dip is measured in: 20 samples suit grout up to ~9 px
-        # wide; a wider band measures again with a window up to closing + 8 (see execute)
-        self.window = min(20, self.closing + 8)
+        # grey-closing window of the profile baseline (wider than any grout dip), samples (px)
+        # (up to a third of the tile period: ProfileSettings.closing_*)
+        pst = settings.profiles
+        self.closing = 2 * int(round(min(max(pst.closing_min, pst.closing_share * self.lp),
+                                         pst.closing_max))) + 1
+        # half-size of the window each dip is measured in; a wider band measures again with a
+        # window up to the widest (ProfileSettings.window*)
+        self.widest = self.closing + pst.window_slack
+        self.window = min(pst.window, self.widest)
         # half-depth width (px) of the deepest dip when the window could not measure it in
         # parts (NaN otherwise; set by profiles.dips): a wider window is tried
         self.unmeasured_width = math.nan

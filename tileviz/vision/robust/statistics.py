@@ -14,30 +14,30 @@ __all__ = ["glare_share", "gray_statistics", "list_median", "noise_sigma"]
 
 def gray_statistics(run: RobustRun) -> None:
     """Set ``run.mean`` (gray levels); refuse a ``constant image`` or ``glare``."""
-    st = run.st
+    st = run.st.statistics
     hist = cv2.calcHist([run.gray], [0], None, [256], [0, 256]).ravel()
     cdf = np.cumsum(hist)
     n = float(cdf[-1])
     lo, hi, thin_lo, thin_hi = (float(v) for v in np.searchsorted(
-        cdf, np.array([0.02, 0.98, 0.002, 0.998]) * n))
+        cdf, np.array([*st.range_quantiles, *st.thin_quantiles]) * n))
     run.mean = float(np.dot(hist, np.arange(256))) / n
     run.details["gray_range"] = hi - lo
     if hi - lo < st.min_range and thin_hi - thin_lo < st.min_thin_range:
         raise Fail("constant image")
-    saturated = float(hist[250:].sum()) / n
+    saturated = float(hist[st.saturated_level:].sum()) / n
     run.details["saturated"] = saturated
-    if (saturated > st.glare_fraction
-            and glare_share(run.gray, st.glare_patch) > st.glare_fraction):
+    if (saturated > st.glare_fraction and glare_share(
+            run.gray, st.glare_patch, st.saturated_level) > st.glare_fraction):
         raise Fail("glare")
 
 
-def glare_share(gray: np.ndarray, patch: int) -> float:
-    """Share of the pixels (0..1) inside a saturated (>= 250) patch at least ``patch`` px
+def glare_share(gray: np.ndarray, patch: int, level: int = 250) -> float:
+    """Share of the pixels (0..1) inside a saturated (>= ``level``) patch at least ``patch`` px
     across (an erosion of the saturated pixels by a ``patch`` x ``patch`` square). Glare
     washes out a large area, grout and texture alike; a light texture (the light stones of
     a gravel photograph, bright grass blades) saturates scattered specks between which the
     floor still shows, and they vanish under the erosion."""
-    mask = cv2.compare(gray, 250, cv2.CMP_GE)
+    mask = cv2.compare(gray, level, cv2.CMP_GE)
     core = cv2.erode(mask, np.ones((patch, patch), np.uint8))
     return float(cv2.countNonZero(core)) / float(gray.size)
 
