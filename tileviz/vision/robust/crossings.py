@@ -15,31 +15,35 @@ import math
 
 import numpy as np
 
+from tileviz.vision.robust import checks
 from tileviz.vision.robust.state import Line, RobustRun
 
 __all__ = ["crossing_depths", "crossing_spread", "crossings_agree"]
 
 def crossings_agree(run: RobustRun, lines: list[list[Line]]) -> bool:
     """Whether the lines of lighter grout (an inverted view) are one grout by their depths
-    beside the crossings (:func:`crossing_spread`): the two lines of every crossing read
-    agree within ``crossing_ratio``, and every line not read at a crossing (both near the
-    border of the view) agrees in contrast (depth over the tiles' inverted level, or over
-    the grout's own level) within ``contrast_ratio`` with one that was. Records
-    ``crossing_spread`` and ``crossing_lines`` (how many lines were read) in the details."""
+    beside the crossings (:func:`crossing_spread`): some line is read beside a crossing
+    (check ``foreign_line.crossings_read``), the two lines of every crossing read agree within
+    ``lines.crossing_ratio`` (``foreign_line.crossings``), and every line not read at a
+    crossing (both near the border of the view) agrees in contrast (depth over the tiles'
+    inverted level, or over the grout's own level) within ``lines.contrast_ratio`` with one
+    that was (``foreign_line.unread``). Records ``crossing_spread`` and ``crossing_lines``
+    (how many lines were read) in the details, and the checks in ``run.record``."""
     st = run.st.lines
     worst, read = crossing_spread(run, lines)
     run.details["crossing_spread"] = worst
     run.details["crossing_lines"] = float(len(read))
-    if not read or worst > st.crossing_ratio:
+    rec = run.record
+    if not (rec.check(checks.CROSSINGS_READ, run, len(read))
+            and rec.check(checks.CROSSINGS, run, worst)):
         return False
-    for ln in lines[0] + lines[1]:
-        if any(ln is r for r in read):
-            continue
-        if not any(ratio(ln.contrast, r.contrast) <= st.contrast_ratio
-                   or ratio(ln.contrast_grout, r.contrast_grout) <= st.contrast_ratio
-                   for r in read):
-            return False
-    return True
+    unlike = sum(
+        1 for ln in lines[0] + lines[1]
+        if not any(ln is r for r in read)
+        and not any(ratio(ln.contrast, r.contrast) <= st.contrast_ratio
+                    or ratio(ln.contrast_grout, r.contrast_grout) <= st.contrast_ratio
+                    for r in read))
+    return rec.check(checks.CROSSINGS_UNREAD, run, unlike)
 
 
 def crossing_spread(run: RobustRun, lines: list[list[Line]]) -> tuple[float, list[Line]]:

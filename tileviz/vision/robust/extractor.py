@@ -17,6 +17,7 @@ from tileviz.vision import draw
 from tileviz.vision.geometry import QUARTER, family_normals
 from tileviz.vision.result import BAG_HORIZONTAL, BAG_VERTICAL, VisionResult
 from tileviz.vision.robust import lattice_kernel
+from tileviz.vision.robust.checks import Refusal
 from tileviz.vision.robust.fit import check_lines, drop_stray_part, fit_tilt
 from tileviz.vision.robust.foreign import foreign_edges
 from tileviz.vision.robust.heading import first_heading, lattice_headings, smoothed_headings
@@ -24,7 +25,7 @@ from tileviz.vision.robust.lattice import lattice_offsets
 from tileviz.vision.robust.periodic import on_lattice
 from tileviz.vision.robust.profiles import measure, select_lines
 from tileviz.vision.robust.settings import DEFAULT_SETTINGS, RobustSettings
-from tileviz.vision.robust.state import Fail, Line, RobustRun
+from tileviz.vision.robust.state import Line, RobustRun
 from tileviz.vision.robust.statistics import gray_statistics, noise_sigma
 
 __all__ = ["build_result", "clip_all", "execute", "extract_robust", "stage_images"]
@@ -53,7 +54,7 @@ def extract_robust(
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
         try:
             execute(run)
-        except Fail as f:
+        except Refusal as f:
             reason = f.reason
         if reason != "ok" and run.not_straight:
             # refused after lines found not straight: read again leaving out the one part
@@ -64,7 +65,7 @@ def extract_robust(
             try:
                 execute(again)
                 run, reason = again, "ok"
-            except Fail:
+            except Refusal:
                 pass
     t0 = time.perf_counter()
     res = build_result(run, reason)
@@ -78,7 +79,7 @@ def extract_robust(
 
 
 def execute(run: RobustRun) -> None:
-    """Run every step; raises Fail with the reason of the first failed check."""
+    """Run every step; raises Refusal with the reason of the first failed check."""
     t = time.perf_counter()
     gray_statistics(run)
     t = run.lap("statistics", t)
@@ -93,7 +94,7 @@ def execute(run: RobustRun) -> None:
     lines, y3, t = read_lines(run, y0, t)
     try:
         check_lines(run, lines)
-    except Fail as first:
+    except Refusal as first:
         # The gradient directions can be outvoted by texture (chips, grain, a photograph): a
         # heading a few degrees off smears every line's profile. The view's periodicity with
         # the tile period decides then; its lines must pass every check as before.
@@ -186,7 +187,7 @@ def read_again(
     lines, y3, t = read_lines(run, y3, t)
     try:
         check_lines(run, lines)
-    except Fail:
+    except Refusal:
         return lines, y3, t, False
     return lines, y3, t, True
 

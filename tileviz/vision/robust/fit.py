@@ -7,10 +7,11 @@ import math
 
 import numpy as np
 
-from tileviz.vision.robust import fit_kernel
+from tileviz.vision.robust import checks, fit_kernel
+from tileviz.vision.robust.checks import Refusal
 from tileviz.vision.robust.crossings import crossings_agree
 from tileviz.vision.robust.profiles import beside_dip
-from tileviz.vision.robust.state import Fail, Line, RobustRun
+from tileviz.vision.robust.state import Line, RobustRun
 from tileviz.vision.robust.statistics import list_median
 
 __all__ = ["check_lines", "drop_stray_part", "fit_tilt", "shoulder_px"]
@@ -64,7 +65,7 @@ def drop_stray_part(run: RobustRun, lines: list[list[Line]], eps: float) -> bool
     part was left out (the caller fits again; every check then applies as before). Used only
     in a second reading of a view the first refused (``RobustRun.drop_stray``)."""
     st = run.st.lines
-    limit = st.straight_fraction * run.bound_px
+    limit = checks.ANGLE_STRAIGHT.limit(run)
     stray: list[tuple[Line, int]] = []
     for k, fam in enumerate(lines):
         sign = 1.0 if k == 0 else -1.0
@@ -101,29 +102,22 @@ def drop_stray_part(run: RobustRun, lines: list[list[Line]], eps: float) -> bool
 
 
 def check_lines(run: RobustRun, lines: list[list[Line]]) -> None:
-    """Refuse (the first failing check) unless the lines look like one lattice's grout."""
-    st = run.st.lines
-    if not lines[0] and not lines[1]:
-        raise Fail("no lines")
-    if run.details["depth"] < st.min_depth:
-        raise Fail("low contrast")
-    if not lines[0] or not lines[1]:
-        raise Fail("one family")
+    """Refuse (the first failing check, :mod:`.checks`: ``lines.found`` .. ``foreign_line.
+    shoulder``) unless the lines look like one lattice's grout."""
+    rec = run.record
+    rec.require(checks.LINES_FOUND, run, len(lines[0]) + len(lines[1]))
+    rec.require(checks.CONTRAST_DEPTH, run, run.details["depth"])
+    rec.require(checks.LINES_FAMILIES, run, min(len(lines[0]), len(lines[1])))
     every = lines[0] + lines[1]
     rises = [ln.rise for ln in every if math.isfinite(ln.rise)]
     rise = list_median(rises) if rises else math.inf
     run.details["rise"] = rise
-    if not rise <= st.max_rise:
-        raise Fail("blurred")
+    rec.require(checks.BLUR_RISE, run, rise)
     step = max(ln.step for ln in every)
     run.details["step"] = step
-    if step > st.max_step:
-        raise Fail("step edge")
-    if (
-        run.details["straightness_px"] > st.straight_fraction * run.bound_px
-        or run.details["tilt_gap"] > run.st.fit.sigmas
-    ):
-        raise Fail("inconsistent angle")
+    rec.require(checks.STEP_LEVELS, run, step)
+    rec.require(checks.ANGLE_STRAIGHT, run, run.details["straightness_px"])
+    rec.require(checks.ANGLE_PERPENDICULAR, run, run.details["tilt_gap"])
     # Grout lines of both families share one width and one colour: a line unlike the
     # others (a cable along the grout direction, a seam) is foreign.
     widths = [ln.width for ln in every if math.isfinite(ln.width)]
@@ -136,11 +130,11 @@ def check_lines(run: RobustRun, lines: list[list[Line]]) -> None:
         # falling off across the view cancels); a line unlike the others differs in both
         run.details["contrast_spread"] = min(
             run.details["contrast_spread"], spread([ln.contrast_grout for ln in every]))
-    if not widths or max(widths) > st.width_ratio * min(widths) + st.width_slack:
-        raise Fail("foreign line")
-    if run.details["contrast_spread"] > st.contrast_ratio and not (
+    rec.require(checks.FOREIGN_WIDTH, run, max(widths) if widths else math.nan,
+                min(widths) if widths else math.nan)
+    if not rec.check(checks.FOREIGN_CONTRAST, run, run.details["contrast_spread"]) and not (
             run.inverted and crossings_agree(run, lines)):
-        raise Fail("foreign line")
+        raise Refusal(rec.results[-1], "foreign line")
     # one grout line is one band: a second band just beside it (a cable along the grout)
     # darkens the plateaus its position is measured against, and may be read instead of
     # it; with two lines or more of a family in view, one read off the grout is off the
@@ -149,12 +143,10 @@ def check_lines(run: RobustRun, lines: list[list[Line]]) -> None:
     beside = max((beside_dip(run, k, lines[k][0]) for k in range(2) if len(lines[k]) == 1),
                  default=0.0)
     run.details["beside"] = beside
-    if beside >= st.beside_share:
-        raise Fail("foreign line")
+    rec.require(checks.FOREIGN_BESIDE, run, beside)
     shoulder = max(shoulder_px(ln) for ln in every)
     run.details["shoulder_px"] = shoulder
-    if shoulder > st.shoulder_px:
-        raise Fail("foreign line")
+    rec.require(checks.FOREIGN_SHOULDER, run, shoulder)
 
 
 def shoulder_px(line: Line) -> float:

@@ -12,7 +12,7 @@ import cv2
 import numpy as np
 
 from tileviz.vision.geometry import family_normals
-from tileviz.vision.robust import foreign_kernel
+from tileviz.vision.robust import checks, foreign_kernel
 from tileviz.vision.robust.grout_levels import (
     conclusive,
     pass_unchanged,
@@ -21,13 +21,14 @@ from tileviz.vision.robust.grout_levels import (
     trend_range,
 )
 from tileviz.vision.robust.lattice import clip_line
-from tileviz.vision.robust.state import Fail, RobustRun
+from tileviz.vision.robust.state import RobustRun
 
 __all__ = ["classify_edge", "clear_of_lattice", "draw_lattice_mask", "foreign_edges"]
 
 
 def foreign_edges(run: RobustRun) -> None:
-    """Refuse when a long straight edge is not explained by the predicted grout lines."""
+    """Refuse when a long straight edge is not explained by the predicted grout lines (check
+    ``foreign_edge``: ``step edge`` or ``foreign line`` by :func:`classify_edge`)."""
     assert run.y is not None and run.dxy is not None
     # Edges at least ``foreign.contrast`` of the grout's own contrast (in gray levels: a
     # texture's fine edges are not objects) and above the noise.
@@ -43,24 +44,36 @@ def foreign_edges(run: RobustRun) -> None:
     run.free_edges = free
     minlen = max(st.min_length, st.length * run.side)
     votes = int(st.vote_share * minlen)
+    seg = straight_edges(free, votes, minlen, st.max_gap)
+    if seg is None:
+        seg = _NO_EDGES
+    else:
+        clear = clear_of_lattice(run, seg)
+        run.details["foreign_clear"] = float(clear.sum())
+        seg = seg[~clear]
+    if seg.size:
+        run.foreign = seg
+        run.details["foreign_segments"] = float(len(seg))
+    run.record.require(checks.FOREIGN_EDGE, run, len(seg),
+                       reason=classify_edge(run, seg) if seg.size else None)
+
+
+def straight_edges(free: np.ndarray, votes: int, minlen: float, gap: float
+                   ) -> np.ndarray | None:
+    """The straight edges (rows: x1, y1, x2, y2, px) of the edge pixels ``free`` (HxW uint8)
+    that a probabilistic Hough transform finds with ``votes`` votes, at least ``minlen`` px
+    long, bridging gaps up to ``gap`` px; None when it is not run (too few edge pixels for the
+    votes) or finds none."""
     # a segment needs that many votes, at most one per edge pixel: with fewer free edge
     # pixels (a clean view: every edge lies on the grout) the search finds none
     if cv2.countNonZero(free) < votes:
-        return
-    seg = cv2.HoughLinesP(
-        free, 1.0, math.pi / 180.0, votes, minLineLength=minlen, maxLineGap=st.max_gap
-    )
-    if seg is None:
-        return
-    seg = np.asarray(seg, np.float64).reshape(-1, 4)
-    clear = clear_of_lattice(run, seg)
-    run.details["foreign_clear"] = float(clear.sum())
-    seg = seg[~clear]
-    if seg.size == 0:
-        return
-    run.foreign = seg
-    run.details["foreign_segments"] = float(len(seg))
-    raise Fail(classify_edge(run, seg))
+        return None
+    seg = cv2.HoughLinesP(free, 1.0, math.pi / 180.0, votes, minLineLength=minlen,
+                          maxLineGap=gap)
+    return None if seg is None else np.asarray(seg, np.float64).reshape(-1, 4)
+
+
+_NO_EDGES = np.zeros((0, 4))
 
 
 def clear_of_lattice(run: RobustRun, seg: np.ndarray) -> np.ndarray:

@@ -7,9 +7,9 @@ import math
 import cv2
 import numpy as np
 
-from tileviz.vision.robust import heading_kernel
+from tileviz.vision.robust import checks, heading_kernel
 from tileviz.vision.robust.settings import HeadingSettings
-from tileviz.vision.robust.state import Fail, RobustRun
+from tileviz.vision.robust.state import RobustRun
 
 __all__ = ["first_heading", "gradient_votes",
            "lattice_headings", "lattice_power", "smoothed_headings",
@@ -28,10 +28,11 @@ def first_heading(run: RobustRun, dx: np.ndarray, dy: np.ndarray) -> float:
     and column votes: a quarter of the votes is plenty for a first estimate (the fit over
     the lattice refines it). The votes are compiled
     (:func:`~tileviz.vision.robust.heading_kernel.heading_votes`)."""
-    found = gradient_votes(dx, dy, run.st.heading)
-    if found is None:
-        raise Fail("no lines")
-    y0, share = found
+    st = run.st.heading
+    q = heading_kernel.heading_magnitudes(dx, dy)
+    thr = voters(q, st.share, st.min_voters)
+    run.record.require(checks.HEADING_GRADIENTS, run, thr)
+    y0, share = heading_kernel.heading_votes(dx, dy, q, thr, st.bins, st.near)
     run.details["orientation_share"] = share
     return y0
 

@@ -8,9 +8,9 @@ import math
 import numpy as np
 
 from tileviz.vision.geometry import QUARTER, family_normals
-from tileviz.vision.robust import lattice_kernel
+from tileviz.vision.robust import checks, lattice_kernel
 from tileviz.vision.robust.bound import frame_bound
-from tileviz.vision.robust.state import Fail, Line, RobustRun
+from tileviz.vision.robust.state import Line, RobustRun
 
 __all__ = ["clip_line", "lattice_offsets", "measured_period",
            "missing_lines", "normalise"]
@@ -60,8 +60,8 @@ def clip_line(
 
 
 def lattice_offsets(run: RobustRun, lines: list[list[Line]], y3: float) -> None:
-    """Offsets modulo L per family, the spacing checks, and the observation."""
-    st = run.st
+    """Offsets modulo L per family, the spacing checks, the bound and the observation
+    (checks ``spacing.missing`` .. ``bound.heading``)."""
     x0, y0 = run.centre
     lp = run.lp
     ys: list[float] = []
@@ -100,18 +100,16 @@ def lattice_offsets(run: RobustRun, lines: list[list[Line]], y3: float) -> None:
         measured_period(run, s_arr, ref)
         missing_lines(run, k, ref, s_arr, y3)
     run.details["spacing_residual_px"] = worst
-    if worst > st.lattice.spacing_fraction * run.bound_px:
-        raise Fail("inconsistent spacing")
-    for fam in lines:
-        if sum(ln.chord for ln in fam) < st.lattice.min_evidence * run.side:
-            raise Fail("too few segments")
+    rec = run.record
+    rec.require(checks.SPACING, run, worst)
+    for k, fam in enumerate(lines):
+        rec.require(checks.EVIDENCE, run, sum(ln.chord for ln in fam), subject=FAMILY[k])
     run.details["position_se_px"] = se
     pos_px, head = frame_bound(run, se)
     run.details["bound_px"] = pos_px
     run.details["bound_rad"] = head
-    if (pos_px > max(run.vision.position_error_px, st.bound.max_px)
-            or head > max(run.vision.heading_error, st.bound.max_rad)):
-        raise Fail("imprecise")
+    rec.require(checks.BOUND_POSITION, run, pos_px)
+    rec.require(checks.BOUND_HEADING, run, head)
     run.y = normalise(ys[0], ys[1], y3, run.tile_size)
 
 
@@ -155,12 +153,16 @@ def missing_lines(run: RobustRun, k: int, ref: float, found: np.ndarray, y3: flo
         peak, fam, pad = proj.peak, proj.fam, proj.pad
     centre = run.centre[1] if k == 0 else run.centre[0]
     near = 0.5 * run.details["width"] + 1.5
-    if lattice_kernel.missing_line(n[0], n[1], math.hypot(-n[1], n[0]), ref, run.lp, reach,
-                                   margin, run.w, run.h, run.st.lattice.min_chord, found, peak,
-                                   fam, k, pad, centre, near, run.st.lattice.found_share):
-        raise Fail("inconsistent spacing")
+    missing = lattice_kernel.missing_line(
+        n[0], n[1], math.hypot(-n[1], n[0]), ref, run.lp, reach, margin, run.w, run.h,
+        run.st.lattice.min_chord, found, peak, fam, k, pad, centre, near,
+        run.st.lattice.found_share)
+    run.record.require(checks.SPACING_MISSING, run, 1.0 if missing else 0.0, subject=FAMILY[k])
 
 
 _NO_DIPS = np.zeros(0, np.intp)
+
+FAMILY = ("family 1", "family 2")
+"""How a per-family check names its family (family 1 gives y1, family 2 y2)."""
 
 

@@ -1,10 +1,10 @@
 """The state of one frame through the robust extractor, shared by its steps.
 
 :class:`RobustRun` holds the frame, its settings and every intermediate result (the stage images
-read them); :class:`Line` is one measured grout line candidate; :class:`Fail` carries the reason
-of the first failed check. Each step (:mod:`.statistics`, :mod:`.heading`, :mod:`.profiles`,
-:mod:`.fit`, :mod:`.lattice`, :mod:`.bound`, :mod:`.foreign`) is a function of a RobustRun.
-"""
+read them); :class:`Line` is one measured grout line candidate;
+:class:`~tileviz.vision.robust.checks.Refusal` carries the reason of the first failed check. Each
+step (:mod:`.statistics`, :mod:`.heading`, :mod:`.profiles`, :mod:`.fit`, :mod:`.lattice`,
+:mod:`.bound`, :mod:`.foreign`) is a function of a RobustRun. """
 
 from __future__ import annotations
 
@@ -16,9 +16,10 @@ from typing import Any
 import numpy as np
 
 from tileviz.config import CameraConfig, VisionConfig
+from tileviz.vision.robust.checks import Record
 from tileviz.vision.robust.settings import RobustSettings
 
-__all__ = ["PARTS", "Fail", "Line", "RobustRun"]
+__all__ = ["PARTS", "Line", "RobustRun"]
 
 PARTS = 4
 """Each line is measured in this many parts along its length."""
@@ -49,14 +50,6 @@ class Line:
     contrast_grout: float = math.nan
     pos: float = math.nan  # at tangent coordinate 0, after the common tilt fit
     var: float = math.inf  # variance of pos from the fit's scatter, px^2
-
-
-class Fail(Exception):
-    """A refusal: ``reason`` is one of the extractor's reasons (``tileviz.vision.REASONS``)."""
-
-    def __init__(self, reason: str) -> None:
-        super().__init__(reason)
-        self.reason = reason
 
 
 class RobustRun:
@@ -95,6 +88,7 @@ class RobustRun:
         self.foreign: np.ndarray = np.zeros((0, 4))
         self.dxy: tuple[np.ndarray, np.ndarray] | None = None  # Scharr gradients (CV_16S)
         self.details: dict[str, float] = {}
+        self.record = Record()  # every check run, in order
         # each measured part's own error bound (px), in the fit's order of parts (set by it)
         self.part_bound: np.ndarray = np.zeros(0)
         # grey-closing window of the profile baseline (wider than any grout dip), samples (px)

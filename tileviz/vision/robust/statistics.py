@@ -7,13 +7,15 @@ import math
 import cv2
 import numpy as np
 
-from tileviz.vision.robust.state import Fail, RobustRun
+from tileviz.vision.robust import checks
+from tileviz.vision.robust.state import RobustRun
 
 __all__ = ["glare_share", "gray_statistics", "list_median", "noise_sigma"]
 
 
 def gray_statistics(run: RobustRun) -> None:
-    """Set ``run.mean`` (gray levels); refuse a ``constant image`` or ``glare``."""
+    """Set ``run.mean`` (gray levels); refuse a ``constant image`` or ``glare`` (checks
+    ``constant.*``, ``glare.*``)."""
     st = run.st.statistics
     hist = cv2.calcHist([run.gray], [0], None, [256], [0, 256]).ravel()
     cdf = np.cumsum(hist)
@@ -22,13 +24,14 @@ def gray_statistics(run: RobustRun) -> None:
         cdf, np.array([*st.range_quantiles, *st.thin_quantiles]) * n))
     run.mean = float(np.dot(hist, np.arange(256))) / n
     run.details["gray_range"] = hi - lo
-    if hi - lo < st.min_range and thin_hi - thin_lo < st.min_thin_range:
-        raise Fail("constant image")
+    rec = run.record
+    if not rec.check(checks.CONSTANT_RANGE, run, hi - lo):
+        rec.require(checks.CONSTANT_THIN, run, thin_hi - thin_lo)
     saturated = float(hist[st.saturated_level:].sum()) / n
     run.details["saturated"] = saturated
-    if (saturated > st.glare_fraction and glare_share(
-            run.gray, st.glare_patch, st.saturated_level) > st.glare_fraction):
-        raise Fail("glare")
+    if not rec.check(checks.GLARE_SATURATED, run, saturated):
+        rec.require(checks.GLARE_PATCHES, run,
+                    glare_share(run.gray, st.glare_patch, st.saturated_level))
 
 
 def glare_share(gray: np.ndarray, patch: int, level: int = 250) -> float:
