@@ -21,7 +21,6 @@ from tileviz.types import Pose
 from tileviz.vision import extract
 from tileviz.vision.robust import (
     DEFAULT_SETTINGS,
-    extractor,
     fit_kernel,
     heading_kernel,
     kernel,
@@ -29,6 +28,7 @@ from tileviz.vision.robust import (
     lattice_kernel,
     profiles,
     projection_kernel,
+    readings,
 )
 
 ROBUST = VisionConfig(extractor="robust")
@@ -66,7 +66,7 @@ def test_the_shortcuts_give_the_full_computation(
     def measure_fully(run: object, y3: float, attempt: int = 1) -> list:
         return full_measure(run, y3, attempt, reuse=False, every=True)  # type: ignore[arg-type]
 
-    monkeypatch.setattr(extractor, "measure", measure_fully)
+    monkeypatch.setattr(readings, "measure", measure_fully)
     full = run_all()
     assert any(res.accepted for res in fast)
     for a, b in zip(fast, full, strict=True):

@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-from tileviz.vision.robust.state import RobustRun
+from tileviz.vision.robust.state import ReadingState
 
 __all__ = ["frame_bound"]
 
 
-def frame_bound(run: RobustRun, se: float) -> tuple[float, float]:
+def frame_bound(run: ReadingState, se: float) -> tuple[float, float]:
     """This view's error bound (px, rad) from its own evidence (docs/vision.md, "The
     bound of a view"): ``sigmas`` standard errors of the fit (the scatter of every line's
     parts about one straight lattice), plus the largest deviations the fit could not

@@ -6,8 +6,8 @@ A check passes or fails; a failed check refuses the view with its ``reason`` (on
 :data:`tileviz.vision.REASONS`), except where the next check can still accept it (``constant.range``
 fails, then ``constant.thin_range`` decides; ``glare.saturated``, then ``glare.patches``;
 ``foreign_line.contrast`` of lighter grout, then the crossings). Every check run is recorded
-(:class:`Result`: id, value, limit, passed) so that a decision can be followed: the refusal
-carries its check's result (:class:`Refusal`).
+(:class:`~tileviz.vision.decision.CheckResult`: id, value, limit, passed) so that a decision can be
+followed: the refusal carries its check's result (:class:`Refusal`).
 
 The checks, in the order they run (value; passes when; limit from settings):
 
@@ -79,12 +79,13 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import NamedTuple, Protocol
+from typing import Protocol
 
 from tileviz.config import VisionConfig
+from tileviz.vision.decision import CheckResult
 from tileviz.vision.robust.settings import RobustSettings
 
-__all__ = ["CHECKS", "Check", "Context", "Record", "Refusal", "Relation", "Result"]
+__all__ = ["CHECKS", "Check", "Context", "Record", "Refusal", "Relation"]
 
 
 class Context(Protocol):
@@ -135,22 +136,11 @@ class Check:
     what: str
 
 
-class Result(NamedTuple):
-    """One check run: its ``check`` id, the measured ``value``, the ``limit``, whether it
-    ``passed``, and ``subject`` (which family, when it runs per family; else empty)."""
-
-    check: str
-    value: float
-    limit: float
-    passed: bool
-    subject: str = ""
-
-
 class Refusal(Exception):
     """A refusal: ``reason`` (one of ``tileviz.vision.REASONS``) and the ``result`` of the
     check that refused."""
 
-    def __init__(self, result: Result, reason: str) -> None:
+    def __init__(self, result: CheckResult, reason: str) -> None:
         super().__init__(reason)
         self.reason = reason
         self.result = result
@@ -249,7 +239,7 @@ class Record:
     __slots__ = ("results",)
 
     def __init__(self) -> None:
-        self.results: list[Result] = []
+        self.results: list[CheckResult] = []
 
     def check(self, check: Check, context: Context, value: float, *extra: float,
               subject: str = "") -> bool:
@@ -257,7 +247,8 @@ class Record:
         result and return whether it passed."""
         limit = check.limit(context, *extra)
         ok = check.relation.passes(value, limit)
-        self.results.append(Result(check.id, float(value), float(limit), ok, subject))
+        self.results.append(CheckResult(check.id, float(value), float(limit),
+                                        check.relation.symbol, ok, subject))
         return ok
 
     def require(self, check: Check, context: Context, value: float, *extra: float,

@@ -16,11 +16,11 @@ import math
 import numpy as np
 
 from tileviz.vision.robust import checks
-from tileviz.vision.robust.state import Line, RobustRun
+from tileviz.vision.robust.state import Line, ReadingState
 
 __all__ = ["crossing_depths", "crossing_spread", "crossings_agree"]
 
-def crossings_agree(run: RobustRun, lines: list[list[Line]]) -> bool:
+def crossings_agree(run: ReadingState, lines: list[list[Line]]) -> bool:
     """Whether the lines of lighter grout (an inverted view) are one grout by their depths
     beside the crossings (:func:`crossing_spread`): some line is read beside a crossing
     (check ``foreign_line.crossings_read``), the two lines of every crossing read agree within
@@ -46,7 +46,7 @@ def crossings_agree(run: RobustRun, lines: list[list[Line]]) -> bool:
     return rec.check(checks.CROSSINGS_UNREAD, run, unlike)
 
 
-def crossing_spread(run: RobustRun, lines: list[list[Line]]) -> tuple[float, list[Line]]:
+def crossing_spread(run: ReadingState, lines: list[list[Line]]) -> tuple[float, list[Line]]:
     """The largest ratio (>= 1) of the two lines' depths over the crossings of a line of
     each family that the view lets read (inf when a depth is not positive; 1 when none is
     read), and the lines read at one crossing at least. ``run.projection`` must hold the
@@ -65,7 +65,7 @@ def crossing_spread(run: RobustRun, lines: list[list[Line]]) -> tuple[float, lis
     return worst, list(read.values())
 
 
-def crossing_depths(run: RobustRun, a: Line, b: Line) -> tuple[float, float] | None:
+def crossing_depths(run: ReadingState, a: Line, b: Line) -> tuple[float, float] | None:
     """The depths (levels of the warped view, as the profiles read them) of line ``a``
     (family 1, a warp row) and line ``b`` (family 2, a warp column) beside their crossing, read
     between the same tiles: each band's profile averaged along its line over up to
@@ -113,7 +113,7 @@ def ratio(a: float, b: float) -> float:
     return max(a, b) / min(a, b) if a > 0.0 and b > 0.0 else math.inf
 
 
-def band_profiles(run: RobustRun, k: int, at: float, along: float, half: float,
+def band_profiles(run: ReadingState, k: int, at: float, along: float, half: float,
                   other: float) -> list[tuple[float, float, float] | None] | None:
     """The family-``k`` band centred at profile coordinate ``at`` (a warp row for k = 0, a
     column for k = 1), read along the band beside the tangent position ``along`` (warp column for k

@@ -11,13 +11,13 @@ from tileviz.vision.robust import checks, fit_kernel
 from tileviz.vision.robust.checks import Refusal
 from tileviz.vision.robust.crossings import crossings_agree
 from tileviz.vision.robust.profiles import beside_dip
-from tileviz.vision.robust.state import Line, RobustRun
+from tileviz.vision.robust.state import Line, ReadingState
 from tileviz.vision.robust.statistics import list_median
 
 __all__ = ["check_lines", "drop_stray_part", "fit_tilt", "shoulder_px"]
 
 
-def fit_tilt(run: RobustRun, lines: list[list[Line]]) -> float:
+def fit_tilt(run: ReadingState, lines: list[list[Line]]) -> float:
     """Fit one residual tilt eps for all lines (family-1 rows drift by +eps per unit of t,
     family-2 columns by -eps) and one intercept per line, weighted by part lengths; set each
     line's ``pos`` (at t = 0), ``var`` and ``infl``, and ``run.part_bound``; return eps (rad).
@@ -51,7 +51,7 @@ def fit_tilt(run: RobustRun, lines: list[list[Line]]) -> float:
     return eps
 
 
-def drop_stray_part(run: RobustRun, lines: list[list[Line]], eps: float) -> bool:
+def drop_stray_part(run: ReadingState, lines: list[list[Line]], eps: float) -> bool:
     """Leave out (``wpart`` 0, position NaN) the one part that keeps the lines from being
     straight, when it is unambiguous: exactly one part of the whole view (among those the
     straightness weighs, ``lines.straight_part_share`` of its line's longest part or more) lies
@@ -63,7 +63,7 @@ def drop_stray_part(run: RobustRun, lines: list[list[Line]], eps: float) -> bool
     photograph a few px beside the grout) measured instead of the grout in one part of a short
     line moves that part alone; the line is then measured by its other parts. True when a
     part was left out (the caller fits again; every check then applies as before). Used only
-    in a second reading of a view the first refused (``RobustRun.drop_stray``)."""
+    in a second reading of a view the first refused (``ReadingState.drop_stray``)."""
     st = run.st.lines
     limit = checks.ANGLE_STRAIGHT.limit(run)
     stray: list[tuple[Line, int]] = []
@@ -101,7 +101,7 @@ def drop_stray_part(run: RobustRun, lines: list[list[Line]], eps: float) -> bool
     return True
 
 
-def check_lines(run: RobustRun, lines: list[list[Line]]) -> None:
+def check_lines(run: ReadingState, lines: list[list[Line]]) -> None:
     """Refuse (the first failing check, :mod:`.checks`: ``lines.found`` .. ``foreign_line.
     shoulder``) unless the lines look like one lattice's grout."""
     rec = run.record

@@ -21,12 +21,12 @@ from tileviz.vision.robust.grout_levels import (
     trend_range,
 )
 from tileviz.vision.robust.lattice import clip_line
-from tileviz.vision.robust.state import RobustRun
+from tileviz.vision.robust.state import ReadingState
 
 __all__ = ["classify_edge", "clear_of_lattice", "draw_lattice_mask", "foreign_edges"]
 
 
-def foreign_edges(run: RobustRun) -> None:
+def foreign_edges(run: ReadingState) -> None:
     """Refuse when a long straight edge is not explained by the predicted grout lines (check
     ``foreign_edge``: ``step edge`` or ``foreign line`` by :func:`classify_edge`)."""
     assert run.y is not None and run.dxy is not None
@@ -34,7 +34,7 @@ def foreign_edges(run: RobustRun) -> None:
     # texture's fine edges are not objects) and above the noise.
     st = run.st.foreign
     dx, dy = run.dxy
-    high = max(st.min_edge, st.edge_noise * SCHARR_NOISE * run.details["noise_sigma"],
+    high = max(st.min_edge, st.edge_noise * SCHARR_NOISE * run.noise,
                SCHARR_STEP * st.contrast * run.details["depth"])
     run.edges = cv2.Canny(dx, dy, st.canny_low * high, high, L2gradient=True)
     free = run.edges.copy()
@@ -76,7 +76,7 @@ def straight_edges(free: np.ndarray, votes: int, minlen: float, gap: float
 _NO_EDGES = np.zeros((0, 4))
 
 
-def clear_of_lattice(run: RobustRun, seg: np.ndarray) -> np.ndarray:
+def clear_of_lattice(run: ReadingState, seg: np.ndarray) -> np.ndarray:
     """Which straight edges (rows of ``seg``: x1, y1, x2, y2, px) are no foreign object that
     could have moved a measured grout line. Exempt:
 
@@ -120,8 +120,9 @@ def clear_of_lattice(run: RobustRun, seg: np.ndarray) -> np.ndarray:
         return lo >= band and lo + abs(b - a) <= lp - band
 
     def offsets(px: float, py: float) -> tuple[float, float]:
-        return tuple(n[0] * (px - cx) + n[1] * (py - cy) + sh
-                     for n, sh in zip(normals, shift, strict=True))
+        (a0, a1), (b0, b1) = normals
+        return (a0 * (px - cx) + a1 * (py - cy) + shift[0],
+                b0 * (px - cx) + b1 * (py - cy) + shift[1])
 
     st = run.st.foreign
     share = edge_share(run, seg)
@@ -148,7 +149,7 @@ def clear_of_lattice(run: RobustRun, seg: np.ndarray) -> np.ndarray:
     return out
 
 
-def edge_share(run: RobustRun, seg: np.ndarray) -> np.ndarray:
+def edge_share(run: ReadingState, seg: np.ndarray) -> np.ndarray:
     """For each straight edge (rows of ``seg``: x1, y1, x2, y2, px), the share of the points
     along it (1 px apart) within 1 px of an edge pixel whose gradient is normal to it within
     ``foreign.normal_tolerance``, of either sign: about 1 for the edge of one object (a cable, a
@@ -167,7 +168,7 @@ SCHARR_NOISE = 15.4
 """Scharr's noise per gray level of pixel noise std, per component."""
 
 
-def measurement_band(run: RobustRun) -> float:
+def measurement_band(run: ReadingState) -> float:
     """How far from a grout line (px) its measurement reads the image: a dip's position uses
     its profile out to 4 plateau samples beyond its window c +- (1.5 w + 1.5)
     (:func:`~tileviz.vision.robust.profiles.dips`, w its half-depth width), and never beyond
@@ -176,7 +177,7 @@ def measurement_band(run: RobustRun) -> float:
     return min(float(run.window), 1.5 * wmax + 1.5 + 5.0) + 2.0
 
 
-def grout_like(run: RobustRun, proj: object, e: tuple[float, float, float, float]) -> bool:
+def grout_like(run: ReadingState, proj: object, e: tuple[float, float, float, float]) -> bool:
     """Whether the profile of the warp family that the line ``e`` (endpoints, px) runs along
     dips there at least ``foreign.grout_like`` as deep as the other family's grout lines."""
     from tileviz.vision.robust.projection import Projection
@@ -196,7 +197,7 @@ def grout_like(run: RobustRun, proj: object, e: tuple[float, float, float, float
     return dark.size > 0 and float(dark.max()) >= run.st.foreign.grout_like * grout
 
 
-def ends(run: RobustRun, px: float, py: float, dx: float, dy: float, band: float,
+def ends(run: ReadingState, px: float, py: float, dx: float, dy: float, band: float,
          normals: tuple[tuple[float, float], tuple[float, float]],
          shift: tuple[float, float]) -> bool:
     """Whether the object of a straight edge ending at (px, py) stops short of the grout lines
@@ -293,7 +294,7 @@ def ends(run: RobustRun, px: float, py: float, dx: float, dy: float, band: float
     return conclusive(run, px, py, dx, dy, float(np.median(core)), limit, seen_beyond)
 
 
-def classify_edge(run: RobustRun, seg: np.ndarray) -> str:
+def classify_edge(run: ReadingState, seg: np.ndarray) -> str:
     """``step edge`` when the longest foreign segment separates two different levels (a box,
     a shadow), ``foreign line`` when it is a dark or bright ridge with the same level on
     both sides (a cable): the gray profile across it, median along it, from -16 to 16 px."""

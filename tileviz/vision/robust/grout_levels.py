@@ -14,14 +14,14 @@ import numpy as np
 
 from tileviz.vision.geometry import family_normals
 from tileviz.vision.robust import foreign_kernel
-from tileviz.vision.robust.state import RobustRun
+from tileviz.vision.robust.state import ReadingState
 
 __all__ = ["alongside", "at_edge", "conclusive", "cross_profile", "gray_levels",
            "grout_variation", "neighbour_medians", "on_grout", "pass_unchanged", "row_medians",
            "side_level", "straddle", "straddle_limit", "trend_range"]
 
 
-def pass_unchanged(run: RobustRun, xs: np.ndarray, ys: np.ndarray, i0: int, i1: int,
+def pass_unchanged(run: ReadingState, xs: np.ndarray, ys: np.ndarray, i0: int, i1: int,
                    px: float, py: float, dx: float, dy: float, n: tuple[float, float],
                    sh: float, beyond: tuple[float, float] | None = None) -> bool:
     """Whether the grout of the family with unit normal ``n`` and offset ``sh`` (px) stays
@@ -49,7 +49,7 @@ def pass_unchanged(run: RobustRun, xs: np.ndarray, ys: np.ndarray, i0: int, i1: 
             and conclusive(run, px, py, dx, dy, float(np.median(core)), limit, beyond))
 
 
-def straddle(run: RobustRun, px: float, py: float, dx: float, dy: float,
+def straddle(run: ReadingState, px: float, py: float, dx: float, dy: float,
              n: tuple[float, float], sh: float) -> tuple[np.ndarray, bool, float] | None:
     """The grout's gray levels where the line through (px, py) along (dx, dy) crosses the
     grout's centre line (the next line ahead of the family with unit normal ``n`` and offset
@@ -87,7 +87,7 @@ def straddle(run: RobustRun, px: float, py: float, dx: float, dy: float,
     return gray_levels(run, xs[ok], ys[ok]), both, grout_variation(run, qx, qy, g, 1.0 / abs(nd))
 
 
-def grout_variation(run: RobustRun, qx: float, qy: float, g: tuple[float, float],
+def grout_variation(run: ReadingState, qx: float, qy: float, g: tuple[float, float],
                     step: float) -> float:
     """How much the grout's gray level varies by itself over a stretch as long as a straddle's
     (19 samples ``step`` px apart along the unit direction ``g``) elsewhere on the same grout
@@ -120,7 +120,7 @@ def trend_range(v: np.ndarray) -> float:
     return float(rest.max() - rest.min())
 
 
-def alongside(run: RobustRun, xs: np.ndarray, ys: np.ndarray, n: tuple[float, float],
+def alongside(run: ReadingState, xs: np.ndarray, ys: np.ndarray, n: tuple[float, float],
               sh: float) -> np.ndarray | None:
     """The grout's gray levels beside the pixels (xs, ys): at the foot of each on the nearest
     centre line of the family with unit normal ``n`` and offset ``sh`` (px), bilinear, median
@@ -136,7 +136,7 @@ def alongside(run: RobustRun, xs: np.ndarray, ys: np.ndarray, n: tuple[float, fl
     return gray_levels(run, fx[ok], fy[ok])
 
 
-def gray_levels(run: RobustRun, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
+def gray_levels(run: ReadingState, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
     """The view's gray levels at the points (xs, ys) (px, in the view, at least 3, in order
     along a line): bilinear, each the median of itself and its 2 neighbours (n - 2 values)."""
     v = cv2.remap(run.gray, xs.astype(np.float32).reshape(1, -1),
@@ -151,14 +151,14 @@ def neighbour_medians(v: np.ndarray) -> np.ndarray:
     return np.maximum(np.minimum(a, b), np.minimum(np.maximum(a, b), c))
 
 
-def straddle_limit(run: RobustRun) -> float:
+def straddle_limit(run: ReadingState) -> float:
     """How much the grout's gray level may vary where a texture's edge meets it (gray levels):
     ``foreign.straddle_sigmas`` x the image noise + ``foreign.straddle_levels``."""
     st = run.st.foreign
-    return st.straddle_sigmas * run.details["noise_sigma"] + st.straddle_levels
+    return st.straddle_sigmas * run.noise + st.straddle_levels
 
 
-def cross_profile(run: RobustRun, px: float, py: float, dx: float, dy: float, t0: float,
+def cross_profile(run: ReadingState, px: float, py: float, dx: float, dy: float, t0: float,
                   t1: float) -> np.ndarray:
     """The gray levels across a straight edge through (px, py) along the unit vector
     (dx, dy): at each of -8..8 px across it (positive along (-dy, dx)), the median of the
@@ -182,7 +182,7 @@ def cross_profile(run: RobustRun, px: float, py: float, dx: float, dy: float, t0
     return lv
 
 
-def conclusive(run: RobustRun, px: float, py: float, dx: float, dy: float, grout: float,
+def conclusive(run: ReadingState, px: float, py: float, dx: float, dy: float, grout: float,
                limit: float, beyond: tuple[float, float] | None = None) -> bool:
     """Whether an object whose straight edge ends at (px, py) (a unit vector (dx, dy) pointing
     on along its line) would have changed the grout's gray level ``grout`` by more than
@@ -309,7 +309,7 @@ def side_level(lv: np.ndarray, seen: np.ndarray, o: np.ndarray) -> float:
     return math.nan
 
 
-def on_grout(run: RobustRun, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
+def on_grout(run: ReadingState, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
     """Which points (xs, ys) (px) lie on the grout the observation predicts: within half the
     grout's half-depth width + 2 px (its edges' blur) of a grout line of either family."""
     assert run.y is not None

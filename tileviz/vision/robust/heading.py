@@ -8,15 +8,17 @@ import cv2
 import numpy as np
 
 from tileviz.vision.robust import checks, heading_kernel
+from tileviz.vision.robust.checks import Record
 from tileviz.vision.robust.settings import HeadingSettings
-from tileviz.vision.robust.state import RobustRun
+from tileviz.vision.robust.state import View
 
 __all__ = ["first_heading", "gradient_votes",
            "lattice_headings", "lattice_power", "smoothed_headings",
            "voters"]
 
 
-def first_heading(run: RobustRun, dx: np.ndarray, dy: np.ndarray) -> float:
+def first_heading(view: View, dx: np.ndarray, dy: np.ndarray, rec: Record,
+                  details: dict[str, float]) -> float:
     """First y3 estimate (rad) from the gradient directions of the strongest gradients.
 
     Every pixel votes (not only Canny's edge pixels: on a textured surface those are mostly
@@ -27,13 +29,15 @@ def first_heading(run: RobustRun, dx: np.ndarray, dy: np.ndarray) -> float:
     the lattice direction (mod pi/2); isotropic texture adds a flat floor. Every other row
     and column votes: a quarter of the votes is plenty for a first estimate (the fit over
     the lattice refines it). The votes are compiled
-    (:func:`~tileviz.vision.robust.heading_kernel.heading_votes`)."""
-    st = run.st.heading
+    (:func:`~tileviz.vision.robust.heading_kernel.heading_votes`). Refuses (``no lines``,
+    check ``heading.gradients``) when no gradient is non-zero; records the share of the votes
+    near the peak (``orientation_share``) in ``details``."""
+    st = view.st.heading
     q = heading_kernel.heading_magnitudes(dx, dy)
     thr = voters(q, st.share, st.min_voters)
-    run.record.require(checks.HEADING_GRADIENTS, run, thr)
+    rec.require(checks.HEADING_GRADIENTS, view, thr)
     y0, share = heading_kernel.heading_votes(dx, dy, q, thr, st.bins, st.near)
-    run.details["orientation_share"] = share
+    details["orientation_share"] = share
     return y0
 
 
@@ -49,19 +53,20 @@ def gradient_votes(dx: np.ndarray, dy: np.ndarray, st: HeadingSettings
     return heading_kernel.heading_votes(dx, dy, q, thr, st.bins, st.near)
 
 
-def smoothed_headings(run: RobustRun) -> list[float]:
+def smoothed_headings(view: View) -> list[tuple[float, float]]:
     """The votes of :func:`first_heading` again on the view smoothed by a Gaussian of each
-    ``heading.smoothing`` std (px): headings (rad, modulo pi/2). Strong camera noise (and the
-    8 x 8 blocks of a JPEG) outvotes a thin grout line pixel by pixel; smoothing weakens the
-    noise's gradients far more than the grout's edges, which span several pixels."""
+    ``heading.smoothing`` std (px): (std, heading (rad, modulo pi/2)) where a gradient votes.
+    Strong camera noise (and the 8 x 8 blocks of a JPEG) outvotes a thin grout line pixel by
+    pixel; smoothing weakens the noise's gradients far more than the grout's edges, which span
+    several pixels."""
     out = []
-    for sigma in run.st.heading.smoothing:
-        g = cv2.GaussianBlur(run.gray, (0, 0), sigma)
+    for sigma in view.st.heading.smoothing:
+        g = cv2.GaussianBlur(view.gray, (0, 0), sigma)
         dx = cv2.Scharr(g, cv2.CV_16S, 1, 0)
         dy = cv2.Scharr(g, cv2.CV_16S, 0, 1)
-        found = gradient_votes(dx, dy, run.st.heading)
+        found = gradient_votes(dx, dy, view.st.heading)
         if found is not None:
-            out.append(found[0])
+            out.append((sigma, found[0]))
     return out
 
 
@@ -136,21 +141,22 @@ class _Turns:
         return out
 
 
-def lattice_headings(run: RobustRun) -> list[float]:
+def lattice_headings(view: View) -> list[float]:
     """Headings (rad, modulo pi/2) at which the view repeats most strongly with the tile
     period in both directions (:func:`lattice_power`), blind to a trend of the light and not:
     every ``heading.lattice_coarse_step`` on the image at ``heading.lattice_scale``, then every
-    ``lattice_fine_step`` within ``lattice_fine_span`` of the best at full size. Used when the
+    ``lattice_fine_step`` within ``lattice_fine_span`` of the best at full size (the
+    trend-blind heading first). Used when the
     gradient directions of :func:`first_heading` lead to no lattice (texture can outvote the
     grout, blur and uneven light can hide it)."""
-    st = run.st.heading
-    img = run.gray.astype(np.float32)
+    st = view.st.heading
+    img = view.gray.astype(np.float32)
     img -= float(img.mean())
     scale = st.lattice_scale
     small = cv2.resize(img, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
     coarse = np.arange(-0.25 * math.pi, 0.25 * math.pi, st.lattice_coarse_step)
-    turns_small = _Turns(small, scale * run.lp, st.lattice_harmonics)
-    turns = _Turns(img, run.lp, st.lattice_harmonics)
+    turns_small = _Turns(small, scale * view.lp, st.lattice_harmonics)
+    turns = _Turns(img, view.lp, st.lattice_harmonics)
     out = []
     for detrend in (True, False):
         pw = turns_small.power(coarse, detrend)

@@ -10,7 +10,7 @@ import numpy as np
 from tileviz.vision.geometry import QUARTER, family_normals
 from tileviz.vision.robust import checks, lattice_kernel
 from tileviz.vision.robust.bound import frame_bound
-from tileviz.vision.robust.state import Line, RobustRun
+from tileviz.vision.robust.state import Line, ReadingState
 
 __all__ = ["clip_line", "lattice_offsets", "measured_period",
            "missing_lines", "normalise"]
@@ -59,7 +59,7 @@ def clip_line(
     return (px + lo * tx, py + lo * ty, px + hi * tx, py + hi * ty)
 
 
-def lattice_offsets(run: RobustRun, lines: list[list[Line]], y3: float) -> None:
+def lattice_offsets(run: ReadingState, lines: list[list[Line]], y3: float) -> None:
     """Offsets modulo L per family, the spacing checks, the bound and the observation
     (checks ``spacing.missing`` .. ``bound.heading``)."""
     x0, y0 = run.centre
@@ -113,7 +113,7 @@ def lattice_offsets(run: RobustRun, lines: list[list[Line]], y3: float) -> None:
     run.y = normalise(ys[0], ys[1], y3, run.tile_size)
 
 
-def measured_period(run: RobustRun, s: np.ndarray, ref: float) -> None:
+def measured_period(run: ReadingState, s: np.ndarray, ref: float) -> None:
     """The tile period that one family's lines show (signed offsets ``s``, px, about the
     family's phase ``ref``), over the declared one (``tile_size`` x ``ppm``): the slope of a
     least-squares line through the offsets against their lattice indices, when they span at
@@ -132,7 +132,7 @@ def measured_period(run: RobustRun, s: np.ndarray, ref: float) -> None:
     run.details["period_span"] = span
 
 
-def missing_lines(run: RobustRun, k: int, ref: float, found: np.ndarray, y3: float) -> None:
+def missing_lines(run: ReadingState, k: int, ref: float, found: np.ndarray, y3: float) -> None:
     """Refuse when the lattice predicts a well-visible line of family k that was not found
     (the signed offsets ``ref + j L ppm``, px) and the family's profile shows no dip there
     either (within half the grout's width + 1.5 px of it): a grout line as light as the

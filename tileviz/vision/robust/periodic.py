@@ -16,11 +16,11 @@ from __future__ import annotations
 import numpy as np
 
 from tileviz.vision.robust.settings import SelectionSettings
-from tileviz.vision.robust.state import Line, RobustRun
+from tileviz.vision.robust.state import Line, ReadingState
 
 __all__ = ["like", "on_lattice"]
 
-def on_lattice(run: RobustRun, lines: list[list[Line]]) -> list[list[Line]]:
+def on_lattice(run: ReadingState, lines: list[list[Line]]) -> list[list[Line]]:
     """``lines`` (per family) without the weak dips off each family's phase (see the module
     docstring)."""
     st = run.st.selection

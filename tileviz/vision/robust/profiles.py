@@ -11,7 +11,7 @@ import numpy as np
 
 from tileviz.vision.robust import kernel
 from tileviz.vision.robust.projection import Projection, project
-from tileviz.vision.robust.state import PARTS, Line, RobustRun
+from tileviz.vision.robust.state import PARTS, Line, ReadingState
 from tileviz.vision.robust.statistics import list_median
 
 __all__ = ["beside_dip", "dips", "grout_contrast", "measure", "measure_parts", "nanmedian",
@@ -19,7 +19,7 @@ __all__ = ["beside_dip", "dips", "grout_contrast", "measure", "measure_parts", "
 
 
 def measure(
-    run: RobustRun, y3: float, attempt: int = 1, *, reuse: bool = True, every: bool = False
+    run: ReadingState, y3: float, attempt: int = 1, *, reuse: bool = True, every: bool = False
 ) -> list[list[Line]]:
     """The dips of both families at heading y3, measured with the window ``run.window``. The
     warp and the profiles are computed once per heading (a second call with the same y3 on a
@@ -32,7 +32,7 @@ def measure(
     return dips(run, proj, every=every)
 
 
-def dips(run: RobustRun, proj: Projection, *, every: bool = False) -> list[list[Line]]:
+def dips(run: ReadingState, proj: Projection, *, every: bool = False) -> list[list[Line]]:
     """The lines of both families from the dips of their profiles (:func:`profiles`): each
     dip is measured in PARTS equal stretches of the part of its line that every sample of its
     window (``run.window`` samples each side) sees (so all samples of a part average the same
@@ -82,7 +82,7 @@ def dips(run: RobustRun, proj: Projection, *, every: bool = False) -> list[list[
 
 
 def measure_parts(
-    run: RobustRun,
+    run: ReadingState,
     proj: Projection,
     rows: np.ndarray,
     cols: np.ndarray,
@@ -160,7 +160,7 @@ def grout_contrast(pp: np.ndarray, jf: np.ndarray, cj: np.ndarray, hj: np.ndarra
     return depth / np.maximum(255.0 - bottom, 1.0)
 
 
-def select_lines(run: RobustRun, lines: list[list[Line]]) -> list[list[Line]]:
+def select_lines(run: ReadingState, lines: list[list[Line]]) -> list[list[Line]]:
     """Keep the dips that look like grout lines: deep enough against the deepest, and not
     much wider than the strong ones (a broad shadow or stain is not a line)."""
     st = run.st.selection
@@ -182,7 +182,7 @@ def select_lines(run: RobustRun, lines: list[list[Line]]) -> list[list[Line]]:
     ]
 
 
-def beside_dip(run: RobustRun, k: int, line: Line) -> float:
+def beside_dip(run: ReadingState, k: int, line: Line) -> float:
     """The darkness of the deepest dip of family ``k``'s whole profile (the last projection)
     apart from ``line``'s own within its measurement window (``run.window`` samples each side
     of the line's centre), over the line's depth (0.0 when there is none). Apart: every

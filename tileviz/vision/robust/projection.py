@@ -12,12 +12,12 @@ import cv2
 import numpy as np
 
 from tileviz.vision.robust import projection_kernel
-from tileviz.vision.robust.state import RobustRun
+from tileviz.vision.robust.state import ReadingState
 
 __all__ = ["Projection", "light_grout", "profiles", "project"]
 
 
-def light_grout(run: RobustRun, sums: tuple[np.ndarray, np.ndarray],
+def light_grout(run: ReadingState, sums: tuple[np.ndarray, np.ndarray],
                 spans: tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
                 ) -> bool:
     """Whether the grout is lighter than the tiles: the family profiles (row and column
@@ -58,7 +58,7 @@ class Projection:
     peak: np.ndarray  # (m,) its deepest sample (padded index)
 
 
-def project(run: RobustRun, y3: float, attempt: int) -> Projection:
+def project(run: ReadingState, y3: float, attempt: int) -> Projection:
     """Warp the image by y3 (on the first attempt, also decide the grout's polarity), and find
     the dips of both family profiles."""
     c, s = math.cos(y3), math.sin(y3)
@@ -107,7 +107,7 @@ def project(run: RobustRun, y3: float, attempt: int) -> Projection:
 
 
 def profiles(
-    run: RobustRun,
+    run: ReadingState,
     y3: float,
     integ: np.ndarray,
     sums: tuple[np.ndarray, np.ndarray],

@@ -8,30 +8,32 @@ import cv2
 import numpy as np
 
 from tileviz.vision.robust import checks
-from tileviz.vision.robust.state import RobustRun
+from tileviz.vision.robust.checks import Record
+from tileviz.vision.robust.state import View
 
 __all__ = ["glare_share", "gray_statistics", "list_median", "noise_sigma"]
 
 
-def gray_statistics(run: RobustRun) -> None:
-    """Set ``run.mean`` (gray levels); refuse a ``constant image`` or ``glare`` (checks
-    ``constant.*``, ``glare.*``)."""
-    st = run.st.statistics
-    hist = cv2.calcHist([run.gray], [0], None, [256], [0, 256]).ravel()
+def gray_statistics(view: View, rec: Record, details: dict[str, float]) -> float:
+    """The view's gray mean (gray levels); refuse a ``constant image`` or ``glare`` (checks
+    ``constant.*``, ``glare.*``, recorded in ``rec``; ``gray_range`` and ``saturated`` in
+    ``details``)."""
+    st = view.st.statistics
+    hist = cv2.calcHist([view.gray], [0], None, [256], [0, 256]).ravel()
     cdf = np.cumsum(hist)
     n = float(cdf[-1])
     lo, hi, thin_lo, thin_hi = (float(v) for v in np.searchsorted(
         cdf, np.array([*st.range_quantiles, *st.thin_quantiles]) * n))
-    run.mean = float(np.dot(hist, np.arange(256))) / n
-    run.details["gray_range"] = hi - lo
-    rec = run.record
-    if not rec.check(checks.CONSTANT_RANGE, run, hi - lo):
-        rec.require(checks.CONSTANT_THIN, run, thin_hi - thin_lo)
+    mean = float(np.dot(hist, np.arange(256))) / n
+    details["gray_range"] = hi - lo
+    if not rec.check(checks.CONSTANT_RANGE, view, hi - lo):
+        rec.require(checks.CONSTANT_THIN, view, thin_hi - thin_lo)
     saturated = float(hist[st.saturated_level:].sum()) / n
-    run.details["saturated"] = saturated
-    if not rec.check(checks.GLARE_SATURATED, run, saturated):
-        rec.require(checks.GLARE_PATCHES, run,
-                    glare_share(run.gray, st.glare_patch, st.saturated_level))
+    details["saturated"] = saturated
+    if not rec.check(checks.GLARE_SATURATED, view, saturated):
+        rec.require(checks.GLARE_PATCHES, view,
+                    glare_share(view.gray, st.glare_patch, st.saturated_level))
+    return mean
 
 
 def glare_share(gray: np.ndarray, patch: int, level: int = 250) -> float:
@@ -45,18 +47,17 @@ def glare_share(gray: np.ndarray, patch: int, level: int = 250) -> float:
     return float(cv2.countNonZero(core)) / float(gray.size)
 
 
-def noise_sigma(run: RobustRun) -> float:
+def noise_sigma(gray: np.ndarray) -> float:
     """Gaussian noise std of the image, gray levels (Immerkaer's fast estimate)."""
     # the kernel [[1, -2, 1], [-2, 4, -2], [1, -2, 1]] is [1, -2, 1] along rows then columns:
     # integer taps on 8-bit pixels, |r| <= 16 * 255 fits 16 bits and every partial sum is an
     # exact integer, so the L1 sum is the same exact integer as in float (a quarter of the
     # time of a float32 filter)
-    r = cv2.sepFilter2D(run.gray, cv2.CV_16S, _IMMERKAER, _IMMERKAER)
-    sigma = math.sqrt(math.pi / 2.0) * float(cv2.norm(r[1:-1, 1:-1], cv2.NORM_L1)) / (
-        6.0 * (run.w - 2) * (run.h - 2)
+    h, w = gray.shape
+    r = cv2.sepFilter2D(gray, cv2.CV_16S, _IMMERKAER, _IMMERKAER)
+    return math.sqrt(math.pi / 2.0) * float(cv2.norm(r[1:-1, 1:-1], cv2.NORM_L1)) / (
+        6.0 * (w - 2) * (h - 2)
     )
-    run.details["noise_sigma"] = sigma
-    return sigma
 
 
 _IMMERKAER = np.array([1.0, -2.0, 1.0], np.float32)
