@@ -27,7 +27,7 @@ def dip_rows_numpy(
     the start ``u_lo`` and the length ``step`` of each of its PARTS parts (the in-view
     stretch that every sample within ``half`` + 5 of the centre sees, 1 px in from each end),
     and its plateau levels on both sides (:func:`plateaus`). :func:`~tileviz.vision.robust.
-    kernel.dip_rows` is the same computation compiled (bit-identical)."""
+    dip_kernel.dip_rows` is the same computation compiled (bit-identical)."""
     jj = np.arange(-r, r + 1)
     jf = jj.astype(np.float64)
     cols = peak[:, None] + jj[None, :]  # padded profile index
@@ -58,7 +58,7 @@ def dip_recentre_numpy(c0: np.ndarray, half: np.ndarray, peak: np.ndarray, r: in
     """The dips' peaks (padded indices) moved by their half-depth centres ``c0`` (rounded)
     where the window of ``r`` samples does not reach the plateaus (``|c0| + half + 4 > r``),
     kept within [``first``, ``last``], and whether any moved. :func:`~tileviz.vision.robust.
-    kernel.dip_recentre` is the same computation compiled (bit-identical)."""
+    dip_kernel.dip_recentre` is the same computation compiled (bit-identical)."""
     reach = np.abs(c0) + half + 4.0
     off = np.where(np.isfinite(reach) & (reach > r), np.rint(c0), 0.0).astype(np.intp)
     if not off.any():
@@ -76,7 +76,7 @@ def part_layout_numpy(
     its length ``count`` and mean tangent coordinate ``tpart`` (m, PARTS), the warp row or
     column of every window sample (padded profile indices ``cols`` less ``pad``, within
     [0, ``lim``]), and per part row the dip's centre ``c0`` and half window ``half``.
-    :func:`~tileviz.vision.robust.kernel.part_layout` is the same computation compiled
+    :func:`~tileviz.vision.robust.dip_kernel.part_layout` is the same computation compiled
     (bit-identical)."""
     along = np.where(fam == 0, x0, y0)  # warp coordinate of u = 0
     edges_u = u_lo[:, None] + step[:, None] * np.arange(PARTS + 1)[None, :]

@@ -21,6 +21,7 @@ from tileviz.types import Pose
 from tileviz.vision import extract
 from tileviz.vision.robust import (
     DEFAULT_SETTINGS,
+    dip_kernel,
     fit_kernel,
     heading_kernel,
     kernel,
@@ -105,6 +106,7 @@ def _bits(a: np.ndarray) -> bytes:
 
 
 PROJECTION_KERNELS = ("grout_score", "profile_dips", "view_spans", "profile_arrays")
+DIP_KERNELS = ("dip_rows", "part_summary", "part_layout", "dip_recentre")
 
 
 def test_the_compiled_part_measurement_is_the_numpy_one_bit_for_bit(
@@ -120,7 +122,8 @@ def test_the_compiled_part_measurement_is_the_numpy_one_bit_for_bit(
     views = _floor_views(2)
     names = ("part_rows", "part_profiles", "grout_score", "profile_dips", "dip_rows",
              "view_spans", "profile_arrays", "part_summary", "part_layout", "dip_recentre")
-    home = {name: projection_kernel if name in PROJECTION_KERNELS else kernel for name in names}
+    home = {name: projection_kernel if name in PROJECTION_KERNELS
+            else dip_kernel if name in DIP_KERNELS else kernel for name in names}
     compiled = {name: getattr(home[name], name) for name in names}
     seen: dict[str, list[tuple]] = {name: [] for name in names}
 

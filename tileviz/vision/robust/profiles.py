@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 
-from tileviz.vision.robust import kernel
+from tileviz.vision.robust import dip_kernel, kernel
 from tileviz.vision.robust.projection import Projection, project
 from tileviz.vision.robust.state import PARTS, Line, ReadingState
 from tileviz.vision.robust.statistics import list_median
@@ -50,16 +50,17 @@ def dips(run: ReadingState, proj: Projection, *, every: bool = False) -> list[li
     pk = proj.peak
     jj = np.arange(-r, r + 1)
     jf = jj.astype(np.float64)
-    p0, depth, c0, half, u_lo, step, lev_l, lev_r = kernel.dip_rows(
+    p0, depth, c0, half, u_lo, step, lev_l, lev_r = dip_kernel.dip_rows(
         proj.prof, proj.dark, proj.lo, proj.hi, proj.fam, pk, r)
     # The deepest sample of a wide, flat-bottomed band may lie at either of its edges, half
     # the band off its centre, where the band's far edge and plateau fall outside the window
     # (its parts could not be measured, kernel.part_rows): such a dip is measured again
     # centred on its half-depth crossings (kept within the profile's data, so the window
     # stays within its padding).
-    pk, moved = kernel.dip_recentre(c0, half, pk, r, proj.pad, proj.prof.shape[1] - 1 - proj.pad)
+    pk, moved = dip_kernel.dip_recentre(c0, half, pk, r, proj.pad,
+                                        proj.prof.shape[1] - 1 - proj.pad)
     if moved:
-        p0, depth, c0, half, u_lo, step, lev_l, lev_r = kernel.dip_rows(
+        p0, depth, c0, half, u_lo, step, lev_l, lev_r = dip_kernel.dip_rows(
             proj.prof, proj.dark, proj.lo, proj.hi, proj.fam, pk, r)
     cols = pk[:, None] + jj[None, :]  # padded profile index
     usable = np.flatnonzero(np.isfinite(c0) & (step >= run.st.profiles.min_part / 2.0))
@@ -108,11 +109,11 @@ def measure_parts(
     u_lo, step = u_lo[rows], step[rows]
     lev_l, lev_r = lev_l[rows], lev_r[rows]
     x0, y0 = run.centre
-    idx, count, tpart, line, cj, hj = kernel.part_layout(fam, u_lo, step, x0, y0, cols, proj.pad,
-                                             integ.shape[0] + integ.shape[1], c0, half)
+    idx, count, tpart, line, cj, hj = dip_kernel.part_layout(
+        fam, u_lo, step, x0, y0, cols, proj.pad, integ.shape[0] + integ.shape[1], c0, half)
     pp = kernel.part_profiles(integ.ravel(), integ.shape[1], fam, line, idx, mean, p0)
     width, rise, contrast, cen, mids, msig = kernel.part_rows(pp, jf, cj, hj, r)
-    wmed, rmed, cmed, stepr, parts, wpart, sigma, spread = kernel.part_summary(
+    wmed, rmed, cmed, stepr, parts, wpart, sigma, spread = dip_kernel.part_summary(
         width, rise, contrast, cen, mids, msig, count, pk - proj.pad, lev_l, lev_r)
     gmed = np.full(rows.size, np.nan)
     if run.inverted:
