@@ -155,7 +155,7 @@ def summary(decision: Decision) -> str:
 def explain_lines(decision: Decision) -> list[str]:
     """The decision path as text lines: a summary, then per block (the view, each reading)
     one row per check: id, value, relation and limit, pass / fail."""
-    out = [summary(decision)]
+    out = [summary(decision), f"    {'check':<34} {'value':>10}  limit{'':<8} result"]
     for head, checks, ref in _rows(decision):
         out.append(f"  {head}")
         for c in checks:
