@@ -69,12 +69,13 @@ wheel slip beyond the bounds; Relocalize or Reset).
 at the end). *Step back* and the *timeline* show stored frames as they were; nothing is
 recomputed. *Go live* jumps to the newest frame.
 
-**The left panel.** The camera view and each stage of the image pipeline (report Fig 4.2 and
-4.3), or the plots: *Does the view agree with the true pose?* draws the six equivalence
-residuals of report table 6.1 (Fig 6.3; zero when the view fits the true pose), *Size of the
-set* the widths of the blue set, *Distance from the set's centre to the truth* its error.
-Orange: the Monte Carlo Localization baseline, calibrated to the views' measured errors
-(particles and 95 % ellipse), when switched on.
+**The left panel.** The camera view and each stage of the image pipeline (report Fig 4.2 and 4.3)
+with, under them, the robust extractor's checks of the frame on screen (the readings tried, each
+check's value, limit and result, and the check that refused the frame), or the plots: *Does the view
+agree with the true pose?* draws the six equivalence residuals of report table 6.1 (Fig 6.3; zero
+when the view fits the true pose), *Size of the set* the widths of the blue set, *Distance from the
+set's centre to the truth* its error. Orange: the Monte Carlo Localization baseline, calibrated to
+the views' measured errors (particles and 95 % ellipse), when switched on.
 """
 """The page's "How to read this page" text (markdown)."""
 

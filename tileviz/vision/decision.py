@@ -16,7 +16,8 @@ import math
 from dataclasses import dataclass
 from typing import NamedTuple
 
-__all__ = ["CheckResult", "Decision", "Reading", "Tried", "explain_lines", "explain_markdown"]
+__all__ = ["CheckResult", "Decision", "Reading", "Tried", "explain_lines", "explain_markdown",
+           "number", "summary"]
 
 
 class CheckResult(NamedTuple):
