@@ -112,6 +112,49 @@ def test_faults_across_the_view_are_refused(
     assert res.reason in reasons, res.details
 
 
+@pytest.mark.parametrize("fault", [
+    Fault("cable", {"angle": 1.0, "offset": 10.0, "width": 4.0}),
+    Fault("box", {"angle": 0.9, "offset": 40.0}),
+    Fault("glare", {"x": 150.0, "y": 110.0, "radius": 50.0}),
+    Fault("motion_blur", {"angle": 0.23, "length": 30.0}),
+    Fault("dropout"),
+    None,
+])
+def test_a_refusal_names_its_check_with_the_value_that_broke_its_limit(
+    renderer: FloorRenderer, fault: Fault | None
+) -> None:
+    """Every refusal carries the check that refused (a known id whose reason is the result's),
+    the value measured and the limit it broke; every check run before it passed or was
+    overruled by the next (a rescue), and an accepted view passed every check of the reading
+    it shows."""
+    from tileviz.vision.robust.checks import CHECKS
+
+    res = _run(renderer, None if fault is None else [fault])
+    dec = res.decision
+    assert dec is not None and dec.reason == res.reason
+    runs = [dec.view_checks] + [t.checks for t in dec.readings]
+    assert all(c.check in CHECKS for checks in runs for c in checks)
+    if res.accepted:
+        assert dec.refusal is None and dec.shown is not None
+        assert all(c.passed for c in dec.readings[dec.shown].checks)
+        return
+    ref = dec.refusal
+    assert ref is not None and not ref.passed
+    check = CHECKS[ref.check]
+    assert check.reason == res.reason or ref.check == "foreign_edge"
+    assert not check.relation.passes(ref.value, ref.limit)
+    where = dec.view_checks if dec.refused_in is None else dec.readings[dec.refused_in].checks
+    assert where[-1] == ref  # the last check run there
+    rescued = {"constant.range", "glare.saturated", "foreign_line.contrast"}
+    assert all(c.passed or c.check in rescued for c in where[:-1])
+
+
+def test_the_checks_docstring_lists_every_check_id() -> None:
+    from tileviz.vision.robust import checks
+
+    assert all(f"``{cid}``" in checks.__doc__ for cid in checks.CHECKS)
+
+
 def test_a_cable_along_a_grout_line_direction_off_the_lattice_is_refused(
     renderer: FloorRenderer,
 ) -> None:
