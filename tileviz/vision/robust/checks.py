@@ -89,7 +89,11 @@ __all__ = ["CHECKS", "Check", "Context", "Record", "Refusal", "Relation"]
 
 
 class Context(Protocol):
-    """What a limit is computed from: the settings and the view's context."""
+    """What a limit is computed from: the settings (``st``) and the view's context: the
+    position check scale (``bound_px``, px), the smaller side of the view (``side``, px), the
+    declared bounds (``vision``) and the view's noise std (``noise``, gray levels).
+    :class:`~tileviz.vision.robust.state.View` and
+    :class:`~tileviz.vision.robust.state.ReadingState` are contexts."""
 
     @property
     def st(self) -> RobustSettings: ...
@@ -99,6 +103,8 @@ class Context(Protocol):
     def side(self) -> float: ...
     @property
     def vision(self) -> VisionConfig: ...
+    @property
+    def noise(self) -> float: ...
 
 
 @dataclass(frozen=True)
@@ -146,10 +152,6 @@ class Refusal(Exception):
         self.result = result
 
 
-def _scale_px(c: Context) -> float:
-    return c.bound_px
-
-
 CONSTANT_RANGE = Check("constant.range", "constant image", AT_LEAST,
                        lambda c: c.st.statistics.min_range, "statistics.min_range",
                        "gray range (2-98 %)")
@@ -177,7 +179,7 @@ BLUR_RISE = Check("blur.rise", "blurred", WITHIN, lambda c: c.st.lines.max_rise,
 STEP_LEVELS = Check("step_edge.levels", "step edge", AT_MOST, lambda c: c.st.lines.max_step,
                     "lines.max_step", "largest step between a line's sides")
 ANGLE_STRAIGHT = Check("angle.straight", "inconsistent angle", AT_MOST,
-                       lambda c: c.st.lines.straight_fraction * _scale_px(c),
+                       lambda c: c.st.lines.straight_fraction * c.bound_px,
                        "lines.straight_fraction, scale.position_px",
                        "worst part off the common fit (px)")
 ANGLE_PERPENDICULAR = Check("angle.perpendicular", "inconsistent angle", AT_MOST,
@@ -207,7 +209,7 @@ FOREIGN_SHOULDER = Check("foreign_line.shoulder", "foreign line", AT_MOST,
 SPACING_MISSING = Check("spacing.missing", "inconsistent spacing", AT_MOST, lambda c: 0.0,
                         "lattice.min_chord, found_share", "a predicted line missing")
 SPACING = Check("spacing", "inconsistent spacing", AT_MOST,
-                lambda c: c.st.lattice.spacing_fraction * _scale_px(c),
+                lambda c: c.st.lattice.spacing_fraction * c.bound_px,
                 "lattice.spacing_fraction, scale.position_px", "worst line off the lattice (px)")
 EVIDENCE = Check("evidence", "too few segments", AT_LEAST,
                  lambda c: c.st.lattice.min_evidence * c.side, "lattice.min_evidence",
