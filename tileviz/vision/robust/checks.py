@@ -77,6 +77,7 @@ context, value)`` where its value is measured.
 
 from __future__ import annotations
 
+import operator
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol
@@ -109,21 +110,27 @@ class Context(Protocol):
 
 @dataclass(frozen=True)
 class Relation:
-    """How a value must compare with its limit to pass: ``symbol`` (shown), ``passes``."""
+    """How a value must compare with its limit to pass: ``symbol`` (shown); the value passes
+    when ``test(value, limit)`` (an ``operator`` comparison) differs from ``negate``."""
 
     symbol: str
-    passes: Callable[[float, float], bool]
+    test: Callable[[float, float], bool]
+    negate: bool
+
+    def passes(self, value: float, limit: float) -> bool:
+        """Whether ``value`` passes against ``limit``."""
+        return self.test(value, limit) != self.negate
 
 
-AT_LEAST = Relation(">=", lambda v, lim: not v < lim)
+AT_LEAST = Relation(">=", operator.lt, True)
 """Passes unless below the limit (NaN passes)."""
-AT_MOST = Relation("<=", lambda v, lim: not v > lim)
+AT_MOST = Relation("<=", operator.gt, True)
 """Passes unless above the limit (NaN passes)."""
-WITHIN = Relation("<=", lambda v, lim: v <= lim)
+WITHIN = Relation("<=", operator.le, False)
 """Passes when at most the limit (NaN fails: not measured)."""
-BELOW = Relation("<", lambda v, lim: not v >= lim)
+BELOW = Relation("<", operator.ge, True)
 """Passes unless at or above the limit (NaN passes)."""
-ABOVE = Relation(">", lambda v, lim: not v <= lim)
+ABOVE = Relation(">", operator.le, True)
 """Passes unless at or below the limit (NaN passes)."""
 
 
@@ -235,6 +242,11 @@ CHECKS: dict[str, Check] = {c.id: c for c in (
 """Every check by id, in the order they run."""
 
 
+_new_result = tuple.__new__
+"""Makes a CheckResult from its fields' tuple without a Python-level call (a view runs a few
+dozen checks)."""
+
+
 class Record:
     """The checks run so far on one view or one reading, in order (``results``)."""
 
@@ -247,15 +259,21 @@ class Record:
               subject: str = "") -> bool:
         """Run ``check`` on ``value`` (its limit from ``context`` and ``extra``), record the
         result and return whether it passed."""
-        limit = check.limit(context, *extra)
-        ok = check.relation.passes(value, limit)
-        self.results.append(CheckResult(check.id, float(value), float(limit),
-                                        check.relation.symbol, ok, subject))
+        v, lim = float(value), float(check.limit(context, *extra))
+        rel = check.relation
+        ok = rel.test(v, lim) != rel.negate
+        self.results.append(_new_result(CheckResult, (check.id, v, lim, rel.symbol, ok,
+                                                      subject)))
         return ok
 
     def require(self, check: Check, context: Context, value: float, *extra: float,
                 subject: str = "", reason: str | None = None) -> None:
         """:meth:`check`, raising :class:`Refusal` (``reason``, default the check's) when it
         fails."""
-        if not self.check(check, context, value, *extra, subject=subject):
-            raise Refusal(self.results[-1], reason or check.reason)
+        v, lim = float(value), float(check.limit(context, *extra))
+        rel = check.relation
+        ok = rel.test(v, lim) != rel.negate
+        result = _new_result(CheckResult, (check.id, v, lim, rel.symbol, ok, subject))
+        self.results.append(result)
+        if not ok:
+            raise Refusal(result, reason or check.reason)

@@ -26,7 +26,7 @@ from tileviz.vision.robust.checks import Record, Refusal
 from tileviz.vision.robust.heading import first_heading
 from tileviz.vision.robust.readings import Outcome, decide
 from tileviz.vision.robust.settings import DEFAULT_SETTINGS, RobustSettings
-from tileviz.vision.robust.state import View
+from tileviz.vision.robust.state import Scale, View, check_scale
 from tileviz.vision.robust.statistics import gray_statistics, noise_sigma
 
 __all__ = ["Conclusion", "build_result", "clip_all", "conclude", "extract_robust", "prepare",
@@ -72,14 +72,15 @@ def prepare(gray: np.ndarray, camera: CameraConfig, tile_size: float, vision: Vi
     ``constant image`` or ``glare``), the Scharr gradients, the noise level and the first
     heading (refusing ``no lines`` when no gradient votes); the refusal, if any. Stage times
     are added to ``tm`` (ms)."""
-    view = View.of(gray, camera, tile_size, vision, settings)
+    h, w = gray.shape
+    ctx = Scale(settings, check_scale(vision, settings)[0], float(min(h, w)), vision, math.nan)
     rec = Record()
     details: dict[str, float] = {}
     mean, noise, dxy, heading = 0.0, math.nan, None, math.nan
     refusal = None
     t = time.perf_counter()
     try:
-        mean = gray_statistics(view, rec, details)
+        mean = gray_statistics(gray, ctx, rec, details)
         t = _lap(tm, "statistics", t)
         dx = cv2.Scharr(gray, cv2.CV_16S, 1, 0)
         dy = cv2.Scharr(gray, cv2.CV_16S, 0, 1)
@@ -87,12 +88,14 @@ def prepare(gray: np.ndarray, camera: CameraConfig, tile_size: float, vision: Vi
         noise = noise_sigma(gray)
         details["noise_sigma"] = noise
         t = _lap(tm, "edges", t)
-        heading = first_heading(view, dx, dy, rec, details)
+        heading = first_heading(ctx, dx, dy, rec, details)
         _lap(tm, "heading", t)
     except Refusal as r:
         refusal = r
-    return replace(view, mean=mean, noise=noise, dxy=dxy, heading=heading,
-                   details=MappingProxyType(details), checks=tuple(rec.results)), refusal
+    view = View.of(gray, camera, tile_size, vision, settings, mean=mean, noise=noise, dxy=dxy,
+                   heading=heading, details=MappingProxyType(details),
+                   checks=tuple(rec.results))
+    return view, refusal
 
 
 def _lap(tm: dict[str, float], name: str, t0: float) -> float:

@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 
 from tileviz.vision.robust import checks, heading_kernel
-from tileviz.vision.robust.checks import Record
+from tileviz.vision.robust.checks import Context, Record
 from tileviz.vision.robust.settings import HeadingSettings
 from tileviz.vision.robust.state import View
 
@@ -17,7 +17,7 @@ __all__ = ["first_heading", "gradient_votes",
            "voters"]
 
 
-def first_heading(view: View, dx: np.ndarray, dy: np.ndarray, rec: Record,
+def first_heading(ctx: Context, dx: np.ndarray, dy: np.ndarray, rec: Record,
                   details: dict[str, float]) -> float:
     """First y3 estimate (rad) from the gradient directions of the strongest gradients.
 
@@ -32,10 +32,10 @@ def first_heading(view: View, dx: np.ndarray, dy: np.ndarray, rec: Record,
     (:func:`~tileviz.vision.robust.heading_kernel.heading_votes`). Refuses (``no lines``,
     check ``heading.gradients``) when no gradient is non-zero; records the share of the votes
     near the peak (``orientation_share``) in ``details``."""
-    st = view.st.heading
+    st = ctx.st.heading
     q = heading_kernel.heading_magnitudes(dx, dy)
     thr = voters(q, st.share, st.min_voters)
-    rec.require(checks.HEADING_GRADIENTS, view, thr)
+    rec.require(checks.HEADING_GRADIENTS, ctx, thr)
     y0, share = heading_kernel.heading_votes(dx, dy, q, thr, st.bins, st.near)
     details["orientation_share"] = share
     return y0

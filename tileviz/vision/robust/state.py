@@ -13,7 +13,7 @@ import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -22,7 +22,7 @@ from tileviz.vision.decision import CheckResult, Reading
 from tileviz.vision.robust.checks import Record
 from tileviz.vision.robust.settings import RobustSettings
 
-__all__ = ["PARTS", "Line", "ReadingState", "View"]
+__all__ = ["PARTS", "Line", "ReadingState", "Scale", "View", "check_scale"]
 
 PARTS = 4
 """Each line is measured in this many parts along its length."""
@@ -90,8 +90,9 @@ class View:
 
     @classmethod
     def of(cls, gray: np.ndarray, camera: CameraConfig, tile_size: float, vision: VisionConfig,
-           settings: RobustSettings) -> View:
-        """The view's geometry, settings and check scale (nothing measured yet)."""
+           settings: RobustSettings, **measured: Any) -> View:
+        """The view's geometry, settings and check scale (:func:`check_scale`), with the
+        ``measured`` fields (``mean``, ``noise``, ...)."""
         h, w = gray.shape
         ppm = float(camera.ppm)
         lp = float(tile_size) * ppm
@@ -101,14 +102,31 @@ class View:
         closing = 2 * int(round(min(max(pst.closing_min, pst.closing_share * lp),
                                     pst.closing_max))) + 1
         widest = closing + pst.window_slack
+        bound_px, bound_rad = check_scale(vision, settings)
         return cls(
             gray=gray, h=h, w=w, side=float(min(h, w)), ppm=ppm, tile_size=float(tile_size),
-            lp=lp, vision=vision, st=settings,
-            # the consistency checks work at the smaller of the declared bounds and the check
-            # scales (the declared bounds keep a margin over the errors the checks let through)
-            bound_px=min(float(vision.position_error_px), settings.scale.position_px),
-            bound_rad=min(float(vision.heading_error), settings.scale.heading),
-            closing=closing, window=min(pst.window, widest), widest=widest)
+            lp=lp, vision=vision, st=settings, bound_px=bound_px, bound_rad=bound_rad,
+            closing=closing, window=min(pst.window, widest), widest=widest, **measured)
+
+
+def check_scale(vision: VisionConfig, settings: RobustSettings) -> tuple[float, float]:
+    """The scale of the consistency checks (px, rad): the smaller of the declared bounds and
+    ``settings.scale`` (the declared bounds keep a margin over the errors the checks let
+    through)."""
+    return (min(float(vision.position_error_px), settings.scale.position_px),
+            min(float(vision.heading_error), settings.scale.heading))
+
+
+class Scale(NamedTuple):
+    """The view-level checks' context (:class:`~tileviz.vision.robust.checks.Context`) before
+    the :class:`View` is made: settings, check scale (px), smaller side (px), declared bounds,
+    noise std (gray levels; NaN until measured)."""
+
+    st: RobustSettings
+    bound_px: float
+    side: float
+    vision: VisionConfig
+    noise: float
 
 
 class ReadingState:

@@ -8,31 +8,31 @@ import cv2
 import numpy as np
 
 from tileviz.vision.robust import checks
-from tileviz.vision.robust.checks import Record
-from tileviz.vision.robust.state import View
+from tileviz.vision.robust.checks import Context, Record
 
 __all__ = ["glare_share", "gray_statistics", "list_median", "noise_sigma"]
 
 
-def gray_statistics(view: View, rec: Record, details: dict[str, float]) -> float:
-    """The view's gray mean (gray levels); refuse a ``constant image`` or ``glare`` (checks
-    ``constant.*``, ``glare.*``, recorded in ``rec``; ``gray_range`` and ``saturated`` in
-    ``details``)."""
-    st = view.st.statistics
-    hist = cv2.calcHist([view.gray], [0], None, [256], [0, 256]).ravel()
+def gray_statistics(gray: np.ndarray, ctx: Context, rec: Record,
+                    details: dict[str, float]) -> float:
+    """The gray mean of ``gray`` (HxW uint8, gray levels); refuse a ``constant image`` or
+    ``glare`` (checks ``constant.*``, ``glare.*`` with the limits' context ``ctx``, recorded in
+    ``rec``; ``gray_range`` and ``saturated`` in ``details``)."""
+    st = ctx.st.statistics
+    hist = cv2.calcHist([gray], [0], None, [256], [0, 256]).ravel()
     cdf = np.cumsum(hist)
     n = float(cdf[-1])
     lo, hi, thin_lo, thin_hi = (float(v) for v in np.searchsorted(
         cdf, np.array([*st.range_quantiles, *st.thin_quantiles]) * n))
     mean = float(np.dot(hist, np.arange(256))) / n
     details["gray_range"] = hi - lo
-    if not rec.check(checks.CONSTANT_RANGE, view, hi - lo):
-        rec.require(checks.CONSTANT_THIN, view, thin_hi - thin_lo)
+    if not rec.check(checks.CONSTANT_RANGE, ctx, hi - lo):
+        rec.require(checks.CONSTANT_THIN, ctx, thin_hi - thin_lo)
     saturated = float(hist[st.saturated_level:].sum()) / n
     details["saturated"] = saturated
-    if not rec.check(checks.GLARE_SATURATED, view, saturated):
-        rec.require(checks.GLARE_PATCHES, view,
-                    glare_share(view.gray, st.glare_patch, st.saturated_level))
+    if not rec.check(checks.GLARE_SATURATED, ctx, saturated):
+        rec.require(checks.GLARE_PATCHES, ctx,
+                    glare_share(gray, st.glare_patch, st.saturated_level))
     return mean
 
 
