@@ -133,6 +133,12 @@ def conclude(view: View, refusal: Refusal | None, done: Sequence[Outcome]) -> Co
     if refusal is not None:
         dec = Decision(view_checks, (), None, refusal.reason, refusal.result, None)
         return Conclusion(refusal.reason, None, dict(view.details), dec)
+    if len(done) == 1:  # the first reading decided (most views): its own details
+        only = done[0]
+        refused_in = None if only.reason == "ok" else 0
+        dec = Decision(view_checks, (Tried(only.reading, only.checks, only.reason),), 0,
+                       only.reason, only.refusal, refused_in)
+        return Conclusion(only.reason, only, {**view.details, **only.details}, dec)
     passes = [[i for i, o in enumerate(done) if o.reading.stray == s] for s in (False, True)]
     chosen = _pass(done, passes[0])
     if passes[1]:
