@@ -193,10 +193,10 @@ class VisionConfig:
     declares this bound for every view. The robust extractor declares each view's own bound
     from the evidence in that image (docs/vision.md), scales its consistency checks with the
     smaller of this and 2 px, and refuses a view whose bound exceeds the larger of this and
-    its own limit (``RobustSettings.max_bound_px``, 5 px: ``imprecise``)."""
+    its own limit (``RobustSettings.bound.max_px``, 5 px: ``imprecise``)."""
     heading_error: float = 0.025
     """Bound on the error of y3, rad: the faithful extractor's declared bound; for the robust
-    extractor as ``position_error_px`` (its own limit ``RobustSettings.max_bound_rad``,
+    extractor as ``position_error_px`` (its own limit ``RobustSettings.bound.max_rad``,
     0.05 rad)."""
 
     def __post_init__(self) -> None:
