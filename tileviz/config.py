@@ -85,6 +85,10 @@ class FloorModel:
                              f"{self.lattice_tolerance!r}")
 
 
+PERFECT_FLOOR = FloorModel()
+"""A perfect grout lattice (what a dataset without a ``floor`` block declares)."""
+
+
 MAX_GROUT_FRACTION = 1.0 / 8.0
 """When a floor is given another tile size, its grout is at most this fraction of the tile."""
 

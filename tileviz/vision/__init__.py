@@ -28,12 +28,14 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
+from dataclasses import replace
 
 import cv2
 import numpy as np
 
-from tileviz.config import CameraConfig, VisionConfig
+from tileviz.config import PERFECT_FLOOR, CameraConfig, FloorModel, VisionConfig
 from tileviz.core.constants import MAX_TILE_PX, MIN_TILE_PX
+from tileviz.vision.colour import PROJECTIONS, RETRY_REASONS
 from tileviz.vision.faithful import extract_faithful
 from tileviz.vision.geometry import observation_error
 from tileviz.vision.result import REASONS, VisionResult
@@ -91,18 +93,24 @@ def extract(
     tile_size: float,
     vision: VisionConfig,
     keep_stages: bool = False,
+    floor: FloorModel = PERFECT_FLOOR,
 ) -> VisionResult:
     """Extract the tile parameters seen in ``image`` (HxWx3 uint8 RGB, or HxW gray).
 
     ``camera``: ppm and the image size, which the image must match. ``tile_size``: L, metres.
-    ``vision``: the extractor and its constants. ``keep_stages``: also return every stage image
-    (HxWx3 uint8 RGB) for display. Bad arguments raise ValueError naming the quantity; a frame
-    that gives no trustworthy observation is returned with ``accepted=False`` and a ``reason``.
+    ``vision``: the extractor and its constants. ``floor``: what is declared of the floor (its kind
+    and lattice tolerance, ``docs/dataset-format.md``: the robust extractor's view bound includes
+    the tolerance; the faithful extractor reads every floor as a perfect lattice). ``keep_stages``:
+    also return every stage image (HxWx3 uint8 RGB) for display. Bad arguments raise ValueError
+    naming the quantity; a frame that gives no trustworthy observation is returned with
+    ``accepted=False`` and a ``reason``.
     """
     if not isinstance(camera, CameraConfig):
         raise ValueError(f"camera must be a CameraConfig, got {type(camera).__name__}")
     if not isinstance(vision, VisionConfig):
         raise ValueError(f"vision must be a VisionConfig, got {type(vision).__name__}")
+    if not isinstance(floor, FloorModel):
+        raise ValueError(f"floor must be a FloorModel, got {type(floor).__name__}")
     if (
         not isinstance(tile_size, (int, float))
         or not math.isfinite(tile_size)
@@ -123,13 +131,21 @@ def extract(
             f"{camera.width}x{camera.height} (width x height)"
         )
     timings = {"gray": (time.perf_counter() - t0) * 1e3}
-    run = _robust() if vision.extractor == "robust" else extract_faithful
-    return run(
-        gray,
-        camera=camera,
-        tile_size=float(tile_size),
-        vision=vision,
-        keep_stages=keep_stages,
-        image=image,
-        timings=timings,
-    )
+    if vision.extractor == "robust":
+        robust = _robust()
+        res = robust(gray, camera=camera, tile_size=float(tile_size), vision=vision,
+                     keep_stages=keep_stages, image=image, timings=timings, floor=floor)
+        if res.accepted or image.ndim != 3 or res.reason not in RETRY_REASONS:
+            return res
+        # the luma showed no grout: the colour projections, in order (docs/vision.md, "Colour")
+        for number, proj in enumerate(PROJECTIONS.values(), start=1):
+            t1 = time.perf_counter()
+            other = proj(image)
+            tm = {**timings, "projection": (time.perf_counter() - t1) * 1e3}
+            got = robust(other, camera=camera, tile_size=float(tile_size), vision=vision,
+                         keep_stages=keep_stages, image=image, timings=tm, floor=floor)
+            if got.accepted:
+                return replace(got, details={**got.details, "projection": float(number)})
+        return res
+    return extract_faithful(gray, camera=camera, tile_size=float(tile_size), vision=vision,
+                            keep_stages=keep_stages, image=image, timings=timings)

@@ -164,8 +164,13 @@ class LineSettings:
     """Step 6, the checks on the measured lines (``no lines`` .. ``foreign line``)."""
 
     min_depth: float = 15.0
-    """Weakest grout dip trusted, gray levels (``contrast.depth``: ``low contrast`` when the
-    deepest is weaker)."""
+    """Weakest grout dip trusted in a noisy view, gray levels (``contrast.depth``: ``low
+    contrast`` when the deepest is weaker) ..."""
+    depth_noise: float = 5.0
+    """... in a quieter view the deepest dip must reach this many times the view's noise std
+    (the camera's, measured on the view), ..."""
+    min_depth_floor: float = 6.0
+    """... and at least this many gray levels."""
     max_rise: float = 6.0
     """Median 20-80 % edge rise of the lines above which the view is ``blurred``, px (a blur
     costs bound, not soundness: a softer edge widens each part's own bound and the floor term
