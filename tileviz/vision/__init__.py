@@ -35,7 +35,7 @@ import numpy as np
 
 from tileviz.config import PERFECT_FLOOR, CameraConfig, FloorModel, VisionConfig
 from tileviz.core.constants import MAX_TILE_PX, MIN_TILE_PX
-from tileviz.vision.colour import PROJECTIONS, RETRY_REASONS
+from tileviz.vision.colour import PROJECTIONS, RETRY_REASONS, edge_image
 from tileviz.vision.faithful import extract_faithful
 from tileviz.vision.geometry import observation_error
 from tileviz.vision.result import REASONS, VisionResult
@@ -64,6 +64,43 @@ def _robust() -> Callable[..., VisionResult]:
     from tileviz.vision.robust import extract_robust
 
     return extract_robust
+
+
+def _read_robust(gray: np.ndarray, image: np.ndarray, camera: CameraConfig, tile_size: float,
+                 vision: VisionConfig, keep_stages: bool, timings: dict[str, float],
+                 floor: FloorModel) -> VisionResult:
+    """The robust extractor on the luma ``gray``, then, while it shows no grout
+    (:data:`~tileviz.vision.colour.RETRY_REASONS`), on the colour projections of ``image``
+    (RGB only) and the edge image; a floor declared ``checker`` has its edge image read first
+    (docs/vision.md, "Colour"). The first accepted reading is the result (its
+    ``details["projection"]``: 0 the luma, 1.. the colour projections in order, -1 the edge
+    image); otherwise the first reading's refusal."""
+    robust = _robust()
+    candidates: list[tuple[float, Callable[[], np.ndarray]]] = [(0.0, lambda: gray)]
+    if image.ndim == 3:
+        candidates += [(float(k), lambda p=proj: p(image))  # type: ignore[misc]
+                       for k, proj in enumerate(PROJECTIONS.values(), start=1)]
+    edges = (-1.0, lambda: edge_image(gray))
+    candidates = [edges, *candidates] if floor.kind == "checker" else [*candidates, edges]
+    first: VisionResult | None = None
+    for number, make in candidates:
+        t1 = time.perf_counter()
+        view = make()
+        tm = dict(timings)
+        if number != 0.0:
+            tm["projection"] = (time.perf_counter() - t1) * 1e3
+        got = robust(view, camera=camera, tile_size=tile_size, vision=vision,
+                     keep_stages=keep_stages, image=image, timings=tm, floor=floor)
+        if got.accepted:
+            return got if number == 0.0 else replace(
+                got, details={**got.details, "projection": number})
+        if first is None:
+            first = got
+            timings.update(tm)
+        if got.reason not in RETRY_REASONS:
+            break
+    assert first is not None
+    return first
 
 
 def to_gray(image: np.ndarray) -> np.ndarray:
@@ -132,20 +169,7 @@ def extract(
         )
     timings = {"gray": (time.perf_counter() - t0) * 1e3}
     if vision.extractor == "robust":
-        robust = _robust()
-        res = robust(gray, camera=camera, tile_size=float(tile_size), vision=vision,
-                     keep_stages=keep_stages, image=image, timings=timings, floor=floor)
-        if res.accepted or image.ndim != 3 or res.reason not in RETRY_REASONS:
-            return res
-        # the luma showed no grout: the colour projections, in order (docs/vision.md, "Colour")
-        for number, proj in enumerate(PROJECTIONS.values(), start=1):
-            t1 = time.perf_counter()
-            other = proj(image)
-            tm = {**timings, "projection": (time.perf_counter() - t1) * 1e3}
-            got = robust(other, camera=camera, tile_size=float(tile_size), vision=vision,
-                         keep_stages=keep_stages, image=image, timings=tm, floor=floor)
-            if got.accepted:
-                return replace(got, details={**got.details, "projection": float(number)})
-        return res
+        return _read_robust(gray, image, camera, float(tile_size), vision, keep_stages,
+                            timings, floor)
     return extract_faithful(gray, camera=camera, tile_size=float(tile_size), vision=vision,
                             keep_stages=keep_stages, image=image, timings=timings)
