@@ -71,8 +71,8 @@ def _read_robust(gray: np.ndarray, image: np.ndarray, camera: CameraConfig, tile
                  floor: FloorModel) -> VisionResult:
     """The robust extractor on the luma ``gray``, then, while it shows no grout
     (:data:`~tileviz.vision.colour.RETRY_REASONS`), on the colour projections of ``image``
-    (RGB only) and the edge image; a floor declared ``checker`` has its edge image read first
-    (docs/vision.md, "Colour"). The first accepted reading is the result (its
+    (RGB only); a floor declared ``checker`` has its edge image read first (docs/vision.md,
+    "Colour"). The first accepted reading is the result (its
     ``details["projection"]``: 0 the luma, 1.. the colour projections in order, -1 the edge
     image); otherwise the first reading's refusal."""
     robust = _robust()
@@ -80,8 +80,8 @@ def _read_robust(gray: np.ndarray, image: np.ndarray, camera: CameraConfig, tile
     if image.ndim == 3:
         candidates += [(float(k), lambda p=proj: p(image))  # type: ignore[misc]
                        for k, proj in enumerate(PROJECTIONS.values(), start=1)]
-    edges = (-1.0, lambda: edge_image(gray))
-    candidates = [edges, *candidates] if floor.kind == "checker" else [*candidates, edges]
+    if floor.kind == "checker":  # a checkerboard: its edge image first
+        candidates.insert(0, (-1.0, lambda: edge_image(gray)))
     first: VisionResult | None = None
     for number, make in candidates:
         t1 = time.perf_counter()

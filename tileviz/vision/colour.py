@@ -13,9 +13,10 @@ channels, computed in integer arithmetic (the same pixels on every machine):
 The edge image (``edges``, :func:`edge_image`) shows a checkerboard's lattice: tiles of two
 shades meet edge to edge, no grout, and the lattice is the edges between them, which the
 gradient's magnitude draws as thin light lines on dark tiles, read as lighter grout. It is read
-first on a floor declared ``checker``, and after the colour projections on any other (a
-checkerboard recognised from the view: a grout floor's edge image shows two lines a grout's width
-apart at every grout line, which the lattice checks refuse).
+on a floor declared ``checker`` only, first: on a grout floor the edge image's ridge is the
+grout's centre only while its two edges are alike (a motion blur that smears one edge more than
+the other moves it off the centre, beyond what the reading's bound can see), so a checkerboard
+is not recognised from the view.
 
 The projections are tried in that order, after the luma; the first whose reading the extractor
 accepts is the view's (:func:`tileviz.vision.extract`; its ``details["projection"]`` is then the

@@ -160,7 +160,8 @@ def missing_lines(run: ReadingState, k: int, ref: float, found: np.ndarray, y3: 
     else:
         peak, fam, pad = proj.peak, proj.fam, proj.pad
     centre = run.centre[1] if k == 0 else run.centre[0]
-    near = 0.5 * run.details["width"] + 1.5
+    # a line may lie up to twice the lattice tolerance from where the others put it
+    near = 0.5 * run.details["width"] + 1.5 + 2.0 * run.tol_px
     missing = lattice_kernel.missing_line(
         n[0], n[1], math.hypot(-n[1], n[0]), ref, run.lp, reach, margin, run.w, run.h,
         run.st.lattice.min_chord, found, peak, fam, k, pad, centre, near,

@@ -106,7 +106,7 @@ class ProfileSettings:
     in the grout's polarity."""
     dip_noise: float = 5.0
     """A dip is a run of profile samples darker than this many profile noise stds below the
-    profile's grey closing (and at least half of ``lines.min_depth``)."""
+    profile's grey closing (and at least half of the ``contrast.depth`` limit)."""
     closing_share: float = 0.17
     """The grey closing spans 2 x this share of the tile period + 1 samples, ..."""
     closing_min: float = 8.0
