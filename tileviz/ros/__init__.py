@@ -17,7 +17,7 @@ from types import ModuleType
 
 from tileviz.cliutil import CliError
 
-__all__ = ["ROS_APT", "SYSTEM_DIST_PACKAGES", "load_rospy"]
+__all__ = ["ROS_APT", "SYSTEM_DIST_PACKAGES", "load_rospy", "require_master", "rospy_missing"]
 
 ROS_APT = ("apt-get install -y ros-core python3-rospy python3-rosbag python3-sensor-msgs "
            "python3-nav-msgs python3-geometry-msgs python3-visualization-msgs "
@@ -52,3 +52,19 @@ def rospy_missing() -> str | None:
     except CliError as e:
         return str(e)
     return None
+
+
+def require_master(timeout: float = 5.0) -> None:
+    """CliError naming ``ROS_MASTER_URI`` when no ROS master answers within ``timeout`` s."""
+    import os
+    import time
+
+    load_rospy()
+    import rosgraph
+
+    uri = os.environ.get("ROS_MASTER_URI", "http://localhost:11311")
+    end = time.monotonic() + timeout
+    while not rosgraph.is_master_online():
+        if time.monotonic() >= end:
+            raise CliError(f"no ROS master at {uri} (start roscore, or set ROS_MASTER_URI)")
+        time.sleep(0.2)

@@ -18,7 +18,8 @@ waited for up to ``~wait`` seconds: the simulator sets ``/tileviz_sim/meta``), t
 parameters of those names, each overriding the ones before. ``~widening`` (three numbers: m/s,
 rad/s, rad) is added to the declared bounds for the messages' asynchrony
 (:mod:`tileviz.ros.live`); ``~max_delay`` (s) how long an image waits for the messages after
-it; ``~frame_id`` [``world``] the frame of the published poses.
+it; ``~max_pending`` [4] how many images may wait (the oldest are dropped beyond);
+``~frame_id`` [``world``] the frame of the published poses.
 
 Publishes, one message each per frame (stamped with the image's stamp):
 
@@ -148,8 +149,11 @@ class _Node:
         self.frame_id = str(p("~frame_id", "world"))
         self.image_topic = str(p("~image_topic", "/camera/image"))
         self.odom_topic = str(p("~odom_topic", "/odom"))
+        max_pending = p("~max_pending", 4)
+        if not isinstance(max_pending, int) or max_pending < 1:
+            raise CliError(f"~max_pending must be an integer >= 1, got {max_pending!r}")
         self.live = LiveLocalizer(meta, has_imu=bool(imu_topic), widening=widening,  # type: ignore[arg-type]
-                                  max_delay=int(max_delay * 1e9))
+                                  max_delay=int(max_delay * 1e9), max_pending=max_pending)
         self.pub_set = rospy.Publisher("~set", MarkerArray, queue_size=5)
         self.pub_hull = rospy.Publisher("~hull", PoseWithCovarianceStamped, queue_size=5)
         self.pub_status = rospy.Publisher("~status", String, queue_size=20)
@@ -161,9 +165,13 @@ class _Node:
 
             self.fox = FoxgloveLive(foxglove)
             rospy.loginfo(f"tileviz: Foxglove live on ws://127.0.0.1:{self.fox.port}")
+        from tileviz.vision.warmup import warm_up
+
+        warm_up((self.live.cfg.vision.extractor,), self.live.cfg)  # before the first image
         self._logged: str | None = None
         self._last_frame = time.monotonic()
         self._last_status: str = "predicted"
+        rospy.loginfo("tileviz: ready")
         rospy.Subscriber(self.image_topic, rospy.AnyMsg, self._on_image, queue_size=4,
                          buff_size=2 ** 24)
         rospy.Subscriber(self.odom_topic, Odometry, self._on_odom, queue_size=200)
@@ -308,7 +316,7 @@ class _Node:
             self.fox.publish(rec, frame.stamp, status=frame.status)
         self._last_status = frame.status
 
-    def stale(self, idle: float) -> None:
+    def stale(self) -> None:
         """No frame for ``idle`` seconds: say predicted (or lost), and why."""
         from std_msgs.msg import String
 
@@ -317,7 +325,7 @@ class _Node:
         elif self.live.pending():
             why = f"images wait for odometry on {self.odom_topic}"
         else:
-            why = f"no image on {self.image_topic} for {idle:.1f} s"
+            why = f"no image on {self.image_topic} for over 1 s"
         status = "lost" if self._last_status == "lost" or self.live.lost_reason else "predicted"
         self._log(why)
         self.pub_status.publish(String(data=json.dumps({
@@ -340,7 +348,7 @@ class _Node:
             if frame is None:
                 now = time.monotonic()
                 if now - self._last_frame >= 1.0 and now >= next_stale:
-                    self.stale(now - self._last_frame)
+                    self.stale()
                     next_stale = now + 1.0
                 time.sleep(0.002)
                 continue
@@ -365,10 +373,11 @@ def main(command: str, argv: list[str]) -> int:
     prog = f"tileviz {command}"
 
     def body() -> int:
-        from tileviz.ros import load_rospy
+        from tileviz.ros import load_rospy, require_master
 
         rospy = load_rospy()
         args = _parser(prog).parse_args(rospy.myargv(argv=[prog, *argv])[1:])
+        require_master()
         rospy.init_node(args.name, disable_rostime=False)
         node = _Node(rospy, args.foxglove)
         return node.spin()
