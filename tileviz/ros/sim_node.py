@@ -222,7 +222,7 @@ def _controller(rospy: Any, args: Any) -> int:
     state: dict[str, Any] = {"setpoint": {
         "lissajous": lambda: Lissajous(s.lissajous_amplitude, s.lissajous_omega),
         "manual": lambda: ManualTarget(*s.manual_target),
-        "waypoints": lambda: Waypoints(tuple(tuple(p) for p in s.waypoints)),
+        "waypoints": lambda: Waypoints(tuple((p[0], p[1]) for p in s.waypoints)),
     }[s.setpoint](), "t0": None, "prev": None}
     pub = rospy.Publisher("/cmd_vel", Twist, queue_size=10)
 
