@@ -4,11 +4,12 @@ camera dropout and a kidnap; the recorded bag through import-bag and replay give
 the live node published; SIGINT stops every node cleanly.
 
 Needs Debian's ROS 1 (``.ci/run`` installs it); without rospy or roscore the module is skipped
-saying so."""
+saying so (in CI, ``TILEVIZ_REQUIRE_ROS=1``, it fails instead)."""
 
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 import time
@@ -19,6 +20,8 @@ import pytest
 from tileviz.testing.ros import RosGraph, ros_missing, roscore
 
 _WHY = ros_missing()
+if _WHY is not None and os.environ.get("TILEVIZ_REQUIRE_ROS"):  # CI (.ci/run): never a skip
+    raise RuntimeError(f"TILEVIZ_REQUIRE_ROS is set but ROS 1 cannot run: {_WHY}")
 pytestmark = pytest.mark.skipif(_WHY is not None, reason=f"ROS 1 is not installed: {_WHY}")
 
 FRAMES = 90
