@@ -32,8 +32,9 @@ Publishes, one message each per frame (stamped with the image's stamp):
   guaranteed half-widths (m, m, rad); nothing there is a variance;
 - ``~status`` (``std_msgs/String``, JSON): status, code, box count, the hull's widths (the
   fields of ``replay --mcap``'s ``/status``), the boxes themselves (``set``: [x_lo, x_hi, y_lo,
-  y_hi, t_lo, t_hi] each), the message counters (:data:`tileviz.ros.live.COUNTERS`), the reason
-  a frame's view was refused, and ``lost_reason``;
+  y_hi, t_lo, t_hi] each), ``vision_ms`` and ``localizer_ms``, the message counters
+  (:data:`tileviz.ros.live.COUNTERS`), the reason a frame's view was refused, and
+  ``lost_reason``;
 - ``~observation`` (``std_msgs/String``, JSON): the tile observation (y1, y2 m, y3 rad and their
   bounds) or null, and the refusal reason;
 - ``/diagnostics`` (``diagnostic_msgs/DiagnosticArray``): OK contracted, WARN predicted or
@@ -291,7 +292,8 @@ class _Node:
         doc.update(index=rec.index, stamp=frame.stamp, reason=frame.reason,
                    set=[list(b.as_tuple()) for b in rec.updated.boxes],
                    counts=dict(self.live.counts), lost_reason=self.live.lost_reason,
-                   stale=False)
+                   stale=False, vision_ms=rec.timings.get("vision_ms"),
+                   localizer_ms=rec.timings.get("localizer_ms"))
         self.pub_status.publish(String(data=json.dumps(doc)))
         obs = rec.vision.observation
         self.pub_obs.publish(String(data=json.dumps({
