@@ -41,6 +41,7 @@ def replay(
     relocalize_region: tuple[float, float, float, float] | None = None,
     on_total: Callable[[int | None], None] | None = None,
     on_frame: Callable[[FrameRecord], None] | None = None,
+    until: int | None = None,
 ) -> int:
     """Replay ``dataset`` and write the replay CSV ``out`` (one row per frame; None: no CSV)
     and, when given, the equivalence-residual CSV ``output_file``; returns the number of frames
@@ -55,8 +56,9 @@ def replay(
     (``Localizer.relocalize``: candidate boxes, heading from the compass).
     ``on_total`` gets the frame count when known (None otherwise) before
     the first frame, ``on_frame`` every record (its ``residuals`` computed only with
-    ``output_file``). A bad row or image raises DatasetError (a
-    ValueError) after every frame before it was written."""
+    ``output_file``). ``until``: stop after the frame with that index (None: at the dataset's
+    end). A bad row or image raises DatasetError (a ValueError) after every frame before it was
+    written."""
     jobs = jobs if jobs is not None else default_jobs()
     if jobs > 1:  # the workers' server loads the vision code while this process reads the rows
         start_worker_server()
@@ -104,6 +106,8 @@ def replay(
                 relocalize_after(loop, relocalize_region, rec)
             if on_frame is not None:
                 on_frame(rec)
+            if until is not None and rec.index >= until:
+                break
     finally:
         if csv_out is not None:
             csv_out.close()
