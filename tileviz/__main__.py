@@ -1,5 +1,5 @@
 """``python -m tileviz COMMAND ...``: serve, record, replay, extract, evaluate, calibrate,
-import-bag, sample-data."""
+import-bag, export-html, figure, sample-data."""
 
 from __future__ import annotations
 
@@ -15,6 +15,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "calibrate": ("tileviz.datasets.calibrate", "calibrate a real camera from checkerboard "
                   "images (meta.json's camera_model)"),
     "import-bag": ("tileviz.datasets.bag_import", "import a ROS 1 or ROS 2 bag as a dataset"),
+    "export-html": ("tileviz.share.cli", "a run as one web page that plays offline (or a folder "
+                    "for static hosting)"),
+    "figure": ("tileviz.share.cli", "a run's top-down figure (png, pdf, svg) or movie (mp4, "
+               "gif)"),
     "sample-data": ("tileviz.datasets.sample", "write sample checkerboard images and a small "
                     "ROS bag to try calibrate and import-bag on"),
 }

@@ -10,7 +10,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-__all__ = ["atomic_output", "check_output"]
+__all__ = ["atomic_output", "check_folder", "check_output"]
 
 
 def check_output(path: str | os.PathLike[str], option: str = "output",
@@ -31,6 +31,17 @@ def check_output(path: str | os.PathLike[str], option: str = "output",
     if p.exists() and not os.access(p, os.W_OK):
         raise OSError(f"{option} {p}: the file exists and is not writable")
     return p
+
+
+def check_folder(path: str | os.PathLike[str], option: str) -> Path:
+    """``path`` as a Path once it can become a new folder: it does not exist (and its parent
+    is a writable folder) or is an empty folder. OSError naming ``option`` otherwise."""
+    p = Path(path)
+    if p.exists():
+        if not p.is_dir() or any(p.iterdir()):
+            raise OSError(f"{option} {p}: exists and is not an empty folder")
+        return p
+    return check_output(p, option)
 
 
 @contextmanager

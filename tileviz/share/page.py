@@ -25,18 +25,17 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-import cv2
 import numpy as np
 
-from tileviz.share.files import atomic_output, check_output
-from tileviz.share.run import Run, with_room
+from tileviz.share.files import atomic_output, check_folder, check_output
+from tileviz.share.run import Run, Views, fit_width, with_room
 
 if TYPE_CHECKING:
     from viser.infra import StateSerializer
 
     from tileviz.pipeline import FrameRecord
 
-__all__ = ["DEFAULT_STAGE", "PageOptions", "build_page", "export_html", "export_site",
+__all__ = ["DEFAULT_STAGE", "PageOptions", "build_page", "page_views", "export_html", "export_site",
            "page_html", "site_index"]
 
 DEFAULT_STAGE = "lines"
@@ -69,15 +68,11 @@ class PageOptions:
             raise ValueError(f"--jpeg-quality must be 1 to 100, got {self.jpeg_quality!r}")
 
 
-def _fit(image: np.ndarray, width: int) -> np.ndarray:
-    """``image`` (HxW gray or HxWx3 RGB) as HxWx3 uint8 RGB ``width`` pixels wide."""
-    img = image if image.ndim == 3 else cv2.cvtColor(image, cv2.COLOR_GRAY2RGB)
-    img = np.ascontiguousarray(img[..., :3], dtype=np.uint8)
-    h, w = img.shape[:2]
-    if w != width:
-        height = max(1, int(round(h * width / w)))
-        img = cv2.resize(img, (width, height), interpolation=cv2.INTER_AREA)
-    return img
+def page_views(opts: PageOptions) -> Views:
+    """What :func:`tileviz.share.run.load_run` should keep for a page of ``opts``: its images
+    as the replay made them, so vision runs once."""
+    return Views(every=opts.every, width=opts.image_px, stage=opts.stage,
+                 quality=int(opts.jpeg_quality))
 
 
 def _on_floor(image: np.ndarray) -> np.ndarray:
@@ -107,7 +102,7 @@ class _Panels:
                  sample: np.ndarray) -> None:
         self.opts = opts
         px = opts.image_px
-        cam = _fit(sample, px)
+        cam = fit_width(sample, px)
         aspect = cam.shape[0] / cam.shape[1]
         width = 0.62 * half  # metres: the column fits beside the room, as high as it
         gap = 0.08 * half
@@ -138,18 +133,21 @@ class _Panels:
         from tileviz.app.inset import render_inset
 
         px = self.opts.image_px
-        image = run.image(rec)
+        image: np.ndarray | None = None
         for key, handle in self.slots:
             if key == "inset":
                 handle.image = _on_floor(render_inset(rec, self.tile_size, px))
-            elif key == "camera":
-                handle.image = _on_floor(_fit(image, px))
-            else:
-                assert self.opts.stage is not None
-                stage = run.stage(rec, self.opts.stage, image=image)
-                if stage is None:  # this frame's extractor drew no such stage
-                    stage = np.full_like(handle.image, 246)
-                handle.image = _on_floor(_fit(stage, px))
+                continue
+            name = "camera" if key == "camera" else self.opts.stage
+            assert name is not None
+            shown = run.kept_view(rec, name)
+            if shown is None and (rec.index not in run.views or name == "camera"):
+                # not kept by the replay: made again from the dataset
+                image = run.image(rec) if image is None else image
+                shown = image if key == "camera" else run.stage(rec, name, image=image)
+            if shown is None:  # this frame's extractor drew no such stage
+                shown = np.full_like(handle.image, 246)
+            handle.image = _on_floor(fit_width(shown, px))
 
 
 def build_page(run: Run, opts: PageOptions = PageOptions(),
@@ -266,10 +264,7 @@ def export_site(run: Run, folder: str | os.PathLike[str], opts: PageOptions = Pa
     import shutil
     import tempfile
 
-    p = Path(folder)
-    if p.exists() and (not p.is_dir() or any(p.iterdir())):
-        raise OSError(f"--site {p}: exists and is not an empty folder")
-    check_output(p, "--site")
+    p = check_folder(folder, "--site")
     data = build_page(run, opts, on_frame).serialize()
     tmp = Path(tempfile.mkdtemp(prefix=f".{p.name}.", suffix=".part", dir=p.parent))
     try:

@@ -27,7 +27,8 @@ from tileviz.config import Config, Extractor, Mode
 from tileviz.pipeline import FrameRecord
 from tileviz.summary import RunTally
 
-__all__ = ["Run", "check_dataset", "frame_range", "load_run", "parse_frames"]
+__all__ = ["Run", "Views", "check_dataset", "fit_width", "frame_range", "load_run",
+           "parse_frames"]
 
 
 def check_dataset(folder: str | os.PathLike[str]) -> int:
@@ -91,6 +92,32 @@ def parse_frames(text: str) -> tuple[int | None, int | None]:
     return out[0], out[1]
 
 
+def fit_width(image: np.ndarray, width: int) -> np.ndarray:
+    """``image`` (HxW gray or HxWx3 RGB) as HxWx3 uint8 RGB ``width`` pixels wide (same
+    aspect)."""
+    import cv2
+
+    img = image if image.ndim == 3 else cv2.cvtColor(image, cv2.COLOR_GRAY2RGB)
+    img = np.ascontiguousarray(img[..., :3], dtype=np.uint8)
+    h, w = img.shape[:2]
+    if w != width:
+        height = max(1, int(round(h * width / w)))
+        img = cv2.resize(img, (width, height), interpolation=cv2.INTER_AREA)
+    return img
+
+
+@dataclass(frozen=True)
+class Views:
+    """Which images :func:`load_run` keeps: the camera view and the pipeline stage ``stage``
+    (None: none) of every ``every``-th kept frame, ``width`` pixels wide, as JPEG of
+    ``quality``."""
+
+    every: int = 1
+    width: int = 200
+    stage: str | None = None
+    quality: int = 60
+
+
 @dataclass
 class Run:
     """The records of frames ``start`` .. ``end`` - 1 of a replayed dataset (see the module
@@ -109,6 +136,9 @@ class Run:
     camera_model: bool = False
     """The dataset's images are a real camera's: :meth:`image` gives the rectified gray view
     vision reads."""
+    views: dict[int, dict[str, bytes]] = field(default_factory=dict)
+    """Frame index -> ``camera`` and the stage's name -> JPEG bytes (:class:`Views`); a stage
+    the frame's extractor did not draw is absent."""
     _source: object = field(default=None, repr=False)
 
     @property
@@ -143,6 +173,18 @@ class Run:
                     vision=self.cfg.vision, keep_stages=True)
         return v.stages.get(name)
 
+    def kept_view(self, rec: FrameRecord, name: str) -> np.ndarray | None:
+        """The kept image ``name`` (``camera`` or a stage) of ``rec`` as HxWx3 RGB, or None
+        when it was not kept."""
+        import cv2
+
+        data = self.views.get(rec.index, {}).get(name)
+        if data is None:
+            return None
+        bgr = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
+        assert bgr is not None, "a kept view is a JPEG this process encoded"
+        return np.ascontiguousarray(bgr[..., ::-1])
+
     def truth_path(self) -> np.ndarray:
         """(N, 2) true x, y of the kept records, metres (NaN where unknown)."""
         out = np.full((len(self.records), 2), math.nan)
@@ -160,9 +202,11 @@ def load_run(dataset: str | os.PathLike[str], *, start: int | None = None,
              end: int | None = None, mode: Mode | None = None,
              extractor: Extractor | None = None, jobs: int | None = None,
              names: tuple[str, str] = ("--start", "--end"),
+             views: Views | None = None,
              on_total: Callable[[int], None] | None = None,
              on_frame: Callable[[FrameRecord], None] | None = None) -> Run:
-    """Replay ``dataset`` (see the module docstring) and keep frames [start, end).
+    """Replay ``dataset`` (see the module docstring) and keep frames [start, end) and the
+    ``views`` asked for (vision then runs in this process, whatever ``jobs``).
     ``mode``, ``extractor``, ``jobs``: as ``replay``'s. ``names``: how errors name ``start`` and
     ``end``. ``on_total`` gets the number of frames to replay before the first, ``on_frame``
     every record replayed (a progress bar). Errors (not a dataset, an empty one, a range outside
@@ -178,9 +222,12 @@ def load_run(dataset: str | os.PathLike[str], *, start: int | None = None,
     cfg = replay_config(meta, mode=mode, extractor=extractor)
     kept: list[FrameRecord] = []
     tally = RunTally()
+    images: dict[int, dict[str, bytes]] = {}
 
     def take(rec: FrameRecord) -> None:
         if a <= rec.index < b:
+            if views is not None and len(kept) % max(1, views.every) == 0:
+                images[rec.index] = _views_of(rec, views)
             kept.append(strip_record(rec))
             tally.add(rec)
         if on_frame is not None:
@@ -188,12 +235,28 @@ def load_run(dataset: str | os.PathLike[str], *, start: int | None = None,
 
     if on_total is not None:
         on_total(b)
-    replay(folder, mode=mode, extractor=extractor, jobs=jobs, on_frame=take, until=b - 1)
+    replay(folder, mode=mode, extractor=extractor, jobs=jobs, on_frame=take, until=b - 1,
+           keep_stages=views is not None and views.stage is not None)
     if not kept:
         raise ValueError(f"{folder}: no frame of the range {a}:{b} was replayed")
     return Run(folder=folder, name=meta.name or folder.name, cfg=cfg, frames=frames, start=a,
                end=kept[-1].index + 1, records=kept, tally=tally,
-               camera_model=meta.camera_model is not None)
+               camera_model=meta.camera_model is not None, views=images)
+
+
+def _views_of(rec: FrameRecord, views: Views) -> dict[str, bytes]:
+    """The JPEG images of ``rec`` that ``views`` asks for (its record still holds its image
+    and, with a stage, its stage images)."""
+    from tileviz.app.history import encode_jpeg
+
+    out: dict[str, bytes] = {}
+    if rec.image.size:
+        out["camera"] = encode_jpeg(fit_width(rec.image, views.width), views.quality)
+    name = views.stage
+    stage = rec.vision.stages.get(name) if name is not None else None
+    if name is not None and stage is not None:
+        out[name] = encode_jpeg(fit_width(stage, views.width), views.quality)
+    return out
 
 
 def with_room(cfg: Config, half: float) -> Config:
