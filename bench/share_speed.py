@@ -14,6 +14,9 @@ Records ``--seconds`` of the default simulation (``python -m tileviz record``) u
    (with the default jobs: the CPU of the vision workers, children of a fork server the
    command does not wait for, is not counted) and the file's MB.
 
+4. In this process, the replay apart from the drawing: ``load_run`` (the replay, one job),
+   then ``save_figure`` and ``movie`` of that run (the drawing alone), wall and CPU.
+
 Prints one line per command and the machine's 1-minute load average before each.
 """
 
@@ -68,6 +71,25 @@ def main() -> None:
         wall, cpu = _run(args)
         print(f"{name:<16} {path.stat().st_size / 1e6:7.2f} MB  wall {wall:6.1f} s  "
               f"cpu {cpu:6.1f} s  (load {load:.1f}; python -m tileviz {' '.join(args)})")
+
+    from tileviz.share.figure import movie, save_figure
+    from tileviz.share.run import Views, load_run
+
+    for name, views in (("replay (load_run)", None),
+                        ("replay, movie views", Views(every=2, width=480))):
+        load = os.getloadavg()[0]
+        t0, c0 = time.perf_counter(), time.process_time()
+        run = load_run(ds, jobs=1, views=views)
+        print(f"{name:<20} wall {time.perf_counter() - t0:6.1f} s  "
+              f"cpu {time.process_time() - c0:6.1f} s  (load {load:.1f})")
+    for name, draw in (("figure drawing", lambda: save_figure(run, out / "alone.png")),
+                       ("movie drawing", lambda: movie(run, out / "alone.mp4"))):
+        load = os.getloadavg()[0]
+        t0, c0 = time.perf_counter(), time.process_time()
+        draw()
+        print(f"{name:<20} wall {time.perf_counter() - t0:6.1f} s  "
+              f"cpu {time.process_time() - c0:6.1f} s  (load {load:.1f}; the ffmpeg encoder "
+              "is a child process, not counted)")
 
 
 if __name__ == "__main__":

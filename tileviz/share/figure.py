@@ -16,7 +16,7 @@ import math
 import os
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -198,7 +198,9 @@ def save_figure(run: Run, out: str | os.PathLike[str], every: int = 20) -> Path:
 
 
 class _MovieFrame:
-    """The movie's figure, its artists made once and updated frame after frame."""
+    """The movie's frames: the top-down view drawn by matplotlib (its static part once, the
+    moving artists over it each frame), the camera view and the magnified set pasted beside it
+    as they are (no resampling by matplotlib)."""
 
     def __init__(self, run: Run, width_px: int) -> None:
         from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -206,39 +208,39 @@ class _MovieFrame:
         from matplotlib.figure import Figure
 
         self.run = run
+        self.width = width_px
+        self.height = width_px // 2
         dpi = 100
-        w_in = width_px / dpi
-        self.fig = Figure(figsize=(w_in, w_in / 2), dpi=dpi)
+        side = self.height / dpi
+        self.fig = Figure(figsize=(side, side), dpi=dpi)
         self.canvas = FigureCanvasAgg(self.fig)
-        self.ax = self.fig.add_axes((0.05, 0.08, 0.45, 0.84))
-        self.cam = self.fig.add_axes((0.54, 0.3, 0.44, 0.62))
-        self.zoom = self.fig.add_axes((0.54, 0.02, 0.44, 0.24))
+        self.ax = ax = self.fig.add_axes((0.12, 0.08, 0.85, 0.84))
         bounds = _bounds(run)
         self.tile = run.cfg.floor.tile_size
-        ax = self.ax
         ax.set_xlim(bounds[0], bounds[2])
         ax.set_ylim(bounds[1], bounds[3])
         ax.set_aspect("equal")
         ax.tick_params(labelsize=6)
         _grid(ax, self.tile, bounds)
         self.path = run.truth_path()
-        (self.line,) = ax.plot([], [], color=PINK, lw=1.2, zorder=2)
-        (self.dot,) = ax.plot([], [], "o", color=PINK, ms=3, zorder=6)
+        (self.line,) = ax.plot([], [], color=PINK, lw=1.2, zorder=2, animated=True)
+        (self.dot,) = ax.plot([], [], "o", color=PINK, ms=3, zorder=6, animated=True)
         self.pred = PolyCollection([], facecolors=GREEN, edgecolors=GREEN, alpha=0.4,
-                                   linewidths=1.0, zorder=3)
+                                   linewidths=1.0, zorder=3, animated=True)
         self.upd = PolyCollection([], facecolors=BLUE, edgecolors=BLUE, alpha=0.7,
-                                  linewidths=1.0, zorder=4)
+                                  linewidths=1.0, zorder=4, animated=True)
         ax.add_collection(self.pred)
         ax.add_collection(self.upd)
-        self.title = ax.set_title("", fontsize=8)
-        self.cam.set_xticks([])
-        self.cam.set_yticks([])
-        self.cam.set_title("camera view", fontsize=8)
-        self.image: Any = None
-        self.zoom.set_axis_off()
+        self.title = ax.set_title("", fontsize=7, animated=True)
+        self.canvas.draw()
+        self.background = self.canvas.copy_from_bbox(self.fig.bbox)
 
     def draw(self, k: int, rec: FrameRecord, camera: np.ndarray) -> np.ndarray:
         """The movie frame of ``rec`` (the ``k``-th kept record) as HxWx3 uint8 RGB."""
+        import cv2
+
+        from tileviz.app.inset import render_inset
+
         p = self.path[: k + 1]
         self.line.set_data(p[:, 0], p[:, 1])
         if rec.truth is not None:
@@ -247,19 +249,27 @@ class _MovieFrame:
         self.upd.set_verts(_rects(rec.updated.boxes))
         self.title.set_text(f"{self.run.name}: frame {rec.index}, t = {rec.t:.2f} s, "
                             f"{rec.status}")
-        if self.image is None:
-            self.image = self.cam.imshow(camera, interpolation="nearest")
-        else:
-            self.image.set_data(camera)
-        from tileviz.app.inset import render_inset
-
-        zoom = render_inset(rec, self.tile, size=180)
-        if not self.zoom.images:
-            self.zoom.imshow(zoom, interpolation="nearest")
-        else:
-            self.zoom.images[0].set_data(zoom)
-        self.canvas.draw()
-        return np.asarray(self.canvas.buffer_rgba())[..., :3].copy()
+        self.canvas.restore_region(self.background)
+        for artist in (self.line, self.pred, self.upd, self.dot, self.title):
+            self.ax.draw_artist(artist)
+        left = np.asarray(self.canvas.buffer_rgba())[..., :3]
+        frame = np.full((self.height, self.width, 3), 255, np.uint8)
+        frame[:, : left.shape[1]] = left[: self.height]
+        x0 = left.shape[1]
+        room = self.width - x0
+        cam = fit_width(camera, min(room - 8, int(1.3 * self.height * camera.shape[1]
+                                                  / max(1, camera.shape[0]) * 0.55)))
+        h_cam = min(cam.shape[0], self.height // 2 + self.height // 8)
+        u = x0 + (room - cam.shape[1]) // 2
+        frame[18: 18 + h_cam, u: u + cam.shape[1]] = cam[:h_cam]
+        cv2.putText(frame, "camera view", (u, 13), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (40, 40, 40),
+                    1, cv2.LINE_AA)
+        size = max(16, self.height - 18 - h_cam - 8)
+        inset = render_inset(rec, self.tile, size=size)
+        v = 18 + h_cam + 4
+        u = x0 + (room - size) // 2
+        frame[v: v + size, u: u + size] = inset[: self.height - v]
+        return frame
 
 
 def movie(run: Run, out: str | os.PathLike[str], every: int = 2, width_px: int = 960,
