@@ -45,7 +45,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from tileviz.config import CameraConfig, VisionConfig
+from tileviz.config import PERFECT_FLOOR, CameraConfig, FloorModel, VisionConfig
 from tileviz.pipeline.replay import replay
 from tileviz.types import Pose
 from tileviz.vision import extract, observation_error, set_opencv_threads
@@ -177,8 +177,9 @@ def random_pose(floor: Floor, rng: np.random.Generator) -> tuple[float, float, f
 
 
 def stills(floor: Floor, n: int, scale: float, camera: str, seed0: int,
-           vision: VisionConfig) -> dict:
-    """``n`` random views extracted: counts accepted, outside their bound, refusal reasons."""
+           vision: VisionConfig, model: FloorModel = PERFECT_FLOOR) -> dict:
+    """``n`` random views extracted (the floor declared as ``model``): counts accepted,
+    outside their bound, refusal reasons."""
     ppm = floor.view_period_px * scale / floor.tile_size
     width, height = round(WIDTH * scale), round(HEIGHT * scale)
     cam = CameraConfig(ppm=ppm, width=width, height=height, offset=(0.0, 0.0))
@@ -197,10 +198,12 @@ def stills(floor: Floor, n: int, scale: float, camera: str, seed0: int,
             continue
         made += 1
         t0 = time.process_time()
-        res = extract(img, camera=cam, tile_size=floor.tile_size, vision=vision)
+        res = extract(img, camera=cam, tile_size=floor.tile_size, vision=vision, floor=model)
         ms.append((time.process_time() - t0) * 1e3)
         if not res.accepted:
-            reasons[res.reason] = reasons.get(res.reason, 0) + 1
+            ref = res.decision.refusal if res.decision is not None else None
+            key = ref.check if ref is not None else res.reason  # the check that refused it
+            reasons[key] = reasons.get(key, 0) + 1
             continue
         accepted += 1
         obs = res.observation
@@ -367,8 +370,8 @@ def main(argv: list[str] | None = None) -> int:
         tol = floor.tolerance_m if args.declare == "floor" else 0.0
         kind = "checker" if (args.declare == "floor" and floor.grout == "edge") else "grout"
         vision = VisionConfig(extractor="robust")
-        vision = _declared(vision, kind, tol)
-        s = stills(floor, args.stills, args.scale, args.camera, seed0, vision)
+        s = stills(floor, args.stills, args.scale, args.camera, seed0, vision,
+                   FloorModel(kind, tol))
         d = (drive(floor, args.frames, args.scale, args.camera, seed0, args.declare, args.keep)
              if args.frames > 0 else {"frames": 0})
         top = ", ".join(f"{k} {v}" for k, v in sorted(s["reasons"].items(),
@@ -389,19 +392,6 @@ def main(argv: list[str] | None = None) -> int:
             wr.writeheader()
             wr.writerows(rows)
     return 0
-
-
-def _declared(vision: VisionConfig, kind: str, tolerance: float) -> VisionConfig:
-    """``vision`` with the floor declared (kind, lattice tolerance in m), where the extractor
-    takes a declared floor; unchanged otherwise."""
-    if kind == "grout" and tolerance == 0.0:
-        return vision
-    from dataclasses import fields, replace
-
-    names = {f.name for f in fields(vision)}
-    if "floor_kind" in names and "lattice_tolerance" in names:
-        return replace(vision, floor_kind=kind, lattice_tolerance=tolerance)
-    return vision
 
 
 if __name__ == "__main__":

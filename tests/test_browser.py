@@ -79,6 +79,9 @@ def test_page_shows_the_scene_steps_and_has_the_controls(tmp_path):
                 if _floor_drawn(shot):
                     break
                 page.wait_for_timeout(1000)
+            # the stages panel shows the checks of the frame on screen
+            page.get_by_role("button", name="Camera and stages", exact=True).click()
+            expect(page.get_by_text("Checks of this frame").first).to_be_visible()
             browser.close()
     finally:
         app.stop()

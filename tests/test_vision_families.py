@@ -478,7 +478,7 @@ def test_light_grout_smeared_by_motion_blur_into_a_ramp_is_refused() -> None:
     """Tuning seed 39's corrupted shade-steps view: light grout on tiles of strongly
     different shades, smeared by motion blur across one family, was read 8.2 px off against
     a bound of 3.9 px. The smeared band's 25 / 75 % midpoints lie about 1 px off its 50 %
-    one in every part (a shoulder, ``RobustSettings.shoulder_px``): it is refused."""
+    one in every part (a shoulder, ``RobustSettings.lines.shoulder_px``): it is refused."""
     r = study_view(39, "shade_steps", "motion_blur")
     assert not r["accepted"], r
 

@@ -1,5 +1,5 @@
-"""``python -m tileviz COMMAND ...``: serve, record, replay, extract, evaluate, calibrate,
-import-bag, export-html, figure, sample-data."""
+"""``python -m tileviz COMMAND ...``: serve, record, replay, extract, survey, evaluate,
+calibrate, import-bag, export-html, figure, sample-data."""
 
 from __future__ import annotations
 
@@ -11,6 +11,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "record": ("tileviz.cli", "simulate a run and write a tileviz-dataset/1 folder"),
     "replay": ("tileviz.cli", "replay a dataset through vision and the localizer"),
     "extract": ("tileviz.vision.cli", "extract tile parameters from images"),
+    "survey": ("tileviz.vision.survey", "measure how far a floor's lines depart from the ideal "
+               "lattice (the floor block's lattice_tolerance)"),
     "evaluate": ("tileviz.evaluation.cli", "evaluate the localizer and baselines over many runs"),
     "calibrate": ("tileviz.datasets.calibrate", "calibrate a real camera from checkerboard "
                   "images (meta.json's camera_model)"),

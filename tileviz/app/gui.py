@@ -70,13 +70,14 @@ wheel slip beyond the bounds; Relocalize or Reset).
 at the end). *Step back* and the *timeline* show stored frames as they were; nothing is
 recomputed. *Go live* jumps to the newest frame.
 
-**The left panel.** The camera view and each stage of the image pipeline (report Fig 4.2 and
-4.3), or the plots: *Is the view within its bound of the true pose?* draws, per coordinate,
-how far the view is from the truth (at the tile and quarter turn that fit best) over the bound
-the view declared: at or below the grey line at 1, the view agrees (report Fig 6.3 draws the
-same as six residuals; `--output-file` writes those), *Size of the set* the widths of the
-blue set, *Distance from the set's centre to the truth* its error.
-Orange: the Monte Carlo Localization baseline, calibrated to the views' measured errors
+**The left panel.** The camera view and each stage of the image pipeline (report Fig 4.2 and 4.3)
+with, under them, the robust extractor's checks of the frame on screen (the readings tried, each
+check's value, limit and result, and the check that refused the frame), or the plots: *Is the view
+within its bound of the true pose?* draws, per coordinate, how far the view is from the truth (at
+the tile and quarter turn that fit best) over the bound the view declared: at or below the grey
+line at 1, the view agrees (report Fig 6.3 draws the same as six residuals; `--output-file` writes
+those), *Size of the set* the widths of the blue set, *Distance from the set's centre to the truth*
+its error. Orange: the Monte Carlo Localization baseline, calibrated to the views' measured errors
 (particles and 95 % ellipse), when switched on.
 
 **Without a GPU** the browser draws in software and the page runs slower: the floor's texture is

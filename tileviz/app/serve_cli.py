@@ -94,6 +94,7 @@ def parser() -> Parser:
                    help="pixels per metre")
     p.add_argument("--tile-size", type=float_in("--tile-size", *TILE_SIZE_RANGE, lo_open=False),
                    help="L, metres")
+    cliutil.add_floor_options(p)
     p.add_argument("--output-file", help="CSV of the six equivalence residuals per frame "
                    "(written under --out-dir, name sanitized)")
     p.add_argument("--out-dir", default="runs", help="the only folder the server writes to "

@@ -247,6 +247,7 @@ class FrameLoop:
                 tile_size=self.cfg.floor.tile_size,
                 vision=self.cfg.vision,
                 keep_stages=self.keep_stages,
+                floor=self.cfg.floor.model,
             )
             vision_ms = (clock() - t0) * 1e3
         else:

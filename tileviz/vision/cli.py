@@ -3,11 +3,18 @@
 Options: ``--preset {default,seed}`` (the camera and vision constants; with a preset given the
 image size must be the preset's), ``--ppm P``, ``--tile-size L`` (metres), ``--extractor
 {faithful,robust}``, ``--json`` (one JSON object per image and line: ``image``, ``y1``, ``y2``,
-``y3`` (docs/method.md convention; null when refused), ``accepted``, ``reason``, ``lines``, ...),
-``--stages DIR`` (every stage image as ``DIR/<image stem>_<nn>_<stage>.png``; a stem met again
-in the same run becomes ``<stem>-2``, ``<stem>-3``...), ``--camera-model
-META`` (a dataset's meta.json with a ``camera_model`` block: each image is a raw camera image,
-rectified first; the meta's ppm, view size, tile size and widened view bound are used).
+``y3`` (docs/method.md convention; null when refused), ``accepted``, ``reason``, ``lines``, ...;
+with the robust extractor also ``decision``: every check run with its value and limit, the
+readings tried and the refusing check, :meth:`tileviz.vision.decision.Decision.as_dict`),
+``--explain`` (after each image's line, the robust extractor's decision path as a table: the
+readings tried and, for the view and each reading, every check with its id, value, limit and
+pass / fail; the check that refused the view is named first, with its value and limit; the
+check ids and their settings are listed in :mod:`tileviz.vision.robust.checks`; with
+``--json`` the same data is the ``decision`` key), ``--stages DIR`` (every stage image as
+``DIR/<image stem>_<nn>_<stage>.png``; a stem met again in the same run becomes ``<stem>-2``,
+``<stem>-3``...), ``--camera-model META`` (a dataset's meta.json with a ``camera_model`` block:
+each image is a raw camera image, rectified first; the meta's ppm, view size, tile size and
+widened view bound are used).
 
 An image that cannot be used (unreadable, wrong size) gives a one-line error on stderr and the
 others are still processed. A frame the extractor refuses (e.g. a constant image) is a result:
@@ -36,6 +43,7 @@ from tileviz.cliutil import (
     FIRST_RUN_NOTICE,
     CliError,
     Parser,
+    add_floor_options,
     notice_if_slow,
     positive_float,
     read_json,
@@ -43,6 +51,7 @@ from tileviz.cliutil import (
 )
 from tileviz.config import EXTRACTORS, PRESETS, Config, preset
 from tileviz.vision import VisionResult, extract
+from tileviz.vision.decision import explain_lines
 
 if TYPE_CHECKING:
     from tileviz.datasets.camera_model import Rectifier
@@ -66,9 +75,14 @@ def _parser(prog: str) -> Parser:
                    help="pixels per metre on the floor")
     p.add_argument("--tile-size", type=positive_float("--tile-size"), default=None,
                    help="tile size L, metres")
+    add_floor_options(p)
     p.add_argument("--extractor", choices=EXTRACTORS, default=None,
                    help=f"{EXTRACTOR_HELP} (default: the preset's)")
-    p.add_argument("--json", action="store_true", help="one JSON object per image")
+    p.add_argument("--json", action="store_true",
+                   help="one JSON object per image (with the robust extractor's decision path)")
+    p.add_argument("--explain", action="store_true",
+                   help="print the robust extractor's decision path: the readings tried and "
+                   "every check (id, value, limit, pass/fail)")
     p.add_argument("--stages", metavar="DIR", default=None, help="write every stage image here")
     p.add_argument("--camera-model", metavar="META", default=None,
                    help="meta.json with a camera_model block: rectify each raw image first")
@@ -124,6 +138,10 @@ def _config(args: argparse.Namespace, image: np.ndarray, base: Config | None = N
     floor = cfg.floor
     if args.tile_size is not None:
         floor = floor.with_tile_size(args.tile_size)
+    if args.floor_kind is not None:
+        floor = replace(floor, kind=args.floor_kind)
+    if args.lattice_tolerance is not None:
+        floor = replace(floor, lattice_tolerance=args.lattice_tolerance)
     vision = cfg.vision
     if args.extractor is not None:
         vision = replace(vision, extractor=args.extractor)
@@ -138,6 +156,15 @@ def _line(path: str, res: VisionResult) -> str:
         f"{path}: y1={obs.y1:.6f} m y2={obs.y2:.6f} m y3={obs.y3:.6f} rad "
         f"(+-{obs.position_error:.6f} m, +-{obs.heading_error:.6f} rad); {res.lines} lines"
     )
+
+
+def _explain(res: VisionResult) -> list[str]:
+    """The decision path of ``res`` as indented lines (:func:`~tileviz.vision.decision.
+    explain_lines`), or one line saying the extractor records none."""
+    if res.decision is None:
+        return [f"  the {res.extractor} extractor records no decision path "
+                "(--extractor robust does)"]
+    return ["  " + line for line in explain_lines(res.decision)]
 
 
 def _stage_stem(path: str, used: dict[str, int]) -> str:
@@ -170,7 +197,7 @@ def _extract_one(args: argparse.Namespace, path: str, base: Config | None,
         raise CliError(f"{path}: image is {w}x{h} but {wants} expects "
                        f"{cfg.camera.width}x{cfg.camera.height}")
     return extract(image, camera=cfg.camera, tile_size=cfg.floor.tile_size, vision=cfg.vision,
-                   keep_stages=keep_stages)
+                   keep_stages=keep_stages, floor=cfg.floor.model)
 
 
 def main(command: str, argv: list[str]) -> int:
@@ -214,6 +241,8 @@ def main(command: str, argv: list[str]) -> int:
                     print(json.dumps({"image": path, **res.as_dict()}))
                 else:
                     print(_line(path, res))
+                    if args.explain:
+                        print("\n".join(_explain(res)))
         return status or int(refused)
 
     return run_cli(prog, body)

@@ -1,0 +1,84 @@
+"""Other gray images of a view for the robust extractor to read when the luma (OpenCV's RGB to
+gray) shows no grout: colour projections and the edge image (docs/vision.md, "Colour").
+
+Grout may differ from its tiles more in hue than in brightness (reddish grout on brown tiles):
+the luma then shows dips of a few gray levels, under the camera's noise, while one channel or
+the difference of two shows them clearly. Each projection is a fixed integer combination of the
+channels, computed in integer arithmetic (the same pixels on every machine):
+
+- ``red``, ``green``, ``blue``: one channel;
+- ``red-green``, ``green-blue``, ``red-blue``: ``(a - b + 256) // 2``, 0..255 (half the
+  difference, centred on 128).
+
+The edge image (``edges``, :func:`edge_image`) shows a checkerboard's lattice: tiles of two
+shades meet edge to edge, no grout, and the lattice is the edges between them, which the
+gradient's magnitude draws as thin light lines on dark tiles, read as lighter grout. It is read
+first on a floor declared ``checker``, and after the colour projections on any other (a
+checkerboard recognised from the view: a grout floor's edge image shows two lines a grout's width
+apart at every grout line, which the lattice checks refuse).
+
+The projections are tried in that order, after the luma; the first whose reading the extractor
+accepts is the view's (:func:`tileviz.vision.extract`; its ``details["projection"]`` is then the
+projection's number in that order, from 1). Each is read by the same checks and
+declares its own bound from its own evidence, as the luma's reading does: a projection changes
+which pixels are darker, not what the checks require of them.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import cv2
+import numpy as np
+
+__all__ = ["EDGE_BLUR", "EDGE_QUANTILE", "PROJECTIONS", "RETRY_REASONS", "edge_image",
+           "project"]
+
+EDGE_BLUR = 1.0
+"""Gaussian std (px) of the blur before the edge image's gradient."""
+EDGE_QUANTILE = 0.995
+"""The edge image maps this quantile of the gradient magnitude to 255."""
+
+
+def _channel(k: int) -> Callable[[np.ndarray], np.ndarray]:
+    return lambda rgb: np.ascontiguousarray(rgb[..., k])
+
+
+def _difference(a: int, b: int) -> Callable[[np.ndarray], np.ndarray]:
+    def f(rgb: np.ndarray) -> np.ndarray:
+        d = rgb[..., a].astype(np.int16) - rgb[..., b].astype(np.int16) + 256
+        return (d // 2).astype(np.uint8)
+
+    return f
+
+
+def edge_image(gray: np.ndarray) -> np.ndarray:
+    """The edge image of ``gray`` (HxW uint8): the L1 magnitude of the Scharr gradient after a
+    Gaussian blur of :data:`EDGE_BLUR` px, scaled so that its :data:`EDGE_QUANTILE` quantile is
+    255 (integer arithmetic after the blur), HxW uint8."""
+    g = cv2.GaussianBlur(gray, (0, 0), EDGE_BLUR)
+    m = (np.abs(cv2.Scharr(g, cv2.CV_16S, 1, 0).astype(np.int32))
+         + np.abs(cv2.Scharr(g, cv2.CV_16S, 0, 1).astype(np.int32)))
+    flat = np.sort(m, axis=None)
+    hi = max(1, int(flat[min(flat.size - 1, int(EDGE_QUANTILE * flat.size))]))
+    return np.minimum(255, m * 255 // hi).astype(np.uint8)
+
+
+PROJECTIONS: dict[str, Callable[[np.ndarray], np.ndarray]] = {
+    "red": _channel(0), "green": _channel(1), "blue": _channel(2),
+    "red-green": _difference(0, 1), "green-blue": _difference(1, 2),
+    "red-blue": _difference(0, 2),
+}
+"""The projections after the luma, in the order they are tried: name -> HxWx3 (or x4) uint8
+RGB(A) to HxW uint8."""
+
+RETRY_REASONS = frozenset({"constant image", "no lines", "low contrast", "one family",
+                           "too few segments"})
+"""Refusals of the luma's reading after which the projections are tried: the grout did not
+show (a refusal for what the view shows, a foreign line, blur or glare, is final)."""
+
+
+def project(rgb: np.ndarray, name: str) -> np.ndarray:
+    """The projection ``name`` (:data:`PROJECTIONS`) of ``rgb`` (HxWx3 or HxWx4 uint8),
+    HxW uint8; KeyError on an unknown name."""
+    return PROJECTIONS[name](rgb)
