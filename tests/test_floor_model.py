@@ -174,7 +174,7 @@ def test_survey_measures_a_hand_laid_floor_and_writes_the_floor_block(
     tol = json.loads(meta.read_text())["floor"]["lattice_tolerance"]
     assert f"lattice_tolerance to declare: {tol:.4f} m" in out
     assert tileviz(["survey", str(perfect), "--every", "4"]) == 0
-    line = capsys.readouterr().out.strip().splitlines()[-1]
+    line = capsys.readouterr().out.strip().splitlines()[-2]
     assert 0.0 <= float(line.split(": ")[1].split()[0]) < tol <= 0.005 + 1e-9
 
 

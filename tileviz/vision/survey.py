@@ -67,6 +67,8 @@ class SurveyReport:
         if math.isfinite(self.period_ratio):
             out.append(f"measured period / declared: {self.period_ratio:.4f}")
         out.append(f"lattice_tolerance to declare: {self.tolerance:.4f} m")
+        out.append("(the largest departure these views showed: the floor may depart more where "
+                   "no view looked; survey views over the whole floor the robot drives on)")
         return out
 
 

@@ -40,7 +40,10 @@ Per reading (:mod:`.readings`), on its lines:
   narrowest's + ``lines.width_slack`` + twice the lattice tolerance (``foreign line``; no width
   fails).
 - ``foreign_line.contrast``: largest / smallest line contrast (lighter grout: or of the depth
-  over the grout's own level); <= ``lines.contrast_ratio`` (``foreign line``); lighter grout
+  over the grout's own level); <= ``lines.contrast_ratio`` x how much the lines' contrast
+  varies along themselves (the median over the lines of max / min over a line's parts, at
+  least 1: a floor whose grout varies along each line varies between lines as much) (``foreign
+  line``); lighter grout
   that fails is one grout when the three crossing checks pass:
 - ``foreign_line.crossings_read``: lines read beside a crossing of the two families; >= 1.
 - ``foreign_line.crossings``: largest ratio of two crossing lines' depths beside their crossing;
@@ -212,7 +215,8 @@ FOREIGN_WIDTH = Check("foreign_line.width", "foreign line", WITHIN,
 
                       "widest line's width (px)")
 FOREIGN_CONTRAST = Check("foreign_line.contrast", "foreign line", AT_MOST,
-                         lambda c: c.st.lines.contrast_ratio, "lines.contrast_ratio",
+                         lambda c, along: c.st.lines.contrast_ratio * max(1.0, along),
+                         "lines.contrast_ratio",
                          "largest / smallest contrast")
 CROSSINGS_READ = Check("foreign_line.crossings_read", "foreign line", AT_LEAST,
                        lambda c: 1.0, "lines.crossing_reach, crossing_min_reach",

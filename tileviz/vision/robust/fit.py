@@ -170,7 +170,11 @@ def check_lines(run: ReadingState, lines: list[list[Line]]) -> None:
             run.details["contrast_spread"], spread([ln.contrast_grout for ln in every]))
     rec.require(checks.FOREIGN_WIDTH, run, max(widths) if widths else math.nan,
                 min(widths) if widths else math.nan)
-    if not rec.check(checks.FOREIGN_CONTRAST, run, run.details["contrast_spread"]) and not (
+    # the floor's own variation: lines differ in contrast as much as each varies along itself
+    along = [ln.contrast_along for ln in every if math.isfinite(ln.contrast_along)]
+    run.details["contrast_along"] = list_median(along) if along else 1.0
+    if not rec.check(checks.FOREIGN_CONTRAST, run, run.details["contrast_spread"],
+                     run.details["contrast_along"]) and not (
             run.inverted and crossings_agree(run, lines)):
         raise Refusal(rec.results[-1], "foreign line")
     # one grout line is one band: a second band just beside it (a cable along the grout)
