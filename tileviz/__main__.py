@@ -1,5 +1,5 @@
 """``python -m tileviz COMMAND ...``: serve, record, replay, extract, survey, evaluate,
-calibrate, import-bag, ros, ros-sim, ros-controller, sample-data."""
+calibrate, import-bag, export-html, figure, ros, ros-sim, ros-controller, sample-data."""
 
 from __future__ import annotations
 
@@ -17,6 +17,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "calibrate": ("tileviz.datasets.calibrate", "calibrate a real camera from checkerboard "
                   "images (meta.json's camera_model)"),
     "import-bag": ("tileviz.datasets.bag_import", "import a ROS 1 or ROS 2 bag as a dataset"),
+    "export-html": ("tileviz.share.cli", "a run as one web page that plays offline (or a folder "
+                    "for static hosting)"),
+    "figure": ("tileviz.share.cli", "a run's top-down figure (png, pdf, svg) or movie (mp4, "
+               "gif)"),
     "ros": ("tileviz.ros.node", "the live localizer as a ROS 1 node (docs/ros.md)"),
     "ros-sim": ("tileviz.ros.sim_node", "the simulator as a ROS 1 robot (camera, odometry, IMU, "
                 "/truth)"),
