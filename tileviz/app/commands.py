@@ -26,7 +26,8 @@ from tileviz.config import (
 )
 
 __all__ = [
-    "LABELS", "LAYERS", "PANEL_VIEWS", "SIMULATOR_ONLY", "Command", "Inject", "Kidnap", "Live",
+    "LABELS", "LAYERS", "NOT_LIVE", "PANEL_VIEWS", "SIMULATOR_ONLY", "Command", "Inject",
+    "Kidnap", "Live",
     "Pause",
     "ExportMcap", "ExportPage", "Play", "Relocalize", "RelocalizeRegion", "Report", "SetFollow",
     "ShowPanel",
@@ -450,3 +451,7 @@ SIMULATOR_ONLY: dict[type[Command], str] = {
     Restart: "a new floor or camera", StartRecording: "recording", StopRecording: "recording",
 }
 """Commands that steer the simulator, and what they change: a replay refuses them with a note."""
+
+NOT_LIVE: dict[type[Command], str] = {Reset: "a new run from frame 0"}
+"""Commands a source on its own clock (a ROS run, ``serve --ros``) refuses with a note, and
+what they would do: its robot has moved on, the start pose no longer holds."""

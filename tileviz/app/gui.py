@@ -105,14 +105,16 @@ class Controls:
     ``submit``: puts a command on the loop's queue (never blocks). ``cfg``: the starting
     configuration (initial slider values). ``layers``: initial layer visibility. ``display``,
     ``playing``, ``speed`` (x real time), ``max_speed``, ``mcl`` (the MCL baseline runs):
-    initial states. ``replay``: what is replayed (a dataset) instead of simulated, or None: the
-    controls that steer the simulator (setpoint, kidnap, seed, floor and camera, faults, recording)
-    are hidden then and the noise sliders, showing the dataset's declared bounds, are disabled.
+    initial states. ``replay``: what is replayed (a dataset) or followed (``live``: a ROS run)
+    instead of simulated, or None: the controls that steer the simulator (setpoint, kidnap, seed,
+    floor and camera, faults, recording) are hidden then and the noise sliders, showing the
+    declared bounds, are disabled.
     """
 
     def __init__(self, server: ViserServer, submit: Callable[[C.Command], None], cfg: Config, *,
                  layers: dict[str, bool], display: bool, playing: bool, speed: float = 1.0,
                  max_speed: bool = False, mcl: bool = False, replay: str | None = None,
+                 live: bool = False,
                  region: tuple[float, float, float, float] = (-2.0, -2.0, 2.0, 2.0)) -> None:
         self.server = server
         self._submit = submit
@@ -122,7 +124,11 @@ class Controls:
                                    "minute, once)")
         with gui.add_folder("How to read this page", expand_by_default=False):
             gui.add_markdown(HELP)
-        if replay is not None:
+        if replay is not None and live:
+            gui.add_markdown(f"Following the `{replay}` live: setpoint, kidnap, noise, faults, "
+                             "floor and recording belong to the simulator, Reset to a new run. "
+                             "Mode and extractor apply from the next frame.")
+        elif replay is not None:
             gui.add_markdown(f"Replaying `{replay}`: setpoint, kidnap, noise, faults, floor and "
                              "recording belong to the simulator. Mode and extractor replay from "
                              "frame 0.")

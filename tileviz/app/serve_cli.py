@@ -8,10 +8,12 @@ equivalence residuals per frame, written under ``--out-dir``), ``--seed``, ``--h
 ``--push-rate``, ``--image-rate``, ``--speed``, ``--max-speed``, ``--lens`` (a real camera in the
 simulator), ``--mcl``/``--particles`` (the Monte Carlo Localization baseline beside the boxes),
 ``--mode``, ``--extractor``, ``--fault-model``, ``--relocalize-region``, ``--frames N`` (run N
-frames, print a summary, exit) and ``--dataset DIR``: replay a recorded tileviz-dataset/1 folder
+frames, print a summary, exit), ``--dataset DIR``: replay a recorded tileviz-dataset/1 folder
 instead of simulating (its meta.json sets the floor and the camera; the boxes are those ``python -m
-tileviz replay`` writes). :func:`main` builds the :class:`tileviz.app.server.App` and runs it until
-Ctrl-C (or ``--frames``).
+tileviz replay`` writes), ``--ros``: follow a ROS 1 run live (:mod:`tileviz.ros.viewer`; ROS
+arguments ``name:=value`` after it are its node's remappings and private parameters, as for
+``python -m tileviz ros``) and ``--foxglove [PORT]``: serve the run live to Foxglove as well.
+:func:`main` builds the :class:`tileviz.app.server.App` and runs it until Ctrl-C (or ``--frames``).
 """
 
 from __future__ import annotations
@@ -52,6 +54,7 @@ from tileviz.config import (
     Config,
     preset,
 )
+from tileviz.ros.foxglove_live import DEFAULT_PORT as FOXGLOVE_PORT
 from tileviz.sim.lens import LENSES
 from tileviz.summary import counted
 
@@ -69,6 +72,14 @@ def parser() -> Parser:
                    help="simulator preset (default: default)")
     p.add_argument("--dataset", metavar="DIR", help="replay this tileviz-dataset/1 folder "
                    "instead of simulating (its meta.json sets the floor and the camera)")
+    p.add_argument("--ros", action="store_true",
+                   help="follow a ROS 1 run live instead of simulating: the localizer node's "
+                   "topics and parameters (name:=value arguments; docs/ros.md), the floor and "
+                   "camera from the simulator's /tileviz_sim/meta by default")
+    p.add_argument("--foxglove", nargs="?", const=FOXGLOVE_PORT, default=None,
+                   type=_port_of("--foxglove"), metavar="PORT",
+                   help=f"also serve the run live to Foxglove on 127.0.0.1:PORT (default "
+                   f"{FOXGLOVE_PORT}; the topics of replay --mcap)")
     p.add_argument("--lens", choices=LENSES, default=None,
                    help="the simulated camera is a real one (webcam: tilted, a distorting "
                    "lens); its raw and rectified images are shown as stages (a dataset with a "
@@ -120,14 +131,23 @@ def parser() -> Parser:
     return p
 
 
-def _port(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"--port must be an integer, got {text!r}") from None
-    if not 0 <= v <= 65535:
-        raise argparse.ArgumentTypeError(f"--port must be in [0, 65535], got {text!r}")
-    return v
+def _port_of(name: str) -> Any:
+    """argparse type: a port number in [0, 65535] for option ``name``."""
+
+    def parse(text: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name} must be an integer, got {text!r}"
+                                             ) from None
+        if not 0 <= v <= 65535:
+            raise argparse.ArgumentTypeError(f"{name} must be in [0, 65535], got {text!r}")
+        return v
+
+    return parse
+
+
+_port = _port_of("--port")
 
 
 def _ranged(name: str, lo: float, hi: float, check: Any) -> Any:
@@ -150,13 +170,35 @@ def _int_range(name: str, lo: int, hi: int) -> Any:
     return _ranged(name, lo, hi, positive_int(name))
 
 
-def serve_config(args: argparse.Namespace) -> Config:
+def check_ros_options(args: argparse.Namespace) -> None:
+    """CliError naming the options ``--ros`` cannot be used with (the run's meta sets the
+    floor and the camera; one run at a time)."""
+    if args.dataset is not None:
+        raise CliError("--ros cannot be used with --dataset (one run at a time)")
+    clash = [name for name, v in (("--preset", args.preset), ("--tile-size", args.tile_size),
+                                  ("--ppm", args.ppm), ("--lens", args.lens)) if v is not None]
+    if clash:
+        raise CliError(f"{', '.join(clash)} cannot be used with --ros (the ROS run's meta sets "
+                       "the floor and the camera)")
+
+
+def serve_config(args: argparse.Namespace, feed: Any = None) -> Config:
     """``serve``'s configuration: :func:`tileviz.cliutil.config_from_args` (the preset with the
     command line's floor, camera, seed, mode and extractor; the seed leaves the floor's
     appearance alone); with ``--dataset``, the configuration ``python -m tileviz replay`` uses
     for that dataset (its meta and the mode and extractor), the seed (of the MCL baseline) from
-    the command line. A bad dataset folder or meta.json raises DatasetError (a ValueError)
-    naming the file."""
+    the command line; with ``--ros``, the configuration of the ROS run ``feed`` follows (its
+    meta, as ``python -m tileviz ros`` builds it) with the mode and extractor. A bad dataset
+    folder or meta.json raises DatasetError (a ValueError) naming the file."""
+    if args.ros:
+        check_ros_options(args)
+        if feed is None:
+            raise CliError("--ros: no ROS run to follow")
+        cfg = replace(feed.combiner.cfg, localizer=replace(
+            feed.combiner.cfg.localizer, **({} if args.mode is None else {"mode": args.mode})))
+        if args.extractor is not None:
+            cfg = replace(cfg, vision=replace(cfg.vision, extractor=args.extractor))
+        return _with_fault_model(_with_seed(cfg, args.seed), args.fault_model)
     if args.dataset is not None:
         from tileviz.app.sources import replay_config
         from tileviz.datasets import DatasetSource
@@ -192,8 +234,8 @@ def _with_seed(cfg: Config, seed: int | None) -> Config:
     return replace(cfg, sim=replace(cfg.sim, seed=seed))
 
 
-def options_from_args(args: argparse.Namespace) -> SessionOptions:
-    """How the session starts, from the command line."""
+def options_from_args(args: argparse.Namespace, feed: Any = None) -> SessionOptions:
+    """How the session starts, from the command line (``feed``: the ROS run of ``--ros``)."""
     return SessionOptions(history=args.history, display=args.display, intervals=args.intervals,
                           interactive=args.interactive and args.frames is None,
                           out_dir=Path(args.out_dir),
@@ -201,7 +243,8 @@ def options_from_args(args: argparse.Namespace) -> SessionOptions:
                           max_speed=args.max_speed, mcl=args.mcl, mcl_particles=args.particles,
                           start_frame=args.start_frame, lens=args.lens,
                           relocalize_region=args.relocalize_region,
-                          dataset=Path(args.dataset) if args.dataset is not None else None)
+                          dataset=Path(args.dataset) if args.dataset is not None else None,
+                          ros=feed, foxglove=args.foxglove)
 
 
 def _summary(s: Session, wanted: int, frames: int, seconds: float) -> int:
@@ -227,58 +270,77 @@ def _force_exit() -> None:
 
 def main(command: str = "serve", argv: list[str] | None = None) -> int:
     """Entry for ``python -m tileviz serve`` and ``serve.py``: runs until Ctrl-C."""
-    args = parser().parse_args(sys.argv[1:] if argv is None else argv)
+    argv = sys.argv[1:] if argv is None else argv
+    remaps = [a for a in argv if ":=" in a] if "--ros" in argv else []
+    args = parser().parse_args([a for a in argv if a not in remaps])
     if args.history < 2:
         sys.stderr.write("tileviz serve: error: --history must be >= 2\n")
         return 2
 
     def body() -> int:
         port = DEFAULT_PORT if args.port is None else args.port
-        app = App(serve_config(args), options_from_args(args), host=args.host, port=port,
-                  strict_port=args.port is not None, push_rate=args.push_rate,
-                  image_rate=args.image_rate, frames=args.frames)
-        stopping = threading.Event()
+        feed = None
+        if args.ros:
+            check_ros_options(args)  # before connecting
+            from tileviz.ros.viewer import RosFeed
 
-        def on_term(signum: int, frame: object) -> None:
-            stopping.set()
-
-        previous = signal.signal(signal.SIGTERM, on_term)
-        # Ctrl-C by the same path: a process started with SIGINT ignored (a background job)
-        # would otherwise never see KeyboardInterrupt
-        previous_int = signal.signal(signal.SIGINT, on_term)
-        status = 0
-        try:
             with notice_if_slow(f"tileviz serve: {FIRST_RUN_NOTICE}"):
-                app.start()
-            if port != 0 and app.port != port:
-                print(f"tileviz serve: port {port} is busy; serving on port {app.port} instead",
-                      flush=True)
-            print(f"tileviz serve: open {app.url}  (Ctrl-C stops)", flush=True)
-            started = time.perf_counter()
-            done = 0  # frames of the run, frame 0 (made on start) included
-            while app.running and not stopping.is_set():
-                if args.frames is not None and app.session is not None and (
-                        app.session.frames_computed - done >= args.frames
-                        or app.session.ended is not None):
-                    status = _summary(app.session, args.frames,
-                                      app.session.frames_computed - done,
-                                      time.perf_counter() - started)
-                    break
-                time.sleep(0.05 if args.frames is not None else 0.2)
-        except KeyboardInterrupt:
-            pass
+                feed = RosFeed(remaps)
+            print(f"tileviz serve: following the {feed.describe()}", flush=True)
+        try:
+            return _serve(args, port, feed)
         finally:
-            signal.signal(signal.SIGTERM, previous)
-            signal.signal(signal.SIGINT, previous_int)
-            # a watchdog: once the files are closed, a server that does not shut down in time
-            # must not keep the terminal
-            watchdog = threading.Timer(20.0, _force_exit)
-            watchdog.daemon = True
-            watchdog.start()
-            app.stop()
-            watchdog.cancel()
-        print("tileviz serve: stopped", flush=True)
-        return status
+            if feed is not None:
+                feed.close()
 
     return run_cli("tileviz serve", body)
+
+
+def _serve(args: argparse.Namespace, port: int, feed: Any) -> int:
+    """Run the server until Ctrl-C (or ``--frames``); the exit status."""
+    app = App(serve_config(args, feed), options_from_args(args, feed), host=args.host,
+              port=port, strict_port=args.port is not None, push_rate=args.push_rate,
+              image_rate=args.image_rate, frames=args.frames)
+    stopping = threading.Event()
+
+    def on_term(signum: int, frame: object) -> None:
+        stopping.set()
+
+    previous = signal.signal(signal.SIGTERM, on_term)
+    # Ctrl-C by the same path: a process started with SIGINT ignored (a background job)
+    # would otherwise never see KeyboardInterrupt
+    previous_int = signal.signal(signal.SIGINT, on_term)
+    status = 0
+    try:
+        with notice_if_slow(f"tileviz serve: {FIRST_RUN_NOTICE}"):
+            app.start()
+        if port != 0 and app.port != port:
+            print(f"tileviz serve: port {port} is busy; serving on port {app.port} instead",
+                  flush=True)
+        print(f"tileviz serve: open {app.url}  (Ctrl-C stops)", flush=True)
+        started = time.perf_counter()
+        done = 0  # frames of the run, frame 0 (made on start) included
+        while app.running and not stopping.is_set():
+            if args.frames is not None and app.session is not None and (
+                    app.session.frames_computed - done >= args.frames
+                    or app.session.ended is not None):
+                status = _summary(app.session, args.frames,
+                                  app.session.frames_computed - done,
+                                  time.perf_counter() - started)
+                break
+            time.sleep(0.05 if args.frames is not None else 0.2)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+        signal.signal(signal.SIGINT, previous_int)
+        # a watchdog: once the files are closed, a server that does not shut down in time
+        # must not keep the terminal
+        watchdog = threading.Timer(20.0, _force_exit)
+        watchdog.daemon = True
+        watchdog.start()
+        app.stop()
+        watchdog.cancel()
+    print("tileviz serve: stopped", flush=True)
+    return status
 

@@ -165,7 +165,7 @@ class App:
                                  display=s.display, playing=s.playing, speed=s.speed,
                                  max_speed=s.max_speed, mcl=s.mcl is not None,
                                  replay=None if s.source.simulator else s.source.describe(),
-                                 region=s.default_region())
+                                 live=s.source.realtime, region=s.default_region())
         # no GPU: the browser's notice that WebGL runs in software would cover the scene; the
         # page's help says what that costs (the floor texture layer is off by default)
         server.gui.add_html(HIDE_SOFTWARE_WEBGL_NOTICE)

@@ -5,11 +5,15 @@ runner, the history, the playback state, the files being written) and nothing of
 loop thread is its only caller (``apply`` a command, ``advance`` one frame), so no lock is needed
 on the simulation. Tests drive it directly.
 
-The source (:mod:`tileviz.app.sources`) is the simulator, or a recorded dataset replayed with the
-same reader and frame loop as ``python -m tileviz replay`` (``SessionOptions.dataset``). A replay
-pauses at its last frame (or at a bad row, with a note naming it); commands only a simulator
-understands (:data:`tileviz.app.commands.SIMULATOR_ONLY`) leave a note and change nothing; a new
-localizer mode, extractor or inflation replays from frame 0.
+The source (:mod:`tileviz.app.sources`) is the simulator, a recorded dataset replayed with the
+same reader and frame loop as ``python -m tileviz replay`` (``SessionOptions.dataset``), or a
+ROS run followed live (``SessionOptions.ros``: its messages combined as ``python -m tileviz
+ros`` combines them). A replay pauses at its last frame (or at a bad row, with a note naming
+it); commands only a simulator understands (:data:`tileviz.app.commands.SIMULATOR_ONLY`) leave
+a note and change nothing, as do those a live ROS run cannot honour
+(:data:`tileviz.app.commands.NOT_LIVE`); a new localizer mode, extractor or inflation replays
+a dataset from frame 0, and applies from the next frame on otherwise. ``SessionOptions.foxglove``
+also serves every new frame to Foxglove (:class:`tileviz.ros.foxglove_live.FoxgloveLive`).
 
 Positions: the history numbers its entries 0, 1, 2, ... (a *position*); an entry's record keeps
 the source's frame index. They differ only after a frame failed (a gap in frame indices).
@@ -85,6 +89,12 @@ class SessionOptions:
     dataset: Path | None = None
     """Replay this tileviz-dataset/1 folder instead of simulating (the Config passed to the
     session should be :func:`tileviz.datasets.replay_config` of its meta)."""
+    ros: Any = None
+    """Follow this ROS run (a :class:`tileviz.ros.viewer.RosFeed`) instead of simulating (the
+    Config should be its combiner's ``cfg``)."""
+    foxglove: int | None = None
+    """Also serve each new frame live to Foxglove on 127.0.0.1 at this port (0: any free one),
+    the topics of ``replay --mcap``."""
     lens: str | None = None
     """The simulator's camera is this real camera (:data:`tileviz.sim.lens.LENSES`): raw images
     through a tilted, distorting lens, rectified to the configured camera's view before vision;
@@ -150,6 +160,14 @@ class Session:
         """The robot was seen outside the current re-localization region (said once)."""
         self.ended: str | None = None
         """Why the source has no more frames (a replay's end or bad row), or None."""
+        self._waiting = ""
+        """Why a live source has had no frame for a while (said once), or ""."""
+        self.foxglove: Any = None
+        """The live Foxglove server (:class:`tileviz.ros.foxglove_live.FoxgloveLive`) or None."""
+        if o.foxglove is not None:
+            from tileviz.ros.foxglove_live import FoxgloveLive
+
+            self.foxglove = FoxgloveLive(o.foxglove)  # CliError: no SDK, a busy port
         self._build(cfg)
         # the floor as its tile grid; the textured floor is a layer to switch on: without a GPU
         # (software WebGL) every pixel it fills costs the browser (docs/demo.md, "Without a GPU")
@@ -164,7 +182,8 @@ class Session:
         from tileviz.app.sources import make_source  # pymunk: only when a run starts
 
         self.source = make_source(cfg, dataset=self.options.dataset,
-                                  renderer=self.options.renderer, lens=self.options.lens)
+                                  renderer=self.options.renderer, lens=self.options.lens,
+                                  ros=self.options.ros)
         floor_half = getattr(self.source, "floor_half_size", None)
         if floor_half is not None:  # a dataset: a floor under its whole true path
             half = floor_half(cfg.sim.room_half_size)
@@ -208,6 +227,9 @@ class Session:
         if self.csv is not None:
             self.csv.close()
             self.csv = None
+        if self.foxglove is not None:
+            self.foxglove.close()
+            self.foxglove = None
 
     def _lens_bound(self, cfg: Config) -> Config:
         """``cfg`` for the localizer: with a simulated lens, the view bound grows by what the
@@ -235,8 +257,9 @@ class Session:
     # ------------------------------------------------------------------ frames
     @property
     def frame_period(self) -> float:
-        """Seconds between frames while playing (0: as fast as possible)."""
-        if self.max_speed:
+        """Seconds between frames while playing (0: as fast as possible, or as they come from a
+        source on its own clock)."""
+        if self.max_speed or self.source.realtime:
             return 0.0
         return self.cfg.sim.dt / self.speed
 
@@ -311,11 +334,16 @@ class Session:
         """Make one new frame (source -> runner -> history) and show it. A frame that raises is
         logged as one line and skipped; None then. At the source's end (a replay's last frame or
         bad row) the run pauses with a note; None then."""
-        from tileviz.app.sources import SourceEnded
+        from tileviz.app.sources import SourceEnded, SourceWaiting
 
         before = self.source.index
         try:
             frame = next(self.source)
+        except SourceWaiting as e:
+            if str(e) and str(e) != self._waiting:
+                self.note(str(e))
+            self._waiting = str(e)
+            return None
         except SourceEnded as e:
             self.playing = False
             if self.ended != str(e):
@@ -340,6 +368,9 @@ class Session:
                     shown = rect(raw)
                     if self.runner.keep_stages:
                         lens_stages = {"raw": raw, "rectified": shown}
+            for n in self.source.prime(self.runner):
+                self.note(n.text, n.level)
+                self.degraded = self.degraded or n.degrades
             rec = self.runner.process(frame)
             if shown is not None:  # the camera panel shows the colour view
                 rec = replace(rec, image=shown)
@@ -350,6 +381,8 @@ class Session:
             from tileviz.pipeline.outputs import residual_row
 
             self.csv.row(residual_row(rec))
+        if self.foxglove is not None:
+            self._serve_foxglove(rec)
         particles = self._mcl_view(rec)
         entry = Entry.make(rec, stages=self.display, encoder=self.encoder, mcl=particles,
                            before=lens_stages)
@@ -370,6 +403,18 @@ class Session:
         self._count_rate()
         self.version += 1
         return entry
+
+    def _serve_foxglove(self, rec: FrameRecord) -> None:
+        """``rec`` to the Foxglove server, stamped with the run's time (``rec.t``, as ``replay
+        --mcap`` stamps it); status ``lost`` while the run is degraded. A failure stops the
+        server, not the run (a note)."""
+        try:
+            self.foxglove.publish(rec, round(rec.t * 1e9),
+                                  status="lost" if self.degraded else None)
+        except Exception as e:  # noqa: BLE001 - the page goes on without Foxglove
+            self.note(f"Foxglove stopped at frame {rec.index}: {e}", "error")
+            self.foxglove.close()
+            self.foxglove = None
 
     # ------------------------------------------------------------------ MCL baseline
     @property
@@ -454,9 +499,15 @@ class Session:
         """Apply one command (:mod:`tileviz.app.commands`). Bad values raise ValueError naming
         them; nothing is changed then."""
         what = C.SIMULATOR_ONLY.get(type(cmd))
+        verb = "following" if self.source.realtime else "replaying"
         if what is not None and not self.source.simulator:
             self.note(f"{C.label(cmd)}: {what} belongs to the simulator; "
-                      f"replaying {self.source.describe()} (nothing changed)")
+                      f"{verb} {self.source.describe()} (nothing changed)")
+            return
+        what = C.NOT_LIVE.get(type(cmd))
+        if what is not None and self.source.realtime:
+            self.note(f"{C.label(cmd)}: {what} cannot be done on a live run; {verb} "
+                      f"{self.source.describe()} (nothing changed)")
             return
         match cmd:
             case C.Play():

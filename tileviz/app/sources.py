@@ -1,15 +1,18 @@
-"""Where the live run's frames come from: the pymunk simulator or a recorded dataset.
+"""Where the live run's frames come from: the pymunk simulator, a recorded dataset or a ROS run.
 
-:class:`tileviz.app.session.Session` steps one *run source*; both kinds answer the same few
+:class:`tileviz.app.session.Session` steps one *run source*; every kind answers the same few
 questions (:class:`RunSource`), so the session has no per-kind branches beyond the gate on the
-commands that only a simulator understands (``simulator``) and the restart on new localizer
-settings (``restart_on_settings``).
+commands that only a simulator understands (``simulator``), the restart on new localizer
+settings (``restart_on_settings``) and a source that runs on its own clock (``realtime``).
 
 - :class:`LiveSimulator`: the simulator (:class:`tileviz.sim.source.SimSource`), endless; it obeys
   setpoint, kidnap, noise and fault commands.
 - :class:`DatasetReplay`: a tileviz-dataset/1 folder read by
   :class:`tileviz.datasets.DatasetSource`, the reader ``python -m tileviz replay`` uses. Its end,
   and a bad row, raise :class:`SourceEnded` (every frame before it was delivered).
+- :class:`tileviz.ros.viewer.RosSource`: a ROS 1 run followed live (``serve --ros``), its
+  messages combined as ``python -m tileviz ros`` combines them; no frame yet raises
+  :class:`SourceWaiting`.
 
 Units: metres, radians, seconds; world frame as in ``docs/dataset-format.md``.
 """
@@ -19,8 +22,9 @@ from __future__ import annotations
 import csv
 import math
 import os
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 from tileviz.config import Config
 from tileviz.datasets import MAX_MAGNITUDE, DatasetSource, replay_config
@@ -28,8 +32,12 @@ from tileviz.datasets.camera_model import Rectifier
 from tileviz.sim.source import SimSource
 from tileviz.types import FrameInput, Pose
 
+if TYPE_CHECKING:
+    from tileviz.pipeline import FrameLoop
+
 __all__ = [
-    "DatasetReplay", "LiveSimulator", "RunSource", "SourceEnded", "make_source", "replay_config",
+    "DatasetReplay", "LiveSimulator", "RunSource", "SourceEnded", "SourceNote", "SourceWaiting",
+    "make_source", "replay_config",
 ]
 
 PATH_POINTS = 4000
@@ -49,6 +57,21 @@ class SourceEnded(Exception):
         self.level = level
 
 
+class SourceWaiting(Exception):
+    """No frame is ready yet (a source on its own clock, ``realtime``): nothing failed, try
+    again; the message, when not empty, says why no frame came for a while."""
+
+
+@dataclass(frozen=True)
+class SourceNote:
+    """A line the source has for the page (``level`` info or error); ``degrades``: the set no
+    longer vouches for the truth from now on (the session's ``degraded``)."""
+
+    text: str
+    level: str = "info"
+    degrades: bool = False
+
+
 class RunSource(Protocol):
     """What the session needs of a source of frames."""
 
@@ -63,8 +86,18 @@ class RunSource(Protocol):
     """Index of the next frame ``next()`` returns."""
     rectifier: Rectifier | None
     """Turns the source's raw images into the orthographic view (None: they are already)."""
+    realtime: bool
+    """True: frames come on the source's own clock (a ROS run): the session takes each as it
+    comes (no pacing; ``next()`` raises :class:`SourceWaiting` while none is ready) and cannot
+    start the run again (Reset is refused)."""
 
     def __next__(self) -> FrameInput: ...
+
+    def prime(self, runner: FrameLoop) -> list[SourceNote]:
+        """Called between ``next()`` and processing its frame: what the source tells the frame
+        loop for that frame (a ROS source: the motion since the previous frame and the bounds
+        declared now), and its lines for the page since the last call."""
+        ...
 
     @property
     def pose(self) -> Pose | None:
@@ -88,6 +121,11 @@ class LiveSimulator(SimSource):
     path_closed = True
     rectifier: Rectifier | None = None
     """Set when the simulator's camera has a lens (its images are raw)."""
+    realtime = False
+
+    def prime(self, runner: FrameLoop) -> list[SourceNote]:
+        """Nothing: each frame carries its own odometry."""
+        return []
 
     def path(self) -> list[tuple[float, float]]:
         """One lap of the configured Lissajous curve, metres."""
@@ -108,6 +146,7 @@ class DatasetReplay:
     simulator = False
     restart_on_settings = True
     path_closed = False
+    realtime = False
 
     def __init__(self, folder: str | os.PathLike[str]) -> None:
         self.folder = Path(folder)
@@ -166,6 +205,10 @@ class DatasetReplay:
     def describe(self) -> str:
         return f"dataset {self.folder}"
 
+    def prime(self, runner: FrameLoop) -> list[SourceNote]:
+        """Nothing: each row carries its own odometry."""
+        return []
+
     def floor_half_size(self, at_least: float) -> float:
         """Half side of a floor centred on the origin that holds the true path (plus a margin),
         and at least ``at_least``; metres."""
@@ -206,11 +249,16 @@ def truth_path(frames_csv: Path, columns: list[str]) -> list[tuple[float, float]
 
 
 def make_source(cfg: Config, *, dataset: Path | None = None, renderer: Any = None,
-                lens: str | None = None) -> RunSource:
-    """The run source: a replay of ``dataset`` when given, else the simulator for ``cfg``
+                lens: str | None = None, ros: Any = None) -> RunSource:
+    """The run source: the ROS run of ``ros`` (a :class:`tileviz.ros.viewer.RosFeed`) when
+    given, a replay of ``dataset`` when given, else the simulator for ``cfg``
     (``renderer``: the simulator's camera, None = the real floor renderer; ``lens``: a
     :data:`tileviz.sim.lens.LENSES` preset, the simulator's camera is then that real camera and
     the source's ``rectifier`` turns its raw images into ``cfg.camera``'s view)."""
+    if ros is not None:
+        from tileviz.ros.viewer import RosSource
+
+        return RosSource(ros)
     if dataset is not None:
         return DatasetReplay(dataset)
     if lens is None:

@@ -61,6 +61,8 @@ class StatusState:
     """(frames kept, capacity)"""
     notes: tuple[Note, ...] = ()
     replaying: str | None = None
+    following: bool = False
+    """``replaying`` is a live run (a ROS run) followed as it happens."""
     ended: str | None = None
     recording: tuple[str, int] | None = None
     degraded: bool = False
@@ -74,7 +76,8 @@ class StatusState:
             entry=entry, live=live, playing=s.playing, localizer=s.cfg.localizer,
             extractor=s.cfg.vision.extractor, contained=contained, rate=s.rate,
             history=(len(s.history), s.history.capacity), notes=tuple(s.notes)[-3:],
-            replaying=None if s.source.simulator else s.source.describe(), ended=s.ended,
+            replaying=None if s.source.simulator else s.source.describe(),
+            following=s.source.realtime, ended=s.ended,
             recording=None if writer is None else (str(s.recorder.path), writer.count),
             degraded=s.degraded)
 
@@ -103,7 +106,8 @@ def render_status(st: StatusState) -> str:
     if st.replaying is not None:
         # its end stays in view after newer notes pushed the note about it out
         said = st.ended is not None and any(n.text.startswith(st.ended) for n in recent)
-        notes.append(f"replaying <code>{html.escape(st.replaying)}</code>"
+        verb = "following" if st.following else "replaying"
+        notes.append(f"{verb} <code>{html.escape(st.replaying)}</code>"
                      + (f": <b>{html.escape(st.ended)}</b>" if st.ended and not said else ""))
     if st.recording is not None:
         path, count = st.recording

@@ -29,6 +29,7 @@ import math
 import threading
 from collections import deque
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 
@@ -38,7 +39,7 @@ from tileviz.pipeline.frame_loop import FrameLoop, FrameRecord
 from tileviz.types import FrameInput, Odometry, Status
 from tileviz.vision import VisionResult
 
-__all__ = ["COUNTERS", "LiveFrame", "LiveLocalizer"]
+__all__ = ["COUNTERS", "LiveCombiner", "LiveFrame", "LiveInput", "LiveLocalizer"]
 
 COUNTERS = ("images", "odometry", "imu", "frames", "bad_images", "out_of_order", "late",
             "dropped_behind", "dropped_upstream", "no_odometry", "timeouts", "bounds_raised")
@@ -60,6 +61,21 @@ class LiveFrame:
     record: FrameRecord
     status: Status
     reason: str
+    stamp: int
+    arrived: int
+
+
+@dataclass(frozen=True)
+class LiveInput:
+    """One combined frame, before the frame loop: ``frame`` (its image the camera's raw one, or
+    black of that size when it could not be read; no odometry, no truth), ``motion`` (the motion
+    since the previous frame, for :meth:`tileviz.pipeline.FrameLoop.set_motion`; None at the
+    first frame), ``error`` (why the image could not be read, or None), the image's stamp and
+    arrival time (ns)."""
+
+    frame: FrameInput
+    motion: Odometry | None
+    error: str | None
     stamp: int
     arrived: int
 
@@ -96,11 +112,15 @@ class _Seq:
         return max(0, seq - prev - 1) if prev is not None and seq > prev else 0
 
 
-class LiveLocalizer:
-    """Thread-safe: the ``add_*`` methods may be called from subscriber threads while one
-    thread calls :meth:`step`. ``meta``: the floor, camera, bounds and start, as a dataset's
+class LiveCombiner:
+    """The messages combined into frames, without the frame loop (``python -m tileviz ros`` and
+    ``serve --ros`` each step their own loop with :meth:`next_input` and :meth:`prime`).
+
+    Thread-safe: the ``add_*`` methods may be called from subscriber threads while one thread
+    calls :meth:`next_input`. ``meta``: the floor, camera, bounds and start, as a dataset's
     meta.json gives them; ``has_imu``: wait for IMU messages (else no compass);
-    ``max_delay``, ``now`` and stamps: nanoseconds."""
+    ``max_delay``, ``now`` and stamps: nanoseconds. :attr:`cfg`: ``replay``'s configuration of
+    the meta with the bounds declared now (raised as the module docstring says)."""
 
     def __init__(self, meta: DatasetMeta, *, has_imu: bool = True,
                  widening: tuple[float, float, float] = (0.0, 0.0, 0.0),
@@ -109,7 +129,6 @@ class LiveLocalizer:
             raise ValueError(f"widening must be three finite numbers >= 0, got {widening}")
         self.meta = meta
         self.cfg = replay_config(meta)
-        self.loop = FrameLoop(self.cfg, residuals=False)
         self.rectifier = meta.rectifier()
         self.has_imu = has_imu
         self.widening: tuple[float, float, float] = (float(widening[0]), float(widening[1]),
@@ -243,10 +262,17 @@ class LiveLocalizer:
                          yaw_rate_error=m.yaw_rate_error + widening[1],
                          compass_error=m.compass_error + widening[2])
         self.cfg = replace(self.cfg, noise=bounds)
-        self.loop.reconfigure(self.cfg)
 
-    def step(self, now: int) -> LiveFrame | None:
-        """Process the next frame that is ready at ``now`` (ns), or None."""
+    def prime(self, loop: FrameLoop, got: LiveInput) -> None:
+        """Make ``loop`` ready for ``got``'s frame: the bounds declared now (when the loop's
+        differ, it restarts from its set's hull: ``FrameLoop.reconfigure``) and the motion
+        since the previous frame."""
+        if loop.cfg.noise != self.cfg.noise:
+            loop.reconfigure(replace(loop.cfg, noise=self.cfg.noise))
+        loop.set_motion(got.motion)
+
+    def next_input(self, now: int) -> LiveInput | None:
+        """The next frame that is ready at ``now`` (ns), combined, or None."""
         with self._lock:
             got = self._ready(now)
             if got is None:
@@ -274,9 +300,10 @@ class LiveLocalizer:
                               f"+{self.widening[2]:.4g} rad")
                 self._declare(self.widening)
             first = self._first if self._first is not None else p.stamp
+            odometry = None
             if motion is not None and self._last is not None:
                 dt = seconds_since(p.stamp, first) - seconds_since(self._last, first)
-                self.loop.set_motion(Odometry(motion.speed, motion.yaw_rate, dt))
+                odometry = Odometry(motion.speed, motion.yaw_rate, dt)
             self._used.append(_Used(self._last, p.stamp, motion, compass,
                                     self.widening))
             self._first = first
@@ -285,27 +312,49 @@ class LiveLocalizer:
             self._index += 1
             self.counts["frames"] += 1
             self.timeline.forget_before(self._used[0].t0 or self._used[0].t1)
+        image = p.image
+        if image is None:
+            cm = self.meta.camera_model
+            h, w = ((cm.raw_height, cm.raw_width) if cm is not None
+                    else (self.meta.image_height, self.meta.image_width))
+            image = np.zeros((h, w, 3), np.uint8)
         frame = FrameInput(index=index, t=seconds_since(p.stamp, first),
-                           image=self._prepare(p), odometry=None,
+                           image=np.ascontiguousarray(image), odometry=None,
                            compass=None if compass is None else compass[0], truth=None)
-        vision = None
-        if p.error is not None:
-            vision = VisionResult(observation=None, accepted=False, reason="constant image")
-        rec = self.loop.process(frame, vision)
-        status: Status = "lost" if self.lost_reason is not None else rec.status
-        reason = p.error if p.error is not None else rec.vision.reason
-        return LiveFrame(rec, status, reason, p.stamp, p.arrived)
-
-    def _prepare(self, p: _Pending) -> np.ndarray:
-        """The image as vision reads it: rectified to gray with a camera model (as a dataset's
-        reader gives it), else as it came."""
-        if p.image is None:
-            return np.zeros((self.meta.image_height, self.meta.image_width, 3), np.uint8)
-        if self.rectifier is not None:
-            return np.ascontiguousarray(self.rectifier.gray(p.image))
-        return np.ascontiguousarray(p.image)
+        return LiveInput(frame, odometry, p.error, p.stamp, p.arrived)
 
     def pending(self) -> int:
         """Images waiting."""
         with self._lock:
             return len(self._pending)
+
+
+class LiveLocalizer(LiveCombiner):
+    """:class:`LiveCombiner` with its own frame loop (``python -m tileviz ros``): :meth:`step`
+    processes the next ready frame."""
+
+    def __init__(self, meta: DatasetMeta, **kwargs: Any) -> None:
+        super().__init__(meta, **kwargs)
+        self.loop = FrameLoop(self.cfg, residuals=False)
+
+    def step(self, now: int) -> LiveFrame | None:
+        """Process the next frame that is ready at ``now`` (ns), or None."""
+        got = self.next_input(now)
+        if got is None:
+            return None
+        self.prime(self.loop, got)
+        vision = None
+        if got.error is not None:
+            vision = VisionResult(observation=None, accepted=False, reason="constant image")
+        rec = self.loop.process(replace(got.frame, image=self._prepare(got.frame.image)),
+                                vision)
+        status: Status = "lost" if self.lost_reason is not None else rec.status
+        reason = got.error if got.error is not None else rec.vision.reason
+        return LiveFrame(rec, status, reason, got.stamp, got.arrived)
+
+    def _prepare(self, image: np.ndarray) -> np.ndarray:
+        """The image as vision reads it: rectified to gray with a camera model (as a dataset's
+        reader gives it), else as it came."""
+        if self.rectifier is not None:
+            return np.ascontiguousarray(self.rectifier.gray(image))
+        return image

@@ -58,7 +58,7 @@ from typing import Any
 
 from tileviz.cliutil import CliError, Parser, read_json, run_cli
 
-__all__ = ["hull_covariance", "main", "meta_from_params"]
+__all__ = ["RosInputs", "hull_covariance", "main", "meta_from_params"]
 
 META_KEYS = ("name", "tile_size", "ppm", "image_width", "image_height", "camera_offset", "dt",
              "initial_pose", "initial_pose_error", "speed_error", "yaw_rate_error",
@@ -66,12 +66,17 @@ META_KEYS = ("name", "tile_size", "ppm", "image_width", "image_height", "camera_
 """meta.json's keys that a private parameter of the same name overrides."""
 
 
-def meta_from_params(get: Any, has: Any, wait: float = 10.0) -> Any:
+def meta_from_params(get: Any, has: Any, wait: float = 10.0,
+                     meta_param: str | None = None) -> Any:
     """The DatasetMeta the parameters describe (``get(name)``/``has(name)``: rospy's
-    ``get_param``/``has_param``); CliError naming the parameter or the key."""
+    ``get_param``/``has_param``; ``meta_param``: the parameter holding meta.json's text when
+    neither ``~meta`` nor ``~meta_param`` is set); CliError naming the parameter or the key."""
     from tileviz.datasets import DatasetError, DatasetMeta
 
     doc: dict[str, Any] = {}
+    param = str(get("~meta_param")) if has("~meta_param") else None
+    if param is None and not has("~meta"):
+        param = meta_param
     if has("~meta"):
         path = str(get("~meta"))
         if not Path(path).is_file():
@@ -80,8 +85,8 @@ def meta_from_params(get: Any, has: Any, wait: float = 10.0) -> Any:
         if not isinstance(d, dict):
             raise CliError(f"~meta: {path} is not a JSON object")
         doc.update(d)
-    if has("~meta_param"):
-        name = str(get("~meta_param"))
+    if param is not None:
+        name = param
         end = time.monotonic() + wait
         while not has(name) and time.monotonic() < end:
             time.sleep(0.1)
@@ -125,63 +130,46 @@ def _floats(value: Any, n: int, name: str) -> tuple[float, ...]:
     return v
 
 
-class _Node:
-    """The rospy side: subscribers feed :class:`tileviz.ros.live.LiveLocalizer`, the main
-    loop steps it and publishes."""
+class RosInputs:
+    """The localizer's inputs on ROS: the private parameters of the module docstring read into
+    a :class:`tileviz.ros.live.LiveCombiner` of class ``cls`` (:attr:`live`), and the
+    subscriptions that feed it (camera, odometry, IMU). ``log``: one line per bad input.
+    ``meta_param``: the ``~meta_param`` to use when neither ``~meta`` nor ``~meta_param`` is
+    set (None: none). Used by ``python -m tileviz ros`` and ``serve --ros``."""
 
-    def __init__(self, rospy: Any, foxglove: int | None) -> None:
-        from diagnostic_msgs.msg import DiagnosticArray
-        from geometry_msgs.msg import PoseWithCovarianceStamped
-        from nav_msgs.msg import Odometry
-        from sensor_msgs.msg import Imu
-        from std_msgs.msg import String
-        from visualization_msgs.msg import MarkerArray
-
-        from tileviz.ros.live import LiveLocalizer
-
-        self.rospy = rospy
+    def __init__(self, rospy: Any, cls: Any, log: Any, meta_param: str | None = None) -> None:
         p = rospy.get_param
-        meta = meta_from_params(p, rospy.has_param, float(p("~wait", 30.0)))
+        meta = meta_from_params(p, rospy.has_param, float(p("~wait", 30.0)), meta_param)
         imu_topic = str(p("~imu_topic", "/imu"))
         widening = _floats(p("~widening", [0.0, 0.0, 0.0]), 3, "~widening")
         max_delay = float(p("~max_delay", 0.5))
         if not (math.isfinite(max_delay) and max_delay >= 0):
             raise CliError(f"~max_delay must be a number of seconds >= 0, got {max_delay!r}")
-        self.frame_id = str(p("~frame_id", "world"))
         self.image_topic = str(p("~image_topic", "/camera/image"))
         self.odom_topic = str(p("~odom_topic", "/odom"))
         max_pending = p("~max_pending", 4)
         if not isinstance(max_pending, int) or max_pending < 1:
             raise CliError(f"~max_pending must be an integer >= 1, got {max_pending!r}")
-        self.live = LiveLocalizer(meta, has_imu=bool(imu_topic), widening=widening,  # type: ignore[arg-type]
-                                  max_delay=int(max_delay * 1e9), max_pending=max_pending)
-        self.pub_set = rospy.Publisher("~set", MarkerArray, queue_size=5)
-        self.pub_hull = rospy.Publisher("~hull", PoseWithCovarianceStamped, queue_size=5)
-        self.pub_status = rospy.Publisher("~status", String, queue_size=20)
-        self.pub_obs = rospy.Publisher("~observation", String, queue_size=20)
-        self.pub_diag = rospy.Publisher("/diagnostics", DiagnosticArray, queue_size=5)
-        self.fox = None
-        if foxglove is not None:
-            from tileviz.ros.foxglove_live import FoxgloveLive
+        self.live = cls(meta, has_imu=bool(imu_topic), widening=widening,
+                        max_delay=int(max_delay * 1e9), max_pending=max_pending)
+        self.imu_topic = imu_topic
+        self.rospy = rospy
+        self._log = log
 
-            self.fox = FoxgloveLive(foxglove)
-            rospy.loginfo(f"tileviz: Foxglove live on ws://127.0.0.1:{self.fox.port}")
-        from tileviz.vision.warmup import warm_up
+    def subscribe(self) -> None:
+        """Start the subscriptions (once the consumer is ready for the first image)."""
+        from nav_msgs.msg import Odometry
+        from sensor_msgs.msg import Imu
 
-        warm_up((self.live.cfg.vision.extractor,), self.live.cfg)  # before the first image
-        self._logged: str | None = None
-        self._last_frame = time.monotonic()
-        self._last_status: str = "predicted"
-        rospy.loginfo("tileviz: ready")
+        rospy = self.rospy
         rospy.Subscriber(self.image_topic, rospy.AnyMsg, self._on_image, queue_size=4,
                          buff_size=2 ** 24)
         rospy.Subscriber(self.odom_topic, Odometry, self._on_odom, queue_size=200)
-        if imu_topic:
-            rospy.Subscriber(imu_topic, Imu, self._on_imu, queue_size=200)
-        self.imu_topic = imu_topic
+        if self.imu_topic:
+            rospy.Subscriber(self.imu_topic, Imu, self._on_imu, queue_size=200)
 
-    # ---------------------------------------------------------------- callbacks
-    def _now(self) -> int:
+    def now(self) -> int:
+        """ROS time, nanoseconds."""
         return int(self.rospy.get_rostime().to_nsec())
 
     @staticmethod
@@ -194,7 +182,7 @@ class _Node:
 
         from tileviz.datasets.bag_import import decode_image_message
 
-        now = self._now()
+        now = self.now()
         kind = raw._connection_header.get("type", "?")
         cls = {"sensor_msgs/Image": Image, "sensor_msgs/CompressedImage": CompressedImage}.get(
             kind)
@@ -217,15 +205,57 @@ class _Node:
         self.live.add_image(stamp, image, now, seq=msg.header.seq)
 
     def _on_odom(self, msg: Any) -> None:
-        stamp = self._stamp(msg.header, self._now())
+        stamp = self._stamp(msg.header, self.now())
         self.live.add_odometry(stamp, float(msg.twist.twist.linear.x),
                                float(msg.twist.twist.angular.z), seq=msg.header.seq)
 
     def _on_imu(self, msg: Any) -> None:
         from tileviz.datasets.bag_import import yaw_of
 
-        stamp = self._stamp(msg.header, self._now())
+        stamp = self._stamp(msg.header, self.now())
         self.live.add_imu(stamp, yaw_of(msg.orientation), seq=msg.header.seq)
+
+
+class _Node:
+    """The rospy side: :class:`RosInputs` feed :class:`tileviz.ros.live.LiveLocalizer`, the
+    main loop steps it and publishes."""
+
+    def __init__(self, rospy: Any, foxglove: int | None) -> None:
+        from diagnostic_msgs.msg import DiagnosticArray
+        from geometry_msgs.msg import PoseWithCovarianceStamped
+        from std_msgs.msg import String
+        from visualization_msgs.msg import MarkerArray
+
+        from tileviz.ros.live import LiveLocalizer
+
+        self.rospy = rospy
+        self._logged: str | None = None
+        self.inputs = RosInputs(rospy, LiveLocalizer, self._log)
+        self.live: LiveLocalizer = self.inputs.live
+        self.frame_id = str(rospy.get_param("~frame_id", "world"))
+        self.image_topic = self.inputs.image_topic
+        self.odom_topic = self.inputs.odom_topic
+        self.pub_set = rospy.Publisher("~set", MarkerArray, queue_size=5)
+        self.pub_hull = rospy.Publisher("~hull", PoseWithCovarianceStamped, queue_size=5)
+        self.pub_status = rospy.Publisher("~status", String, queue_size=20)
+        self.pub_obs = rospy.Publisher("~observation", String, queue_size=20)
+        self.pub_diag = rospy.Publisher("/diagnostics", DiagnosticArray, queue_size=5)
+        self.fox = None
+        if foxglove is not None:
+            from tileviz.ros.foxglove_live import FoxgloveLive
+
+            self.fox = FoxgloveLive(foxglove)
+            rospy.loginfo(f"tileviz: Foxglove live on ws://127.0.0.1:{self.fox.port}")
+        from tileviz.vision.warmup import warm_up
+
+        warm_up((self.live.cfg.vision.extractor,), self.live.cfg)  # before the first image
+        self._last_frame = time.monotonic()
+        self._last_status: str = "predicted"
+        rospy.loginfo("tileviz: ready")
+        self.inputs.subscribe()
+
+    def _now(self) -> int:
+        return self.inputs.now()
 
     # ---------------------------------------------------------------- publishing
     def _log(self, text: str) -> None:
