@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import asyncio
 import json
-import struct
+from pathlib import Path
 
 import pytest
 
@@ -18,30 +18,7 @@ from tileviz.datasets.mcap_export import TOPICS  # noqa: E402
 from tileviz.pipeline.frame_loop import FrameLoop  # noqa: E402
 from tileviz.ros.foxglove_live import FoxgloveLive  # noqa: E402
 from tileviz.sim.source import SimSource  # noqa: E402
-
-
-async def _client(port: int, publish: object) -> dict[str, bytes]:
-    got: dict[str, bytes] = {}
-    async with websockets.connect(f"ws://127.0.0.1:{port}",
-                                  subprotocols=["foxglove.sdk.v1"]) as ws:
-        channels: dict[int, str] = {}
-        subs: dict[int, str] = {}
-        while len(channels) < len(TOPICS):
-            msg = json.loads(await asyncio.wait_for(ws.recv(), 30))
-            if msg.get("op") == "advertise":
-                for ch in msg["channels"]:
-                    channels[ch["id"]] = ch["topic"]
-        await ws.send(json.dumps({"op": "subscribe", "subscriptions": [
-            {"id": i, "channelId": c} for i, c in enumerate(channels)]}))
-        subs = {i: channels[c] for i, c in enumerate(channels)}
-        await asyncio.sleep(0.5)
-        publish()  # type: ignore[operator]
-        while len(got) < len(TOPICS):
-            data = await asyncio.wait_for(ws.recv(), 30)
-            if isinstance(data, bytes) and data[0] == 1:  # opcode 1: message data
-                sub_id = struct.unpack_from("<I", data, 1)[0]
-                got[subs[sub_id]] = data[1 + 4 + 8:]
-    return got
+from tileviz.testing.foxglove import receive_topics  # noqa: E402
 
 
 def test_a_client_receives_every_topic_of_a_frame() -> None:
@@ -52,7 +29,8 @@ def test_a_client_receives_every_topic_of_a_frame() -> None:
     rec = FrameLoop(cfg).process(frame)
     server = FoxgloveLive(port=0)
     try:
-        got = asyncio.run(_client(server.port, lambda: server.publish(rec, 1_000_000_000)))
+        got = asyncio.run(receive_topics(server.port, TOPICS.values(),
+                                         lambda: server.publish(rec, 1_000_000_000)))
     finally:
         server.close()
     assert set(got) == set(TOPICS.values())
@@ -61,3 +39,20 @@ def test_a_client_receives_every_topic_of_a_frame() -> None:
     cubes = SceneUpdate.FromString(got["/set/contraction"]).entities[0].cubes
     assert len(cubes) == len(rec.updated)
     assert got["/camera/image"]  # a PNG of the view
+
+
+def test_the_demo_serves_each_new_frame_to_a_foxglove_client(tmp_path: Path) -> None:
+    """``serve --foxglove``: the session publishes every frame it makes (here the simulator's)
+    on every topic of ``replay --mcap``, the status and the boxes those of the frame shown."""
+    from tileviz.app.session import Session, SessionOptions
+
+    s = Session(Config(), SessionOptions(foxglove=0, display=False, out_dir=tmp_path))
+    try:
+        got = asyncio.run(receive_topics(s.foxglove.port, TOPICS.values(), s.compute))
+        rec = s.history.get(s.history.last).record
+    finally:
+        s.close()
+    assert s.foxglove is None  # closed with the session
+    status = json.loads(got["/status"])
+    assert status["status"] == rec.status and status["boxes"] == len(rec.updated)
+    assert got["/camera/image"] and got["/truth"]
