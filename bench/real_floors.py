@@ -46,8 +46,8 @@ import cv2
 import numpy as np
 
 from tileviz.config import PERFECT_FLOOR, CameraConfig, FloorModel, VisionConfig
-from tileviz.testing.figures import Machine, write_block
 from tileviz.pipeline.replay import replay
+from tileviz.testing.figures import Machine, write_block
 from tileviz.types import Pose
 from tileviz.vision import extract, observation_error, set_opencv_threads
 
