@@ -47,6 +47,7 @@ import numpy as np
 
 from tileviz.config import PERFECT_FLOOR, CameraConfig, FloorModel, VisionConfig
 from tileviz.pipeline.replay import replay
+from tileviz.testing.figures import Machine, write_block
 from tileviz.types import Pose
 from tileviz.vision import extract, observation_error, set_opencv_threads
 
@@ -346,6 +347,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--split", choices=tuple(SPLITS), default="tuning")
     p.add_argument("--declare", choices=("none", "floor"), default="none")
     p.add_argument("--csv", type=Path, default=None, help="also write the table's rows here")
+    p.add_argument("--write-figures", action="store_true",
+                   help="write the table into docs/figures.md (block real_floors_CAMERA_xSCALE)")
     p.add_argument("--keep", type=Path, default=None, help="keep the drives' datasets here")
     args = p.parse_args(argv)
     set_opencv_threads()
@@ -366,6 +369,8 @@ def main(argv: list[str] | None = None) -> int:
           "drive inside | contracted | lost | median box cm |")
     print("| --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     rows = []
+    table: list[list[str]] = []
+    machine = Machine()
     for floor in floors:
         tol = floor.tolerance_m if args.declare == "floor" else 0.0
         kind = "checker" if (args.declare == "floor" and floor.grout == "edge") else "grout"
@@ -386,6 +391,20 @@ def main(argv: list[str] | None = None) -> int:
               f"{_pct(d.get('contracted', 0), n) if n else '—'} | "
               f"{d.get('lost', 0) if n else '—'} | "
               f"{d.get('box_cm', math.nan):.2f} |", flush=True)
+        table.append([floor.id, f"{s['accepted']} of {s['views']}", str(s["outside"]),
+                      _pct(d.get("inside", 0), d.get("vouched", 0)) if n else "-",
+                      _pct(d.get("contracted", 0), n) if n else "-",
+                      str(d.get("lost", 0)) if n else "-",
+                      f"{d['box_cm']:.2f}" if n and "box_cm" in d else "-"])
+    if args.write_figures:
+        write_block(f"real_floors_{args.camera}_x{args.scale:g}",
+                    f"Real floors ({args.camera} camera, x{args.scale:g} resolution)", table,
+                    machine=machine,
+                    header=("floor", "stills accepted", "accepted outside own bound",
+                            "drive: truth inside", "contracted", "lost", "median box (cm)"),
+                    note=f"Split {args.split}; floor declared: {args.declare} (kind, "
+                    "lattice_tolerance from floors.json's measured departure). The photographs "
+                    "are not in the repository (their sources: the floors' SOURCES.md).")
     if args.csv is not None:
         with open(args.csv, "w", newline="") as f:
             wr = csv.DictWriter(f, fieldnames=list(rows[0]))

@@ -96,6 +96,64 @@ def test_the_figure_draws_the_boxes_replay_writes(dataset, table, tmp_path) -> N
     assert img.shape[1] >= 1000 and len(np.unique(img.reshape(-1, 3), axis=0)) > 100
 
 
+def test_the_figure_from_the_replay_csv_draws_the_boxes_the_replay_draws(dataset, table,
+                                                                          tmp_path) -> None:
+    from tileviz.share.figure import drawn_sets, render_figure
+    from tileviz.share.run import load_boxes, load_run
+
+    csv_path = dataset.with_name("replay.csv")
+    replayed = load_run(dataset, start=2, end=25, jobs=1)
+    read = load_boxes(dataset, csv_path, start=2, end=25)
+    assert read.summary() == replayed.summary()
+    assert [r.status for r in read.records] == [r.status for r in replayed.records]
+
+    def blue(run) -> list[np.ndarray]:  # the contracted sets drawn, as (x, y) extents
+        paths = render_figure(run, 5).axes[0].collections[1].get_paths()
+        return [np.r_[p.vertices.min(axis=0), p.vertices.max(axis=0)] for p in paths]
+
+    assert [i for i, _, _ in drawn_sets(read, 5)] == [2, 7, 12, 17, 22, 24]
+    # exactly the replay's sets (one box a frame here), to the last bit the CSV keeps
+    np.testing.assert_array_equal(blue(read), blue(replayed))
+    np.testing.assert_array_equal(
+        blue(read), [[float(table[i][k]) for k in ("x_lo", "y_lo", "x_hi", "y_hi")]
+                     for i in (2, 7, 12, 17, 22, 24)])
+    out = tmp_path / "fig.png"
+    r = _tileviz("figure", str(dataset), str(out), "--boxes", str(csv_path), "--frames",
+                 "2:25", "--every", "5", "--quiet")
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.strip().endswith(replayed.summary()) and out.stat().st_size > 10_000
+
+
+def test_a_replay_csv_of_another_run_is_one_line(dataset, table, tmp_path) -> None:
+    good = dataset.with_name("replay.csv").read_text().splitlines()
+    short = tmp_path / "short.csv"
+    short.write_text("\n".join(good[:-3]) + "\n")  # a replay stopped early, or another run
+    shifted = tmp_path / "shifted.csv"
+    shifted.write_text("\n".join([good[0], *("9" + line if i == 7 else line
+                                             for i, line in enumerate(good[1:]))]) + "\n")
+    other_t = tmp_path / "t.csv"
+    cells = good[5].split(",")
+    cells[1] = "7.5"
+    other_t.write_text("\n".join([*good[:5], ",".join(cells), *good[6:]]) + "\n")
+    frames = tmp_path / "frames.csv"
+    frames.write_text((dataset / "frames.csv").read_text())
+    out = tmp_path / "f.png"
+    cases = [
+        (short, "28 frame rows, but"), (shifted, "line 9: frame index '97'"),
+        (other_t, "line 6: t = 7.5"), (frames, "not a replay CSV (no column status"),
+        (tmp_path / "none.csv", "cannot be read"),
+    ]
+    for csv_path, words in cases:
+        r = _tileviz("figure", str(dataset), str(out), "--boxes", str(csv_path), "--quiet")
+        err = r.stderr.strip().splitlines()
+        assert r.returncode == 2 and len(err) == 1, (csv_path, r.stderr)
+        assert words in err[0] and f"--boxes {csv_path}" in err[0], err
+    r = _tileviz("figure", str(dataset), str(tmp_path / "m.mp4"), "--boxes",
+                 str(dataset.with_name("replay.csv")), "--quiet")
+    assert r.returncode == 2 and "not a movie" in r.stderr
+    assert not out.exists() and _leftovers(tmp_path) == []
+
+
 @pytest.mark.parametrize("suffix", [".mp4", ".gif"])
 def test_the_movie_has_one_frame_every_n_beside_the_camera(dataset, tmp_path, suffix) -> None:
     import imageio.v3 as iio

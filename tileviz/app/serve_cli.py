@@ -204,7 +204,9 @@ def serve_config(args: argparse.Namespace, feed: Any = None) -> Config:
         from tileviz.datasets import DatasetSource
 
         clash = [name for name, v in (("--preset", args.preset), ("--tile-size", args.tile_size),
-                                      ("--ppm", args.ppm), ("--lens", args.lens))
+                                      ("--ppm", args.ppm), ("--lens", args.lens),
+                                      ("--floor-kind", args.floor_kind),
+                                      ("--lattice-tolerance", args.lattice_tolerance))
                  if v is not None]
         if clash:
             raise CliError(f"{', '.join(clash)} cannot be used with --dataset (the dataset's "

@@ -71,6 +71,10 @@ def figure_parser() -> Parser:
                    "movie frame every N run frames, default 2)")
     p.add_argument("--width", type=int_in("--width", 320, 3840), default=960,
                    help="movie width, pixels")
+    p.add_argument("--boxes", default=None, metavar="CSV",
+                   help="a figure from the CSV replay --out wrote for DATASET instead of "
+                   "replaying (much faster): its contracted sets (bounding boxes) and "
+                   "statuses, no predicted sets")
     _common(p)
     return p
 
@@ -153,17 +157,26 @@ def figure(argv: list[str]) -> int:
             share_missing,
         )
         from tileviz.share.files import check_output
-        from tileviz.share.run import Views, check_dataset, parse_frames
+        from tileviz.share.run import Views, check_dataset, load_boxes, parse_frames
 
         path = check_output(args.out, "OUT", FIGURE_SUFFIXES + MOVIE_SUFFIXES)
         is_movie = path.suffix.lower() in MOVIE_SUFFIXES
+        if is_movie and args.boxes is not None:
+            raise CliError(f"--boxes makes a figure ({', '.join(FIGURE_SUFFIXES)}), not a movie")
         if is_movie and (missing := share_missing()) is not None:
             raise CliError(missing)
         start, end = parse_frames(args.frames) if args.frames is not None else (None, None)
         check_dataset(args.dataset)
         every = args.every or (2 if is_movie else 20)
         views = Views(every=every, width=args.width // 2) if is_movie else None
-        run = _load(args, start, end, ("--frames A:B: A", "--frames A:B: B"), views)
+        names = ("--frames A:B: A", "--frames A:B: B")
+        if args.boxes is not None:
+            if args.mode != "autonomous" or args.extractor is not None or args.jobs:
+                raise CliError("--boxes draws the CSV's sets: --mode, --extractor and --jobs "
+                               "do not apply (they were the replay's)")
+            run = load_boxes(args.dataset, args.boxes, start=start, end=end, names=names)
+        else:
+            run = _load(args, start, end, names, views)
         if is_movie:
             bar, tick = _drawing(len(run.picks(every)), "movie", args.quiet)
             try:

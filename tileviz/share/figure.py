@@ -3,7 +3,9 @@
 The figure is the report's kind (docs/method.md's sets over the floor): the tiles' grout lines,
 the true path (pink), the predicted set (green) and the contracted set (blue) of every Nth frame
 as rectangles in (x, y), the last frame's sets drawn bolder and, magnified in a corner, that
-final set around the true pose. World frame: metres, x east (right), y north (up).
+final set around the true pose. World frame: metres, x east (right), y north (up). From a
+replay CSV instead of a replay (``--boxes``), the figure draws what the CSV holds: each
+contracted set's bounding box and status.
 
 The movie is the same view over time, one movie frame per shown run frame, beside the camera
 view vision read: the path so far, the current sets, and the magnified set following the truth.
@@ -25,6 +27,7 @@ from tileviz.share.run import Run, bounds_of, fit_width
 from tileviz.types import Box, BoxSet
 
 if TYPE_CHECKING:
+    from matplotlib.artist import Artist
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
@@ -97,7 +100,8 @@ def _bounds(run: Run) -> tuple[float, float, float, float]:
     return (x0 - MARGIN, y0 - MARGIN, x1 + MARGIN, y1 + MARGIN)
 
 
-def _magnified(ax: Axes, rec: FrameRecord, tile: float) -> None:
+def _magnified(ax: Axes, rec: FrameRecord, tile: float, boxes_in_set: int | None = None
+               ) -> None:
     """``rec``'s sets around its true pose (or the set's centre), scaled so they fit."""
     boxes = list(rec.predicted.boxes) + list(rec.updated.boxes)
     centre: tuple[float, float] | None = None
@@ -132,14 +136,17 @@ def _magnified(ax: Axes, rec: FrameRecord, tile: float) -> None:
                             t.y + 0.8 * half * math.sin(t.theta)), xytext=(t.x, t.y),
                     arrowprops={"arrowstyle": "->", "color": PINK, "lw": 1.5})
     cm = 100.0 * 2 * half
-    ax.set_title(f"frame {rec.index}: {len(rec.updated)} box"
-                 f"{'es' if len(rec.updated) != 1 else ''}, {rec.status} "
+    n = len(rec.updated) if boxes_in_set is None else boxes_in_set
+    ax.set_title(f"frame {rec.index}: {n} box{'es' if n != 1 else ''}"
+                 f"{' (their bounding box)' if n > len(rec.updated) else ''}, {rec.status} "
                  f"({cm:.2g} cm across)", fontsize=8)
 
 
 def render_figure(run: Run, every: int = 20) -> Figure:
     """The run's top-down figure (see the module docstring): a matplotlib Figure (Agg, not
-    shown); boxes of :func:`drawn_sets`."""
+    shown); boxes of :func:`drawn_sets`. A run read from a replay CSV (:attr:`Run.table`) has
+    no predicted sets to draw, and a set the CSV says had several boxes is drawn as its
+    bounding box, outlined dashed."""
     from matplotlib.collections import PolyCollection
     from matplotlib.figure import Figure
     from matplotlib.lines import Line2D
@@ -165,16 +172,29 @@ def render_figure(run: Run, every: int = 20) -> Figure:
     last = run.records[-1]
     ax.add_collection(PolyCollection(_rects(last.updated.boxes), facecolors="none",
                                      edgecolors=BLUE, linewidths=1.6, zorder=5))
+    handles: list[Artist] = [Line2D([], [], color=PINK, lw=1.5, label="true path")]
+    source = ""
+    if run.table is None:
+        handles.append(Patch(color=GREEN, alpha=0.5, label="predicted set"))
+        handles.append(Patch(color=BLUE, alpha=0.7, label="contracted set"))
+    else:  # a replay CSV holds each contracted set's bounding box, not the predicted sets
+        source = f" (from {run.table.name})"
+        handles.append(Patch(color=BLUE, alpha=0.7, label="contracted set"))
+        several = [p for i, _, s in sets if run.box_counts.get(i, 1) > 1
+                   for p in _rects(s.boxes)]
+        if several:
+            ax.add_collection(PolyCollection(several, facecolors="none", edgecolors="black",
+                                             linestyles="dashed", linewidths=0.8, zorder=6))
+            handles.append(Patch(facecolor="none", edgecolor="black", linestyle="dashed",
+                                 label="bounding box of a set of several boxes"))
     ax.set_xlabel("x (m, east)")
     ax.set_ylabel("y (m, north)")
     ax.set_title(f"{run.name}: frames {run.start} to {run.end - 1}, sets every {every} "
-                 f"frame{'s' if every != 1 else ''}\n{_wrap(run.summary(), 110)}", fontsize=8)
-    ax.legend(handles=[Line2D([], [], color=PINK, lw=1.5, label="true path"),
-                       Patch(color=GREEN, alpha=0.5, label="predicted set"),
-                       Patch(color=BLUE, alpha=0.7, label="contracted set")],
-              loc="lower left", fontsize=7, framealpha=0.9)
+                 f"frame{'s' if every != 1 else ''}{source}\n{_wrap(run.summary(), 110)}",
+                 fontsize=8)
+    ax.legend(handles=handles, loc="lower left", fontsize=7, framealpha=0.9)
     inset = ax.inset_axes((0.68, 0.68, 0.3, 0.3))
-    _magnified(inset, last, tile)
+    _magnified(inset, last, tile, run.box_counts.get(last.index))
     inset.set_title("final set, magnified\n" + inset.get_title(), fontsize=7)
     return fig
 

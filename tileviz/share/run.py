@@ -27,7 +27,7 @@ from tileviz.config import Config, Extractor, Mode
 from tileviz.pipeline import FrameRecord
 from tileviz.summary import RunTally
 
-__all__ = ["Run", "Views", "check_dataset", "fit_width", "frame_range", "load_run",
+__all__ = ["Run", "Views", "check_dataset", "fit_width", "frame_range", "load_boxes", "load_run",
            "parse_frames"]
 
 
@@ -139,6 +139,13 @@ class Run:
     views: dict[int, dict[str, bytes]] = field(default_factory=dict)
     """Frame index -> ``camera`` and the stage's name -> JPEG bytes (:class:`Views`); a stage
     the frame's extractor did not draw is absent."""
+    table: Path | None = None
+    """The replay CSV (``replay --out``) the records were read from instead of replaying
+    (:func:`load_boxes`), or None (replayed). From a table, a record's ``updated`` set is the
+    CSV's bounding box of the set (the set itself when it is one box: :attr:`box_counts`), its
+    ``predicted`` set is empty (the CSV does not hold it) and it has no view."""
+    box_counts: dict[int, int] = field(default_factory=dict)
+    """From a table: frame index -> how many boxes the set had (the CSV's ``boxes``)."""
     _source: object = field(default=None, repr=False)
 
     @property
@@ -242,6 +249,99 @@ def load_run(dataset: str | os.PathLike[str], *, start: int | None = None,
     return Run(folder=folder, name=meta.name or folder.name, cfg=cfg, frames=frames, start=a,
                end=kept[-1].index + 1, records=kept, tally=tally,
                camera_model=meta.camera_model is not None, views=images)
+
+
+def load_boxes(dataset: str | os.PathLike[str], table: str | os.PathLike[str], *,
+               start: int | None = None, end: int | None = None,
+               names: tuple[str, str] = ("--start", "--end"), option: str = "--boxes") -> Run:
+    """The run of ``dataset`` (frames [start, end)) as the replay CSV ``table`` recorded it
+    (docs/dataset-format.md, "Replay output"), without replaying: the statuses and sets from
+    the CSV, the truth and times from the dataset's frames.csv (see :attr:`Run.table`). The CSV
+    must be the replay of this dataset: one row per frame, the same indices in order and the
+    same times; otherwise, or on a bad row, ValueError (OSError when it cannot be read) in one
+    line naming ``option``, the file and the problem."""
+    import csv
+
+    from tileviz.core.localizer import LocalizerStep
+    from tileviz.datasets import DatasetSource, read_meta, replay_config
+    from tileviz.datasets.format import parse_float
+    from tileviz.pipeline.outputs import REPLAY_COLUMNS
+    from tileviz.types import STATUSES, Box, BoxSet
+    from tileviz.vision.result import VisionResult
+
+    folder = Path(dataset)
+    frames = check_dataset(folder)
+    a, b = frame_range(frames, start, end, names)
+    meta = read_meta(folder)
+    path = Path(table)
+    name = f"{option} {path}"
+    inputs = [fi for fi, _ in DatasetSource(folder).frames_without_images()]
+    try:
+        with open(path, newline="", encoding="utf-8") as f:
+            rows = list(csv.reader(f))
+    except UnicodeDecodeError:
+        raise ValueError(f"{name}: not UTF-8 text (a replay CSV: replay --out writes one)"
+                         ) from None
+    except csv.Error as e:
+        raise ValueError(f"{name}: not a CSV file ({e})") from None
+    except OSError as e:
+        raise OSError(f"{name}: cannot be read ({e.strerror or e})") from None
+    header = [c.strip() for c in rows[0]] if rows else []
+    missing = [c for c in REPLAY_COLUMNS if c not in header]
+    if missing:
+        raise ValueError(f"{name}: not a replay CSV (no column {', '.join(missing)}; replay "
+                         "--out writes one)")
+    rows = [r for r in rows[1:] if any(c.strip() for c in r)]
+    if len(rows) != len(inputs):
+        raise ValueError(f"{name}: {len(rows)} frame rows, but {folder} has {len(inputs)} "
+                         f"frames: not the replay of this dataset (python -m tileviz replay "
+                         f"{folder} --out {path} writes it)")
+    col = {c: header.index(c) for c in REPLAY_COLUMNS}
+    kept: list[FrameRecord] = []
+    tally = RunTally()
+    counts: dict[int, int] = {}
+    no_view = VisionResult(observation=None, accepted=False, reason="no lines")
+    for line, (cells, fi) in enumerate(zip(rows, inputs, strict=True), start=2):
+        if len(cells) < len(header):
+            raise ValueError(f"{name} line {line}: truncated ({len(cells)} of {len(header)} "
+                             "columns)")
+        cell = {c: cells[i].strip() for c, i in col.items()}
+        where = f"{name} line {line}"
+        if cell["index"] != str(fi.index):
+            raise ValueError(f"{where}: frame index {cell['index']!r}, but {folder}'s frame "
+                             f"there is {fi.index}: not the replay of this dataset")
+        if parse_float(cell["t"], "t", where) != fi.t:
+            raise ValueError(f"{where}: t = {cell['t']}, but {folder}'s frame {fi.index} has "
+                             f"t = {fi.t!r}: not the replay of this dataset")
+        if not a <= fi.index < b:
+            continue
+        status = cell["status"]
+        if status not in STATUSES:
+            raise ValueError(f"{where}: status {status!r} is not one of {', '.join(STATUSES)}")
+        bounds = [cell[c] for c in REPLAY_COLUMNS[3:9]]
+        if all(v.lower() == "nan" for v in bounds):
+            updated = BoxSet(())
+        else:
+            box = Box(*(parse_float(v, c, where) for v, c in zip(bounds, REPLAY_COLUMNS[3:9],
+                                                                  strict=True)))
+            if not (box.x_lo <= box.x_hi and box.y_lo <= box.y_hi
+                    and box.t_lo <= box.t_hi):
+                raise ValueError(f"{where}: a bound's low end is above its high end")
+            updated = BoxSet((box,))
+        try:
+            counts[fi.index] = int(cell["boxes"])
+        except ValueError:
+            raise ValueError(f"{where}: boxes is not an integer ({cell['boxes']!r})") from None
+        rec = FrameRecord(index=fi.index, t=fi.t, truth=fi.truth, odometry=fi.odometry,
+                          compass=fi.compass, image=fi.image, setpoint=None, vision=no_view,
+                          residuals=None,
+                          step=LocalizerStep(BoxSet(()), updated, status, 0),
+                          image_name=fi.image_name)
+        kept.append(rec)
+        tally.add(rec)
+    return Run(folder=folder, name=meta.name or folder.name, cfg=replay_config(meta),
+               frames=frames, start=a, end=b, records=kept, tally=tally,
+               camera_model=meta.camera_model is not None, table=path, box_counts=counts)
 
 
 def _views_of(rec: FrameRecord, views: Views) -> dict[str, bytes]:

@@ -171,10 +171,13 @@ def check_lines(run: ReadingState, lines: list[list[Line]]) -> None:
     rec.require(checks.FOREIGN_WIDTH, run, max(widths) if widths else math.nan,
                 min(widths) if widths else math.nan)
     # the floor's own variation: lines differ in contrast as much as each varies along itself
-    along = [ln.contrast_along for ln in every if math.isfinite(ln.contrast_along)]
-    run.details["contrast_along"] = list_median(along) if along else 1.0
+    # (measured only when the lines differ more than the setting alone allows)
+    along = 1.0
+    if run.details["contrast_spread"] > run.st.lines.contrast_ratio:
+        along = contrast_along(every)
+        run.details["contrast_along"] = along
     if not rec.check(checks.FOREIGN_CONTRAST, run, run.details["contrast_spread"],
-                     run.details["contrast_along"]) and not (
+                     along) and not (
             run.inverted and crossings_agree(run, lines)):
         raise Refusal(rec.results[-1], "foreign line")
     # one grout line is one band: a second band just beside it (a cable along the grout)
@@ -189,6 +192,19 @@ def check_lines(run: ReadingState, lines: list[list[Line]]) -> None:
     shoulder = max(shoulder_px(ln) for ln in every)
     run.details["shoulder_px"] = shoulder
     rec.require(checks.FOREIGN_SHOULDER, run, shoulder)
+
+
+def contrast_along(lines: list[Line]) -> float:
+    """How much the lines' contrast varies along themselves: the median over the lines with two
+    measured parts or more (length > 0, contrast positive and finite) of max / min over their
+    parts, at least 1 (1 when no line has two)."""
+    ratios = []
+    for ln in lines:
+        c = ln.part_contrast[(ln.wpart > 0) & (ln.part_contrast > 0)
+                             & np.isfinite(ln.part_contrast)]
+        if c.size >= 2:
+            ratios.append(float(c.max() / c.min()))
+    return max(1.0, list_median(ratios)) if ratios else 1.0
 
 
 def shoulder_px(line: Line) -> float:

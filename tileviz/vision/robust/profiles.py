@@ -123,7 +123,7 @@ def measure_parts(
     fam_l, depth_l, chord_l = fam.tolist(), depth.tolist(), proj.total[fam, pk].tolist()
     wmed_l, rmed_l, stepr_l = wmed.tolist(), rmed.tolist(), stepr.tolist()
     cmed_l, gmed_l = cmed.tolist(), gmed.tolist()
-    along_l = contrast_along(contrast.reshape(rows.size, PARTS), wpart).tolist()
+    part_contrast = contrast.reshape(rows.size, PARTS)
     for i in np.flatnonzero(np.isfinite(parts).any(axis=1)).tolist():
         out[fam_l[i]].append(
             Line(
@@ -133,7 +133,7 @@ def measure_parts(
                 step=stepr_l[i],
                 contrast=cmed_l[i],
                 contrast_grout=gmed_l[i],
-                contrast_along=along_l[i],
+                part_contrast=part_contrast[i],
                 chord=chord_l[i],
                 parts=parts[i],
                 tpart=tpart[i],
@@ -143,16 +143,6 @@ def measure_parts(
             )
         )
     return out
-
-
-def contrast_along(contrast: np.ndarray, wpart: np.ndarray) -> np.ndarray:
-    """How much each line's contrast varies along it: max / min of its measured parts'
-    contrasts (``contrast``, ``wpart``: (lines, PARTS); a part of length 0 or a contrast that is
-    not positive and finite does not count), NaN for a line with fewer than two such parts."""
-    ok = (wpart > 0) & np.isfinite(contrast) & (contrast > 0)
-    hi = np.where(ok, contrast, -np.inf).max(axis=1)
-    lo = np.where(ok, contrast, np.inf).min(axis=1)
-    return np.where(ok.sum(axis=1) >= 2, hi / np.where(ok.any(axis=1), lo, 1.0), np.nan)
 
 
 def grout_contrast(pp: np.ndarray, jf: np.ndarray, cj: np.ndarray, hj: np.ndarray,

@@ -51,9 +51,8 @@ class Line:
     # lighter grout (an inverted view) only: depth / the grout's own level in the gray image
     # (light falling off across the view cancels), median over the parts; NaN otherwise
     contrast_grout: float = math.nan
-    # how much its contrast varies along it: max / min over its measured parts (NaN with fewer
-    # than two)
-    contrast_along: float = math.nan
+    # (PARTS,) the contrast of each part (depth / brighter plateau level; NaN not measured)
+    part_contrast: np.ndarray = field(default_factory=lambda: np.zeros(0))
     pos: float = math.nan  # at tangent coordinate 0, after the common tilt fit
     var: float = math.inf  # variance of pos from the fit's scatter, px^2
 
