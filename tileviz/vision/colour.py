@@ -74,9 +74,10 @@ PROJECTIONS: dict[str, Callable[[np.ndarray], np.ndarray]] = {
 RGB(A) to HxW uint8."""
 
 RETRY_REASONS = frozenset({"constant image", "no lines", "low contrast", "one family",
-                           "too few segments"})
+                           "too few segments", "inconsistent spacing"})
 """Refusals of the luma's reading after which the projections are tried: the grout did not
-show (a refusal for what the view shows, a foreign line, blur or glare, is final)."""
+show, or not all of it (a predicted line missing); a refusal for what the view shows, a foreign
+line, blur or glare, is final."""
 
 
 def project(rgb: np.ndarray, name: str) -> np.ndarray:

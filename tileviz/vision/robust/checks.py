@@ -25,8 +25,10 @@ The checks, in the order they run (value; passes when; limit from settings):
 Per reading (:mod:`.readings`), on its lines:
 
 - ``lines.found``: lines found (both families); >= 1 (``no lines``).
-- ``contrast.depth``: the deepest dip, gray levels; >= ``lines.depth_noise`` x the view's noise
-  std, within ``lines.min_depth_floor`` .. ``lines.min_depth`` (``low contrast``).
+- ``contrast.depth``: the deepest dip, gray levels; >= ``lines.depth_noise`` x the noise std of
+  a part's profile (the view's noise over the square root of ``profiles.min_part``, the fewest
+  pixels a part averages along its line), within ``lines.min_depth_floor`` ..
+  ``lines.min_depth`` (``low contrast``).
 - ``lines.families``: lines of the family with fewer; >= 1 (``one family``).
 - ``blur.rise``: median 20-80 % edge rise, px; <= ``lines.max_rise`` (``blurred``; not
   measured fails).
@@ -88,6 +90,7 @@ context, value)`` where its value is measured.
 
 from __future__ import annotations
 
+import math
 import operator
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -192,9 +195,10 @@ LINES_FOUND = Check("lines.found", "no lines", AT_LEAST, lambda c: 1.0, "",
                     "lines found")
 CONTRAST_DEPTH = Check("contrast.depth", "low contrast", AT_LEAST,
                        lambda c: c.st.lines.min_depth if not c.noise <= c.st.lines.min_depth
-                       else min(c.st.lines.min_depth, max(c.st.lines.min_depth_floor,
-                                                          c.st.lines.depth_noise * c.noise)),
-                       "lines.min_depth, depth_noise, min_depth_floor",
+                       else min(c.st.lines.min_depth, max(
+                           c.st.lines.min_depth_floor, c.st.lines.depth_noise * c.noise
+                           / math.sqrt(c.st.profiles.min_part))),
+                       "lines.min_depth, depth_noise, min_depth_floor, profiles.min_part",
                        "deepest dip (gray levels)")
 LINES_FAMILIES = Check("lines.families", "one family", AT_LEAST, lambda c: 1.0, "",
                        "lines of the sparser family")

@@ -167,8 +167,9 @@ class LineSettings:
     """Weakest grout dip trusted in a noisy view, gray levels (``contrast.depth``: ``low
     contrast`` when the deepest is weaker) ..."""
     depth_noise: float = 5.0
-    """... in a quieter view the deepest dip must reach this many times the view's noise std
-    (the camera's, measured on the view), ..."""
+    """... in a quieter view the deepest dip must reach this many times the noise std of a
+    part's profile (the camera's noise measured on the view, over the square root of
+    ``profiles.min_part``: a part averages at least that many pixels along its line), ..."""
     min_depth_floor: float = 6.0
     """... and at least this many gray levels."""
     max_rise: float = 6.0
