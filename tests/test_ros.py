@@ -70,7 +70,7 @@ def run(tmp_path_factory: pytest.TempPathFactory) -> dict:
         time.sleep(2)  # rosbag writes the last statuses
         record_rc = graph.stop(rec)
         node_rc = graph.stop(node)
-        alive = [graph.group_alive(p) for p in (node, rec, sim)]
+        alive = [not graph.group_ends(p) for p in (node, rec, sim)]
         node_log = graph.log("node")
     return {"tmp": tmp, "bag": bag, "node_rc": node_rc, "record_rc": record_rc,
             "alive": alive, "node_log": node_log}

@@ -69,6 +69,17 @@ class RosGraph:
                 p.wait()
         return int(p.returncode)
 
+    @classmethod
+    def group_ends(cls, p: subprocess.Popen[bytes], timeout: float = 10.0) -> bool:
+        """Whether every process of ``p``'s group is gone within ``timeout`` seconds (a
+        process's children, e.g. ``rosbag record``'s recorder, may outlive it by a moment)."""
+        end = time.monotonic() + timeout
+        while cls.group_alive(p):
+            if time.monotonic() >= end:
+                return False
+            time.sleep(0.1)
+        return True
+
     @staticmethod
     def group_alive(p: subprocess.Popen[bytes]) -> bool:
         """Whether any process of ``p``'s group is still running."""
