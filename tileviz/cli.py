@@ -113,6 +113,7 @@ def record(argv: list[str]) -> int:
         writer = DatasetWriter(out, meta, image_format="jpg" if args.jpg else "png",
                                png_level=args.png_level)
         bar = _progress(frames, "record", not args.quiet)
+        finished = False
         try:
             for i, frame in enumerate(SimSource(cfg, renderer=renderer)):
                 if i >= frames:
@@ -121,9 +122,11 @@ def record(argv: list[str]) -> int:
                     frame = replace(frame, compass=None)
                 writer.write(frame)
                 bar.update(1)  # type: ignore[attr-defined]
+            finished = True
         finally:
             bar.close()  # type: ignore[attr-defined]
-            writer.close()
+            # stopped before the end (an error, Ctrl-C): meta.json says the dataset ended early
+            writer.close(complete=finished)
         print(f"wrote {writer.count} frames to {out}")
         return 0
 
@@ -194,7 +197,9 @@ def replay(argv: list[str]) -> int:
                                max_boxes=args.max_boxes, jobs=args.jobs, mcap=args.mcap,
                                fault_model=args.fault_model,
                                relocalize_region=args.relocalize_region,
-                               on_total=on_total, on_frame=on_frame)
+                               on_total=on_total, on_frame=on_frame,
+                               on_notice=lambda text: print(f"tileviz replay: {text}",
+                                                            file=sys.stderr, flush=True))
         finally:
             if bar is not None:
                 bar.close()  # type: ignore[attr-defined]

@@ -226,8 +226,13 @@ def run_cli(prog: str, body: Callable[[], int]) -> int:
         sys.stderr.write(f"{prog}: interrupted\n")
         return 130
     except (CliError, ValueError, OSError) as e:
-        sys.stderr.write(f"{prog}: error: {e}\n")
+        sys.stderr.write(f"{prog}: error: {one_line(str(e))}\n")
         return 2
+
+
+def one_line(text: str) -> str:
+    """``text`` with its line breaks turned into spaces (an error quoting a file's content)."""
+    return text.replace("\r\n", " ").replace("\n", " ").replace("\r", " ")
 
 
 def config_from_args(args: argparse.Namespace, *, floor_seed: bool = True) -> Config:

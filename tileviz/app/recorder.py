@@ -3,9 +3,9 @@
 :class:`Recorder` belongs to one :class:`tileviz.app.session.Session` and, like it, is only
 called from the app's loop thread. A recording asked for starts at the next *new* frame (a frame
 computed, not one stepped back to), so its first row and its meta's initial pose agree; every
-row is flushed as it is written (``tileviz.datasets.DatasetWriter``), so a recording stopped by
-an error keeps what it had. The MCAP export runs on its own thread (:class:`McapJob`) and
-:meth:`Recorder.poll` notes its end.
+row is written after its image is whole (``tileviz.datasets.DatasetWriter``), so a recording
+stopped by an error, a full disk or a killed server keeps every frame it had. The MCAP export
+runs on its own thread (:class:`McapJob`) and :meth:`Recorder.poll` notes its end.
 """
 
 from __future__ import annotations
@@ -101,7 +101,10 @@ class Recorder:
         w, self.writer = self.writer, None
         if w is None:
             return
-        w.close()
+        try:
+            w.close()
+        except OSError as e:  # the frames are there; meta.json still says it ended early
+            why, level = (f"{why}; {e}" if why else str(e)), "error"
         if w.count > 0:
             self.last = self.path
         tail = f" ({why})" if why else ""

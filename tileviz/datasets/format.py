@@ -13,6 +13,8 @@ row number (1-based line number of ``frames.csv`` counting the header as line 1)
 
 from __future__ import annotations
 
+import csv
+import io
 import json
 import math
 import os
@@ -26,7 +28,8 @@ from tileviz.datasets.camera_model import CameraModel, CameraModelError, Rectifi
 
 __all__ = [
     "FAULTS_FILE", "FORMAT", "FRAME_COLUMNS", "MAX_MAGNITUDE", "REQUIRED_COLUMNS",
-    "DatasetError", "DatasetMeta", "num_text", "parse_float", "read_meta", "replay_config",
+    "DatasetError", "DatasetMeta", "csv_line", "num_text", "parse_float", "read_meta",
+    "replay_config",
 ]
 
 FORMAT = "tileviz-dataset/1"
@@ -45,6 +48,13 @@ class DatasetError(ValueError):
 def num_text(x: float) -> str:
     """A float written so that it round-trips exactly (``repr``)."""
     return repr(float(x))
+
+
+def csv_line(cells: list[Any] | tuple[Any, ...]) -> bytes:
+    """One CSV line (the ``csv`` module's quoting, ``\r\n`` line end) as UTF-8 bytes."""
+    buf = io.StringIO()
+    csv.writer(buf).writerow(cells)
+    return buf.getvalue().encode("utf-8")
 
 
 @dataclass(frozen=True)
@@ -67,6 +77,13 @@ class DatasetMeta:
     """Unknown keys, kept and ignored."""
     camera_model: CameraModel | None = None
     """A real camera whose stored images are rectified to the orthographic view, or None."""
+    complete: bool | None = None
+    """The writer's own word on the dataset (``docs/dataset-format.md``, "A dataset being
+    written"): False while it is written (or when its writer stopped before closing it), True once
+    closed; None when meta.json does not say (a dataset written by a program that does not keep
+    this key: taken as whole)."""
+    frames: int | None = None
+    """The number of rows the writer wrote to frames.csv, once ``complete``; None when not said."""
 
     @classmethod
     def from_config(cls, cfg: Config, name: str = "tileviz run") -> DatasetMeta:
@@ -105,6 +122,10 @@ class DatasetMeta:
         )
         if self.camera_model is not None:
             d["camera_model"] = self.camera_model.to_json()
+        if self.complete is not None:
+            d["complete"] = self.complete
+        if self.frames is not None:
+            d["frames"] = self.frames
         return d
 
     @classmethod
@@ -119,9 +140,10 @@ class DatasetMeta:
         known = {
             "format", "name", "tile_size", "ppm", "image_width", "image_height", "camera_offset",
             "dt", "initial_pose", "initial_pose_error", "speed_error", "yaw_rate_error",
-            "compass_error", "camera_model",
+            "compass_error", "camera_model", "complete", "frames",
         }
-        missing = sorted(k for k in known - {"name", "camera_model"} if k not in d)
+        missing = sorted(k for k in known - {"name", "camera_model", "complete", "frames"}
+                         if k not in d)
         if missing:
             raise DatasetError(f"{where}: missing key(s) {', '.join(missing)}")
 
@@ -161,6 +183,13 @@ class DatasetMeta:
             raise DatasetError(f"{where}: a tile must span at least {MIN_TILE_PX:g} pixels "
                                f"(tile_size * ppm), got {tile_px!r}")
         name = d.get("name", "")
+        complete = d.get("complete")
+        if complete is not None and not isinstance(complete, bool):
+            raise DatasetError(f"{where}: complete must be true or false, got {complete!r}")
+        frames = d.get("frames")
+        if frames is not None and (isinstance(frames, bool) or not isinstance(frames, int)
+                                   or frames < 0):
+            raise DatasetError(f"{where}: frames must be an integer >= 0, got {frames!r}")
         try:
             camera_model = (CameraModel.from_json(d["camera_model"], where)
                             if d.get("camera_model") is not None else None)
@@ -181,6 +210,8 @@ class DatasetMeta:
             compass_error=number("compass_error", positive=False),
             extra={k: v for k, v in d.items() if k not in known},
             camera_model=camera_model,
+            complete=complete,
+            frames=frames,
         )
 
     def rectifier(self) -> Rectifier | None:

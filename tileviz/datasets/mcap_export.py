@@ -68,8 +68,10 @@ def _modules() -> tuple[Any, ...]:
 
 
 class McapExport:
-    """Writes one frame's messages at a time (:meth:`write`); :meth:`close` finishes the file
-    (its summary and index: a file not closed is readable only by a streaming reader)."""
+    """Writes one frame's messages at a time (:meth:`write`), each frame in the file as a whole
+    chunk when :meth:`write` returns; :meth:`close` finishes the file (its summary and index: a
+    file not closed, e.g. a replay killed, is readable by a streaming reader up to its last
+    frame)."""
 
     def __init__(self, path: str | os.PathLike[str], dataset: str | os.PathLike[str]) -> None:
         (self._writer_cls, register, self._image, self._pose, self._scene, self._cube,
@@ -79,7 +81,12 @@ class McapExport:
             raise OSError(f"{p.parent}: output directory does not exist")
         self.dataset = Path(dataset)
         self._file: IO[bytes] = open(p, "wb")  # noqa: SIM115 - closed in close()
-        self._w = self._writer_cls(self._file)
+        # each frame's messages end their chunk (Writer.flush), so a replay killed before close()
+        # leaves a file a streaming reader reads up to its last frame; a writer without flush()
+        # (mcap < 1.6) writes the messages unchunked
+        self._chunked = hasattr(self._writer_cls, "flush")
+        self._w = self._writer_cls(self._file, **({} if self._chunked else
+                                                   {"use_chunking": False}))
         self._w.start(profile="", library="tileviz")
         ch = self._w.register_channel
 
@@ -154,6 +161,10 @@ class McapExport:
                   "boxes": len(rec.updated), "x_width": widths[0], "y_width": widths[1],
                   "theta_width": widths[2]}
         self._add("status", ns, json.dumps(status).encode(), seq)
+        if self._chunked:
+            self._w.flush()
+        else:
+            self._file.flush()
         self.count += 1
 
     def close(self) -> None:

@@ -42,6 +42,7 @@ def replay(
     relocalize_region: tuple[float, float, float, float] | None = None,
     on_total: Callable[[int | None], None] | None = None,
     on_frame: Callable[[FrameRecord], None] | None = None,
+    on_notice: Callable[[str], None] | None = None,
 ) -> int:
     """Replay ``dataset`` and write the replay CSV ``out`` (one row per frame) and, when given,
     the equivalence-residual CSV ``output_file``; returns the number of frames replayed. ``mode``,
@@ -55,8 +56,12 @@ def replay(
     (``Localizer.relocalize``: candidate boxes, heading from the compass).
     ``on_total`` gets the frame count when known (None otherwise) before
     the first frame, ``on_frame`` every record (its ``residuals`` computed only with
-    ``output_file``). A bad row or image raises DatasetError (a
-    ValueError) after every frame before it was written."""
+    ``output_file``). ``on_notice`` gets, before the first frame, the one line saying that the
+    dataset ended early (:attr:`tileviz.datasets.DatasetSource.ended_early`), if it did. A bad
+    row or image raises DatasetError (a ValueError) after every frame before it was written.
+    Every output row is written whole as its frame ends, so a replay that is stopped (killed)
+    leaves files readable up to their last row (the MCAP file then has no summary: a streaming
+    reader reads it)."""
     jobs = jobs if jobs is not None else default_jobs()
     if jobs > 1:  # the workers' server loads the vision code while this process reads the rows
         start_worker_server()
@@ -73,6 +78,8 @@ def replay(
     csv_out = CsvOut(out, REPLAY_COLUMNS)
     eq = CsvOut(output_file, RESIDUAL_COLUMNS) if output_file else None
     loop = FrameLoop(cfg, residuals=eq is not None)  # residuals: for output_file only
+    if on_notice is not None and source.ended_early is not None:
+        on_notice(source.ended_early)
     if on_total is not None:
         on_total(source.row_count() or None)
     n = 0
