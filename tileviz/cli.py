@@ -181,6 +181,7 @@ def replay(argv: list[str]) -> int:
             bar = _progress(total, "replay", not args.quiet)
 
         slow: threading.Timer | None = None
+        notices: list[str] = []
 
         def on_frame(rec: FrameRecord) -> None:
             nonlocal slow
@@ -197,12 +198,12 @@ def replay(argv: list[str]) -> int:
                                max_boxes=args.max_boxes, jobs=args.jobs, mcap=args.mcap,
                                fault_model=args.fault_model,
                                relocalize_region=args.relocalize_region,
-                               on_total=on_total, on_frame=on_frame,
-                               on_notice=lambda text: print(f"tileviz replay: {text}",
-                                                            file=sys.stderr, flush=True))
+                               on_total=on_total, on_frame=on_frame, on_notice=notices.append)
         finally:
             if bar is not None:
                 bar.close()  # type: ignore[attr-defined]
+        for text in notices:  # after a replay that went through (an error is the one line)
+            print(f"tileviz replay: {text}", file=sys.stderr, flush=True)
         print("; ".join([f"replayed {n} frames into {args.out}", *tally.parts()]))
         return 0
 

@@ -231,8 +231,12 @@ def run_cli(prog: str, body: Callable[[], int]) -> int:
 
 
 def one_line(text: str) -> str:
-    """``text`` with its line breaks turned into spaces (an error quoting a file's content)."""
-    return text.replace("\r\n", " ").replace("\n", " ").replace("\r", " ")
+    """``text`` on one line: its line breaks (every character ``str.splitlines`` breaks at)
+    become spaces and other control characters ``\\xNN`` escapes (an error quoting a file's
+    content must not break the line or drive the terminal)."""
+    text = " ".join(text.splitlines())
+    return "".join(c if c.isprintable() or c == " " else c.encode("unicode_escape").decode()
+                   for c in text)
 
 
 def config_from_args(args: argparse.Namespace, *, floor_seed: bool = True) -> Config:

@@ -110,10 +110,18 @@ def combine_compass(times: np.ndarray, yaws: np.ndarray, t: float) -> tuple[floa
 def _decode(msg: Any, msgtype: str, where: str) -> np.ndarray:
     """An image message as HxWx3 RGB uint8; CliError naming the message."""
     if msgtype.endswith("CompressedImage"):
-        img = cv2.imdecode(np.frombuffer(bytes(msg.data), np.uint8), cv2.IMREAD_COLOR)
+        from tileviz.datasets.images import decode_image, size_problem
+
+        raw = bytes(msg.data)
+        problem = size_problem(raw)
+        if problem is not None:
+            raise CliError(f"{where}: compressed image ({msg.format!r}): {problem}")
+        complaints: list[str] = []
+        img = decode_image(raw, complaints=complaints)
         if img is None:
-            raise CliError(f"{where}: compressed image ({msg.format!r}) cannot be decoded")
-        return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
+            why = f" ({complaints[0]})" if complaints else ""
+            raise CliError(f"{where}: compressed image ({msg.format!r}) cannot be decoded{why}")
+        return img
     enc = str(msg.encoding).lower()
     if enc not in ENCODINGS:
         raise CliError(f"{where}: image encoding {msg.encoding!r} is not supported "
@@ -153,13 +161,9 @@ def camera_model_file(path: str) -> tuple[Any, tuple[int, int] | None]:
     what ``calibrate`` prints) and the rectified view size it gives (``image_width``,
     ``image_height``), or None (then the raw size). CliError naming the file."""
     from tileviz.datasets.camera_model import CameraModel, CameraModelError
+    from tileviz.datasets.format import json_file
 
-    try:
-        doc = json.loads(Path(path).read_text(encoding="utf-8"))
-    except OSError as e:
-        raise CliError(f"--camera-model: cannot read {path} ({e.strerror or e})") from None
-    except (json.JSONDecodeError, UnicodeDecodeError):
-        raise CliError(f"--camera-model: {path} is not valid JSON") from None
+    doc = json_file(path, "--camera-model: ")
     if not isinstance(doc, dict) or doc.get("camera_model") is None:
         raise CliError(f"--camera-model: {path} has no camera_model block")
     try:

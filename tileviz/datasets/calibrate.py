@@ -202,13 +202,9 @@ def main(command: str, argv: list[str]) -> int:
         given = None
         if args.meta is not None:
             from tileviz.datasets import DatasetMeta
+            from tileviz.datasets.format import json_file
 
-            try:
-                meta_doc = json.loads(Path(args.meta).read_text(encoding="utf-8"))
-            except OSError as e:
-                raise CliError(f"--meta: cannot read {args.meta} ({e.strerror or e})") from None
-            except (json.JSONDecodeError, UnicodeDecodeError):
-                raise CliError(f"--meta: {args.meta} is not valid JSON") from None
+            meta_doc = json_file(args.meta, "--meta: ")
             given = DatasetMeta.from_json(meta_doc, where=args.meta).camera_model
         model, errors = calibrate(args.images, cols=int(m.group(1)), rows=int(m.group(2)),
                                   square=args.square, pose=pose, given=given)

@@ -23,13 +23,13 @@ from pathlib import Path
 from typing import Any
 
 from tileviz.config import Config, Extractor, Mode
-from tileviz.core.constants import LIMIT, MAX_PPM, MIN_TILE_PX
+from tileviz.core.constants import LIMIT, MAX_PPM, MAX_TILE_PX, MIN_TILE_PX
 from tileviz.datasets.camera_model import CameraModel, CameraModelError, Rectifier, view_margin
 
 __all__ = [
     "FAULTS_FILE", "FORMAT", "FRAME_COLUMNS", "MAX_MAGNITUDE", "REQUIRED_COLUMNS",
-    "DatasetError", "DatasetMeta", "csv_line", "num_text", "parse_float", "read_meta",
-    "replay_config",
+    "DatasetError", "DatasetMeta", "csv_line", "json_file", "num_text", "parse_float",
+    "read_meta", "replay_config",
 ]
 
 FORMAT = "tileviz-dataset/1"
@@ -179,9 +179,11 @@ class DatasetMeta:
         if number("ppm", positive=True) > MAX_PPM:
             raise DatasetError(f"{where}: ppm must be <= {MAX_PPM:g}, got {d['ppm']!r}")
         tile_px = number("tile_size", positive=True) * number("ppm", positive=True)
-        if tile_px < MIN_TILE_PX:
-            raise DatasetError(f"{where}: a tile must span at least {MIN_TILE_PX:g} pixels "
-                               f"(tile_size * ppm), got {tile_px!r}")
+        if not MIN_TILE_PX <= tile_px <= MAX_TILE_PX:
+            most = (f"at least {MIN_TILE_PX:g}" if tile_px < MIN_TILE_PX
+                    else f"at most {MAX_TILE_PX:g}")
+            raise DatasetError(f"{where}: a tile must span {most} pixels (tile_size * ppm), "
+                               f"got {tile_px!r}")
         name = d.get("name", "")
         complete = d.get("complete")
         if complete is not None and not isinstance(complete, bool):
@@ -266,17 +268,26 @@ def read_meta(folder: str | os.PathLike[str]) -> DatasetMeta:
         what = "not a directory" if Path(folder).exists() else "no such directory"
         raise DatasetError(f"{folder}: {what} (a dataset is a folder with meta.json, frames.csv "
                            "and images)")
+    return DatasetMeta.from_json(json_file(path), where=str(path))
+
+
+def json_file(path: str | os.PathLike[str], label: str = "") -> Any:
+    """The JSON value in the file ``path``; DatasetError naming it (after ``label``, e.g.
+    ``"--camera-model: "``) when it cannot be read, is not UTF-8 text or not JSON (nested
+    too deeply included)."""
+    where = f"{label}{path}"
     try:
-        text = path.read_text(encoding="utf-8")
+        text = Path(path).read_text(encoding="utf-8")
     except OSError as e:
-        raise DatasetError(f"{path}: cannot read ({e.strerror or e})") from None
+        raise DatasetError(f"{where}: cannot read ({e.strerror or e})") from None
     except UnicodeDecodeError:
-        raise DatasetError(f"{path}: not UTF-8 text") from None
+        raise DatasetError(f"{where}: not UTF-8 text") from None
     try:
-        d = json.loads(text)
+        return json.loads(text)
     except json.JSONDecodeError as e:
-        raise DatasetError(f"{path}: not valid JSON ({e.msg} at line {e.lineno})") from None
-    return DatasetMeta.from_json(d, where=str(path))
+        raise DatasetError(f"{where}: not valid JSON ({e.msg} at line {e.lineno})") from None
+    except RecursionError:
+        raise DatasetError(f"{where}: not valid JSON (nested too deeply)") from None
 
 
 def parse_float(text: str, column: str, where: str) -> float:
@@ -293,11 +304,18 @@ def parse_float(text: str, column: str, where: str) -> float:
 
 
 def replay_config(meta: DatasetMeta, *, mode: Mode | None = None,
-                  extractor: Extractor | None = None, base: Config | None = None) -> Config:
+                  extractor: Extractor | None = None, base: Config | None = None,
+                  where: str = "meta.json") -> Config:
     """The configuration ``python -m tileviz replay`` uses for a dataset: the meta's floor,
     camera, bounds and start (over ``base``, or the stored tileviz config), then ``mode`` and
-    ``extractor`` when given."""
-    cfg = meta.to_config(base)
+    ``extractor`` when given. A meta the configuration refuses (a view or a tile tileviz
+    cannot work with) raises DatasetError naming ``where`` (the meta.json)."""
+    try:
+        cfg = meta.to_config(base)
+    except DatasetError:
+        raise
+    except ValueError as e:
+        raise DatasetError(f"{where}: {e}") from None
     if mode is not None:
         cfg = replace(cfg, localizer=replace(cfg.localizer, mode=mode))
     if extractor is not None:

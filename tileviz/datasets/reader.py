@@ -23,7 +23,13 @@ from tileviz.datasets.format import (
     parse_float,
     read_meta,
 )
-from tileviz.datasets.images import decode_image, depth_problem, truncated
+from tileviz.datasets.images import (
+    decode_image,
+    depth_problem,
+    header_size,
+    size_problem,
+    truncated,
+)
 from tileviz.pipeline.parallel import results_in_order
 from tileviz.types import FrameInput, Odometry, Pose
 
@@ -75,6 +81,8 @@ class DatasetSource:
                 header = next(csv.reader(f), None)
         except UnicodeDecodeError:
             raise DatasetError(f"{self.frames_path}: not UTF-8 text") from None
+        except csv.Error as e:
+            raise DatasetError(f"{self.frames_path} row 1: not a CSV header ({e})") from None
         if header is None:
             raise DatasetError(f"{self.frames_path}: empty (no header row)")
         header = [h.strip() for h in header]
@@ -82,6 +90,8 @@ class DatasetSource:
         if missing:
             raise DatasetError(f"{self.frames_path}: missing column(s) {', '.join(missing)}")
         self.columns = header
+        self._line = 1
+        """The line of frames.csv the row parser is at (for an error the csv module raises)."""
         self._cut_line = self._cut_last_line()
         """The line of frames.csv (1-based) that is a cut-off last row, not read; or None."""
         self.faults = self._read_faults()
@@ -114,7 +124,10 @@ class DatasetSource:
             lines = sum(chunk.count(b"\n") for chunk in iter(lambda: f.read(1 << 20), b""))
         if lines == 0 or not tail.strip():  # the header itself, or a blank last line
             return None
-        cells = next(csv.reader([tail.decode("utf-8", "replace")]), [])
+        try:
+            cells = next(csv.reader([tail.decode("utf-8", "replace")]), [])
+        except csv.Error:
+            cells = []
         if self.meta.complete is None and len(cells) >= len(self.columns):
             return None
         return lines + 1
@@ -146,13 +159,18 @@ class DatasetSource:
         # a last line without its line end was cut off mid-write: a writer writes a frame's
         # labels before its row, so that frame has no row either
         lines = text.split("\n")[:-1]  # the last piece: empty, or that cut line
-        for lineno, cells in enumerate(csv.reader(lines), start=1):
-            if lineno == 1 or not cells:
-                continue
-            try:
-                out[int(cells[0])] = tuple(x for x in cells[1].split(";") if x)
-            except (ValueError, IndexError):
-                raise DatasetError(f"{path} row {lineno}: expected 'index,labels'") from None
+        rows = csv.reader(lines)
+        lineno = 1
+        try:
+            for lineno, cells in enumerate(rows, start=1):
+                if lineno == 1 or not cells:
+                    continue
+                try:
+                    out[int(cells[0])] = tuple(x for x in cells[1].split(";") if x)
+                except (ValueError, IndexError):
+                    raise DatasetError(f"{path} row {lineno}: expected 'index,labels'") from None
+        except csv.Error as e:
+            raise DatasetError(f"{path} row {lineno + 1}: not a CSV row ({e})") from None
         return out
 
     def row_count(self) -> int:
@@ -180,6 +198,9 @@ class DatasetSource:
             yield from self._parse_rows()
         except UnicodeDecodeError:
             raise DatasetError(f"{self.frames_path}: not UTF-8 text") from None
+        except csv.Error as e:  # e.g. a cell longer than the csv module takes
+            raise DatasetError(f"{self.frames_path} row {self._line + 1}: not a CSV row "
+                               f"({e})") from None
 
     def _parse_rows(self) -> Iterator[_Row]:
         with open(self.frames_path, newline="", encoding="utf-8") as f:
@@ -187,7 +208,9 @@ class DatasetSource:
             next(reader)
             expected_index = 0
             last_t = -math.inf
+            self._line = 1
             for lineno, cells in enumerate(reader, start=2):
+                self._line = lineno
                 if self._cut_line is not None and reader.line_num >= self._cut_line:
                     return  # a cut-off last row (ended_early says so)
                 where = f"{self.frames_path} row {lineno}"
@@ -232,23 +255,36 @@ class DatasetSource:
         path = (self.folder / name)
         if not path.is_file():
             raise DatasetError(f"{where}: image {name!r} is missing")
-        raw = path.read_bytes()
+        try:
+            raw = path.read_bytes()
+        except OSError as e:
+            raise DatasetError(f"{where}: image {name!r} cannot be read "
+                               f"({e.strerror or e})") from None
         if truncated(raw):
             raise DatasetError(f"{where}: image {name!r} is truncated (no end marker)")
-        problem = depth_problem(raw)
-        if problem is not None:
-            raise DatasetError(f"{where}: image {name!r}: {problem}")
-        # a prefetching source decodes on a thread: OpenCV's decoder lets the caller run
-        image = decode_image(raw, spng=self.prefetch == 0)
-        if image is None:
-            raise DatasetError(f"{where}: image {name!r} is not a readable PNG/JPEG")
-        h, w = image.shape[:2]
         cm = self.meta.camera_model
         size = (cm.raw_width, cm.raw_height) if cm else (self.meta.image_width,
                                                          self.meta.image_height)
+
+        def wrong_size(w: int, h: int) -> DatasetError:
+            return DatasetError(f"{where}: image {name!r} is {w}x{h}, meta.json says "
+                                f"{size[0]}x{size[1]}{' (camera_model raw size)' if cm else ''}")
+
+        declared = header_size(raw)  # before any pixel is decoded
+        if declared is not None and declared != size:
+            raise wrong_size(*declared)
+        problem = depth_problem(raw) or size_problem(raw)
+        if problem is not None:
+            raise DatasetError(f"{where}: image {name!r}: {problem}")
+        # a prefetching source decodes on a thread: OpenCV's decoder lets the caller run
+        complaints: list[str] = []
+        image = decode_image(raw, spng=self.prefetch == 0, complaints=complaints)
+        if image is None:
+            why = f" ({complaints[0]})" if complaints else ""
+            raise DatasetError(f"{where}: image {name!r} is not a readable PNG/JPEG{why}")
+        h, w = image.shape[:2]
         if (w, h) != size:
-            raise DatasetError(f"{where}: image {name!r} is {w}x{h}, meta.json says "
-                               f"{size[0]}x{size[1]}{' (camera_model raw size)' if cm else ''}")
+            raise wrong_size(w, h)
         if cm is not None and self.rectify:  # to the orthographic view; tables made once
             if self._rectifier is None:
                 self._rectifier = self.meta.rectifier()

@@ -25,6 +25,7 @@ import csv
 import io
 import json
 import pickle
+import pickletools
 from collections.abc import Collection, Mapping
 from pathlib import Path
 from typing import Any
@@ -100,7 +101,8 @@ class RunStore:
             diff = [k for k in sorted(set(old) | set(meta)) if old.get(k) != meta.get(k)]
             if diff:
                 k = diff[0]
-                raise ValueError(f"--resume {out}: {k} was {_short(old.get(k))} there, "
+                name = k if k.isidentifier() else _short(k)  # a damaged key, quoted
+                raise ValueError(f"--resume {out}: {name} was {_short(old.get(k))} there, "
                                  f"now {_short(meta.get(k))} (resume with the same settings)")
             done, kept = cls._read_done(out)
         out.mkdir(parents=True, exist_ok=True)
@@ -225,7 +227,12 @@ def load_run(file: Path, key: RunKey) -> RunResult:
     read as one."""
     where = f"cannot read the results of run {key[1]} of {key[0]} from {file}"
     try:
-        res = _RunUnpickler(io.BytesIO(file.read_bytes())).load()
+        data = file.read_bytes()
+        # the opcodes first, unexecuted: a damaged length field then cannot make the unpickler
+        # allocate more than the file holds
+        for _ in pickletools.genops(data):
+            pass
+        res = _RunUnpickler(io.BytesIO(data)).load()
     except RecursionError:
         raise ValueError(f"{where}: nested too deeply") from None
     except Exception as e:  # noqa: BLE001 - a damaged pickle raises anything; one line

@@ -67,7 +67,8 @@ def replay(
         start_worker_server()
     # images decode on a background thread while the previous frame's vision runs
     source = DatasetSource(dataset, prefetch=8)
-    cfg = replay_config(source.meta, mode=mode, extractor=extractor)
+    cfg = replay_config(source.meta, mode=mode, extractor=extractor,
+                        where=str(source.folder / "meta.json"))
     if max_boxes:
         cfg = replace(cfg, localizer=replace(cfg.localizer, max_boxes=max_boxes))
     if fault_model is not None:
