@@ -11,6 +11,7 @@ runs on its own thread (:class:`McapJob`) and :meth:`Recorder.poll` notes its en
 from __future__ import annotations
 
 import os
+import shutil
 import threading
 from collections.abc import Callable
 from dataclasses import replace
@@ -28,6 +29,24 @@ __all__ = ["McapJob", "Recorder"]
 
 Note = Callable[[str, str], None]
 """``note(text, level)``: a one-line message for the GUI (level ``info`` or ``error``)."""
+MIN_FREE_BYTES = 1 << 30
+"""A recording stops (and neither a recording nor an MCAP export starts) when the disk it
+writes to has less free space than this: a page visitor recording for hours must not fill the
+machine's disk."""
+CHECK_EVERY = 20
+"""Frames between two looks at the free space while recording."""
+
+
+def free_bytes(path: Path) -> int:
+    """Free bytes on the disk of ``path`` (of its nearest existing folder)."""
+    p = path
+    while not p.exists() and p != p.parent:
+        p = p.parent
+    return shutil.disk_usage(p).free
+
+
+def _gib(n: float) -> str:
+    return f"{n / (1 << 30):.1f} GiB"
 
 
 class Recorder:
@@ -72,6 +91,12 @@ class Recorder:
             self.writer.write(frame)
         except (OSError, ValueError) as e:
             self.stop(f"write failed: {e}", level="error")
+            return
+        if self.writer.count % CHECK_EVERY == 0 and self.path is not None:
+            free = free_bytes(self.path)
+            if free < MIN_FREE_BYTES:
+                self.stop(f"only {_gib(free)} left free on its disk, less than the "
+                          f"{_gib(MIN_FREE_BYTES)} kept free", level="error")
 
     def _open(self, frame: FrameInput, cfg: Config, rectifier: Rectifier | None) -> None:
         from tileviz.datasets import DatasetMeta, DatasetWriter
@@ -87,6 +112,11 @@ class Recorder:
             # the configured initial error (docs/dataset-format.md: initial_pose +-
             # initial_pose_error)
             meta = replace(meta, initial_pose=frame.truth.as_tuple())
+        free = free_bytes(folder)
+        if free < MIN_FREE_BYTES:
+            self._note(f"cannot record to {folder}: only {_gib(free)} free on its disk, less "
+                       f"than the {_gib(MIN_FREE_BYTES)} kept free", "error")
+            return
         try:
             self.writer = DatasetWriter(folder, meta)
         except (OSError, ValueError) as e:
@@ -133,6 +163,12 @@ class Recorder:
             what = ("stop the recording first" if self.active
                     else "record a run first (Start recording, then Stop recording)")
             raise ValueError(f"nothing to export: {what}")
+        size = sum(p.stat().st_size for p in self.last.rglob("*") if p.is_file())
+        free = free_bytes(self.last)
+        if free < size + MIN_FREE_BYTES:
+            raise ValueError(f"no room to export {self.last}: {_gib(free)} free on its disk, "
+                             f"the file needs about {_gib(size)} and {_gib(MIN_FREE_BYTES)} are "
+                             "kept free")
         self.export = McapJob(self.last)
         self._note(f"exporting {self.last} to {self.export.out} ...", "info")
 

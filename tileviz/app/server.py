@@ -131,6 +131,7 @@ class App:
             self.stop()
             raise CliError(f"port {self.requested_port} on {self.host} is busy (another tileviz "
                            "serve?): stop it or choose another --port")
+        self._guard(server)
         server.gui.configure_theme(control_width="medium", show_share_button=False,
                                    titlebar_content=None)
         server.scene.set_up_direction("+z")
@@ -184,6 +185,18 @@ class App:
             failure = self._failure
             self.stop()
             raise failure
+
+    def _guard(self, server: ViserServer) -> None:
+        """Pages of other sites the user has open must not drive the demo: their websocket
+        connections are closed unserved (:mod:`tileviz.app.guard`, SECURITY.md)."""
+        from tileviz.app.guard import refuse_foreign_pages
+
+        assert self.session is not None
+        if not refuse_foreign_pages(server, self.host,
+                                    lambda text: self.submit(C.Report(text, "error"))):
+            self.session.note("this viser version does not let tileviz check which pages "
+                              "connect: any page the browser has open may drive the demo",
+                              "error")
 
     @property
     def port(self) -> int:
