@@ -51,6 +51,8 @@ DEFAULT_PORT = 8080
 """Where ``serve`` listens unless ``--port`` says otherwise (the next free port if it is busy)."""
 QUEUE_SIZE = 1000
 """Commands waiting at most; a flood beyond it is dropped (and counted)."""
+HEAP_TRIM_PERIOD = 60.0
+"""Seconds between two returns of the heaps' free pages to the system (App._return_freed_memory)."""
 
 
 class App:
@@ -100,6 +102,8 @@ class App:
         self._thread: threading.Thread | None = None
         self._started = threading.Event()
         self._failure: BaseException | None = None
+        self._push_failed = False
+        """The last push raised (it is made again at the next push, said only if that fails)."""
 
     # ------------------------------------------------------------------ lifecycle
     def start(self, timeout: float = 120.0) -> None:
@@ -178,6 +182,8 @@ class App:
         self._pushed_version = -1
         self._thread = threading.Thread(target=self._run, name="tileviz-loop", daemon=True)
         self._thread.start()
+        threading.Thread(target=self._return_freed_memory, name="tileviz-heap",
+                         daemon=True).start()
         if not self._started.wait(timeout):
             self.stop()
             raise RuntimeError("the loop thread did not start in time")
@@ -185,6 +191,17 @@ class App:
             failure = self._failure
             self.stop()
             raise failure
+
+    def _return_freed_memory(self) -> None:
+        """Every :data:`HEAP_TRIM_PERIOD` seconds until the server stops, hand the heaps' free
+        pages back to the system (:func:`tileviz.pipeline.heap.return_freed_memory`): over hours
+        of clients coming and going they fragment, and the resident set would creep up although
+        the memory in use does not."""
+        from tileviz.pipeline.heap import return_freed_memory
+
+        while not self._stop.wait(HEAP_TRIM_PERIOD):
+            if not return_freed_memory():
+                return
 
     def _guard(self, server: ViserServer) -> None:
         """Pages of other sites the user has open must not drive the demo: their websocket
@@ -312,7 +329,13 @@ class App:
             with self.server.atomic():
                 self._push_inner(plots or force)
         except Exception as e:  # noqa: BLE001 - drawing must not stop the loop
+            if not self._push_failed:
+                # viser's push can race its own event loop (it sets an asyncio.Event from this
+                # thread: "deque mutated during iteration"); the next push redraws the frame
+                self._push_failed = True
+                return
             s.note(f"display: {e}", "error")
+        self._push_failed = False
         self._pushed_version = s.version
         self.pushes += 1
 
