@@ -260,3 +260,31 @@ def test_png_bytes_makes_what_the_decoders_read() -> None:
     img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
     assert img is not None and img.shape == (48, 64, 3)
     assert zlib.crc32(data[12:29]) == int.from_bytes(data[29:33], "big")
+
+
+def test_other_output_printed_while_an_image_decodes_still_reaches_stderr(
+        capfd: pytest.CaptureFixture[str]) -> None:
+    """Only the decoders' lines are kept back: another thread's line printed meanwhile is passed
+    on."""
+    import os
+
+    from tileviz.datasets.images import decoder_messages
+
+    with decoder_messages() as said:
+        os.write(2, b"libpng warning: iCCP: known incorrect sRGB profile\n")
+        os.write(2, b"tileviz serve: a note of another thread\n")
+        os.write(2, b"Corrupt JPEG data: 3 extraneous bytes before marker 0xd9\n")
+    assert said == ["libpng warning: iCCP: known incorrect sRGB profile",
+                    "Corrupt JPEG data: 3 extraneous bytes before marker 0xd9"]
+    assert capfd.readouterr().err == "tileviz serve: a note of another thread\n"
+
+
+def test_a_harmless_decoder_warning_does_not_refuse_the_image() -> None:
+    """A PNG with a colour profile libpng warns about is still read (only damage refuses)."""
+    from tileviz.datasets.images import decode_image
+
+    icc = zlib.compress(b"\x00" * 200)
+    data = png_bytes(64, 48, extra=((b"iCCP", b"bad profile\x00\x00" + icc),))
+    complaints: list[str] = []
+    img = decode_image(data, spng=False, complaints=complaints)
+    assert img is not None and img.shape == (48, 64, 3) and complaints == []
