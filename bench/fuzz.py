@@ -48,6 +48,12 @@ def _atheris_worker(reader: str, runs: int, seed: int, timeout: float, log: str)
     tmp = Path(tempfile.mkdtemp(prefix="fuzz-atheris-"))
     with _captured(tmp):
         t = Templates(tmp)
+        import tileviz.__main__  # noqa: F401 - every reader loaded before instrumenting
+        import tileviz.datasets.bag_import  # noqa: F401
+        import tileviz.evaluation.report  # noqa: F401
+        import tileviz.pipeline.replay  # noqa: F401
+        import tileviz.vision.cli  # noqa: F401
+    atheris.instrument_all()  # libFuzzer's coverage of the Python code loaded
     seeds = t.seeds(reader)
     corpus = tmp / "corpus"
     corpus.mkdir()
