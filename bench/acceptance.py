@@ -1,4 +1,4 @@
-"""Acceptance figures of issue 4, measured over recorded runs.
+"""Acceptance figures, measured over recorded runs.
 
 For each case, a preset (default: L = 1 m, 200 px/m, 320x240; seed: the original's constants)
 with an optional floor style (``preset:style``, the styles of ``record --floor-style``; by
@@ -12,8 +12,11 @@ steps: reading rows, PNG decoding, vision, localizer and loop, output) against t
 calls of the original pipeline with its constants (cvtColor, Laplacian, Canny, close, dilate,
 HoughLinesP) on the same images, decoded and in memory, in the same run (:func:`timing`).
 
-    python bench/acceptance.py --minutes 10            # the issue's figures
+    python bench/acceptance.py --minutes 10            # the figures of docs/figures.md
     python bench/acceptance.py --minutes 1 --cases default default:photo
+    python -m bench.acceptance --minutes 0.5 --cases default --write-figures
+
+``--write-figures`` also writes the figures into ``docs/figures.md`` (``figures:acceptance``).
 """
 
 from __future__ import annotations
@@ -40,6 +43,7 @@ from tileviz.pipeline.heap import keep_freed_memory
 from tileviz.pipeline.outputs import replay_row
 from tileviz.pipeline.replay import replay
 from tileviz.sim.source import SimSource
+from tileviz.testing.figures import Machine, write_block
 from tileviz.vision import extract, set_opencv_threads
 
 set_opencv_threads()  # as every tileviz entry point (workers re-run this on import)
@@ -341,7 +345,11 @@ def main() -> None:
     ap.add_argument("--keep", help="keep the datasets under this folder")
     ap.add_argument("--timing-only", action="store_true",
                     help="only the timings (no accuracy figures)")
+    ap.add_argument("--write-figures", action="store_true",
+                    help="also write the figures into docs/figures.md (figures:acceptance)")
     args = ap.parse_args()
+    machine = Machine()
+    rows: list[tuple[str, str]] = []
     root = Path(args.keep) if args.keep else Path(tempfile.mkdtemp(prefix="tileviz-accept-"))
     for case in args.cases:
         name, _, style = case.partition(":")
@@ -366,11 +374,48 @@ def main() -> None:
             s = replay_stats(folder, mode.split(",")[0], base)
             print(f"{mode:>10}: " + "  ".join(
                 f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in s.items()))
+            rows += stats_rows(f"{case}, {args.minutes:g} min, {mode}", s)
         load0 = os.getloadavg()[0]
         tm = timing(folder)
         print(timing_table(tm, load0, os.getloadavg()[0]))
+        rows += timing_rows(case, tm)
     print(f"\n(datasets in {root}; timings are the best of 3 passes; wall clock unless "
           "marked CPU)")
+    if args.write_figures:
+        write_block("acceptance", "Acceptance runs and replay speed", rows, machine=machine,
+                    note="Replay timings: best of 3 passes over the first 600 frames.")
+
+
+def stats_rows(label: str, s: dict[str, float]) -> list[tuple[str, str]]:
+    """:func:`replay_stats` as figure rows."""
+    if label.endswith("odometry"):
+        return [(f"{label}: truth inside the set", f"{s['inside_pct']:.1f} %"),
+                (f"{label}: median box x / y", f"{s['med_wx_cm'] / 100:.1f} / "
+                 f"{s['med_wy_cm'] / 100:.1f} m")]
+    return [
+        (f"{label}: truth inside the set", f"{s['inside_pct']:.1f} % of {s['frames']:.0f}"),
+        (f"{label}: contracted / lost frames", f"{s['n_contracted']} / {s['n_lost']}"),
+        (f"{label}: median box x / y", f"{s['med_wx_cm']:.2f} / {s['med_wy_cm']:.2f} cm"),
+        (f"{label}: median heading width", f"{s['med_wt_deg']:.2f} deg"),
+        (f"{label}: p95 box, heading", f"{s['p95_wpos_cm']:.2f} cm, {s['p95_wt_deg']:.2f} deg"),
+    ]
+
+
+def timing_rows(case: str, tm: dict[str, float]) -> list[tuple[str, str]]:
+    """:func:`timing`'s headline figures as rows."""
+    bare = tm["bare"]
+    return [
+        (f"{case}: replay --jobs 2, wall ms/frame", f"{tm['jobs2']:.2f} "
+         f"({tm['jobs2'] / bare:.2f}x the bare chain)"),
+        (f"{case}: replay --jobs 1, wall ms/frame", f"{tm['jobs1']:.2f} "
+         f"({tm['jobs1'] / bare:.2f}x)"),
+        (f"{case}: whole replay command, ms/frame", f"{tm['command']:.2f} "
+         f"({tm['command'] / bare:.2f}x)"),
+        (f"{case}: bare OpenCV chain of the original, ms/frame", f"{bare:.2f}"),
+        (f"{case}: replay steps on one thread, CPU ms/frame", f"{tm['parts_cpu']:.2f} "
+         f"(vision {tm['vision_cpu']:.2f}, PNG {tm['decode_cpu']:.2f})"),
+        (f"{case}: command start-up on 8 frames", f"{tm['command2_s']:.2f} s"),
+    ]
 
 
 if __name__ == "__main__":

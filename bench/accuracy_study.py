@@ -1,6 +1,8 @@
 """Accuracy study of the two extractors over random floors, cameras and poses.
 
     python bench/accuracy_study.py [--poses 2000] [--floors 200] [--seed 0] [--faults]
+                                   [--write-figures]
+    python -m bench.accuracy_study --poses 600 --floors 100 --faults
 
 Floors and cameras come from ``tileviz.sim.camera.random_floor`` / ``random_camera``: tile size
 0.166..1 m, grout 3..15 mm, tile and grout colours, per-tile brightness jitter, texture and
@@ -25,19 +27,16 @@ from __future__ import annotations
 import argparse
 import collections
 import math
-import sys
 import time
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from tileviz.config import VisionConfig  # noqa: E402
-from tileviz.sim.camera import FloorRenderer, random_camera, random_floor  # noqa: E402
-from tileviz.types import Pose  # noqa: E402
-from tileviz.vision import extract, observation_error, set_opencv_threads  # noqa: E402
+from tileviz.config import VisionConfig
+from tileviz.sim.camera import FloorRenderer, random_camera, random_floor
+from tileviz.testing.figures import Machine, write_block
+from tileviz.types import Pose
+from tileviz.vision import extract, observation_error, set_opencv_threads
 
 set_opencv_threads()  # as every tileviz entry point (workers re-run this on import)
 
@@ -58,7 +57,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--floors", type=int, default=200)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--faults", action="store_true", help="add one camera fault to every frame")
+    ap.add_argument("--write-figures", action="store_true",
+                    help="also write the figures into docs/figures.md (figures:accuracy_study, "
+                    "figures:accuracy_faults with --faults)")
     args = ap.parse_args(argv)
+    machine = Machine()
+    rows: list[tuple[str, str]] = []
     vision = VisionConfig()
     extractors = ("faithful", "robust")
     rng = np.random.default_rng(args.seed)
@@ -131,6 +135,13 @@ def main(argv: list[str] | None = None) -> int:
         print(f"== {ext}: accepted {acc}/{n} ({100.0 * acc / max(n, 1):.1f} %), "
               f"outside the declared bound: {out} ({100.0 * out / max(acc, 1):.2f} % of "
               f"accepted)")
+        views = "faulty views" if args.faults else "views"
+        rows += [(f"{ext}: {views} accepted", f"{acc} of {n}"),
+                 (f"{ext}: accepted outside their own bound", f"{out}")]
+        if s["pos_px"] and not args.faults:
+            rows.append((f"{ext}: median / p99 position error of accepted views",
+                         f"{np.median(s['pos_px']):.3f} / "
+                         f"{np.percentile(s['pos_px'], 99):.3f} px"))
         print(f"  {'error of accepted':<22} {'p50':>8} {'p90':>8} {'p99':>8} {'p99.9':>8} "
               f"{'max':>8}")
         print(f"  {'position, px':<22} {percentiles(s['pos_px'])}")
@@ -147,6 +158,13 @@ def main(argv: list[str] | None = None) -> int:
                 fo = fault_out[ext]
                 print(f"  {kind:<12} {fo[(kind, 'frames')]:>7} {fo[(kind, 'accepted')]:>9} "
                       f"{fo[(kind, 'outside')]:>14}")
+    if args.write_figures:
+        name = "accuracy_faults" if args.faults else "accuracy_study"
+        title = ("tileviz's random floors with a camera fault on every frame" if args.faults
+                 else "tileviz's random floors and cameras")
+        write_block(name, title, rows, machine=machine,
+                    note=f"{done} poses over {math.ceil(done / per_floor)} random floors and "
+                    f"cameras, {elapsed:.0f} s.")
     return 0
 
 

@@ -1,7 +1,7 @@
 """Benchmark: predict + contract of one box per frame, ours against codac 2.
 
 Usage: ``python bench/bench_localizer.py [--frames N] [--repeats R] [--clock wall|cpu]
-[--no-codac]``
+[--no-codac] [--write-figures]`` (or ``python -m bench.bench_localizer ...``)
 
 For each scenario (the ``default`` and ``seed`` presets' tile size, lever arm and bounds; mode
 ``autonomous``, i.e. tracking, and mode ``truth``, where every frame starts from the truth
@@ -14,8 +14,8 @@ their bounds (uniform, 90 % of each bound). Per frame we time:
   ``contract_box``);
 - codac: the contraction alone of the same predicted boxes (recorded from our run) by the union
   (``CtcUnion``) over the four branches of ``CtcInverse`` of the sin constraints
-  (``tests/codac_oracle_worker.py``), single pass and to a fixpoint, with and without the
-  centered form. codac runs in its own process (it switches its process to upward rounding).
+  (``tileviz/testing/codac_oracle_worker.py``), single pass and to a fixpoint, with and without
+  the centered form. codac runs in its own process (it switches its process to upward rounding).
 
 Which codac figure to compare with: our contraction returns what codac's *fixpoint* variants
 return (``tests/test_codac_oracle.py`` checks it to 1e-9), plus the split into lattice cells; the
@@ -32,84 +32,25 @@ from __future__ import annotations
 
 import argparse
 import collections
-import json
 import math
-import subprocess
-import sys
-import time
-from pathlib import Path
 
-import numpy as np
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from tileviz.config import Config, preset, with_overrides  # noqa: E402
-from tileviz.core.contraction import (  # noqa: E402
+from tileviz.config import Config, preset, with_overrides
+from tileviz.core.contraction import (
     contract_box,
     lever_enclosure,
     observation_windows,
 )
-from tileviz.core.intervals import TWO_PI  # noqa: E402
-from tileviz.core.localizer import Localizer  # noqa: E402
-from tileviz.core.prediction import compass_pieces, predict_box  # noqa: E402
-from tileviz.core.tiles import observe  # noqa: E402
-from tileviz.types import Box, Observation, Odometry, Pose, SensorBounds  # noqa: E402
-
-WORKER = Path(__file__).resolve().parents[1] / "tests" / "codac_oracle_worker.py"
-
-clock = time.perf_counter
-"""The clock every figure is read from (``--clock``)."""
-
-
-def initial_box(cfg: Config) -> Box:
-    """The initial pose +- its declared error (as the runner builds it)."""
-    (x, y, th), (ex, ey, et) = cfg.sim.initial_pose, cfg.sim.initial_pose_error
-    return Box(x - ex, x + ex, y - ey, y + ey, th - et, th + et)
-
-
-def _drive(p: Pose, v: float, w: float, h: float) -> Pose:
-    """The unicycle's exact arc over h seconds: a chord of length v h sinc(w h / 2) along the
-    mid-step heading (np.sinc(u) = sin(pi u) / (pi u))."""
-    chord = v * h * float(np.sinc(w * h / (2 * math.pi)))
-    mid = p.theta + 0.5 * w * h
-    return Pose(p.x + chord * math.cos(mid), p.y + chord * math.sin(mid), p.theta + w * h)
-
-
-def make_run(cfg: Config, frames: int, seed: int) -> list[dict]:
-    """A drive and its sensor readings: per frame the odometry of the previous step, the compass,
-    the observation, the truth."""
-    rng = np.random.default_rng(seed)
-    dt = cfg.sim.dt
-    L = cfg.floor.tile_size
-    off = cfg.camera.offset
-    nz = cfg.noise
-    e = cfg.position_error
-    e3 = cfg.vision.heading_error
-    pose = Pose(*cfg.sim.initial_pose)
-    out = []
-    odo = None
-    for k in range(frames):
-        y1, y2, y3 = observe(pose, L, off)
-        u = rng.uniform(-0.9, 0.9, 6)
-        out.append({
-            "odometry": odo,
-            "compass": math.remainder(pose.theta + u[0] * nz.compass_error, TWO_PI),
-            "observation": Observation(y1 + u[1] * e, y2 + u[2] * e, y3 + u[3] * e3, e, e3),
-            "truth": pose,
-        })
-        v = 0.5 + 0.3 * math.sin(0.07 * k)
-        w = 0.6 * math.sin(0.013 * k)
-        for _ in range(10):
-            pose = _drive(pose, v, w, dt / 10)
-        odo = Odometry(v + u[4] * nz.speed_error, w + u[5] * nz.yaw_rate_error, dt)
-    return out
+from tileviz.core.prediction import compass_pieces, predict_box
+from tileviz.pipeline import initial_box
+from tileviz.testing import codac_oracle_worker, timing
+from tileviz.testing.drives import localizer_of, make_run, time_step
+from tileviz.testing.figures import Machine, write_block
+from tileviz.types import Box
 
 
 def run_ours(cfg: Config, run: list[dict]) -> tuple[list[tuple], dict]:
     """One pass through the run with the Localizer; returns the predicted boxes and stats."""
-    bounds = SensorBounds(cfg.noise.speed_error, cfg.noise.yaw_rate_error, cfg.noise.compass_error)
-    loc = Localizer(tile_size=cfg.floor.tile_size, camera_offset=cfg.camera.offset, bounds=bounds,
-                    config=cfg.localizer, initial=initial_box(cfg))
+    loc = localizer_of(cfg)
     predicted = []
     statuses: collections.Counter[str] = collections.Counter()
     passes: collections.Counter[int] = collections.Counter()
@@ -123,21 +64,6 @@ def run_ours(cfg: Config, run: list[dict]) -> tuple[list[tuple], dict]:
         boxes_max = max(boxes_max, len(step.updated))
     return predicted, {"statuses": dict(statuses), "passes": dict(sorted(passes.items())),
                        "truth_inside": inside, "frames": len(run), "max_boxes": boxes_max}
-
-
-def time_step(cfg: Config, run: list[dict], repeats: int) -> float:
-    bounds = SensorBounds(cfg.noise.speed_error, cfg.noise.yaw_rate_error, cfg.noise.compass_error)
-    best = math.inf
-    args = [(f["odometry"], f["compass"], f["observation"], f["truth"]) for f in run]
-    for _ in range(repeats):
-        loc = Localizer(tile_size=cfg.floor.tile_size, camera_offset=cfg.camera.offset,
-                        bounds=bounds, config=cfg.localizer, initial=initial_box(cfg))
-        step = loc.step
-        t0 = clock()
-        for a in args:
-            step(*a)
-        best = min(best, clock() - t0)
-    return best / len(run) * 1e6
 
 
 def time_core(cfg: Config, run: list[dict], repeats: int) -> float:
@@ -163,7 +89,7 @@ def time_core(cfg: Config, run: list[dict], repeats: int) -> float:
     best = math.inf
     for _ in range(repeats):
         box = initial_box(cfg)
-        t0 = clock()
+        t0 = timing.clock()
         for odo, c_lo, c_hi, obs, tbox in prepared:
             if tbox is not None:
                 box = tbox
@@ -176,7 +102,7 @@ def time_core(cfg: Config, run: list[dict], repeats: int) -> float:
             if got:
                 box = Box(min(b[0] for b in got), max(b[1] for b in got), min(b[2] for b in got),
                           max(b[3] for b in got), min(b[4] for b in got), max(b[5] for b in got))
-        best = min(best, clock() - t0)
+        best = min(best, timing.clock() - t0)
     return best / len(run) * 1e6
 
 
@@ -189,11 +115,10 @@ def time_codac(cfg: Config, run: list[dict], predicted: list[tuple], repeats: in
                       [w[0], w[1]], [w[2], w[3]], [w[4], w[5]]])
     spec = {"task": "bench", "L": cfg.floor.tile_size, "rho": math.hypot(*off),
             "phi": math.atan2(off[1], off[0]), "boxes": boxes, "repeats": repeats}
-    r = subprocess.run([sys.executable, str(WORKER)], input=json.dumps(spec),
-                       capture_output=True, text=True, timeout=900)
-    if r.returncode != 0:
-        raise SystemExit(f"codac worker failed: {r.stderr.strip()}")
-    return json.loads(r.stdout)
+    try:
+        return codac_oracle_worker.run(spec)
+    except RuntimeError as exc:
+        raise SystemExit(str(exc)) from None
 
 
 def main() -> int:
@@ -201,12 +126,14 @@ def main() -> int:
     ap.add_argument("--frames", type=int, default=2000)
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--seed", type=int, default=7)
-    ap.add_argument("--clock", choices=("wall", "cpu"), default="wall",
-                    help="wall: perf_counter; cpu: the thread's CPU time")
+    timing.add_clock(ap)
     ap.add_argument("--no-codac", action="store_true", help="time ours only")
+    ap.add_argument("--write-figures", action="store_true",
+                    help="also write the figures into docs/figures.md (figures:localizer)")
     args = ap.parse_args()
-    global clock
-    clock = time.thread_time if args.clock == "cpu" else time.perf_counter
+    machine = Machine()
+    rows: list[tuple[str, str]] = []
+    timing.use_clock(args.clock)
     for name, mode in (("default", "autonomous"), ("seed", "autonomous"),
                        ("default", "truth"), ("seed", "truth")):
         cfg = with_overrides(preset(name), localizer={"mode": mode})
@@ -227,6 +154,15 @@ def main() -> int:
         for variant, us in codac["us_per_box"].items():
             print(f"   codac {variant:<28s} (contract only): {us:7.1f} us/frame   "
                   f"ours step / codac = {step_us / us:4.2f}   core / codac = {core_us / us:4.2f}")
+        rows.append((f"{name}, {mode}: Localizer.step", f"{step_us:.1f} us/frame"))
+        fix = {v: us for v, us in codac["us_per_box"].items() if "fixpoint" in v}
+        if fix:  # what our contraction returns: codac's fixpoint, its faster variant
+            best = min(fix, key=fix.__getitem__)
+            rows.append((f"{name}, {mode}: codac {best} (contraction only)",
+                         f"{fix[best]:.1f} us/frame"))
+    if args.write_figures:
+        write_block("localizer", "Localizer step against codac", rows, machine=machine,
+                    note=f"{args.frames} frames, best of {args.repeats}, {args.clock} clock.")
     return 0
 
 

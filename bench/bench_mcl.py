@@ -9,8 +9,8 @@ several particle counts.
 
 ``--after-vision`` runs vision (untimed) right before every timed step, as the frame loop and
 ``tileviz evaluate`` do: the step then starts with caches full of image buffers and costs more
-(about 3x for the interval localizer on this machine); that is why ``evaluate``'s CPU column is
-higher than the isolated figure. Two things make it so, and the script prints both:
+(several times for the interval localizer); that is why ``evaluate``'s CPU column is higher
+than the isolated figure. Two things make it so, and the script prints both:
 
 - a floor: an empty function timed the same way. With ``--clock process`` (``evaluate``'s clock)
   it counts every thread of the process, and OpenCV's worker threads are still busy for a while
@@ -20,18 +20,16 @@ higher than the isolated figure. Two things make it so, and the script prints bo
 - cold caches: vision evicts the interpreter's code and the method's bytecode, so the first step
   after it runs several times slower than a step in a tight loop; the more distinct code a step
   runs, the more it pays. ``--after-sweep MB`` shows it without vision: it writes once over an
-  MB-sized array (untimed) before every step. With 32 MB (this machine's L3) the interval step
-  costs as much as after vision (13 -> 39 us here), with 2 MB (its L2s) little more (15 us);
-  OpenCV's thread count does not matter. The pure-Python step touches many objects (frames,
-  tuples, floats, dicts); compiling it with mypyc (tried, not kept) gave 13.2 -> 11.2 us alone
-  and 37 -> 32 us after vision. ``--inputs odometry`` (prediction only) shows that the cost is
-  not the contraction's: 5 us alone, 20 us after a 32 MB sweep.
+  MB-sized array (untimed) before every step (an array the size of the last-level cache costs
+  the step about what vision does; OpenCV's thread count does not matter). ``--inputs odometry``
+  (prediction only) shows how much of that cost is not the contraction's.
 
     python bench/bench_mcl.py                       # 60 s of default preset, 1000 particles
     python bench/bench_mcl.py --seconds 30 --preset seed --particles 100 1000 10000
     python bench/bench_mcl.py --seconds 30 --after-vision --clock thread
     python bench/bench_mcl.py --seconds 30 --after-sweep 32 --clock thread
     python bench/bench_mcl.py --seconds 30 --after-sweep 32 --clock thread --inputs odometry
+    python -m bench.bench_mcl --seconds 30 --clock thread --write-figures   # figures:mcl_default
 """
 
 from __future__ import annotations
@@ -48,6 +46,7 @@ from tileviz.config import preset
 from tileviz.core.localizer import Localizer
 from tileviz.pipeline import initial_box
 from tileviz.sim.source import SimSource
+from tileviz.testing.figures import Machine, write_block
 from tileviz.types import SensorBounds
 from tileviz.vision import extract, set_opencv_threads
 
@@ -70,7 +69,11 @@ def main() -> None:
     ap.add_argument("--clock", choices=("process", "thread"), default="process",
                     help="CPU clock: process (all threads, as tileviz evaluate) or thread "
                     "(the calling thread only)")
+    ap.add_argument("--write-figures", action="store_true",
+                    help="also write the figures into docs/figures.md (figures:mcl_PRESET)")
     args = ap.parse_args()
+    machine = Machine()
+    rows: list[tuple[str, str]] = []
     clock = time.process_time if args.clock == "process" else time.thread_time
 
     cfg = preset(args.preset)
@@ -129,12 +132,19 @@ def main() -> None:
 
     t_int = min(time_interval() for _ in range(args.repeat))
     print(f"interval localizer (autonomous): {1e6 * t_int:8.1f} us CPU/frame{where}")
+    rows.append(("interval localizer, CPU per frame", f"{1e6 * t_int:.1f} us"))
     for p in args.particles:
         t_mcl = min(time_mcl(p) for _ in range(args.repeat))
         ratio = t_mcl / t_int if t_int > 0 else math.inf
         net = (t_mcl - t_floor) / (t_int - t_floor) if t_int > t_floor else math.inf
         print(f"MCL, {p:6d} particles:          {1e6 * t_mcl:8.1f} us CPU/frame "
               f"= {ratio:5.1f}x the interval localizer ({net:.1f}x without the floor)")
+        rows.append((f"MCL, {p} particles, CPU per frame", f"{1e6 * t_mcl:.1f} us "
+                     f"({ratio:.1f}x the interval localizer)"))
+    if args.write_figures:
+        rows.insert(0, ("clock; steps", f"{args.clock}{where or ''}; {args.inputs} inputs"))
+        write_block(f"mcl_{args.preset}", f"CPU per frame, MCL against the interval localizer "
+                    f"({args.preset} preset)", rows, machine=machine)
 
 
 if __name__ == "__main__":

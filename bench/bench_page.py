@@ -22,56 +22,12 @@ from __future__ import annotations
 
 import argparse
 import math
-import os
-import sys
 import threading
 import time
-from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
-
-from tests.wsclient import start_serve, stop_serve  # noqa: E402
-
-ARGS = ["--headless", "--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
-        "--disable-background-networking", "--disable-component-update", "--no-first-run"]
-
-COUNT = """(ms) => new Promise((done) => {
-    let n = 0; const t0 = performance.now();
-    function tick(t) { n += 1; if (t - t0 < ms) requestAnimationFrame(tick);
-                       else done([n, (performance.now() - t0) / 1000]); }
-    requestAnimationFrame(tick);
-})"""
-
-
-def _descendants(root: int) -> list[int]:
-    """Pids of the processes below ``root`` (Linux /proc)."""
-    parent: dict[int, int] = {}
-    for d in Path("/proc").iterdir():
-        if d.name.isdigit():
-            try:
-                parent[int(d.name)] = int((d / "stat").read_text().rsplit(")", 1)[1].split()[1])
-            except (OSError, IndexError, ValueError):
-                continue
-    out, todo = [], [root]
-    while todo:
-        p = todo.pop()
-        kids = [c for c, pp in parent.items() if pp == p]
-        out += kids
-        todo += kids
-    return out
-
-
-def _cpu(pids: list[int]) -> float:
-    """User + system CPU seconds of ``pids`` so far."""
-    total = 0.0
-    for pid in pids:
-        try:
-            f = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-        except OSError:
-            continue
-        total += (int(f[11]) + int(f[12])) / os.sysconf("SC_CLK_TCK")
-    return total
+from tileviz.testing.browser import ARGS, CHROMIUM, COUNT_FRAMES, chromium_pids, cpu_seconds
+from tileviz.testing.figures import Machine, write_block
+from tileviz.testing.wsclient import start_serve, stop_serve
 
 
 def paint_rate(url: str, seconds: float, warmup: float) -> tuple[float, float]:
@@ -80,16 +36,15 @@ def paint_rate(url: str, seconds: float, warmup: float) -> tuple[float, float]:
     from playwright.sync_api import sync_playwright
 
     with sync_playwright() as p:
-        browser = p.chromium.launch(executable_path="/usr/bin/chromium", args=ARGS)
+        browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS)
         page = browser.new_page(viewport={"width": 1400, "height": 900})
         page.goto(url)
         page.wait_for_selector("canvas", timeout=120_000)
         page.wait_for_timeout(warmup * 1000)
-        pids = [q for q in _descendants(os.getpid())
-                if b"chrom" in Path(f"/proc/{q}/cmdline").read_bytes()[:200]]
-        c0 = _cpu(pids)
-        n, span = page.evaluate(COUNT, seconds * 1000)
-        cpu = _cpu(pids) - c0
+        pids = chromium_pids()
+        c0 = cpu_seconds(pids)
+        n, span = page.evaluate(COUNT_FRAMES, seconds * 1000)
+        cpu = cpu_seconds(pids) - c0
         browser.close()
     return n / span, cpu / max(n, 1)
 
@@ -104,8 +59,12 @@ def main() -> None:
                     "environment map (image-based lighting) or without it")
     ap.add_argument("--moving", action="store_true",
                     help="with --bare --box: the box moves 20 times a second")
+    ap.add_argument("--write-figures", action="store_true",
+                    help="also write the figure into docs/figures.md (figures:page, "
+                    "figures:page_bare with --bare)")
     ap.add_argument("serve", nargs="*", help="serve.py options (after --)")
     args = ap.parse_args()
+    machine = Machine()
     if args.bare:
         import viser
 
@@ -138,6 +97,10 @@ def main() -> None:
             f"one box, {args.box}{', moving 20 times a second' if args.moving else ''}")
         print(f"bare viser page ({what}): {rate:.1f} frames painted a second, browser CPU "
               f"{1e3 * cpu:.0f} ms a painted frame")
+        if args.write_figures:
+            write_block("page_bare", "Headless chromium painting a bare viser page",
+                        [(f"bare viser page, {what}", f"{rate:.1f} frames/s, "
+                          f"{1e3 * cpu:.0f} ms browser CPU a frame")], machine=machine)
         return
     proc, url = start_serve(["--port", "0", *args.serve])
     try:
@@ -149,6 +112,11 @@ def main() -> None:
     print(f"tileviz page ({' '.join(args.serve) or 'default options'}): {rate:.1f} frames "
           f"painted a second, browser CPU {1e3 * cpu:.0f} ms a painted frame (over "
           f"{args.seconds:g} s after {args.warmup:g} s; {wall:.0f} s in all)")
+    if args.write_figures:
+        write_block("page", "Headless chromium painting the live page", [
+            (f"live page, {' '.join(args.serve) or 'default options'}",
+             f"{rate:.1f} frames/s, {1e3 * cpu:.0f} ms browser CPU a frame")],
+            machine=machine, note="1400x900, software WebGL (SwiftShader), playing in real time.")
 
 
 if __name__ == "__main__":

@@ -29,16 +29,12 @@ import argparse
 import math
 import os
 import re
-import sys
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
-sys.path.insert(0, str(REPO / "bench"))
-
-from bench_page import ARGS, COUNT, _cpu, _descendants  # noqa: E402
+from tileviz.testing.browser import ARGS, CHROMIUM, COUNT_FRAMES, chromium_pids, cpu_seconds
+from tileviz.testing.figures import Machine, fmt_range, write_block
 
 
 def _kind(pid: int) -> str:
@@ -134,7 +130,11 @@ def main() -> None:
     ap.add_argument("--window", type=float, default=4.0, help="seconds counted per measurement")
     ap.add_argument("--repeat", type=int, default=2)
     ap.add_argument("--warmup", type=float, default=6.0)
+    ap.add_argument("--write-figures", action="store_true",
+                    help="also write the figures into docs/figures.md (figures:page_parts)")
     args = ap.parse_args()
+    machine = Machine()
+    figures: list[tuple[str, str]] = []
 
     import cv2
     from playwright.sync_api import sync_playwright
@@ -151,13 +151,12 @@ def main() -> None:
     results: dict[str, list[tuple[float, float, float]]] = {c: [] for c in args.configs}
     try:
         with sync_playwright() as p:
-            browser = p.chromium.launch(executable_path="/usr/bin/chromium", args=ARGS)
+            browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS)
             page = browser.new_page(viewport={"width": 1400, "height": 900})
             page.goto(app.url)
             page.wait_for_selector("canvas", timeout=120_000)
             page.wait_for_timeout(args.warmup * 1000)
-            pids = [q for q in _descendants(os.getpid())
-                    if b"chrom" in Path(f"/proc/{q}/cmdline").read_bytes()[:200]]
+            pids = chromium_pids()
             gpu = [q for q in pids if _kind(q) == "gpu-process"]
             for _ in range(args.repeat):
                 for config in args.configs:
@@ -168,11 +167,11 @@ def main() -> None:
                     else:
                         parts.apply(config)
                         page.wait_for_timeout(1500)
-                    g0, a0 = _cpu(gpu), _cpu(pids)
-                    n, span = page.evaluate(COUNT, args.window * 1000)
+                    g0, a0 = cpu_seconds(gpu), cpu_seconds(pids)
+                    n, span = page.evaluate(COUNT_FRAMES, args.window * 1000)
                     n = max(int(n), 1)
-                    results[config].append((n / span, 1e3 * (_cpu(gpu) - g0) / n,
-                                            1e3 * (_cpu(pids) - a0) / n))
+                    results[config].append((n / span, 1e3 * (cpu_seconds(gpu) - g0) / n,
+                                            1e3 * (cpu_seconds(pids) - a0) / n))
                     if config == "bare":
                         page.goto(app.url)
                         page.wait_for_selector("canvas", timeout=120_000)
@@ -187,6 +186,8 @@ def main() -> None:
         print(f"{config:{width}s}  frames/s " + " ".join(f"{r[0]:5.1f}" for r in rows)
               + "  | GPU process ms/frame " + " ".join(f"{r[1]:4.0f}" for r in rows)
               + "  | all ms/frame " + " ".join(f"{r[2]:4.0f}" for r in rows))
+        figures.append((config, fmt_range([r[0] for r in rows], ".1f", "frames/s") + ", "
+                        + fmt_range([r[2] for r in rows], ".0f", "ms") + " browser CPU a frame"))
     if "bare" in results:
         ref = sum(r[0] for r in results["bare"]) / len(results["bare"])
         for config, rows in results.items():
@@ -194,7 +195,12 @@ def main() -> None:
                 mean = sum(r[0] for r in rows) / len(rows)
                 print(f"{config:{width}s}  {mean:5.1f} frames/s = {mean / ref:.2f} x the bare "
                       f"page's {ref:.1f}")
+                figures.append((f"{config} / bare page", f"{mean / ref:.2f}x"))
     print(f"load average {os.getloadavg()[0]:.1f}")
+    if args.write_figures:
+        write_block("page_parts", "What each part of the live page costs headless chromium",
+                    figures, machine=machine, note=f"{args.repeat} repeats of {args.window:g} "
+                    "s each, configurations in turn in one browser tab.")
 
 
 if __name__ == "__main__":

@@ -14,19 +14,15 @@ from __future__ import annotations
 
 import argparse
 import base64
-import sys
 import time
-from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+import numpy as np
 
-import numpy as np  # noqa: E402
-
-from tileviz.app.history import JPEG_QUALITY, encode_images  # noqa: E402
-from tileviz.app.panels import decode_jpeg  # noqa: E402
-from tileviz.config import preset  # noqa: E402
-from tileviz.pipeline import FrameLoop  # noqa: E402
-from tileviz.sim.source import SimSource  # noqa: E402
+from tileviz.app.history import JPEG_QUALITY, encode_images
+from tileviz.app.panels import decode_jpeg
+from tileviz.config import preset
+from tileviz.pipeline import FrameLoop
+from tileviz.sim.source import SimSource
 
 
 def main() -> None:

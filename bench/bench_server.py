@@ -1,8 +1,9 @@
-"""Throughput of the live server (issue 5): loop frames/s with every stage image streamed, and the
+"""Throughput of the live server: loop frames/s with every stage image streamed, and the
 scene updates a client receives per second.
 
     python bench/bench_server.py                          # websocket client, 20 s
     python bench/bench_server.py --seconds 20 --browser   # also a real chromium page
+    python -m bench.bench_server --seconds 10 --write-figures
 
 ``serve.py`` runs in its own process (default preset, 320x240, display on: every frame's camera
 view and stage images JPEG-encoded and kept in the history, the shown frame's streamed), pushing
@@ -22,26 +23,14 @@ import argparse
 import asyncio
 import os
 import subprocess
-import sys
 import tempfile
 import time
 from collections import Counter
-from pathlib import Path
 from typing import Any
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
-
-from tests.wsclient import ViserClient, decode_window, start_serve  # noqa: E402
-
-ARGS = ["--headless", "--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
-        "--disable-background-networking", "--disable-component-update", "--no-first-run"]
-
-
-def cpu_seconds(pid: int) -> float:
-    """User + system CPU time of a process so far (all its threads), seconds (Linux /proc)."""
-    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+from tileviz.testing.browser import ARGS, CHROMIUM, cpu_seconds
+from tileviz.testing.figures import Machine, write_block
+from tileviz.testing.wsclient import ViserClient, decode_window, start_serve
 
 
 def image_uuids(messages: list[dict[str, Any]]) -> dict[str, str]:
@@ -133,7 +122,7 @@ def browser_run(url: str, seconds: float, viewport: tuple[int, int] = (1400, 900
         ws.on("framereceived", on_frame)
 
     with sync_playwright() as p:
-        browser = p.chromium.launch(executable_path="/usr/bin/chromium", args=ARGS)
+        browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS)
         page = browser.new_page(viewport={"width": viewport[0], "height": viewport[1]})
         page.add_init_script(PAGE_COUNTERS)
         page.on("websocket", on_ws)
@@ -185,13 +174,16 @@ def main() -> int:
     ap.add_argument("--viewport", default="1400x900", help="browser page size, WxH pixels")
     ap.add_argument("--display", action=argparse.BooleanOptionalAction, default=True,
                     help="stream the stage images (default on)")
+    ap.add_argument("--write-figures", action="store_true",
+                    help="also write the figures into docs/figures.md (figures:server)")
     args = ap.parse_args()
+    machine = Machine()
     with tempfile.TemporaryDirectory() as tmp:
         proc, url = start_server(tmp, args, "max")
         try:
-            cpu0 = cpu_seconds(proc.pid)
+            cpu0 = cpu_seconds([proc.pid])
             got, frames, span, stages = asyncio.run(ws_run(url, args.seconds))
-            cpu = cpu_seconds(proc.pid) - cpu0  # includes the 3 s warm-up
+            cpu = cpu_seconds([proc.pid]) - cpu0  # includes the 3 s warm-up
         finally:
             stop_server(proc)
         print(f"320x240, display {'on' if args.display else 'off'} ({stages} stage image "
@@ -206,6 +198,11 @@ def main() -> int:
         print(f"websocket client (server at max speed): {got['robot'] / span:.1f} robot pose "
               f"updates/s, {got['camera'] / span:.1f} camera images/s, "
               f"{got['stage'] / span:.1f} stage images/s")
+        rows = [("loop at max speed, every stage image kept", f"{frames / span:.0f} frames/s"),
+                ("server CPU a frame, all threads", f"{1e3 * per:.1f} ms"),
+                ("a websocket client receives: robot poses / camera / stage images",
+                 f"{got['robot'] / span:.0f} / {got['camera'] / span:.0f} / "
+                 f"{got['stage'] / span:.0f} a second")]
         if args.browser:
             proc, url = start_server(tmp, args, args.browser_speed)
             try:
@@ -220,6 +217,15 @@ def main() -> int:
                   f"({nframes / bspan:.1f} websocket messages/s; load average "
                   f"{os.getloadavg()[0]:.1f})")
             print(f"  the page rendered {inpage['frames']:.1f} animation frames/s")
+            rows += [(f"headless chromium receives (server at {args.browser_speed}x): robot "
+                      "poses / camera / stage images",
+                      f"{bgot['robot'] / bspan:.0f} / {bgot['camera'] / bspan:.0f} / "
+                      f"{bgot['stage'] / bspan:.0f} a second"),
+                     ("the page paints (software WebGL)", f"{inpage['frames']:.1f} frames/s")]
+    if args.write_figures:
+        write_block("server", "The live server's throughput", rows, machine=machine,
+                    note=f"{args.seconds:g} s measured; push rate cap {args.push_rate:g}/s, "
+                    f"image rate cap {args.image_rate:g}/s.")
     return 0
 
 

@@ -2,15 +2,17 @@
 often outside its own declared bound (a false accept).
 
     python bench/cable_along.py [--views-per-family 100] [--first-seed 0] [--jobs 1]
-                                [--csv out.csv] [--motion]
+                                [--csv out.csv] [--motion] [--write-figures]
+    python -m bench.cable_along --motion --views-per-family 80
 
-Floors and cameras as in ``bench/vision_study.py`` (``bench/floorgen.py``, every family); on each
-view, a straight cable (2..10 px wide, dark or light) runs parallel to the grout line of one
-family nearest the view's centre, its centre ``delta`` px from the line's (uniform in
-[-25, 25] px: lying on the grout, touching it, or a few px beside it). The random study's
-cables lie at any angle, so few run along a line; this one asks for the hardest case. The
-table groups the views by the gap between the cable's and the grout's edges (negative: they
-overlap).
+Floors and cameras as in ``bench/vision_study.py`` (``tileviz/testing/floorgen.py``, every
+family; the views are :func:`tileviz.testing.views.cable_view` and
+:func:`~tileviz.testing.views.motion_view`); on each view, a straight cable (2..10 px wide, dark
+or light) runs parallel to the grout line of one family nearest the view's centre, its centre
+``delta`` px from the line's (uniform in [-25, 25] px: lying on the grout, touching it, or a few
+px beside it). The random study's cables lie at any angle, so few run along a line; this one
+asks for the hardest case. The table groups the views by the gap between the cable's and the
+grout's edges (negative: they overlap).
 
 ``--motion``: no cable; instead a short motion blur (2..15 px, shorter than the study's
 15..40 px, at any angle) that smears the grout lines of one family more than the other's into
@@ -23,22 +25,12 @@ import argparse
 import collections
 import csv
 import math
-import sys
 from concurrent.futures import ProcessPoolExecutor
 from contextlib import nullcontext
-from pathlib import Path
 
-import numpy as np
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
-import floorgen  # noqa: E402
-from vision_study import FAMILY_SALT  # noqa: E402
-
-from tileviz.config import CameraConfig, VisionConfig  # noqa: E402
-from tileviz.types import Pose  # noqa: E402
-from tileviz.vision import extract, observation_error  # noqa: E402
+from tileviz.testing import floorgen
+from tileviz.testing.figures import Machine, write_block
+from tileviz.testing.views import cable_view, motion_view
 
 GAPS = ((-math.inf, 0.0), (0.0, 3.0), (3.0, 6.0), (6.0, 10.0), (10.0, math.inf))
 """Buckets of the gap between the cable's and the grout's edges (px)."""
@@ -46,60 +38,12 @@ LENGTHS = ((2.0, 4.0), (4.0, 7.0), (7.0, 10.0), (10.0, 15.0))
 """Buckets of the motion blur's length (px) with ``--motion``."""
 
 
-def run_view(seed: int, family: str) -> dict:
-    """One view of ``family`` from ``seed`` with a cable along a grout line; the outcome."""
-    rng = np.random.default_rng([seed, FAMILY_SALT[family], 2])
-    spec = floorgen.draw_floor(family, rng)
-    cx, cy, th = floorgen.draw_view(rng)
-    k = int(rng.integers(2))
-    delta = float(rng.uniform(-25.0, 25.0))
-    width = float(rng.uniform(2.0, 10.0))
-    shade = float(rng.uniform(10, 60) if rng.uniform() < 0.7 else rng.uniform(200, 250))
-    normal, s = floorgen.line_offset(spec, cx, cy, th, k)
-    img = floorgen.render(spec, cx, cy, th, rng,
-                          overlay=floorgen.band(spec, normal, s + delta, width, shade))
-    out = {"seed": seed, "family": family, "delta": delta, "width": width, "shade": shade,
-           "grout_px": spec.grout_px, "gap": abs(delta) - 0.5 * (width + spec.grout_px),
-           "line_s": s}
-    return _outcome(out, img, spec, Pose(cx, cy, th))
-
-
-def run_motion(seed: int, family: str) -> dict:
-    """One view of ``family`` from ``seed`` under a short motion blur; the outcome."""
-    rng = np.random.default_rng([seed, FAMILY_SALT[family], 3])
-    spec = floorgen.draw_floor(family, rng)
-    cx, cy, th = floorgen.draw_view(rng)
-    length = float(rng.uniform(2.0, 15.0))
-    ang = float(rng.uniform(0.0, math.pi))
-    img = floorgen.render(spec, cx, cy, th, rng, motion=(length, ang))
-    out = {"seed": seed, "family": family, "length": length, "angle": ang,
-           "grout_px": spec.grout_px}
-    return _outcome(out, img, spec, Pose(cx, cy, th))
-
-
-def _outcome(out: dict, img: np.ndarray, spec: floorgen.FloorSpec, pose: Pose) -> dict:
-    """``out`` with the robust extractor's outcome on ``img`` (camera at ``pose``): accepted,
-    reason, the error and declared bound in px, and whether the truth is inside the bound."""
-    cam = CameraConfig(ppm=spec.ppm, width=spec.width, height=spec.height, offset=(0.0, 0.0))
-    res = extract(img, camera=cam, tile_size=spec.tile_size,
-                  vision=VisionConfig(extractor="robust"))
-    out.update(accepted=res.accepted, reason=res.reason, err_px=math.nan, bound_px=math.nan,
-               inside=True)
-    if res.accepted:
-        obs = res.observation
-        e1, e2, e3 = observation_error(obs, pose, spec.tile_size, (0.0, 0.0))
-        ep = max(abs(e1), abs(e2))
-        out.update(err_px=ep * spec.ppm, bound_px=obs.position_error * spec.ppm,
-                   inside=ep <= obs.position_error and abs(e3) <= obs.heading_error)
-    return out
-
-
 def _task(args: tuple[int, str]) -> dict:
-    return run_view(*args)
+    return cable_view(*args)
 
 
 def _motion_task(args: tuple[int, str]) -> dict:
-    return run_motion(*args)
+    return motion_view(*args)
 
 
 def report(rows: list[dict], motion: bool = False) -> str:
@@ -129,10 +73,22 @@ def report(rows: list[dict], motion: bool = False) -> str:
 
 
 def _row(name: str, sel: list[dict]) -> str:
+    return "| " + " | ".join(_cells(name, sel)) + " |"
+
+
+def _cells(name: str, sel: list[dict]) -> tuple[str, str, str, str, str]:
+    """(name, views, accepted, accepted outside their bound, largest error / bound)."""
     acc = [r for r in sel if r["accepted"]]
     bad = [r for r in acc if not r["inside"]]
     worst = max((r["err_px"] / r["bound_px"] for r in acc), default=math.nan)
-    return f"| {name} | {len(sel)} | {len(acc)} | {len(bad)} | {floorgen.cell(worst, '.2f')} |"
+    return name, str(len(sel)), str(len(acc)), str(len(bad)), floorgen.cell(worst, ".2f")
+
+
+def figure_rows(rows: list[dict], motion: bool) -> list[tuple[str, ...]]:
+    """The figures: per bucket of the gap (``motion``: the blur's length), then all views."""
+    key, buckets = ("length", LENGTHS) if motion else ("gap", GAPS)
+    return [*(_cells(f"{lo:g} .. {hi:g} px", [r for r in rows if lo <= r[key] < hi])
+              for lo, hi in buckets), _cells("all", rows)]
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -143,7 +99,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--csv", default="")
     ap.add_argument("--motion", action="store_true",
                     help="a short motion blur instead of a cable along the grout")
+    ap.add_argument("--write-figures", action="store_true",
+                    help="also write the figures into docs/figures.md (figures:cable_along, "
+                    "figures:motion_blur with --motion)")
     args = ap.parse_args(argv)
+    machine = Machine()
     tasks = [(args.first_seed + i, fam) for i in range(args.views_per_family)
              for fam in floorgen.FAMILIES]
     task = _motion_task if args.motion else _task
@@ -161,6 +121,15 @@ def main(argv: list[str] | None = None) -> int:
     print(report(rows, args.motion))
     reasons = collections.Counter(r["reason"] for r in rows if not r["accepted"])
     print("\nrefusals: " + ", ".join(f"{k} {v}" for k, v in reasons.most_common()))
+    if args.write_figures:
+        what = "motion blur length" if args.motion else "gap between cable and grout"
+        write_block("motion_blur" if args.motion else "cable_along",
+                    "A short motion blur" if args.motion else "A cable along a grout line",
+                    figure_rows(rows, args.motion), machine=machine,
+                    header=(what, "views", "accepted", "accepted outside own bound",
+                            "largest error / bound"),
+                    note=f"Seeds {args.first_seed}..{args.first_seed + args.views_per_family - 1}"
+                    " of every family.")
     return 0
 
 

@@ -20,6 +20,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from tileviz.testing.figures import Machine, fmt_range, write_block
+
 
 def table(path: Path) -> list[dict]:
     with open(path, newline="") as f:
@@ -36,7 +38,11 @@ def main() -> None:
     ap.add_argument("--scenarios", default="clean,seed")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--repeat", type=int, default=1)
+    ap.add_argument("--write-figures", action="store_true",
+                    help="also write the figures into docs/figures.md (figures:cluster)")
     args = ap.parse_args()
+    machine = Machine()
+    rates: dict[str, list[float]] = {name: [] for name in ("--jobs", "--scheduler")}
     n = args.runs * len(args.scenarios.split(","))
     base = [sys.executable, "-m", "tileviz", "evaluate", "--runs", str(args.runs),
             "--duration", f"{args.duration:g}", "--scenarios", args.scenarios, "--quiet"]
@@ -67,9 +73,20 @@ def main() -> None:
                 print(f"{' '.join(extra):22s} {wall:7.1f} s wall, {60.0 * n / wall:6.2f} runs/min;"
                       f" without the fixed cost {60.0 * n / net:6.2f} runs/min", flush=True)
                 outs[name] = out
+                rates[name].append(60.0 * n / wall)
         same = all(table(outs["--jobs"] / f) == table(outs["--scheduler"] / f)
                    for f in ("results.csv", "runs.csv", "calibration.csv"))
         print(f"same tables (CPU aside): {same}")
+    if args.write_figures:
+        rows = [(f"{' '.join(modes[name])}: whole command", fmt_range(rates[name], ".2f",
+                                                                      "runs/min"))
+                for name in modes]
+        rows += [(f"{' '.join(modes[name])}: fixed cost (a 1-frame campaign)",
+                  f"{fixed[name]:.1f} s") for name in modes]
+        rows.append(("same tables (CPU column aside)", "yes" if same else "NO"))
+        write_block("cluster", "A campaign on one machine: processes against a local Dask "
+                    "cluster", rows, machine=machine,
+                    note=f"{n} runs of {args.duration:g} s, {args.workers} workers.")
 
 
 if __name__ == "__main__":

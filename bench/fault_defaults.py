@@ -1,22 +1,24 @@
-"""The fault model's default (issue 18): what turning it on costs and changes.
+"""The fault model's default: what turning it on costs and changes.
 
     python bench/fault_defaults.py              # all three measures
     python bench/fault_defaults.py --skip-dataset
+    python -m bench.fault_defaults --frames 500 --repeats 2 --write-figures
 
 1. CPU: ``Localizer.step`` per frame, fault model off and on, on the drive of
-   ``bench/bench_localizer.py`` (both presets, mode autonomous, sensors within their bounds),
-   best of ``--repeats``.
+   ``bench/bench_localizer.py`` (:func:`tileviz.testing.drives.make_run`: both presets, mode
+   autonomous, sensors within their bounds), best of ``--repeats``.
 2. Clean runs: every output of every frame (both box sets bit for bit, status, flags) with the
    model off and on, on those drives and on the recorded inputs of
    ``tests/data/localizer_golden.npz`` (outlier views, missing compass readings and views, wide
    heading bounds; some sequences also hold slips and kidnaps: those are expected to differ).
-3. The fault dataset of ``tests/fault_dataset.py`` (a 2 s slip of 0.15 m/s beyond the speed
-   bound, a kidnap of (0.37, -0.21) m, 0.3 rad, a 2 s dropout) replayed (``tileviz replay``) with
-   several fault models: longest run of vouched frames without the truth, ``lost`` frames from 20
-   frames after the slip to the kidnap, median hull width there, frames from the kidnap to
-   ``lost``, and the widest hull vouched as one box.
+3. The fault dataset of ``tileviz/testing/fault_dataset.py`` (a 2 s slip of 0.15 m/s beyond the
+   speed bound, a kidnap of (0.37, -0.21) m, 0.3 rad, a 2 s dropout) replayed (``tileviz
+   replay``) with several fault models: longest run of vouched frames without the truth,
+   ``lost`` frames from 20 frames after the slip to the kidnap, median hull width there, frames
+   from the kidnap to ``lost``, and the widest hull vouched as one box.
 
-The figures go to stdout (docs/faults.md quotes them with the command).
+The figures go to stdout; ``--write-figures`` also writes them into ``docs/figures.md``
+(``figures:fault_defaults``).
 """
 
 from __future__ import annotations
@@ -24,20 +26,17 @@ from __future__ import annotations
 import argparse
 import csv
 import statistics
-import sys
 import tempfile
 from dataclasses import replace
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+import numpy as np
 
-import numpy as np  # noqa: E402
-from bench_localizer import make_run, time_step  # noqa: E402
-
-from tileviz.config import LocalizerConfig, preset, with_overrides  # noqa: E402
-from tileviz.core.localizer import Localizer  # noqa: E402
-from tileviz.types import Box, SensorBounds  # noqa: E402
+from tileviz.config import LocalizerConfig, preset, with_overrides
+from tileviz.testing.drives import localizer_of, make_run, time_step
+from tileviz.testing.figures import Machine, write_block
+from tileviz.testing.golden import first_difference, load, run_localizer
+from tileviz.types import Box
 
 MODELS = ((0.0, 0.0), (0.1, 0.05), (0.2, 0.1), (0.3, 0.2), (0.5, 0.3))
 """Fault models tried on the fault dataset (m/s, rad/s)."""
@@ -48,11 +47,7 @@ def _with_model(c: LocalizerConfig, model: tuple[float, float]) -> LocalizerConf
 
 
 def _outputs(cfg, run) -> list[tuple]:
-    bounds = SensorBounds(cfg.noise.speed_error, cfg.noise.yaw_rate_error, cfg.noise.compass_error)
-    from bench_localizer import initial_box
-
-    loc = Localizer(tile_size=cfg.floor.tile_size, camera_offset=cfg.camera.offset, bounds=bounds,
-                    config=cfg.localizer, initial=initial_box(cfg))
+    loc = localizer_of(cfg)
     out = []
     for f in run:
         s = loc.step(f["odometry"], f["compass"], f["observation"], f["truth"])
@@ -61,7 +56,10 @@ def _outputs(cfg, run) -> list[tuple]:
     return out
 
 
-def cpu_and_clean(model: tuple[float, float], frames: int, repeats: int) -> None:
+def cpu_and_clean(model: tuple[float, float], frames: int,
+                  repeats: int) -> list[tuple[str, str]]:
+    """Measure 1 and 2 on the drives; their figure rows."""
+    rows = []
     print(f"== CPU and clean drives ({frames} frames, model {model[0]} m/s, {model[1]} rad/s)")
     for name in ("default", "seed"):
         cfg = with_overrides(preset(name), localizer={"mode": "autonomous"})
@@ -73,12 +71,13 @@ def cpu_and_clean(model: tuple[float, float], frames: int, repeats: int) -> None
         same = _outputs(cfg_off, run) == _outputs(cfg_on, run)
         print(f"   {name}: Localizer.step {off_us:.1f} us/frame off, {on_us:.1f} on "
               f"(x{on_us / off_us:.2f}); outputs identical: {same}")
+        rows += [(f"{name} drive: Localizer.step, model off / on",
+                  f"{off_us:.1f} / {on_us:.1f} us/frame"),
+                 (f"{name} drive: outputs with the model on", "identical" if same else "differ")]
+    return rows
 
 
 def golden(model: tuple[float, float]) -> None:
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-    from test_localizer_golden import first_difference, load, run_localizer
-
     print("== recorded inputs of tests/data/localizer_golden.npz, model off vs on")
     for name, (setup, inputs, _) in load().items():
         off = dict(setup, config=dict(setup["config"], fault_speed=0.0, fault_yaw_rate=0.0))
@@ -91,10 +90,12 @@ def golden(model: tuple[float, float]) -> None:
               f"statuses (contracted, predicted, rejected, lost) off {counts[0]} on {counts[1]}")
 
 
-def dataset(models: tuple[tuple[float, float], ...]) -> None:
-    from tests.exact_truth import in_box
-    from tests.fault_dataset import FaultPlan, make_fault_dataset
+def dataset(models: tuple[tuple[float, float], ...]) -> list[tuple[str, str]]:
+    """Measure 3; its figure rows."""
+    figs = []
     from tileviz.pipeline.replay import replay
+    from tileviz.testing.exact_truth import in_box
+    from tileviz.testing.fault_dataset import FaultPlan, make_fault_dataset
 
     plan = FaultPlan()
     print(f"== fault dataset ({plan.frames} frames: slip {plan.slip_at}-"
@@ -134,6 +135,13 @@ def dataset(models: tuple[tuple[float, float], ...]) -> None:
                   f"lost {lost}/{b - a} from slip end + 20 to the kidnap, median width there "
                   f"{100 * med:.1f} cm; kidnap -> lost in {to_lost} frames; widest one-box "
                   f"vouched hull {100 * one_box_width:.1f} cm")
+            width_cm = "-" if med != med else f"{100 * med:.1f} cm"
+            kidnap = "never" if to_lost is None else f"{to_lost} frames"
+            figs += [(f"fault dataset, model {model[0]:g} m/s, {model[1]:g} rad/s: longest "
+                      "vouched run without the truth; kidnap to lost", f"{best} frames; {kidnap}"),
+                     (f"fault dataset, model {model[0]:g} m/s, {model[1]:g} rad/s: lost after "
+                      "the slip; median width there", f"{lost} of {b - a} frames; {width_cm}")]
+    return figs
 
 
 def main() -> int:
@@ -141,14 +149,20 @@ def main() -> int:
     ap.add_argument("--frames", type=int, default=2000)
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--skip-dataset", action="store_true")
+    ap.add_argument("--write-figures", action="store_true",
+                    help="also write the figures into docs/figures.md (figures:fault_defaults)")
     args = ap.parse_args()
+    machine = Machine()
     model = (LocalizerConfig().fault_speed, LocalizerConfig().fault_yaw_rate)
     if model == (0.0, 0.0):
         model = (0.2, 0.1)
-    cpu_and_clean(model, args.frames, args.repeats)
+    rows = cpu_and_clean(model, args.frames, args.repeats)
     golden(model)
     if not args.skip_dataset:
-        dataset(MODELS)
+        rows += dataset(MODELS)
+    if args.write_figures:
+        write_block("fault_defaults", "The default fault model: what it costs and changes",
+                    rows, machine=machine)
     return 0
 
 

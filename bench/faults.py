@@ -1,8 +1,9 @@
-"""Faults (issue 7): detection delay, recovery time and containment per fault type.
+"""Faults: detection delay, recovery time and containment per fault type.
 
     python bench/faults.py                       # 3 seeds on `default`, 1 on `seed`, 2 processes
     python bench/faults.py --seeds 5 --seed-preset-seeds 2 --jobs 1
-    python bench/faults.py --out ''              # print only, do not write docs/faults.md
+    python bench/faults.py --out ''              # print only, do not write docs/eval/faults.md
+    python -m bench.faults --seeds 1 --seed-preset-seeds 0 --out '' --write-figures
 
 Each run simulates the preset (``SimSource``, Lissajous setpoint) through ``FrameLoop`` (robust
 vision, interval localizer in mode ``autonomous``), injects one fault with ``SimSource.inject``
@@ -46,7 +47,9 @@ Recovery setting (``max_slip``, metres and radians, ``tileviz.evaluation.RECOVER
 below half a tile minus the tracking set's width, so a re-inflation leaves one lattice cell
 (``tileviz.core.localizer``, "Recovery").
 
-The Markdown table goes to stdout and to ``--out`` (default ``docs/faults.md``).
+The Markdown table goes to stdout and to ``--out`` (default ``docs/eval/faults.md``, the results
+page of ``docs/faults.md``); ``--write-figures`` writes the fault model's rows (every fault, the
+default preset) into ``docs/figures.md`` (``figures:faults``).
 """
 
 from __future__ import annotations
@@ -61,17 +64,16 @@ from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+import numpy as np
 
-import numpy as np  # noqa: E402
-
-from tileviz.config import Config, LocalizerConfig, preset  # noqa: E402
-from tileviz.evaluation import RECOVERY_MAX_SLIP, event_outcomes, noticed  # noqa: E402
-from tileviz.pipeline import FrameLoop, FrameRecord  # noqa: E402
-from tileviz.sim.sensors import prediction_encloses  # noqa: E402
-from tileviz.sim.source import SimSource  # noqa: E402
-from tileviz.types import Box  # noqa: E402
-from tileviz.vision import observation_error, set_opencv_threads  # noqa: E402
+from tileviz.config import Config, LocalizerConfig, preset
+from tileviz.evaluation import RECOVERY_MAX_SLIP, event_outcomes, noticed
+from tileviz.pipeline import FrameLoop, FrameRecord
+from tileviz.sim.sensors import prediction_encloses
+from tileviz.sim.source import SimSource
+from tileviz.testing.figures import Machine, write_block
+from tileviz.types import Box
+from tileviz.vision import observation_error, set_opencv_threads
 
 set_opencv_threads()  # as every tileviz entry point (workers re-run this on import)
 
@@ -112,7 +114,7 @@ def _kidnap(dx_tiles: float, dy_tiles: float, dtheta: float,
 
 
 def fault_specs(name: str) -> list[FaultSpec]:
-    """The faults of issue 7 for preset ``name`` (kidnap distances scale with its max_slip)."""
+    """The faults for preset ``name`` (kidnap distances scale with its max_slip)."""
     d, _ = MAX_SLIP[name]
     return [
         FaultSpec("cable", "cable", _camera("cable", 20), "1 s"),
@@ -368,8 +370,12 @@ def main() -> int:
     ap.add_argument("--before", type=int, default=60, help="frames before the fault")
     ap.add_argument("--after", type=int, default=100, help="frames after the fault's end")
     ap.add_argument("--jobs", type=int, default=2, help="worker processes")
-    ap.add_argument("--out", default="docs/faults.md", help="Markdown file ('' = none)")
+    ap.add_argument("--out", default="docs/eval/faults.md", help="Markdown file ('' = none)")
+    ap.add_argument("--write-figures", action="store_true",
+                    help="also write the fault model's rows into docs/figures.md "
+                    "(figures:faults)")
     args = ap.parse_args()
+    machine = Machine()
     if args.seeds < 0 or args.seed_preset_seeds < 0 or args.before < 1 or args.after < 1:
         ap.error("--seeds, --seed-preset-seeds >= 0; --before, --after >= 1")
     jobs = []
@@ -406,16 +412,17 @@ def main() -> int:
                        if n == "default" and note)
     cmd = " ".join(["python bench/faults.py", *sys.argv[1:]])
     text = "\n".join([
-        "# Faults: detection, recovery, containment",
+        "# Faults: detection, recovery, containment (results)",
         "",
-        f"Measured by `{cmd}` ({len(results)} runs, {elapsed:.0f} s). Definitions in "
-        "`bench/faults.py`; the guarantee and its hypotheses in `docs/guarantees.md`.",
+        f"Measured by `{cmd}` ({len(results)} runs, {elapsed:.0f} s). How the faults are made "
+        "and measured: [faults.md](../faults.md); the guarantee and its hypotheses: "
+        "[guarantees.md](../guarantees.md).",
         "Detection delay and recovery time are computed by the code behind the same columns of "
         "the evaluation table (`tileviz.evaluation.event_outcomes`): there, per scenario, over "
         "long runs with several faults, for the autonomous localizer with its fault model "
         "(`interval`, the `model` rows below) and with recovery on instead "
         "(`interval-recovery`, the `max_slip` below) "
-        "([evaluation.md](evaluation.md), [eval/results.md](eval/results.md)). This page adds "
+        "([evaluation.md](../evaluation.md), [results.md](results.md)). This page adds "
         "one fault at a time, more fault types, and the explanation of every wrong vouched "
         "frame.",
         f"Fault after {args.before} frames, run on for {args.after} frames after its end; "
@@ -424,7 +431,7 @@ def main() -> int:
         + ", ".join(f"{n} {v}" for n, v in MAX_SLIP.items()) + " (m, rad); `model`: "
         f"the fault model {FAULT_MODEL[0]} m/s, {FAULT_MODEL[1]} rad/s beyond the odometry "
         "bounds, every preset: **the default** (how it was chosen: `python "
-        "bench/fault_defaults.py`, [guarantees.md](guarantees.md), \"How the default was "
+        "bench/fault_defaults.py`, [guarantees.md](../guarantees.md), \"How the default was "
         "chosen\").",
         "",
         *lines,
@@ -443,7 +450,24 @@ def main() -> int:
     if args.out:
         Path(args.out).parent.mkdir(parents=True, exist_ok=True)
         Path(args.out).write_text(text, encoding="utf-8")
+    if args.write_figures:
+        rows = [figure_row(runs) for (name, _, setting), runs in groups.items()
+                if name == "default" and setting == "model"]
+        rows.append(("every run: unexplained wrong vouched frames; faulty views accepted "
+                     "outside their bound", "", "", f"{len(unexplained)}; {len(bad)}"))
+        write_block("faults", "Faults, one at a time", rows, machine=machine,
+                    header=("fault (default preset, fault model on)", "detection delay (frames)",
+                            "recovery time (frames)", "containment, vouched frames"),
+                    note=f"{len(results)} runs, {elapsed:.0f} s; every preset and setting: "
+                    "[eval/faults.md](eval/faults.md).")
     return 0
+
+
+def figure_row(runs: list[RunResult]) -> tuple[str, str, str, str]:
+    """One fault's figures: detection delay and recovery time (median and range over the runs;
+    "never" where a run had none) and containment over the vouched frames."""
+    cells = summarize(runs)[0].strip("| ").split(" | ")
+    return runs[0].fault, cells[4], cells[5], cells[6].split(" (")[0]
 
 
 if __name__ == "__main__":

@@ -28,6 +28,7 @@ from tileviz.baselines.mcl import CALIBRATION_LEVELS, MCL, MclConfig, calibrated
 from tileviz.config import preset
 from tileviz.pipeline import initial_box
 from tileviz.sim.source import SimSource
+from tileviz.testing.figures import Machine, write_block
 from tileviz.types import Box, SensorBounds
 from tileviz.vision import extract, set_opencv_threads
 
@@ -76,7 +77,11 @@ def main() -> None:
     ap.add_argument("--presets", default="default,seed")
     ap.add_argument("--variants", default="untuned,calibrated")
     ap.add_argument("--cache", type=Path, default=None)
+    ap.add_argument("--write-figures", action="store_true",
+                    help="also write the table into docs/figures.md (figures:mcl_calibration)")
     args = ap.parse_args()
+    machine = Machine()
+    rows: list[tuple[str, ...]] = []
     print("| preset | MCL | " + " | ".join(f"{100 * lv:g} %" for lv in CALIBRATION_LEVELS)
           + " | 95 % box x median (cm) | RMSE xy (cm) | particles (mean) | CPU µs/frame |")
     print("|---|---|" + "---|" * (len(CALIBRATION_LEVELS) + 4))
@@ -105,9 +110,18 @@ def main() -> None:
                     npart.append(est.particles.shape[0])
             d2a = np.asarray(d2)
             cells = [f"{100 * float(np.mean(d2a <= chi2_2d(lv))):.1f}" for lv in CALIBRATION_LEVELS]
-            print(f"| {name} | {label} | " + " | ".join(cells)
-                  + f" | {100 * np.median(wx):.2f} | {100 * math.sqrt(np.mean(np.square(err))):.2f}"
-                  f" | {np.mean(npart):.0f} | {1e6 * cpu / d2a.size:.0f} |", flush=True)
+            row = (name, label, *cells, f"{100 * np.median(wx):.2f}",
+                   f"{100 * math.sqrt(np.mean(np.square(err))):.2f}", f"{np.mean(npart):.0f}",
+                   f"{1e6 * cpu / d2a.size:.0f}")
+            print("| " + " | ".join(row) + " |", flush=True)
+            rows.append(row)
+    if args.write_figures:
+        write_block("mcl_calibration", "MCL calibration: share of frames whose nominal ellipse "
+                    "holds the truth", rows, machine=machine,
+                    header=("preset", "MCL", *(f"{100 * lv:g} %" for lv in CALIBRATION_LEVELS),
+                            "95 % box x median (cm)", "RMSE xy (cm)", "particles (mean)",
+                            "CPU µs/frame"),
+                    note=f"{args.runs} runs of {args.seconds:g} s per preset.")
 
 
 if __name__ == "__main__":

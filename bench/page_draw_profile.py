@@ -23,16 +23,9 @@ compare large differences only. Wall-clock times: on a loaded machine they grow 
 from __future__ import annotations
 
 import argparse
-import sys
-from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
-sys.path.insert(0, str(REPO / "bench"))
-
-from bench_page import ARGS  # noqa: E402
-
-from tests.wsclient import start_serve, stop_serve  # noqa: E402
+from tileviz.testing.browser import ARGS, CHROMIUM
+from tileviz.testing.wsclient import start_serve, stop_serve
 
 HOOK = r"""
 (() => {
@@ -147,7 +140,7 @@ def main() -> None:
         proc, url = start_serve(["--port", "0", *args.serve])
     try:
         with sync_playwright() as p:
-            browser = p.chromium.launch(executable_path="/usr/bin/chromium", args=ARGS)
+            browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS)
             page = browser.new_page(viewport={"width": 1400, "height": 900})
             page.add_init_script(HOOK)
             page.goto(url)

@@ -1,6 +1,7 @@
 """The declared observation bounds of the presets, measured on each preset's own camera.
 
-    python bench/preset_bounds.py [--poses 2000] [--seed 0]
+    python bench/preset_bounds.py [--poses 2000] [--seed 0] [--write-figures]
+    python -m bench.preset_bounds --poses 300
 
 For each preset: random poses (uniform over a 40 m square, every heading) on floors of the preset's
 look with a random appearance seed, rendered by the simulator's camera with the preset's noise,
@@ -20,13 +21,15 @@ import numpy as np
 
 from tileviz.config import preset
 from tileviz.sim.camera import FloorRenderer
+from tileviz.testing.figures import Machine, write_block
 from tileviz.types import Pose
 from tileviz.vision import extract, observation_error, set_opencv_threads
 
 set_opencv_threads()  # as every tileviz entry point (workers re-run this on import)
 
 
-def study(name: str, poses: int, seed: int) -> None:
+def study(name: str, poses: int, seed: int) -> list[tuple[str, str]]:
+    """Print the study of preset ``name``; its figure rows."""
     cfg = preset(name)
     rng = np.random.default_rng(seed)
     pos: list[float] = []
@@ -68,6 +71,14 @@ def study(name: str, poses: int, seed: int) -> None:
     out = int(np.sum((p > bound_px) | (h > bound_rad)))
     print(f"outside its own declared bound: {out} of {len(p)}; largest error / bound "
           f"{(p / bound_px).max():.2f} (position), {(h / bound_rad).max():.2f} (heading)")
+    return [
+        (f"{name}: views accepted", f"{100 * len(p) / poses:.1f} % of {poses}"),
+        (f"{name}: median declared bound", f"{np.median(bound_px):.2f} px / "
+         f"{np.median(bound_rad):.4f} rad"),
+        (f"{name}: largest error / own bound (position, heading)",
+         f"{(p / bound_px).max():.2f}, {(h / bound_rad).max():.2f}"),
+        (f"{name}: accepted outside their own bound", f"{out}"),
+    ]
 
 
 def main() -> None:
@@ -75,9 +86,14 @@ def main() -> None:
     ap.add_argument("--poses", type=int, default=2000)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--presets", nargs="+", default=["default", "seed"])
+    ap.add_argument("--write-figures", action="store_true",
+                    help="also write the figures into docs/figures.md (figures:preset_bounds)")
     args = ap.parse_args()
-    for name in args.presets:
-        study(name, args.poses, args.seed)
+    machine = Machine()
+    rows = [row for name in args.presets for row in study(name, args.poses, args.seed)]
+    if args.write_figures:
+        write_block("preset_bounds", "Per-view bounds on the presets' cameras", rows,
+                    machine=machine)
 
 
 if __name__ == "__main__":

@@ -1,4 +1,4 @@
-"""The live loop's frame rate with and without 20 websocket clients churning (issue 7).
+"""The live loop's frame rate with and without 20 websocket clients churning.
 
     python bench/server_load.py                    # 8 s unloaded, then 60 s of churn
     python bench/server_load.py --seconds 30 --clients 20
@@ -14,20 +14,14 @@ here because they depend on what else the machine is doing.
 from __future__ import annotations
 
 import argparse
-import os
-import subprocess
-import sys
 import tempfile
 import time
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
-
-from tests.test_server_load import LOAD  # noqa: E402
-from tileviz.app.server import App  # noqa: E402
-from tileviz.app.session import SessionOptions  # noqa: E402
-from tileviz.config import preset  # noqa: E402
+from tileviz.app.server import App
+from tileviz.app.session import SessionOptions
+from tileviz.config import preset
+from tileviz.testing import churn
 
 
 def rate(app: App, seconds: float) -> float:
@@ -49,10 +43,7 @@ def main() -> int:
         try:
             time.sleep(2.0)
             unloaded = rate(app, args.unloaded)
-            env = dict(os.environ, PYTHONPATH=str(REPO))
-            load = subprocess.Popen(
-                [sys.executable, "-c", LOAD, app.url, str(args.clients), str(args.seconds), "1"],
-                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+            load = churn.start(app.url, args.clients, args.seconds, 1)
             time.sleep(3.0)  # clients connecting
             loaded = rate(app, max(1.0, args.seconds - 6.0))
             out, err = load.communicate()

@@ -1,4 +1,4 @@
-"""Memory of the live server over a long run (issue 7): RSS at start and end.
+"""Memory of the live server over a long run: RSS at start and end.
 
     python bench/server_rss.py --minutes 10
 
@@ -14,7 +14,7 @@ import sys
 import time
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
+from tileviz.testing import REPO
 
 
 def rss_mb(pid: int) -> float:

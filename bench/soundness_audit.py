@@ -1,7 +1,7 @@
-"""The long adversarial soundness run (issue 13): >= 1e5 frames of runs that respect every declared
+"""The long adversarial soundness run: >= 1e5 frames of runs that respect every declared
 bound at its nastiest, the truth in exact arithmetic, every frame's predicted set, updated set and
-written hull checked (``tests/adversary.py`` describes the adversary; the test suite runs a few
-hundred frames of it, ``tests/test_soundness_adversarial.py``).
+written hull checked (``tileviz/testing/adversary.py`` describes the adversary; the test suite
+runs a few hundred frames of it, ``tests/test_soundness_adversarial.py``).
 
     nice -n 10 python bench/soundness_audit.py                 # 1e5 frames, 20 per run
     python bench/soundness_audit.py --frames 2000 --seed 7     # a quick look
@@ -16,12 +16,8 @@ import argparse
 import sys
 import time
 from collections import Counter
-from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
-
-from tests.adversary import KINDS, RandomChooser, run, scenario  # noqa: E402
+from tileviz.testing.adversary import KINDS, RandomChooser, run, scenario
 
 
 def main() -> int:

@@ -4,8 +4,9 @@
     python bench/vision_snapshot.py compare FILE
 
 ``save`` renders the views (the simulator's frames on the default and seed presets and on every
-floor style, and ``bench/floorgen.py`` views of every family, clean and corrupted), extracts each
-with the robust extractor and writes the images and every output field to FILE (a pickle).
+floor style, and ``tileviz/testing/floorgen.py`` views of every family, clean and corrupted),
+extracts each with the robust extractor and writes the images and every output field to FILE (a
+pickle).
 ``compare`` extracts the same images again and reports every view whose outputs differ in any
 field (observation, reason, segments, angles, bags, disambiguation, offsets, median, details,
 and the stage images of every tenth view), bit for bit. A refactor or a speed change that
@@ -17,27 +18,22 @@ from __future__ import annotations
 import argparse
 import math
 import pickle
-import sys
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
-import floorgen  # noqa: E402
-
-from tileviz.config import (  # noqa: E402
+from tileviz.config import (
     FLOOR_STYLES,
     CameraConfig,
     VisionConfig,
     floor_style,
     preset,
 )
-from tileviz.sim.camera import FloorRenderer  # noqa: E402
-from tileviz.types import Pose  # noqa: E402
-from tileviz.vision import extract, set_opencv_threads  # noqa: E402
+from tileviz.sim.camera import FloorRenderer
+from tileviz.testing import floorgen
+from tileviz.types import Pose
+from tileviz.vision import extract, set_opencv_threads
 
 FIELDS = ("accepted", "reason", "observation", "segments", "angles", "bags", "disambiguation",
           "offsets", "median", "details")

@@ -3,8 +3,9 @@
     python bench/vision_study.py [--views-per-family 500] [--split fresh2|...|fresh7|fresh8]
                                  [--corrupted-per-family 100] [--jobs 1] [--csv out.csv]
     python bench/vision_study.py --report out.csv     # the tables of a (partial) run
+    python -m bench.vision_study --split fresh8 --views-per-family 20 --corrupted-per-family 5
 
-Floors come from ``bench/floorgen.py`` (its own renderer, no code shared with
+Floors come from ``tileviz/testing/floorgen.py`` (its own renderer, no code shared with
 ``tileviz.sim.camera``): nine families (plain, light grout, wide grout, strong shade steps, real
 photographs on the tiles, terrazzo, wood grain, degraded optics, thin grout at a coarse ppm), a
 new random floor and camera for every view, the camera centre and heading uniform. Corrupted
@@ -37,22 +38,15 @@ import argparse
 import collections
 import csv
 import math
-import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
 from contextlib import nullcontext
-from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
-import floorgen  # noqa: E402
-
-from tileviz.config import CameraConfig, VisionConfig  # noqa: E402
-from tileviz.types import Pose  # noqa: E402
-from tileviz.vision import extract, observation_error  # noqa: E402
+from tileviz.testing import floorgen
+from tileviz.testing.figures import Machine, write_block
+from tileviz.testing.views import study_view
 
 SPLITS = {"tuning": 0, "heldout": 10**6, "fresh": 3 * 10**6, "fresh2": 4 * 10**6,
           "fresh3": 5 * 10**6, "fresh4": 6 * 10**6, "fresh5": 7 * 10**6,
@@ -60,42 +54,8 @@ SPLITS = {"tuning": 0, "heldout": 10**6, "fresh": 3 * 10**6, "fresh2": 4 * 10**6
 """First seed of each split."""
 
 
-def run_view(seed: int, family: str, corruption: str | None,
-             vision: VisionConfig | None = None) -> dict:
-    """Render one view of ``family`` from ``seed`` and extract it; a dict of the outcome."""
-    rng = np.random.default_rng([seed, FAMILY_SALT[family], 0 if corruption is None else 1])
-    spec = floorgen.draw_floor(family, rng)
-    cx, cy, th = floorgen.draw_view(rng)
-    img = floorgen.render(spec, cx, cy, th, rng, corruption)
-    cam = CameraConfig(ppm=spec.ppm, width=spec.width, height=spec.height, offset=(0.0, 0.0))
-    res = extract(img, camera=cam, tile_size=spec.tile_size,
-                  vision=vision or VisionConfig(extractor="robust"))
-    out = {
-        "seed": seed, "family": family, "corruption": corruption or "",
-        "readable": floorgen.readable(spec, cx, cy, th), "accepted": res.accepted,
-        "reason": res.reason, "err_px": math.nan, "err_rad": math.nan, "bound_px": math.nan,
-        "bound_rad": math.nan, "inside": True, "ms": sum(res.timings.values()),
-        "ppm": spec.ppm, "tile": spec.tile_size, "grout_px": spec.grout_px,
-    }
-    for k in ("position_se_px", "heading_se", "straightness_px", "spacing_residual_px", "rise",
-              "noise_sigma", "width", "step", "heading_parts", "position_parts", "tilt_gap",
-              "depth"):
-        out[k] = float(res.details.get(k, math.nan))
-    if res.accepted:
-        obs = res.observation
-        e1, e2, e3 = observation_error(obs, Pose(cx, cy, th), spec.tile_size, (0.0, 0.0))
-        ep = max(abs(e1), abs(e2))
-        out.update(err_px=ep * spec.ppm, err_rad=abs(e3), bound_px=obs.position_error * spec.ppm,
-                   bound_rad=obs.heading_error,
-                   inside=ep <= obs.position_error and abs(e3) <= obs.heading_error)
-    return out
-
-
-FAMILY_SALT = {f: i + 1 for i, f in enumerate(floorgen.FAMILIES)}
-
-
 def _task(args: tuple[int, str, str | None]) -> dict:
-    return run_view(*args)
+    return study_view(*args)
 
 
 def tasks(split: str, per_family: int, corrupted: int) -> list[tuple[int, str, str | None]]:
@@ -131,6 +91,42 @@ def read_csv(path: str) -> list[dict]:
 
 def q(values: list[float], p: float) -> float:
     return float(np.percentile(values, p)) if values else math.nan
+
+
+def figure_rows(rows: list[dict]) -> list[tuple[str, ...]]:
+    """The figures of a study: per family (clean views) the readable views accepted, the median
+    and largest error, the largest error over its own bound and how many were accepted outside
+    it; then the corrupted views."""
+    out: list[tuple[str, ...]] = []
+    c = floorgen.cell
+    for fam in dict.fromkeys(r["family"] for r in rows):
+        sel = [r for r in rows if not r["corruption"] and r["family"] == fam]
+        rd = [r for r in sel if r["readable"]]
+        acc = [r for r in sel if r["accepted"]]
+        ok = sum(1 for r in rd if r["accepted"])
+        ep = [r["err_px"] for r in acc]
+        rp = max((r["err_px"] / r["bound_px"] for r in acc), default=math.nan)
+        rh = max((r["err_rad"] / r["bound_rad"] for r in acc), default=math.nan)
+        out.append((fam, f"{ok} of {len(rd)} ({100.0 * ok / max(len(rd), 1):.1f} %)",
+                    f"{c(q(ep, 50), '.3f')} / {c(max(ep, default=math.nan), '.3f')}",
+                    f"{c(rp, '.2f')}, {c(rh, '.2f')}",
+                    str(sum(1 for r in acc if not r["inside"]))))
+    bad = [r for r in rows if r["corruption"]]
+    if bad:
+        acc = [r for r in bad if r["accepted"]]
+        kinds = ", ".join(f"{k} {sum(r['accepted'] for r in bad if r['corruption'] == k)}/"
+                          f"{sum(1 for r in bad if r['corruption'] == k)}"
+                          for k in floorgen.CORRUPTIONS if any(r["corruption"] == k for r in bad))
+        rp = max((r["err_px"] / r["bound_px"] for r in acc), default=math.nan)
+        rh = max((r["err_rad"] / r["bound_rad"] for r in acc), default=math.nan)
+        out.append(("corrupted", f"{len(acc)} of {len(bad)} accepted ({kinds})", "",
+                    f"{c(rp, '.2f')}, {c(rh, '.2f')}",
+                    str(sum(1 for r in acc if not r["inside"]))))
+    return out
+
+
+FIGURE_HEADER = ("family", "clean views accepted", "median / max error (px)",
+                 "largest error / own bound (position, heading)", "accepted outside own bound")
 
 
 def report(rows: list[dict]) -> str:
@@ -196,11 +192,16 @@ def main(argv: list[str] | None = None) -> int:
                          "keeps what it measured)")
     ap.add_argument("--report", default=None, metavar="CSV",
                     help="only print the tables of a study's CSV (finished or interrupted)")
+    ap.add_argument("--write-figures", action="store_true",
+                    help="also write the figures into docs/figures.md (figures:vision_study)")
     args = ap.parse_args(argv)
+    machine = Machine()
     if args.report:
         rows = read_csv(args.report)
         print(f"{len(rows)} views (from {args.report})")
         print(report(rows))
+        if args.write_figures:
+            write_figures(rows, machine, f"views of {args.report}")
         return 0
     fams = args.families.split(",")
     work = [t for t in tasks(args.split, args.views_per_family, args.corrupted_per_family)
@@ -226,9 +227,19 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         if out is not None:
             out.close()
-    print(f"{len(rows)} views ({args.split} split) in {time.perf_counter() - t0:.0f} s")
+    elapsed = time.perf_counter() - t0
+    print(f"{len(rows)} views ({args.split} split) in {elapsed:.0f} s")
     print(report(rows))
+    if args.write_figures:
+        write_figures(rows, machine, f"{len(rows)} views of the {args.split} split, "
+                      f"{elapsed:.0f} s")
     return 0
+
+
+def write_figures(rows: list[dict], machine: Machine, what: str) -> None:
+    """The study's block of docs/figures.md."""
+    write_block("vision_study", "Vision on any tiled floor", figure_rows(rows),
+                machine=machine, header=FIGURE_HEADER, note=f"{what}.")
 
 
 if __name__ == "__main__":

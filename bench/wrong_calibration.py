@@ -11,18 +11,14 @@ from __future__ import annotations
 
 import argparse
 import math
-import sys
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from tileviz.config import VisionConfig, preset  # noqa: E402
-from tileviz.sim.camera import FloorRenderer  # noqa: E402
-from tileviz.types import Pose  # noqa: E402
-from tileviz.vision import extract, observation_error  # noqa: E402
+from tileviz.config import VisionConfig, preset
+from tileviz.sim.camera import FloorRenderer
+from tileviz.types import Pose
+from tileviz.vision import extract, observation_error
 
 
 def main(argv: list[str] | None = None) -> int:

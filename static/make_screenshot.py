@@ -9,20 +9,15 @@ photographs the page with Debian's chromium (``/usr/bin/chromium``) through Play
 from __future__ import annotations
 
 import argparse
-import sys
 import tempfile
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from tileviz.app.commands import Pause  # noqa: E402
-from tileviz.app.server import App  # noqa: E402
-from tileviz.app.session import SessionOptions  # noqa: E402
-from tileviz.config import preset  # noqa: E402
-
-ARGS = ["--headless", "--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
-        "--disable-background-networking", "--disable-component-update", "--no-first-run"]
+from tileviz.app.commands import Pause
+from tileviz.app.server import App
+from tileviz.app.session import SessionOptions
+from tileviz.config import preset
+from tileviz.testing.browser import ARGS, CHROMIUM
 
 
 def main() -> int:
@@ -45,7 +40,7 @@ def main() -> int:
             app.server.initial_camera.position = (x + 1.0, y - 3.2, 3.4)
             app.server.initial_camera.look_at = (x, y + 0.4, 0.0)
             with sync_playwright() as pw:
-                browser = pw.chromium.launch(executable_path="/usr/bin/chromium", args=ARGS)
+                browser = pw.chromium.launch(executable_path=CHROMIUM, args=ARGS)
                 page = browser.new_page(viewport={"width": 1600, "height": 1000})
                 page.goto(app.url)
                 page.wait_for_selector("canvas", timeout=60_000)

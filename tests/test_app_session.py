@@ -14,7 +14,7 @@ from tileviz.app.history import Entry, History
 from tileviz.app.outputs import output_path, sanitize_name
 from tileviz.app.session import Session, SessionOptions
 from tileviz.config import preset
-from tileviz.datasets import DatasetSource, read_meta
+from tileviz.datasets import DatasetSource, dataset_mb, read_meta
 
 
 @pytest.fixture(scope="module")
@@ -183,11 +183,12 @@ def test_commands_change_the_run(cfg, tmp_path):
     assert s.shown_entry().record.setpoint == (2.0, -1.0)
     s.apply(C.SetWaypoints(((1.0, 1.0), (2.0, 2.0))))
     assert s.setpoint_kind == "waypoints"
-    s.apply(C.Restart(0.5, 150.0))
+    s.apply(C.Restart(0.5, 150.0, "light_grout"))
     # the new run's frame 0 is shown at once, paused: nothing of the old run stays
     assert s.cfg.floor.tile_size == 0.5 and s.cfg.camera.ppm == 150.0 and not s.playing
     assert len(s.history) == 1 and s.shown_entry().record.index == 0
-    assert [n.text for n in s.notes] == ["new run: tile size 0.5 m, 150 px/m"]
+    assert [n.text for n in s.notes] == [
+        "new run: tile size 0.5 m, 150 px/m, floor style light_grout"]
     s.apply(C.Step())
     assert s.shown_entry().record.index == 1
     s.close()
@@ -223,7 +224,10 @@ def test_recording_while_paused_says_what_happened(cfg, tmp_path):
     s.apply(C.Step())
     s.apply(C.Step())
     s.apply(C.StopRecording())
-    assert s.notes[-1].text.startswith("recorded 2 frames to")
+    # the note gives the dataset's size, as record does
+    mb = dataset_mb(tmp_path / "out" / "two")
+    assert mb > 0.1  # two images of the default camera
+    assert s.notes[-1].text.startswith(f"recorded 2 frames ({mb:.1f} MB) to")
     assert len((tmp_path / "out" / "two" / "frames.csv").read_text().splitlines()) == 3
     s.close()
 
@@ -356,7 +360,7 @@ def test_the_fault_model_is_set_from_the_gui_and_the_page_says_when_it_is_used(c
     """The settings' fault model (SetFaultModel) reaches the localizer; the status readout says
     when the fault set is followed (frame k of it) and counts the views that fit neither set
     before ``lost`` (a kidnap)."""
-    from tileviz.app.server import fault_line
+    from tileviz.app.status import fault_line
 
     with pytest.raises(ValueError, match="fault model speed"):
         C.SetFaultModel(-0.1, 0.1)
@@ -392,7 +396,7 @@ def test_relocalize_in_a_region_from_the_gui_and_after_lost(cfg, tmp_path):
     """The GUI's "Re-localize in the region" (RelocalizeRegion) restarts a lost localizer with
     candidates that hold the truth; with ``relocalize_region`` (``serve --relocalize-region``)
     that happens by itself at the frame after ``lost``."""
-    from tileviz.app.server import fault_line
+    from tileviz.app.status import fault_line
 
     assert C.parse_region("-1, -2, 3 4") == (-1.0, -2.0, 3.0, 4.0)
     with pytest.raises(ValueError, match="region"):
@@ -416,5 +420,59 @@ def test_relocalize_in_a_region_from_the_gui_and_after_lost(cfg, tmp_path):
         rec = s.shown_entry().record
         assert rec.status == "contracted" and rec.truth_inside() and len(rec.updated) > 1
         assert fault_line(rec.step, s.cfg.localizer).startswith(
-            f"re-localizing: {len(rec.updated)} candidate(s)")
+            f"re-localizing: {len(rec.updated)} candidates")
         s.close()
+
+
+class _FakeImage:
+    def __init__(self, label: str = "", visible: bool = True) -> None:
+        self.label, self.visible, self.image = label, visible, None
+
+
+class _FakeMarkdown:
+    content = ""
+
+
+class _FakeGui:
+    def add_image(self, blank, *, label="", format="jpeg", jpeg_quality=90, visible=True):
+        return _FakeImage(label, visible)
+
+    def add_markdown(self, text):
+        return _FakeMarkdown()
+
+
+def test_a_stage_that_found_nothing_is_captioned_none_found(cfg, tmp_path):
+    """The stages panel on a clean default view: the foreign-lines stage is black (nothing
+    foreign) and its label says "none found"; a stage that drew something does not."""
+    from tileviz.app.panels import ImagePanels
+
+    s = make(cfg, tmp_path, display=True)
+    s.apply(C.Step())
+    panels = ImagePanels(_FakeGui())
+    panels.show(s.shown_entry(), True, True)
+    labels = {slot.handle.label for slot in panels.stages if slot.handle.visible}
+    assert "foreign lines: none found" in labels
+    assert "gray" in labels  # a stage with something drawn keeps its plain title
+    s.close()
+
+
+def test_the_view_plot_shows_each_view_within_its_bound_at_or_below_one(cfg, tmp_path):
+    """The plot "Is the view within its bound of the true pose?": per coordinate, each accepted
+    view's error over its declared bound; on the robust extractor's views of the default run
+    every value is at most 1 (the view agrees), and frames without a view have no value."""
+    from tileviz.app.history import METRIC_NAMES, metrics_of
+
+    s = make(cfg, tmp_path)
+    cols = [METRIC_NAMES.index(n) for n in ("view_x", "view_y", "view_heading")]
+    seen = 0
+    for _ in range(20):
+        s.apply(C.Step())
+        rec = s.shown_entry().record
+        row = metrics_of(rec)[cols]
+        if rec.vision.observation is None:
+            assert np.isnan(row).all()
+        else:
+            seen += 1
+            assert np.isfinite(row).all() and (row <= 1.0).all() and (row >= 0.0).all()
+    assert seen >= 15
+    s.close()

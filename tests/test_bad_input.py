@@ -111,7 +111,6 @@ def test_record_into_a_file(tmp_path: Path) -> None:
         (["--out", "x.csv", "--max-boxes", "0"], "--max-boxes must be >= 1"),
         (["--out", "x.csv", "--max-boxes", "abc"], "--max-boxes must be an integer"),
         (["--out", "x.csv", "--extractor", "magic"], "invalid choice: 'magic'"),
-        ([], "required: --out"),
         (["--out", "no/such/dir/x.csv"], "output directory does not exist"),
     ],
 )
@@ -174,7 +173,7 @@ def test_extract_bad_options_and_images(args: list[str], needle: str, images: Pa
 
 def test_extract_of_a_constant_image_is_a_refusal_not_an_error(images: Path) -> None:
     r = _cli(["extract", "constant.png"], images)
-    assert r.returncode == 0 and r.stderr == ""
+    assert r.returncode == 1 and r.stderr == ""  # 1: no observation found (not bad input)
     assert r.stdout.strip() == "constant.png: no observation (constant image); 0 lines"
 
 
@@ -280,15 +279,18 @@ def test_a_good_dataset_reads(tmp_path: Path) -> None:
         (lambda d: (d / "frames.csv").write_bytes(bytes(range(256)) * 3), "frames.csv: not UTF-8"),
         (lambda d: (d / "frames.csv").write_text("index,t,image,speed\n0,0,images/a.png,1\n"),
          "frames.csv: missing column(s) yaw_rate"),
-        (lambda d: shutil.rmtree(d / "images"), "row 2: image 'images/a.png' is missing"),
+        (lambda d: shutil.rmtree(d / "images"),
+         "line 2 (frame 0): image 'images/a.png' is missing"),
         (lambda d: (d / "images" / "b.jpg").write_bytes(b""),
-         "row 3: image 'images/b.jpg' is not a readable PNG/JPEG"),
-        (lambda d: _cut(d / "images" / "a.png", 60), "row 2: image 'images/a.png' is truncated"),
-        (lambda d: _cut(d / "images" / "b.jpg", 300), "row 3: image 'images/b.jpg' is truncated"),
+         "line 3 (frame 1): image 'images/b.jpg' is not a readable PNG/JPEG"),
+        (lambda d: _cut(d / "images" / "a.png", 60),
+         "line 2 (frame 0): image 'images/a.png' is truncated"),
+        (lambda d: _cut(d / "images" / "b.jpg", 300),
+         "line 3 (frame 1): image 'images/b.jpg' is truncated"),
         (lambda d: ((d / "images" / "b.jpg").unlink(), (d / "images" / "b.jpg").mkdir()),
-         "row 3: image 'images/b.jpg' is missing"),
+         "line 3 (frame 1): image 'images/b.jpg' is missing"),
         (lambda d: (d / "faults.csv").write_text("index,faults\nthree,cable\n"),
-         "faults.csv row 2: expected 'index,labels'"),
+         "faults.csv line 2: expected 'index,labels'"),
         (lambda d: (d / "faults.csv").write_bytes(bytes(range(256))), "faults.csv: not UTF-8"),
     ],
     ids=["no meta", "empty meta", "meta array", "binary meta", "meta is a folder",
@@ -317,7 +319,7 @@ def test_damaged_png_data_is_one_line(tmp_path: Path, jobs: str) -> None:
                        capture_output=True, text=True, timeout=600)
     assert r.returncode == 2
     assert r.stderr.count("\n") == 1, r.stderr
-    assert "row 2: image 'images/a.png' is not a readable PNG/JPEG" in r.stderr
+    assert "line 2 (frame 0): image 'images/a.png' is not a readable PNG/JPEG" in r.stderr
 
 
 def test_a_dataset_with_a_header_only_has_no_frames(tmp_path: Path) -> None:
@@ -375,7 +377,7 @@ def test_frames_csv_number_that_is_not_finite_or_absurd(column: str, text: str,
     with pytest.raises(DatasetError) as e:
         list(DatasetSource(folder))
     msg = str(e.value)
-    assert "frames.csv row 3" in msg and column in msg and "\n" not in msg, msg
+    assert "frames.csv line 3" in msg and column in msg and "\n" not in msg, msg
 
 
 ODO, OBS = Odometry(0.1, 0.0, 0.05), Observation(0.3, 0.4, 0.1, 0.01, 0.02)
@@ -556,7 +558,7 @@ def test_a_replay_keeps_every_row_before_the_bad_one(damage, recorded: Path,
     (folder / "frames.csv").write_text("\n".join(lines) + "\n")
     r = _cli(["replay", str(folder), "--out", "r.csv", "--output-file", "eq.csv", "--quiet"],
              tmp_path)
-    _one_line_error(r, f"frames.csv row {bad + 2}")
+    _one_line_error(r, f"frames.csv line {bad + 2} (frame {bad})")
     rows, eq = clean_replay
     # every frame before the bad one is there, complete and as in an undamaged replay
     assert _read_csv(tmp_path / "r.csv") == rows[: bad + 1]

@@ -17,11 +17,10 @@ import pytest
 
 pytest.importorskip("rosbags", reason="the [ros] extra (pip install -e '.[ros]')")
 
-from rosbag_helper import write_bag  # noqa: E402
-
 from tileviz.__main__ import main as tileviz_main  # noqa: E402
 from tileviz.datasets import DatasetSource, read_meta  # noqa: E402
 from tileviz.datasets.bag_import import combine_compass, combine_odometry  # noqa: E402
+from tileviz.datasets.sample import write_bag  # noqa: E402
 
 
 def _rows(path: Path) -> list[list[str]]:

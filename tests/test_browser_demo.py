@@ -18,12 +18,10 @@ import pytest
 from tileviz.app.server import App
 from tileviz.app.session import SessionOptions
 from tileviz.config import preset
+from tileviz.testing.browser import ARGS, CHROMIUM
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
-CHROMIUM = "/usr/bin/chromium"
-ARGS = ["--headless", "--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
-        "--disable-background-networking", "--disable-component-update", "--no-first-run"]
 WAIT = 300_000
 """Milliseconds a condition may take to come true on a loaded machine (a hang guard only)."""
 
@@ -116,30 +114,40 @@ def test_the_default_port_serves_its_own_page_when_taken(browser, tmp_path):
             a.stop()
 
 
+INSET_IMG = "img[src^='blob:']"
+"""The inset: the first image the server sent (viser's own logo is an inline SVG image)."""
+
+
 def _inset_pixels(page: object) -> np.ndarray:
-    img = page.locator("img").first  # type: ignore[attr-defined]
+    img = page.locator(INSET_IMG).first  # type: ignore[attr-defined]
     png = img.screenshot()
     return cv2.cvtColor(cv2.imdecode(np.frombuffer(png, np.uint8), cv2.IMREAD_COLOR),
                         cv2.COLOR_BGR2RGB)
 
 
 def test_the_inset_shows_the_boxes_and_follows_each_step(browser, app):
+    """The inset (the first image the server sends; viser's logo is an inline SVG): a few
+    frames in, the centimetre-wide set fills a good part of it, with the prediction and the
+    truth; every step sends a new picture."""
     from playwright.sync_api import expect
 
     page = open_page(browser, app.url)
     expect(page.get_by_text("the set around the truth, magnified")).to_be_visible(timeout=WAIT)
-    src0 = page.locator("img").first.get_attribute("src")
+    for k in range(1, 6):
+        button(page, "Step").click()
+        expect(page.get_by_text(f"frame {k},")).to_be_visible(timeout=WAIT)
+    src0 = page.locator(INSET_IMG).first.get_attribute("src")
     shot = _inset_pixels(page)
+    assert min(shot.shape[:2]) >= 300  # the inset itself, not an icon
     r, g, b = (shot[..., i].astype(int) for i in range(3))
     blue = (b > r + 40) & (b > g + 15)
     green = (g > r + 25) & (g > b + 25)
     pink = (r > 200) & (b > 100) & (g < 140)
-    # the centimetre-wide set fills a good part of the inset, with the prediction and the truth
     assert blue.mean() > 0.05 and green.any() and pink.any()
     button(page, "Step").click()
-    expect(page.get_by_text("frame 1,")).to_be_visible(timeout=WAIT)
-    page.wait_for_function("(src) => document.querySelector('img').src !== src", arg=src0,
-                           timeout=WAIT)
+    expect(page.get_by_text("frame 6,")).to_be_visible(timeout=WAIT)
+    page.wait_for_function(f"(src) => document.querySelector(\"{INSET_IMG}\").src !== src",
+                           arg=src0, timeout=WAIT)
     page.close()
 
 
@@ -201,5 +209,36 @@ def test_recording_while_paused_says_what_happened(browser, app):
     button(page, "Step").click()
     expect(page.get_by_text("frame 1,")).to_be_visible(timeout=WAIT)
     button(page, "Stop recording").click()
-    expect(page.locator(".tileviz-notes")).to_contain_text("recorded 1 frames to", timeout=WAIT)
+    expect(page.locator(".tileviz-notes")).to_contain_text("recorded 1 frames (", timeout=WAIT)
+    page.close()
+
+
+def test_a_laptop_sized_page_reads_whole_and_a_late_tab_shows_the_frame(browser, app):
+    """At 1280 x 720: the left tab's label is whole, viser's software-WebGL notice does not
+    cover the scene, the scene keeps about half the width; a tab opened after 25 steps shows
+    that frame in its timeline box and status."""
+    from playwright.sync_api import expect
+
+    from tileviz.app import commands as C
+
+    page = browser.new_page(viewport={"width": 1280, "height": 720})
+    page.set_default_timeout(WAIT)
+    page.goto(app.url)
+    page.wait_for_selector("canvas", timeout=WAIT)
+    expect(page.get_by_text("frame 0,")).to_be_visible(timeout=WAIT)
+    expect(page.get_by_text("Set, camera, plots", exact=True)).to_be_visible()
+    assert page.locator("#webgl-software-rendering:visible").count() == 0
+    box = page.locator("canvas").first.bounding_box()
+    assert box is not None and box["width"] >= 600
+    for _ in range(25):
+        app.submit(C.Step())
+    expect(page.get_by_text("frame 25,")).to_be_visible(timeout=WAIT)
+    late = browser.new_page(viewport={"width": 1280, "height": 720})
+    late.set_default_timeout(WAIT)
+    late.goto(app.url)
+    expect(late.get_by_text("frame 25,")).to_be_visible(timeout=WAIT)
+    values = [late.locator("input").nth(i).input_value()
+              for i in range(late.locator("input").count())]
+    assert "25" in values  # the timeline's box
+    late.close()
     page.close()

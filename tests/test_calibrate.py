@@ -4,7 +4,6 @@ bad input is one line."""
 from __future__ import annotations
 
 import json
-import math
 import subprocess
 import sys
 from pathlib import Path
@@ -16,6 +15,7 @@ import pytest
 from tileviz.config import preset
 from tileviz.datasets import DatasetMeta, read_meta
 from tileviz.datasets.calibrate import board_floor_points
+from tileviz.datasets.sample import floor_board_image, held_board_image
 from tileviz.sim.lens import mounted_camera
 
 COLS, ROWS, SQUARE = 7, 5, 0.05
@@ -25,43 +25,15 @@ TRUE = mounted_camera(raw_size=(480, 360), focal=400.0,
                       pitch=0.05, roll=-0.03)
 
 
-def _draw(board_of_ray: np.ndarray, square: float = SQUARE, ss: int = 2) -> np.ndarray:
-    """The raw image (gray, uint8) of a checkerboard: ``board_of_ray`` maps a normalised
-    undistorted ray (x, y, 1) to board coordinates (bx, by, 1) up to scale, metres, the first
-    inner corner at (0, 0); the board has one white square's margin; 2x2 samples a pixel."""
-    w, h = TRUE.raw_width, TRUE.raw_height
-    cols, rows = np.meshgrid(np.arange(w, dtype=np.float64), np.arange(h, dtype=np.float64))
-    acc = np.zeros(h * w)
-    for dy in (np.arange(ss) + 0.5) / ss - 0.5:
-        for dx in (np.arange(ss) + 0.5) / ss - 0.5:
-            pts = np.c_[(cols + dx).ravel(), (rows + dy).ravel()].reshape(-1, 1, 2)
-            norm = cv2.undistortPoints(pts, TRUE.k, TRUE.dist).reshape(-1, 2)
-            q = np.c_[norm, np.ones(len(norm))] @ board_of_ray.T
-            b = q[:, :2] / q[:, 2:3]
-            i, j = np.floor(b[:, 0] / square), np.floor(b[:, 1] / square)
-            board = (i >= -1) & (i <= COLS - 1) & (j >= -1) & (j <= ROWS - 1)
-            margin = (i >= -2) & (i <= COLS) & (j >= -2) & (j <= ROWS) & ~board
-            acc += np.where(board, np.where((i + j) % 2 == 0, 25.0, 230.0),
-                            np.where(margin, 235.0, 140.0))
-    return np.clip(acc / ss**2, 0, 255).astype(np.uint8).reshape(h, w)
-
-
 def _floor_image(pose: tuple[float, float, float] = POSE, square: float = SQUARE) -> np.ndarray:
     """The board lying on the floor at ``pose`` (centre, COLS direction), seen by TRUE."""
-    c, s = math.cos(pose[2]), math.sin(pose[2])
-    centre = np.array([(COLS - 1) / 2 * square, (ROWS - 1) / 2 * square])
-    # floor (f, l, 1) -> board (bx, by, 1): b = R(-yaw) (p - centre_floor) + centre
-    a = np.array([[c, s, 0], [-s, c, 0], [0, 0, 1.0]]) @ np.array(
-        [[1, 0, -pose[0]], [0, 1, -pose[1]], [0, 0, 1.0]])
-    a = np.array([[1, 0, centre[0]], [0, 1, centre[1]], [0, 0, 1.0]]) @ a
-    return _draw(a @ TRUE.h @ TRUE.k, square)
+    return floor_board_image(TRUE, COLS, ROWS, square, pose)
 
 
 def _held_image(rvec: tuple[float, float, float], t: tuple[float, float, float]) -> np.ndarray:
     """The board held in front of the camera (rotation ``rvec``, its first corner at ``t``,
     metres, camera frame)."""
-    r, _ = cv2.Rodrigues(np.array(rvec, np.float64))
-    return _draw(np.linalg.inv(np.column_stack([r[:, 0], r[:, 1], np.array(t)])))
+    return held_board_image(TRUE, COLS, ROWS, SQUARE, rvec, t)
 
 
 @pytest.fixture(scope="module")
@@ -146,12 +118,39 @@ def test_one_image_without_meta_prints_the_block(boards: list[str]) -> None:
     assert r.stderr.startswith("floor: ") and "mm RMS on the floor" in r.stderr
 
 
+def test_meta_that_does_not_exist_is_created_with_the_block(boards: list[str],
+                                                            tmp_path: Path) -> None:
+    """--meta naming a file that does not exist (in a folder that does not either): the file is
+    created with the camera_model block alone, which import-bag --camera-model reads; calibrating
+    one image into it again keeps its intrinsics."""
+    from tileviz.datasets.bag_import import camera_model_file
+
+    cam = tmp_path / "mycam" / "meta.json"
+    r = _cli(*boards, *_args(), "--meta", str(cam))
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.splitlines()[-1].startswith(f"created {cam} with the camera_model block")
+    doc = json.loads(cam.read_text())
+    assert list(doc) == ["camera_model"]
+    model, view = camera_model_file(str(cam))
+    assert view is None and (model.raw_width, model.raw_height) == (480, 360)
+    floor = board_floor_points(COLS, ROWS, SQUARE, POSE)
+    assert np.abs(model.floor_to_raw(floor)[0] - TRUE.floor_to_raw(floor)[0]).max() < 0.5
+    r = _cli(boards[0], *_args(), "--meta", str(cam))
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.splitlines()[-1] == f"wrote camera_model into {cam}"
+    again, _ = camera_model_file(str(cam))
+    assert again.dist_coeffs == model.dist_coeffs and again.camera_matrix == model.camera_matrix
+
+
 def test_bad_input_is_one_line(boards: list[str], tmp_path: Path) -> None:
     blank = tmp_path / "blank.png"
     cv2.imwrite(str(blank), np.full((360, 480), 128, np.uint8))
     tiny = tmp_path / "tiny.png"
     cv2.imwrite(str(tiny), _floor_image(square=0.011))
+    listed = tmp_path / "list.json"
+    listed.write_text("[1, 2]")
     cases = [
+        ([boards[0], *_args(), "--meta", str(listed)], f"--meta: {listed} is not a JSON object"),
         ([boards[0], str(blank), boards[1], *_args()], f"{blank}: no 7x5 checkerboard found"),
         ([boards[0], boards[1], *_args()], "too few images for intrinsics: 2"),
         ([str(tiny), *_args()], "degenerate pose: the board covers under"),

@@ -327,8 +327,8 @@ def test_a_raw_image_of_the_wrong_size_names_the_row(lens_run: Path, tmp_path: P
     frames = iter(DatasetSource(ds))
     for _ in range(3):
         next(frames)
-    with pytest.raises(DatasetError, match=r"row 5: image .* is 320x240, meta.json says "
-                       r"640x480 \(camera_model raw size\)"):
+    with pytest.raises(DatasetError, match=r"line 5 \(frame 3\): image .* is 320x240, meta.json "
+                       r"says 640x480 \(camera_model raw size\)"):
         next(frames)
 
 

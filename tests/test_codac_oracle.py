@@ -1,8 +1,8 @@
 """Oracle: our contraction against codac 2's forward-backward contractors on the same constraint.
 
 Why codac runs elsewhere: ``import codac`` switches the process to upward rounding, so it lives in
-``tests/codac_oracle_worker.py``, started with ``sys.executable`` and fed JSON; this process never
-imports it (checked below).
+``tileviz/testing/codac_oracle_worker.py``, started with ``sys.executable`` and fed JSON; this
+process never imports it (checked below).
 
 The constraint (docs/method.md, "Contraction"), per rotation branch m of an observation
 y +- (e, e, e3), over the box (x, y, theta) and the observation box ([y1], [y2], [y3]):
@@ -38,23 +38,19 @@ within their bounds (80 %) or unrelated (20 %).
 
 from __future__ import annotations
 
-import json
 import math
-import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-from tests.codac_oracle_worker import decode  # (codac itself is imported only by its main())
 from tileviz.config import LocalizerConfig
 from tileviz.core.contraction import contract_branch, lever_enclosure, observation_windows
 from tileviz.core.intervals import cos_range, sin_range
 from tileviz.core.tiles import observe
+from tileviz.testing import codac_oracle_worker  # (codac runs in its subprocess only)
 from tileviz.types import Observation, Pose
 
-WORKER = Path(__file__).with_name("codac_oracle_worker.py")
 N_CASES = 1200
 ROUNDING_TOL = 1e-12
 WIDER_TOL = 1e-9
@@ -63,18 +59,7 @@ MAX_CELLS_CHECKED = 64
 
 def run_worker(spec: dict) -> dict:
     """Run the codac worker in a fresh interpreter and return its JSON answer."""
-    r = subprocess.run(
-        [sys.executable, str(WORKER)],
-        input=json.dumps(spec),
-        capture_output=True,
-        text=True,
-        timeout=900,
-    )
-    assert r.returncode == 0, r.stderr
-    out = json.loads(r.stdout)
-    if "results" in out:
-        out["results"] = decode(out["results"])
-    return out
+    return codac_oracle_worker.run(spec)
 
 
 def _cases(n: int, seed: int = 2024) -> list[tuple]:

@@ -153,21 +153,36 @@ def test_bad_row_names_file_and_row(tmp_path: Path, bad_row: list[str], needle: 
     with pytest.raises(DatasetError) as e:
         list(src)
     msg = str(e.value)
-    assert needle in msg and "frames.csv row 3" in msg and "\n" not in msg
+    assert needle in msg and "frames.csv line 3" in msg and "\n" not in msg
+
+
+def test_a_bad_row_names_its_line_and_its_frame(tmp_path: Path) -> None:
+    """Blank lines before a row: its line in the file is not its frame + 2; the error names
+    both (the frame's image is the one the user looks for)."""
+    folder = _foreign_dataset(tmp_path)
+    lines = (folder / "frames.csv").read_text().splitlines()
+    lines[3:3] = ["", ""]  # frame 2 moves to line 6
+    lines[5] = lines[5].replace("0.4", "fast", 1)
+    (folder / "frames.csv").write_text("\n".join(lines) + "\n")
+    with pytest.raises(DatasetError) as e:
+        list(DatasetSource(folder))
+    assert str(e.value) == (f"{folder / 'frames.csv'} line 6 (frame 2): speed is not a number "
+                            "('fast')")
 
 
 def test_unreadable_and_wrong_size_image(tmp_path: Path) -> None:
     folder = _foreign_dataset(tmp_path)
     (folder / "pics" / "b.png").write_bytes(b"not an image")
-    with pytest.raises(DatasetError, match="row 3: image 'pics/b.png' is not a readable"):
+    with pytest.raises(DatasetError,
+                       match=r"line 3 \(frame 1\): image 'pics/b.png' is not a readable"):
         list(DatasetSource(folder))
     cv2.imwrite(str(folder / "pics" / "b.png"), np.zeros((10, 10, 3), np.uint8))
     with pytest.raises(DatasetError, match="is 10x10, meta.json says 64x48"):
         list(DatasetSource(folder))
     # 10-bit data stored unscaled in a 16-bit PNG: named, not read as a nearly black view
     cv2.imwrite(str(folder / "pics" / "b.png"), np.full((48, 64, 3), 700, np.uint16))
-    with pytest.raises(DatasetError, match=r"row 3: image 'pics/b.png': 16-bit samples reach "
-                       r"only 700 of 65535"):
+    with pytest.raises(DatasetError, match=r"line 3 \(frame 1\): image 'pics/b.png': 16-bit "
+                       r"samples reach only 700 of 65535"):
         list(DatasetSource(folder))
 
 

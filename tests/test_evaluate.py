@@ -12,6 +12,7 @@ import pytest
 
 from tileviz import evaluation as ev
 from tileviz.__main__ import main as tileviz_main
+from tileviz.summary import FAITHFUL_NOTE
 
 
 def read_csv(path):
@@ -59,9 +60,18 @@ def test_tiny_run_writes_the_tables_and_plots(tmp_path, capsys):
     assert "interval (autonomous)" in md and "MCL" in md and "odometry only" in md
     assert "300 particles" in md
     assert "fault model 0.2 m/s, 0.1 rad/s" in md  # the default, said in the notes
+    assert FAITHFUL_NOTE not in md  # no scenario with the faithful extractor
     for name in ("coverage.png", "error_clean.png", "error_dropout.png"):
         img = matplotlib.image.imread(out / name)
         assert img.ndim == 3 and img.shape[0] > 200 and img.shape[1] > 400
+
+
+def test_the_faithful_scenario_is_said_to_break_its_bounds(tmp_path):
+    out = tmp_path / "eval"
+    assert tileviz_main(["evaluate", "--runs", "1", "--duration", "0.5", "--scenarios",
+                         "faithful", "--jobs", "1", "--out", str(out), "--quiet",
+                         "--particles", "100"]) == 0
+    assert f"- Scenario faithful: {FAITHFUL_NOTE}." in (out / "results.md").read_text()
 
 
 def test_same_seed_same_run_and_other_seed_other_run():

@@ -50,7 +50,7 @@ def _run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]
 
 def test_one_line_per_image_with_the_design_md_parameters(capsys, images) -> None:
     rc, out, err = _run(capsys, images["default"], images["constant"])
-    assert rc == 0 and err == ""
+    assert rc == 1 and err == ""  # the constant image gave no observation
     lines = out.strip().splitlines()
     assert len(lines) == 2
     y = tiles.observe(POSE, 1.0, preset("default").camera.offset)
@@ -145,6 +145,26 @@ def test_module_entry_point_never_tracebacks(images, tmp_path: Path) -> None:
     assert math.isfinite(obj["lines"])
 
 
+def test_exit_status_says_whether_an_observation_was_found(images) -> None:
+    """0: every image gave an observation; 1: one gave none (a result, stderr empty); 2: bad
+    input wins, one line on stderr. --help says so."""
+
+    def run(*argv: str) -> subprocess.CompletedProcess[str]:
+        return subprocess.run([sys.executable, "-m", "tileviz", "extract", *argv],
+                              capture_output=True, text=True, cwd=REPO, timeout=600)
+
+    found = run(images["default"])
+    assert found.returncode == 0 and found.stderr == "" and "y1=" in found.stdout
+    none = run(images["constant"])
+    assert none.returncode == 1 and none.stderr == ""
+    assert none.stdout.strip() == f"{images['constant']}: no observation (constant image); 0 lines"
+    assert run(images["default"], images["constant"]).returncode == 1
+    bad = run(images["constant"], images["broken"])
+    assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1
+    assert "exit status: 0 when every image gave an observation, 1 when an image gave none" \
+        in " ".join(run("--help").stdout.split())
+
+
 def test_damaged_odd_and_misplaced_files_each_give_one_line(images, tmp_path: Path) -> None:
     """A cut-off PNG, a float TIFF, a directory and a 16-bit PNG holding 12-bit data: one line
     each on stderr naming the file and the problem (no decoder chatter), the good image still
@@ -203,3 +223,71 @@ def test_stage_images_of_two_files_with_one_stem_are_both_kept(capsys, images,
     names = {p.name for p in out_dir.iterdir()}
     assert len(names) == 20
     assert {"default_00_input.png", "default-2_00_input.png"} <= names
+
+
+@pytest.fixture(scope="module")
+def cable_view(tmp_path_factory: pytest.TempPathFactory) -> str:
+    """A rendered default-preset view with a dark cable across it (refused: foreign line)."""
+    from tileviz.sim.camera import Fault
+
+    cfg = preset("default")
+    img = FloorRenderer(cfg.floor, cfg.camera).render(
+        POSE, np.random.default_rng(1),
+        faults=[Fault("cable", {"angle": 1.0, "offset": 10.0, "width": 4.0})])
+    return _write(tmp_path_factory.mktemp("cable") / "cable.png", img)
+
+
+def _rows(out: str) -> list[list[str]]:
+    """The check rows of an --explain table: [id (and subject), value, relation, limit,
+    result]."""
+    rows = []
+    for line in out.splitlines():
+        parts = line.split()
+        if line.startswith("      ") and len(parts) >= 5 and parts[-1] in ("pass", "fail",
+                                                                          "refused"):
+            rows.append(parts)
+    return rows
+
+
+def test_explain_names_the_check_that_refused_a_view_with_its_value_and_limit(
+        capsys, cable_view: str) -> None:
+    """A view with a cable across it: --explain says which check refused it, with the value
+    measured and the limit it broke, and lists every check each reading ran; --json carries
+    the same refusal."""
+    from tileviz.vision.robust.checks import CHECKS
+
+    rc, out, err = _run(capsys, cable_view, "--explain")
+    assert rc == 1 and err == ""  # exit 1: the view gave no observation
+    lines = out.splitlines()
+    assert lines[0] == f"{cable_view}: no observation (foreign line); " + \
+        lines[0].split("; ")[-1]
+    summary = lines[1].strip()
+    assert summary.startswith("refused (foreign line) by ")
+    check = summary.split(" by ")[1].split()[0]
+    assert CHECKS[check].reason == "foreign line"
+    value = float(summary.split("value ")[1].split(",")[0])
+    relation, limit = summary.split("must be ")[1].split()
+    assert relation == CHECKS[check].relation.symbol
+    assert not CHECKS[check].relation.passes(value, float(limit))  # the numbers break it
+    refused = [r for r in _rows(out) if r[-1] == "refused"]
+    assert len(refused) == 1 and refused[0][0] == check
+    assert "reading 1: first heading" in out and "view" in lines[3]
+    assert {r[0] for r in _rows(out)} >= {"constant.range", "heading.gradients",
+                                           "lines.found", check}
+    rc, out, _ = _run(capsys, cable_view, "--json")
+    got = json.loads(out)["decision"]
+    assert got["reason"] == "foreign line" and got["refusal"]["check"] == check
+    assert got["refusal"]["value"] == pytest.approx(value, rel=1e-3)
+    assert got["refusal"]["limit"] == pytest.approx(float(limit), rel=1e-3)
+
+
+def test_explain_of_an_accepted_view_shows_every_check_passed(capsys, images) -> None:
+    rc, out, _ = _run(capsys, images["default"], "--explain")
+    assert rc == 0
+    assert out.splitlines()[1].strip().startswith("accepted")
+    rows = _rows(out)
+    ids = [r[0] for r in rows]
+    assert {"blur.rise", "angle.straight", "spacing", "bound.position", "foreign_edge"} <= set(ids)
+    assert all(r[-1] == "pass" for r in rows)
+    rc, out, _ = _run(capsys, "--explain", "--extractor", "faithful", images["default"])
+    assert "records no decision path" in out

@@ -2,9 +2,10 @@
 ``--fault-model SPEED,YAW_RATE``) the localizer tracks through a wheel slip beyond its declared
 bounds and stays honest after a kidnap beyond the model.
 
-Two levels: the localizer alone on the synthetic drive of ``tests/test_faults.py`` (exact motion,
-views and compass within their bounds, the odometry off by a slip), and ``tileviz replay`` on a
-dataset from our own fault generator (``tests/fault_dataset.py``: slip, kidnap, dropout)."""
+Two levels: the localizer alone on the synthetic drive of ``tileviz/testing/drives.py`` (exact
+motion, views and compass within their bounds, the odometry off by a slip), and ``tileviz
+replay`` on a dataset from our own fault generator (``tileviz/testing/fault_dataset.py``: slip,
+kidnap, dropout)."""
 
 from __future__ import annotations
 
@@ -13,12 +14,12 @@ from pathlib import Path
 
 import pytest
 
-from tests.exact_truth import in_box
-from tests.fault_dataset import FaultPlan, make_fault_dataset
-from tests.test_faults import Drive
 from tileviz.__main__ import main as tileviz_main
 from tileviz.config import LocalizerConfig
 from tileviz.core.localizer import FAULT_MAX_REJECTIONS
+from tileviz.testing.drives import Drive
+from tileviz.testing.exact_truth import in_box
+from tileviz.testing.fault_dataset import FaultPlan, make_fault_dataset
 from tileviz.types import Box
 
 MODEL = LocalizerConfig(fault_speed=0.2, fault_yaw_rate=0.1)

@@ -19,78 +19,19 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from tileviz.config import Config, LocalizerConfig, preset
-from tileviz.core.localizer import Localizer, LocalizerStep
-from tileviz.core.tiles import observe
+from tileviz.core.localizer import Localizer
 from tileviz.pipeline import FrameLoop, FrameRecord
 from tileviz.sim.source import SimSource
-from tileviz.types import Box, FrameInput, Observation, Odometry, Pose, SensorBounds
+from tileviz.testing.drives import BOUNDS, Drive, noisy_compass, noisy_view
+from tileviz.types import Box, FrameInput, Pose
 from tileviz.vision import observation_error
 
-BOUNDS = SensorBounds(speed_error=0.02, yaw_rate_error=0.01, compass_error=0.02)
-E_POS, E_HEAD = 0.01, 0.02
-DT = 0.05
 SLIP = (0.1, 0.1)
 NO_MODEL = LocalizerConfig(fault_speed=0.0, fault_yaw_rate=0.0)
 """Recovery off and no fault model: a rejected view is ignored, the prediction kept."""
 
 
 # --- the localizer alone, on a synthetic drive --------------------------------------------------
-
-
-def _arc(p: Pose, v: float, w: float, h: float) -> Pose:
-    """Exact unicycle motion: speed v, yaw rate w (non-zero here) for h seconds."""
-    t1 = p.theta + w * h
-    r = v / w
-    return Pose(p.x + r * (math.sin(t1) - math.sin(p.theta)),
-                p.y - r * (math.cos(t1) - math.cos(p.theta)), t1)
-
-
-def _view(p: Pose, L: float, offset: tuple[float, float], u: np.ndarray) -> Observation:
-    """The observation of ``p`` off by less than its declared bounds (u in [-1, 1]^3)."""
-    y1, y2, y3 = observe(p, L, offset)
-    return Observation(y1 + 0.9 * u[0] * E_POS, y2 + 0.9 * u[1] * E_POS, y3 + 0.9 * u[2] * E_HEAD,
-                       E_POS, E_HEAD)
-
-
-def _compass(theta: float, u: float) -> float:
-    return math.remainder(theta + 0.9 * u * BOUNDS.compass_error, 2 * math.pi)
-
-
-class Drive:
-    """A robot driving arcs, its sensors within their bounds unless told otherwise, and a
-    localizer fed frame by frame."""
-
-    def __init__(self, config: LocalizerConfig, *, L: float = 1.0,
-                 offset: tuple[float, float] = (0.3, 0.0), seed: int = 0) -> None:
-        self.L, self.offset = L, offset
-        self.rng = np.random.default_rng(seed)
-        self.truth = Pose(0.2, 0.1, 0.3)
-        t = self.truth
-        self.loc = Localizer(tile_size=L, camera_offset=offset, bounds=BOUNDS, config=config,
-                             initial=Box(t.x - 0.02, t.x + 0.02, t.y - 0.02, t.y + 0.02,
-                                         t.theta - 0.01, t.theta + 0.01))
-        self.first = True
-
-    def step(self, *, v: float = 0.5, w: float = 0.2, excess: tuple[float, float] = (0.0, 0.0),
-             jump: tuple[float, float, float] | None = None,
-             view: bool = True) -> LocalizerStep:
-        """One frame: move (or teleport by ``jump``), read the odometry with ``excess`` (m/s,
-        rad/s) beyond its bound, then step the localizer with the compass and the view."""
-        u = self.rng.uniform(-1.0, 1.0, 6)
-        odometry = None
-        if not self.first:
-            self.truth = _arc(self.truth, v, w, DT)
-            odometry = Odometry(v + 0.9 * u[0] * BOUNDS.speed_error + excess[0],
-                                w + 0.9 * u[1] * BOUNDS.yaw_rate_error + excess[1], DT)
-        self.first = False
-        if jump is not None:
-            t = self.truth
-            self.truth = Pose(t.x + jump[0], t.y + jump[1], t.theta + jump[2])
-        obs = _view(self.truth, self.L, self.offset, u[2:5]) if view else None
-        return self.loc.step(odometry, _compass(self.truth.theta, u[5]), obs)
-
-    def inside(self, step: LocalizerStep) -> bool:
-        return step.updated.contains(*self.truth.as_tuple())
 
 
 def test_recovery_is_off_by_default_and_a_rejection_keeps_the_prediction() -> None:
@@ -125,7 +66,7 @@ def test_a_frame_that_reinflates_holds_the_truth_when_it_is_within_max_slip(
     assume(not P.contains(x, y, th))
     loc = Localizer(tile_size=L, camera_offset=offset, bounds=BOUNDS,
                     config=LocalizerConfig(max_slip=SLIP), initial=P)
-    step = loc.step(None, _compass(th, u[3]), _view(truth, L, offset, np.array(u[:3])))
+    step = loc.step(None, noisy_compass(th, u[3]), noisy_view(truth, L, offset, np.array(u[:3])))
     assume(step.reinflated)  # the view or the compass missed P (else P met them: no fault seen)
     assert step.status in ("rejected", "contracted")
     assert step.updated.contains(x, y, th)

@@ -58,14 +58,15 @@ def test_a_frames_csv_cell_beyond_the_csv_modules_limit_is_one_line(
         f.write("3,0.15," + "x" * 200_000 + ",0.1,0,0,0,0,0\r\n")
     code, err = _replay(dataset, capfd)
     assert code == 2 and len(err) == 1
-    assert f"{dataset / 'frames.csv'} row 5: not a CSV row (field larger than field limit" in err[0]
+    assert (f"{dataset / 'frames.csv'} line 5: not a CSV row (field larger than field limit"
+            in err[0])
 
 
 def test_a_huge_frames_csv_header_is_one_line(dataset: Path,
                                               capfd: pytest.CaptureFixture[str]) -> None:
     (dataset / "frames.csv").write_text("index,t," + "y" * 200_000 + "\n")
     code, err = _replay(dataset, capfd)
-    assert code == 2 and err == [f"tileviz replay: error: {dataset / 'frames.csv'} row 1: not a "
+    assert code == 2 and err == [f"tileviz replay: error: {dataset / 'frames.csv'} line 1: not a "
                                  "CSV header (field larger than field limit (131072))"]
 
 
@@ -75,7 +76,8 @@ def test_a_dataset_that_ended_early_and_has_a_bad_row_says_only_the_error(
     lines[2] = lines[2].replace("0.1", "nan", 1)
     (dataset / "frames.csv").write_text("\n".join(lines[:3]) + "\n")  # 2 of 3 rows, one bad
     code, err = _replay(dataset, capfd)
-    assert code == 2 and len(err) == 1 and "frames.csv row 3: speed is not finite" in err[0]
+    assert code == 2 and len(err) == 1
+    assert "frames.csv line 3 (frame 1): speed is not finite" in err[0]
 
 
 def _bad_idat_png() -> bytes:
@@ -251,7 +253,7 @@ def test_a_faults_csv_that_is_not_csv_is_one_line(dataset: Path,
                                                   capfd: pytest.CaptureFixture[str]) -> None:
     (dataset / "faults.csv").write_text("index,faults\n1," + "s" * 200_000 + "\n")
     code, err = _replay(dataset, capfd)
-    assert code == 2 and len(err) == 1 and "faults.csv row 2: not a CSV row" in err[0]
+    assert code == 2 and len(err) == 1 and "faults.csv line 2: not a CSV row" in err[0]
 
 
 def test_png_bytes_makes_what_the_decoders_read() -> None:

@@ -14,10 +14,11 @@ import pytest
 
 from tileviz.__main__ import main as tileviz_main
 from tileviz.config import preset
-from tileviz.datasets import DatasetMeta, DatasetWriter
+from tileviz.datasets import DatasetMeta, DatasetWriter, dataset_mb
 from tileviz.pipeline import FrameLoop
 from tileviz.pipeline.outputs import REPLAY_COLUMNS, RESIDUAL_COLUMNS, replay_row
 from tileviz.sim.source import SimSource
+from tileviz.summary import FAITHFUL_NOTE
 
 FRAMES = 60
 
@@ -101,9 +102,13 @@ def test_replay_modes_and_truth_inside(live_run: tuple[Path, list[list[str]]],
     assert widths["odometry"] > widths["autonomous"]
 
 
-def test_record_cli_writes_a_dataset(tmp_path: Path) -> None:
+def test_record_cli_writes_a_dataset_and_says_its_size(tmp_path: Path) -> None:
     out = tmp_path / "rec"
-    assert tileviz_main(["record", str(out), "--duration", "0.5", "--quiet", "--seed", "3"]) == 0
+    r = _cli("record", str(out), "--duration", "0.5", "--quiet", "--seed", "3")
+    assert r.returncode == 0, r.stderr
+    mb = dataset_mb(out)
+    assert mb > 11 * 0.05  # eleven 320x240 colour images
+    assert r.stdout.strip() == f"wrote 11 frames ({mb:.1f} MB) to {out}"
     meta = json.loads((out / "meta.json").read_text())
     assert meta["format"] == "tileviz-dataset/1"
     rows = _read_csv(out / "frames.csv")
@@ -139,6 +144,31 @@ def test_cli_errors_are_one_line(args: list[str], needle: str, tmp_path: Path) -
     assert "Traceback" not in r.stderr
 
 
+def test_replay_without_out_prints_the_summary_alone(live_run: tuple[Path, list[list[str]]],
+                                                     tmp_path: Path) -> None:
+    folder, _ = live_run
+    r = subprocess.run([sys.executable, "-m", "tileviz", "replay", str(folder), "--quiet",
+                        "--jobs", "1"], capture_output=True, text=True, timeout=600,
+                       cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    lines = r.stdout.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"replayed {FRAMES} frames; statuses: ")
+    assert "truth inside the set in 100.0 %" in lines[0]
+    assert list(tmp_path.iterdir()) == []  # no CSV anywhere
+
+
+@pytest.mark.parametrize("extractor", ["faithful", "robust"])
+def test_the_faithful_summary_says_its_views_break_their_bounds(
+        live_run: tuple[Path, list[list[str]]], tmp_path: Path, extractor: str) -> None:
+    folder, _ = live_run
+    r = _cli("replay", str(folder), "--extractor", extractor, "--quiet", "--jobs", "1")
+    assert r.returncode == 0, r.stderr
+    (line,) = r.stdout.strip().splitlines()
+    assert (FAITHFUL_NOTE in line) == (extractor == "faithful"), line
+    if extractor == "faithful":  # said beside the containment it explains
+        assert f"vouched for; {FAITHFUL_NOTE}" in line
+
+
 @pytest.mark.parametrize(("jobs", "damage"), [("1", "row"), ("2", "row"), ("2", "image")])
 def test_replay_stops_at_bad_row_keeping_rows_written(
         live_run: tuple[Path, list[list[str]]], tmp_path: Path, jobs: str, damage: str) -> None:
@@ -151,10 +181,10 @@ def test_replay_stops_at_bad_row_keeping_rows_written(
     cells = lines[11].split(",")
     if damage == "row":
         cells[3] = "fast"
-        needle = "frames.csv row 12: speed is not a number ('fast')"
+        needle = "frames.csv line 12 (frame 10): speed is not a number ('fast')"
     else:
         (folder / cells[2]).unlink()
-        needle = f"frames.csv row 12: image '{cells[2]}' is missing"
+        needle = f"frames.csv line 12 (frame 10): image '{cells[2]}' is missing"
     lines[11] = ",".join(cells)
     (folder / "frames.csv").write_text("\n".join(lines) + "\n")
     out = tmp_path / "partial.csv"

@@ -5,7 +5,7 @@ next view cuts the region into one candidate box per tile cell, the candidates t
 takes out of the region are dropped, and plain tracking resumes when one is left. Three levels:
 the localizer on a synthetic drive (exact motion, views and compass within their bounds), a
 hypothesis test of the first cut, and ``tileviz replay --relocalize-region`` on the fault dataset
-of ``tests/fault_dataset.py`` (slip, kidnap, dropout).
+of ``tileviz/testing/fault_dataset.py`` (slip, kidnap, dropout).
 
 Honesty: with the default fault model, a kidnap beyond it ends ``lost`` (or in candidates that
 hold the truth), never more than 5 frames vouching for a set without the truth, never one wide box
@@ -22,12 +22,12 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from tests.exact_truth import in_box
-from tests.fault_dataset import FaultPlan, make_fault_dataset
-from tests.test_faults import BOUNDS, DT, Drive, _compass, _view
 from tileviz.__main__ import main as tileviz_main
 from tileviz.config import LocalizerConfig
 from tileviz.core.localizer import RELOCALIZE_MAX_CANDIDATES, Localizer
+from tileviz.testing.drives import BOUNDS, DT, Drive, noisy_compass, noisy_view
+from tileviz.testing.exact_truth import in_box
+from tileviz.testing.fault_dataset import FaultPlan, make_fault_dataset
 from tileviz.types import Box, Odometry, Pose
 
 L = 1.0
@@ -59,7 +59,7 @@ def test_candidates_hold_the_truth_and_drop_out_as_the_robot_nears_the_region_ed
                     initial=Box(9.0, 9.1, 9.0, 9.1, 0.0, 0.1))  # a wrong start: lost below
     for _ in range(6):
         u = rng.uniform(-1, 1, 4)
-        loc.step(None, _compass(truth.theta, u[3]), _view(truth, L, OFFSET, u[:3]))
+        loc.step(None, noisy_compass(truth.theta, u[3]), noisy_view(truth, L, OFFSET, u[:3]))
     assert loc.lost
     cap = loc.relocalize(region)
     assert cap >= 4 and not loc.lost
@@ -68,7 +68,7 @@ def test_candidates_hold_the_truth_and_drop_out_as_the_robot_nears_the_region_ed
     odo = None
     for _ in range(120):
         u = rng.uniform(-1, 1, 6)
-        step = loc.step(odo, _compass(truth.theta, u[3]), _view(truth, L, OFFSET, u[:3]))
+        step = loc.step(odo, noisy_compass(truth.theta, u[3]), noisy_view(truth, L, OFFSET, u[:3]))
         assert step.status == "contracted"
         assert step.updated.contains(*truth.as_tuple())
         for b in step.updated.boxes:  # candidates, never a hull of them
@@ -87,7 +87,7 @@ def test_candidates_hold_the_truth_and_drop_out_as_the_robot_nears_the_region_ed
 
 def test_a_region_too_large_or_malformed_is_refused_in_one_line() -> None:
     drive = Drive(LocalizerConfig())
-    with pytest.raises(ValueError, match=f"more than {RELOCALIZE_MAX_CANDIDATES}"):
+    with pytest.raises(ValueError, match=f"more than the {RELOCALIZE_MAX_CANDIDATES}"):
         drive.loc.relocalize((-20.0, -20.0, 20.0, 20.0))
     with pytest.raises(ValueError, match="x0 <= x1"):
         drive.loc.relocalize((1.0, 0.0, 0.0, 1.0))
@@ -105,15 +105,19 @@ def test_a_region_too_large_or_malformed_is_refused_in_one_line() -> None:
 )
 def test_the_first_view_after_relocalizing_keeps_the_truth_among_the_candidates(
         x, y, th, margins, L_, offset, u) -> None:
-    """Any region that holds the robot: the first view and compass leave candidate boxes, each
-    within one tile cell, and the truth is in one of them (exact membership)."""
+    """Any region that holds the robot, heading unknown or from a compass reading: the first view
+    and compass leave candidate boxes, each within one tile cell, no more than the count
+    ``relocalize`` allowed (never a hull of them), and the truth is in one of them (exact
+    membership)."""
     region = (x - margins[0], y - margins[1], x + margins[2], y + margins[3])
     truth = Pose(x, y, th)
     loc = Localizer(tile_size=L_, camera_offset=offset, bounds=BOUNDS, config=LocalizerConfig(),
                     initial=Box(x, x, y, y, th, th))
-    loc.relocalize(region)
-    step = loc.step(None, _compass(th, u[3]), _view(truth, L_, offset, np.array(u[:3])))
+    compass = noisy_compass(th, u[3])
+    cap = loc.relocalize(region, compass=compass if u[0] > 0 else None)
+    step = loc.step(None, compass, noisy_view(truth, L_, offset, np.array(u[:3])))
     assert step.status == "contracted" and step.relocalizing or len(step.updated) == 1
+    assert not step.hulled and len(step.updated) <= cap
     assert any(in_box(b, x, y, th) for b in step.updated.boxes)
     for b in step.updated.boxes:
         assert b.x_hi - b.x_lo < L_ and b.y_hi - b.y_lo < L_
@@ -194,3 +198,152 @@ def test_replay_refuses_a_bad_region_in_one_line(tmp_path: Path, capsys) -> None
     assert code == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "candidate boxes" in err and "Traceback" not in err
+
+
+# --- the page's own defaults ------------------------------------------------------------------
+
+
+def _page(tmp_path: Path, seed: int):
+    from dataclasses import replace
+
+    from tileviz.app.session import Session, SessionOptions
+    from tileviz.config import preset
+
+    cfg = preset("default")
+    cfg = replace(cfg, sim=replace(cfg.sim, seed=seed))
+    return Session(cfg, SessionOptions(out_dir=tmp_path / "out", interactive=True,
+                                       display=False))
+
+
+def _last(s):
+    return s.history.get(s.history.last).record
+
+
+def _in_region(region, truth) -> bool:
+    x0, y0, x1, y1 = region
+    return x0 <= truth.x <= x1 and y0 <= truth.y <= y1
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("seed", "largest"), [(0, False), (3, False), (5, True)])
+def test_the_page_relocalizes_after_a_kidnap_and_every_vouched_frame_holds_the_truth(
+        tmp_path: Path, seed: int, largest: bool) -> None:
+    """The demo as a user drives it: Lissajous, Kidnap (anywhere on the path), then "Re-localize
+    in the region" with the page's default region (the path's square plus a margin) or the
+    largest one the limit allows (the floor drawn, 12 m x 12 m). The region is cut into one
+    candidate per tile (never one wide box), and at every frame that does not say ``lost`` one
+    of the set's boxes holds the true pose, exactly."""
+    from tileviz.app import commands as C
+
+    s = _page(tmp_path, seed)
+    for _ in range(60):
+        s.apply(C.Step())
+    s.apply(C.Kidnap())
+    for _ in range(10):
+        s.apply(C.Step())
+    region = (-6.0, -6.0, 6.0, 6.0) if largest else s.default_region()
+    assert region == (-6.0, -6.0, 6.0, 6.0) or region == (-4.5, -4.5, 4.5, 4.5)
+    s.apply(C.RelocalizeRegion(region))
+    assert "up to" in s.notes[-1].text and s.notes[-1].level == "info"
+    counts = []
+    for _ in range(220):
+        s.apply(C.Step())
+        rec = _last(s)
+        assert _in_region(region, rec.truth)  # the hypothesis holds on this drive
+        assert rec.status != "lost"
+        assert any(in_box(b, *rec.truth.as_tuple()) for b in rec.updated.boxes)
+        if rec.step.relocalizing:
+            counts.append(len(rec.updated))
+            assert not rec.step.hulled
+            for b in rec.updated.boxes:
+                assert b.x_hi - b.x_lo < 1.0 and b.y_hi - b.y_lo < 1.0
+    assert counts and counts[0] >= 50  # a candidate per tile cell, not one hull
+    assert not any(n.level == "error" for n in s.notes)
+    s.close()
+
+
+def test_the_page_says_when_the_robot_leaves_the_region_it_was_told(tmp_path: Path) -> None:
+    """A region the robot drives out of (2 m x 2 m, the robot at its corner heading out): the
+    page's notes say the hypothesis is broken (once), naming the frame, and the run's summary
+    lists the frames outside the region."""
+    from tileviz.app import commands as C
+
+    s = _page(tmp_path, 0)
+    s.apply(C.Step())
+    truth = _last(s).truth
+    x, y = truth.x, truth.y
+    assert math.cos(truth.theta) < 0 and math.sin(truth.theta) < 0  # the Lissajous start
+    region = (x - 0.05, y - 0.05, x + 2.0, y + 2.0)
+    s.apply(C.RelocalizeRegion(region))
+    left = None
+    for _ in range(60):
+        s.apply(C.Step())
+        rec = _last(s)
+        if left is None and rec.step.relocalizing and not _in_region(region, rec.truth):
+            left = rec.index
+    assert left is not None
+    said = [n for n in s.notes if "left the re-localization region" in n.text]
+    assert len(said) == 1 and said[0].level == "error" and f"frame {left}" in said[0].text
+    summary = "; ".join(s.tally.parts())
+    assert "outside the re-localization region" in summary and f"{left}" in summary
+    s.close()
+
+
+def test_a_region_the_page_cannot_follow_is_refused_in_plain_words(tmp_path: Path) -> None:
+    """A region beyond the limit leaves the localizer as it was and the note names the limit,
+    the tile count and a region size that fits, without a class name."""
+    import time
+
+    from tileviz.app import commands as C
+    from tileviz.app.server import App
+    from tileviz.app.session import SessionOptions
+    from tileviz.config import preset
+
+    app = App(preset("default"), SessionOptions(out_dir=tmp_path, interactive=True,
+                                                display=False), port=0)
+    app.start()
+    try:
+        s = app.session
+        assert s is not None
+        before = s.runner.primary.localizer.current
+        app.submit(C.RelocalizeRegion((-10.0, -10.0, 10.0, 10.0)))
+        deadline = time.monotonic() + 60.0
+        while not any(n.level == "error" for n in s.notes) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        note = [n for n in s.notes if n.level == "error"][-1]
+        assert note.text.startswith("Re-localize in the region: the region (-10, -10)-(10, 10) m")
+        assert f"more than the {RELOCALIZE_MAX_CANDIDATES}" in note.text
+        assert "at most about" in note.text
+        assert "RelocalizeRegion" not in note.text and "Error" not in note.text
+        assert s.runner.primary.localizer.current == before
+    finally:
+        app.stop()
+
+
+def test_every_command_has_a_name_the_page_uses() -> None:
+    from typing import get_args
+
+    from tileviz.app import commands as C
+
+    assert set(get_args(C.Command)) == set(C.LABELS)
+
+
+def test_replay_summary_names_the_frames_outside_the_region(tmp_path: Path, capsys) -> None:
+    """``replay --relocalize-region`` on a dataset with the truth, with a region the robot
+    leaves: the one-line summary says at how many frames and which."""
+    plan = FaultPlan()
+    ds = make_fault_dataset(tmp_path / "ds", plan)
+    with open(ds / "frames.csv", newline="") as f:
+        truth = [(float(r["x"]), float(r["y"])) for r in csv.DictReader(f)]
+    k = plan.kidnap_at + 6
+    (x, y), (x2, y2) = truth[k], truth[k + 10]
+    # 1.5 m x 1.5 m (candidates a tile apart), the robot at its edge heading out
+    xs = (x - 1.5, x + 0.02) if x2 > x else (x - 0.02, x + 1.5)
+    ys = (y - 1.5, y + 0.02) if y2 > y else (y - 0.02, y + 1.5)
+    region = (xs[0], ys[0], xs[1], ys[1])
+    code = tileviz_main(["replay", str(ds), "--out", str(tmp_path / "o.csv"), "--quiet",
+                         "--jobs", "1",
+                         "--relocalize-region=" + ",".join(f"{v:.6f}" for v in region)])
+    assert code == 0
+    out = capsys.readouterr().out
+    assert "outside the re-localization region at" in out

@@ -14,6 +14,7 @@ from tileviz.config import Config
 from tileviz.pipeline.workers import worker_context
 from tileviz.vision import extract
 from tileviz.vision.robust import (
+    dip_kernel,
     fit_kernel,
     heading_kernel,
     kernel,
@@ -22,7 +23,8 @@ from tileviz.vision.robust import (
 )
 from tileviz.vision.warmup import synthetic_view
 
-KERNELS = ("dip_rows", "part_profiles", "part_rows", "part_summary")
+KERNELS = ("part_profiles", "part_rows")
+DIP_KERNELS = ("dip_rows", "part_summary", "part_layout", "dip_recentre")
 
 
 PROJECTION_KERNELS = ("grout_score", "profile_arrays", "profile_dips", "view_spans")
@@ -36,6 +38,7 @@ LATTICE_KERNELS = ("clip_lines", "missing_line")
 def _loaded_kernels() -> dict[str, int]:
     """How many compiled signatures each public kernel holds in this process."""
     out = {name: len(getattr(kernel, name).signatures) for name in KERNELS}
+    out.update((name, len(getattr(dip_kernel, name).signatures)) for name in DIP_KERNELS)
     out.update((name, len(getattr(projection_kernel, name).signatures))
                for name in PROJECTION_KERNELS)
     out.update((name, len(getattr(heading_kernel, name).signatures)) for name in HEADING_KERNELS)
@@ -56,7 +59,6 @@ def test_warm_up_view_is_read_by_both_extractors(extractor: str) -> None:
 
 @pytest.mark.skipif(sys.platform != "linux", reason="the fork server is used where it exists; "
                     "this test checks it on Linux")
-@pytest.mark.skipif(not kernel.AVAILABLE, reason="numba not installed: no compiled kernels")
 def test_workers_start_with_the_kernels_loaded() -> None:
     """A worker of the replay's context holds every compiled kernel before its first frame."""
     ctx = worker_context()
@@ -64,7 +66,8 @@ def test_workers_start_with_the_kernels_loaded() -> None:
     with ProcessPoolExecutor(1, mp_context=ctx) as pool:
         loaded = pool.submit(_loaded_kernels).result(timeout=600)
     assert loaded == dict.fromkeys(
-        KERNELS + PROJECTION_KERNELS + HEADING_KERNELS + FIT_KERNELS + LATTICE_KERNELS, 1)
+        KERNELS + DIP_KERNELS + PROJECTION_KERNELS + HEADING_KERNELS + FIT_KERNELS
+        + LATTICE_KERNELS, 1)
 
 
 def _parent_pid() -> int:
@@ -124,7 +127,6 @@ def test_pipeline_package_loads_the_frame_loop_on_first_use() -> None:
     _runs_ok(code)
 
 
-@pytest.mark.skipif(not kernel.AVAILABLE, reason="numba not installed: no compiled kernels")
 def test_extract_loads_the_kernels_before_its_first_image(tmp_path: Path) -> None:
     """``tileviz extract`` warms the robust extractor up before the first image, so that image's
     stage timings (``--json``) are its own and not the kernels' one-off loading: in a fresh
@@ -134,13 +136,15 @@ def test_extract_loads_the_kernels_before_its_first_image(tmp_path: Path) -> Non
 
     image = tmp_path / "view.png"
     cv2.imwrite(str(image), synthetic_view(Config()))
-    names = {"kernel": KERNELS, "projection_kernel": PROJECTION_KERNELS,
+    names = {"kernel": KERNELS, "dip_kernel": DIP_KERNELS,
+             "projection_kernel": PROJECTION_KERNELS,
              "heading_kernel": HEADING_KERNELS, "fit_kernel": FIT_KERNELS,
              "lattice_kernel": LATTICE_KERNELS}
     loaded = " + ".join(f"[len(getattr({m}, n).signatures) for n in {v!r}]"
                         for m, v in names.items())
-    code = ("from tileviz.vision.robust import kernel, projection_kernel, heading_kernel, "
-            "fit_kernel, lattice_kernel; import tileviz.vision.cli as cli; seen = []; "
+    code = ("from tileviz.vision.robust import kernel, dip_kernel, projection_kernel, "
+            "heading_kernel, fit_kernel, lattice_kernel; import tileviz.vision.cli as cli; "
+            "seen = []; "
             "real = cli.extract; "
             f"cli.extract = lambda *a, **k: (seen.append({loaded}), real(*a, **k))[1]; "
             f"status = cli.main('extract', [{str(image)!r}, '--json']); "

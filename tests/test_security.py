@@ -41,8 +41,8 @@ def test_loopback_names() -> None:
 def test_a_page_of_another_site_is_closed_before_it_is_served(tmp_path: Path) -> None:
     import websockets
 
-    from tests.wsclient import subprotocol
     from tileviz.app.server import App
+    from tileviz.testing.wsclient import subprotocol
 
     app = App(preset("default"), SessionOptions(out_dir=tmp_path, interactive=True), port=0)
     app.start()

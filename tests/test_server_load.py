@@ -8,18 +8,16 @@ How fast the loop stays under this churn is a figure, not a test: ``bench/server
 from __future__ import annotations
 
 import asyncio
-import os
-import subprocess
-import sys
 import time
 from pathlib import Path
 
 import pytest
 
-from tests.wsclient import ViserClient
 from tileviz.app.server import App
 from tileviz.app.session import SessionOptions
 from tileviz.config import preset
+from tileviz.testing import churn
+from tileviz.testing.wsclient import ViserClient
 
 REPO = Path(__file__).resolve().parents[1]
 CLIENTS = 20
@@ -28,29 +26,6 @@ CYCLES = 2
 """Each client connects, is served and leaves at least this many times (however long it takes)."""
 HANG_S = 1800.0
 """Guards against a hang only (the churn takes LOAD_SECONDS plus a few cycles on a busy machine)."""
-
-# The clients run in their own process, as browsers would: they must not share the server's GIL.
-# Each connection waits until the server has sent it the whole scene (ReplayDoneMessage).
-LOAD = """
-import asyncio, sys, time
-from tests.wsclient import ViserClient
-
-async def churn(url, until, cycles):
-    n = 0
-    while n < cycles or time.monotonic() < until:
-        async with ViserClient(url) as c:
-            await c.wait_for(lambda m: m.get("type") == "ReplayDoneMessage", timeout=600)
-        n += 1
-    return n
-
-async def main(url, clients, seconds, cycles):
-    until = time.monotonic() + seconds
-    counts = await asyncio.gather(*(churn(url, until, cycles) for _ in range(clients)))
-    print(" ".join(map(str, counts)))
-
-asyncio.run(main(sys.argv[1], int(sys.argv[2]), float(sys.argv[3]), int(sys.argv[4])))
-"""
-
 
 def _check_history(app: App) -> tuple[int, int]:
     """Every frame kept is there once, in order, none skipped: the frame indices of positions
@@ -72,11 +47,8 @@ def test_twenty_clients_churning_for_a_minute(tmp_path: Path) -> None:
     app = App(preset("default"), SessionOptions(out_dir=tmp_path, speed=1.0), port=0)
     app.start()
     try:
-        env = dict(os.environ, PYTHONPATH=str(REPO))
-        load = subprocess.Popen(
-            [sys.executable, "-c", LOAD, app.url, str(CLIENTS), str(LOAD_SECONDS), str(CYCLES)],
-            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
-        )
+        # the clients run in their own process, as browsers would (tileviz.testing.churn)
+        load = churn.start(app.url, CLIENTS, LOAD_SECONDS, CYCLES)
         made = []  # the newest frame, sampled while the clients come and go
         while load.poll() is None:
             made.append(app.session.history.last)

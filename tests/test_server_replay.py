@@ -14,7 +14,6 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from tests.wsclient import ViserClient, serving, stop_serve
 from tileviz.app import commands as C
 from tileviz.app.commands import SIMULATOR_ONLY
 from tileviz.app.scene import SceneView, ribbon_centreline
@@ -23,6 +22,7 @@ from tileviz.cli import main as cli
 from tileviz.datasets import DatasetSource, read_meta, replay_config
 from tileviz.pipeline import FrameLoop
 from tileviz.pipeline.outputs import replay_row
+from tileviz.testing.wsclient import ViserClient, serving, stop_serve
 from tileviz.types import Box, BoxSet
 
 DURATION = 1.5
@@ -147,17 +147,15 @@ def test_the_end_of_the_dataset_pauses_and_the_stored_frames_stay(dataset, frame
 
 
 def test_the_readout_keeps_saying_the_dataset_ended(dataset, frames, tmp_path):
-    from tileviz.app.server import App
+    from tileviz.app.status import StatusState, render_status
 
-    app = App(replay_config(read_meta(dataset)), port=0)  # not started: the readout alone
-    app.session = s = session(dataset, tmp_path)
-    app._contained = None
+    s = session(dataset, tmp_path)  # no server: the readout alone
     play_to_end(s)
-    text = app.status_text(s.shown_entry(), live=True)
+    text = render_status(StatusState.of(s, s.shown_entry(), None, live=True))
     assert text.count(f"end of dataset, {frames} frames") == 1
     for _ in range(3):
         s.apply(C.Kidnap())  # newer notes push the end's note out of view
-    text = app.status_text(s.shown_entry(), live=True)
+    text = render_status(StatusState.of(s, s.shown_entry(), None, live=True))
     assert f"end of dataset, {frames} frames" in text and f"frame {frames - 1}" in text
     s.close()
 
@@ -185,10 +183,10 @@ def test_a_bad_row_keeps_the_frames_before_it_and_names_file_and_row(damage, dat
     play_to_end(s)
     assert [s.history.get(p).record.index for p in range(len(s.history))] == list(range(bad))
     note = s.notes[-1]
-    assert note.level == "error" and f"frames.csv row {bad + 2}" in note.text
+    assert note.level == "error" and f"frames.csv line {bad + 2} (frame {bad})" in note.text
     assert not s.playing and s.ended is not None
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and f"frames.csv row {bad + 2}" in err[0]
+    assert len(err) == 1 and f"frames.csv line {bad + 2} (frame {bad})" in err[0]
     # the frames before it are those of the undamaged dataset
     assert shown_rows(s) == cli_replay(dataset, tmp_path / "r.csv")[1: bad + 1]
     s.apply(C.StepBack())
@@ -208,7 +206,7 @@ def test_simulator_commands_leave_a_note_and_change_nothing(dataset, tmp_path):
     assert {type(c) for c in commands} == set(SIMULATOR_ONLY)
     for cmd in commands:
         s.apply(cmd)
-        assert type(cmd).__name__ in s.notes[-1].text and "nothing changed" in s.notes[-1].text
+        assert C.label(cmd) in s.notes[-1].text and "nothing changed" in s.notes[-1].text
     assert (s.cfg, s.shown, s.world_version, len(s.history)) == (cfg, shown, version, 3)
     assert s.setpoint_kind == "dataset" and not s.recording_active
     assert not (tmp_path / "out").exists() or not any((tmp_path / "out").iterdir())

@@ -14,10 +14,11 @@ from pathlib import Path
 
 import pytest
 
-from tests.wsclient import ViserClient, serving, stop_serve
 from tileviz.app.server import App
 from tileviz.app.session import Session, SessionOptions
 from tileviz.config import preset
+from tileviz.summary import FAITHFUL_NOTE
+from tileviz.testing.wsclient import ViserClient, serving, stop_serve
 
 REPO = Path(__file__).resolve().parents[1]
 UPDATE_TYPES = {
@@ -239,7 +240,56 @@ def test_frames_runs_n_frames_prints_a_summary_and_exits_0(tmp_path):
     assert len(summary) == 1, r.stdout
     assert summary[0].startswith("tileviz serve: 5 frames in ")
     assert "statuses: " in summary[0] and "truth inside the set in" in summary[0]
+    assert FAITHFUL_NOTE not in summary[0]  # the robust extractor's views keep their bounds
     assert "Traceback" not in r.stderr
+    # the address once, when the first frame is shown: viser's own banner is not printed first
+    assert r.stdout.splitlines()[0].startswith("tileviz serve: open http://127.0.0.1:")
+    assert "Websocket" not in r.stdout
+
+
+def test_the_page_says_it_is_starting_until_the_first_frame(tmp_path):
+    """Until the first frame is computed (the first start compiles the vision kernels) the left
+    panel says so in place of the empty set and camera view; the first push hides the note."""
+    import threading
+
+    from tileviz.app.server import STARTING_NOTE
+    from tileviz.sim.camera import FloorRenderer
+
+    cfg = preset("default")
+    release = threading.Event()
+
+    class SlowFirstFrame(FloorRenderer):
+        def render(self, *args, **kwargs):
+            release.wait(120)  # the first frame takes as long as the test says
+            return super().render(*args, **kwargs)
+
+    a = App(cfg, SessionOptions(out_dir=tmp_path, interactive=True,
+                                renderer=SlowFirstFrame(cfg.floor, cfg.camera)), port=0)
+    starter = threading.Thread(target=a.start)
+    starter.start()
+    try:
+        for _ in range(1200):
+            if getattr(a, "starting", None) is not None:
+                break
+            threading.Event().wait(0.05)
+        assert a.starting.visible and a.starting.content == STARTING_NOTE
+        assert "compiles the vision kernels" in STARTING_NOTE
+        assert "starting" in a.controls.status.content
+        release.set()
+        starter.join(120)
+        assert a.starting.visible is False  # the first frame is shown: the panels take over
+    finally:
+        release.set()
+        starter.join(120)
+        a.stop()
+
+
+def test_frames_with_the_faithful_extractor_says_its_views_break_their_bounds(tmp_path):
+    r = run_cli("--frames", "5", "--port", "0", "--max-speed", "--out-dir", str(tmp_path),
+                "--extractor", "faithful")
+    assert r.returncode == 0, r.stderr
+    (summary,) = [line for line in r.stdout.splitlines() if "frames/s" in line]
+    assert f"vouched for; {FAITHFUL_NOTE}" in summary
 
 
 def test_a_requested_busy_port_is_one_line_and_the_default_says_where_it_went(tmp_path):

@@ -1,7 +1,7 @@
 """The adversarial soundness suite (issue 13): runs that respect every declared bound at its
 nastiest, the truth in exact arithmetic, every frame's ``predicted``, ``updated`` and written hull
-checked (``tests/adversary.py`` says how). One hypothesis strategy per class of nastiness; the long
-run (>= 1e5 frames) is ``bench/soundness_audit.py``.
+checked (``tileviz/testing/adversary.py`` says how). One hypothesis strategy per class of
+nastiness; the long run (>= 1e5 frames) is ``bench/soundness_audit.py``.
 
 The suite is deterministic (the shared hypothesis profile is derandomized) and takes a few tens of
 seconds; it can fail: the last tests show it catching a localizer told bounds tighter than the
@@ -17,7 +17,7 @@ from hypothesis import Phase, given, settings
 from hypothesis import strategies as st
 
 import tileviz.types
-from tests.adversary import KINDS, HypothesisChooser, RandomChooser, run, scenario
+from tileviz.testing.adversary import KINDS, HypothesisChooser, RandomChooser, run, scenario
 from tileviz.types import SensorBounds
 
 EXAMPLES = 15

@@ -1,31 +1,28 @@
 """Regressions for the soundness holes of issue 13, each from the audit's own snippet, plus the
 property of the shared mechanism each fix lives in. The truth is checked in exact arithmetic
-(``tests/exact_truth.py``), never with ``Box.contains`` (which compares in floats)."""
+(``tileviz/testing/exact_truth.py``), never with ``Box.contains`` (which compares in floats)."""
 
 from __future__ import annotations
 
 import importlib.util
-import json
 import math
 import random
-import subprocess
 import sys
 from fractions import Fraction
-from pathlib import Path
 
 import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from tests.exact_truth import MP, heading_margin, in_box, in_set, mpf
 from tileviz.config import LocalizerConfig
 from tileviz.core.contraction import contract_branch, lever_enclosure, observation_windows
 from tileviz.core.intervals import TWO_PI, lattice_cut, lattice_intersect, turn_shift
 from tileviz.core.localizer import Localizer
+from tileviz.testing import codac_oracle_worker  # (codac runs in its subprocess only)
+from tileviz.testing.exact_truth import MP, heading_margin, in_box, in_set, mpf
 from tileviz.types import Box, BoxSet, Observation, Odometry, SensorBounds
 
 FAST = settings(max_examples=200)
-WORKER = Path(__file__).with_name("codac_oracle_worker.py")
 
 # --- 1. a subnormal lever arm ------------------------------------------------------------------
 
@@ -191,11 +188,8 @@ def test_the_codac_worker_reads_every_float_exactly() -> None:
         pytest.skip("codac is not installed")
     rng = random.Random(13)
     values = [rng.uniform(-10, 10) for _ in range(500)] + [0.1, 0.166, 0.009999999999999945]
-    r = subprocess.run([sys.executable, str(WORKER)],
-                       input=json.dumps({"task": "echo", "values": values}),
-                       capture_output=True, text=True, timeout=300)
-    assert r.returncode == 0, r.stderr
-    back = [float.fromhex(v) for v in json.loads(r.stdout)["values"]]
+    out = codac_oracle_worker.run({"task": "echo", "values": values}, timeout=300)
+    back = [float.fromhex(v) for v in out["values"]]
     assert back == values
     assert "codac" not in sys.modules and 1.0 + 2.0**-53 == 1.0  # this process: nearest
 

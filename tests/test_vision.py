@@ -200,9 +200,9 @@ def test_reasons_are_ok_exactly_when_accepted(views: list) -> None:
             elif res.accepted:  # the view's own bound, within the largest it may declare
                 caps = DEFAULT_SETTINGS
                 assert 0 < res.observation.position_error <= (
-                    max(CFG.vision.position_error_px, caps.max_bound_px) / CFG.camera.ppm)
+                    max(CFG.vision.position_error_px, caps.bound.max_px) / CFG.camera.ppm)
                 assert 0 < res.observation.heading_error <= max(CFG.vision.heading_error,
-                                                                caps.max_bound_rad)
+                                                                caps.bound.max_rad)
 
 
 def test_geometry_helpers() -> None:

@@ -1,34 +1,28 @@
-"""The robust extractor on floors rendered independently of tileviz (``bench/floorgen.py``):
-every floor family is read, and no accepted view (clean or corrupted) lies outside the bound
-it declares. Fixed seeds of the study's splits (``bench/vision_study.py``; none held out)."""
+"""The robust extractor on floors rendered independently of tileviz
+(``tileviz/testing/floorgen.py``): every floor family is read, and no accepted view (clean or
+corrupted) lies outside the bound it declares. Fixed seeds of the study's splits
+(``bench/vision_study.py``; none held out)."""
 
 from __future__ import annotations
 
 import math
-import sys
-from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
-
-import floorgen  # noqa: E402
-from cable_along import run_motion  # noqa: E402
-from cable_along import run_view as along_view  # noqa: E402
-from vision_study import FAMILY_SALT, run_view  # noqa: E402
-
-from tileviz.config import CameraConfig, VisionConfig  # noqa: E402
-from tileviz.types import Pose  # noqa: E402
-from tileviz.vision import extract, observation_error  # noqa: E402
+from tileviz.config import CameraConfig, VisionConfig
+from tileviz.testing import floorgen
+from tileviz.testing.views import FAMILY_SALT, cable_view, motion_view, study_view
+from tileviz.types import Pose
+from tileviz.vision import extract, observation_error
 
 SEEDS = range(5)
 
 
 @pytest.mark.parametrize("family", floorgen.FAMILIES)
 def test_each_floor_family_is_read_within_its_declared_bound(family: str) -> None:
-    rows = [run_view(seed, family, None) for seed in SEEDS]
+    rows = [study_view(seed, family, None) for seed in SEEDS]
     for r in rows:
         assert r["inside"], r
     readable = [r for r in rows if r["readable"]]
@@ -178,7 +172,7 @@ def test_views_once_refused_are_read_within_their_bound(family: str, seed: int, 
     itself, and with a window that fits it when only shallower dips could be measured;
     saturated specks of a light texture are not glare; a view may declare a bound wider than
     the configured one, up to the robust extractor's own limit."""
-    r = run_view(seed, family, None)
+    r = study_view(seed, family, None)
     assert r["readable"] and r["accepted"], (why, r)
     assert r["err_px"] <= r["bound_px"] and r["err_rad"] <= r["bound_rad"], (why, r)
 
@@ -189,7 +183,7 @@ def test_a_trend_of_part_errors_along_a_line_stays_inside_the_heading_bound() ->
     standard errors, outside the bound it declared. Its heading error must be inside its own
     bound (the part positions come from the dips' edges, and each part's own bound is carried
     through the fit)."""
-    r = run_view(1_000_098, "terrazzo", None)
+    r = study_view(1_000_098, "terrazzo", None)
     assert r["accepted"], r
     assert r["err_rad"] <= r["bound_rad"] and r["err_px"] <= r["bound_px"], r
 
@@ -453,7 +447,7 @@ def test_a_cable_along_a_grout_line_is_refused_or_read_within_its_bound(
     lattice spacing, or a shoulder on one side of it) is refused; a cable lying on the grout
     line's edge makes it wider than the view's other lines, and half that excess is in the
     bound."""
-    r = along_view(seed, family)
+    r = cable_view(seed, family)
     assert r["inside"], (why, r)
     if refused:
         assert not r["accepted"], (why, r)
@@ -465,7 +459,7 @@ def test_the_studys_cable_beside_the_grout_of_a_gravel_photograph_is_refused() -
     """Seed 9 000 015's corrupted photo view (the fresh7 split): a dark cable about 10 px
     from a grout line, one line of that family in view, was read at the cable (10.3 px off,
     bound 1.1 px); the grout is a second dip inside the line's window."""
-    r = run_view(9_000_015, "photo", "cable")
+    r = study_view(9_000_015, "photo", "cable")
     assert r["reason"] == "foreign line", r
 
 
@@ -474,7 +468,7 @@ def test_a_short_motion_blur_is_read_within_its_bound_or_refused(family: str) ->
     """``bench/cable_along.py --motion``'s views (a motion blur of 2-15 px at any angle,
     smearing one family's lines more than the other's): none accepted outside its bound, and
     the blur does not make every view unreadable."""
-    rows = [run_motion(seed, family) for seed in range(4)]
+    rows = [motion_view(seed, family) for seed in range(4)]
     for r in rows:
         assert r["inside"], r
     assert sum(r["accepted"] for r in rows) >= 1, rows
@@ -484,8 +478,8 @@ def test_light_grout_smeared_by_motion_blur_into_a_ramp_is_refused() -> None:
     """Tuning seed 39's corrupted shade-steps view: light grout on tiles of strongly
     different shades, smeared by motion blur across one family, was read 8.2 px off against
     a bound of 3.9 px. The smeared band's 25 / 75 % midpoints lie about 1 px off its 50 %
-    one in every part (a shoulder, ``RobustSettings.shoulder_px``): it is refused."""
-    r = run_view(39, "shade_steps", "motion_blur")
+    one in every part (a shoulder, ``RobustSettings.lines.shoulder_px``): it is refused."""
+    r = study_view(39, "shade_steps", "motion_blur")
     assert not r["accepted"], r
 
 
@@ -493,7 +487,7 @@ def test_light_grout_smeared_by_motion_blur_into_a_ramp_is_refused() -> None:
 def test_corrupted_views_are_never_accepted_outside_their_bound(corruption: str) -> None:
     refused = 0
     for i, family in enumerate(("plain", "light_grout", "shade_steps", "wide_grout")):
-        r = run_view(100 + i, family, corruption)
+        r = study_view(100 + i, family, corruption)
         assert r["inside"], r
         refused += not r["accepted"]
     assert refused >= 2
@@ -511,7 +505,7 @@ def test_glare_saturates_the_sensor_and_is_refused_as_glare() -> None:
         img = floorgen.render(spec, cx, cy, th, rng, "glare")
         tints.add(spec.seed % 2)
         assert int(img.min(axis=2).max()) == 255, seed
-        assert run_view(seed, "plain", "glare")["reason"] == "glare", seed
+        assert study_view(seed, "plain", "glare")["reason"] == "glare", seed
     assert tints == {0, 1}
 
 

@@ -112,6 +112,49 @@ def test_faults_across_the_view_are_refused(
     assert res.reason in reasons, res.details
 
 
+@pytest.mark.parametrize("fault", [
+    Fault("cable", {"angle": 1.0, "offset": 10.0, "width": 4.0}),
+    Fault("box", {"angle": 0.9, "offset": 40.0}),
+    Fault("glare", {"x": 150.0, "y": 110.0, "radius": 50.0}),
+    Fault("motion_blur", {"angle": 0.23, "length": 30.0}),
+    Fault("dropout"),
+    None,
+])
+def test_a_refusal_names_its_check_with_the_value_that_broke_its_limit(
+    renderer: FloorRenderer, fault: Fault | None
+) -> None:
+    """Every refusal carries the check that refused (a known id whose reason is the result's),
+    the value measured and the limit it broke; every check run before it passed or was
+    overruled by the next (a rescue), and an accepted view passed every check of the reading
+    it shows."""
+    from tileviz.vision.robust.checks import CHECKS
+
+    res = _run(renderer, None if fault is None else [fault])
+    dec = res.decision
+    assert dec is not None and dec.reason == res.reason
+    runs = [dec.view_checks] + [t.checks for t in dec.readings]
+    assert all(c.check in CHECKS for checks in runs for c in checks)
+    if res.accepted:
+        assert dec.refusal is None and dec.shown is not None
+        assert all(c.passed for c in dec.readings[dec.shown].checks)
+        return
+    ref = dec.refusal
+    assert ref is not None and not ref.passed
+    check = CHECKS[ref.check]
+    assert check.reason == res.reason or ref.check == "foreign_edge"
+    assert not check.relation.passes(ref.value, ref.limit)
+    where = dec.view_checks if dec.refused_in is None else dec.readings[dec.refused_in].checks
+    assert where[-1] == ref  # the last check run there
+    rescued = {"constant.range", "glare.saturated", "foreign_line.contrast"}
+    assert all(c.passed or c.check in rescued for c in where[:-1])
+
+
+def test_the_checks_docstring_lists_every_check_id() -> None:
+    from tileviz.vision.robust import checks
+
+    assert all(f"``{cid}``" in checks.__doc__ for cid in checks.CHECKS)
+
+
 def test_a_cable_along_a_grout_line_direction_off_the_lattice_is_refused(
     renderer: FloorRenderer,
 ) -> None:
@@ -211,8 +254,8 @@ def test_normalise_keeps_the_view(y1: float, y2: float, y3: float) -> None:
 def test_missing_profile_samples_continue_the_nearest_level() -> None:
     """Beyond the view a profile continues its own last level (not the image mean): a dark
     tile at the border neither becomes a dip nor hides the edge of the grout next to it."""
-    from tileviz.vision.robust import kernel, projection_kernel
-    from tileviz.vision.robust.projection import fill_ends, profile_dips_numpy
+    from tests.numpy_profiles import fill_ends, profile_dips_numpy
+    from tileviz.vision.robust import projection_kernel
 
     nan = np.nan
     prof = np.array([[nan, nan, 50.0, 50.0, 20.0, 50.0, 60.0, nan, nan],
@@ -227,13 +270,12 @@ def test_missing_profile_samples_continue_the_nearest_level() -> None:
     row[44:48] = 20.0
     row[48:60] = 60.0
     prof = np.vstack([row, row])
-    dark, _, fam, peak = profile_dips_numpy(prof, 140.0, 21, 15.0)
+    dark, _, fam, peak = profile_dips_numpy(prof, 140.0, 21, 15.0, 8, 5.0)
     assert sorted(set(peak.tolist())) == [44]
     assert np.all(dark[0, 48:60] == 0.0)
-    if kernel.AVAILABLE:
-        kd, _, kf, kp = projection_kernel.profile_dips(prof, 140.0, 21, 15.0)
-        assert np.array_equal(kd, dark, equal_nan=True)
-        assert kp.tolist() == peak.tolist() and kf.tolist() == fam.tolist()
+    kd, _, kf, kp = projection_kernel.profile_dips(prof, 140.0, 21, 15.0, 8, 5.0)
+    assert np.array_equal(kd, dark, equal_nan=True)
+    assert kp.tolist() == peak.tolist() and kf.tolist() == fam.tolist()
 
 
 def test_scattered_saturated_specks_are_not_glare_but_a_saturated_patch_is() -> None:

@@ -13,21 +13,23 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from tests import numpy_kernels as nk
+from tests import numpy_profiles as npf
 from tileviz.config import FLOOR_STYLES, VisionConfig, floor_style, preset
 from tileviz.sim.camera import FloorRenderer
 from tileviz.types import Pose
 from tileviz.vision import extract
 from tileviz.vision.robust import (
-    extractor,
-    fit,
+    DEFAULT_SETTINGS,
+    dip_kernel,
     fit_kernel,
     heading_kernel,
     kernel,
     lattice,
     lattice_kernel,
     profiles,
-    projection,
     projection_kernel,
+    readings,
 )
 
 ROBUST = VisionConfig(extractor="robust")
@@ -65,7 +67,7 @@ def test_the_shortcuts_give_the_full_computation(
     def measure_fully(run: object, y3: float, attempt: int = 1) -> list:
         return full_measure(run, y3, attempt, reuse=False, every=True)  # type: ignore[arg-type]
 
-    monkeypatch.setattr(extractor, "measure", measure_fully)
+    monkeypatch.setattr(readings, "measure", measure_fully)
     full = run_all()
     assert any(res.accepted for res in fast)
     for a, b in zip(fast, full, strict=True):
@@ -75,14 +77,9 @@ def test_the_shortcuts_give_the_full_computation(
 
 
 def _floor_views(n: int) -> list[tuple[np.ndarray, object, float]]:
-    """``n`` clean views of every floor family of ``bench/floorgen.py``."""
-    import sys
-    from pathlib import Path
-
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
-    import floorgen
-
+    """``n`` clean views of every floor family of ``tileviz/testing/floorgen.py``."""
     from tileviz.config import CameraConfig
+    from tileviz.testing import floorgen
 
     out = []
     for fam in floorgen.FAMILIES:
@@ -104,9 +101,9 @@ def _bits(a: np.ndarray) -> bytes:
 
 
 PROJECTION_KERNELS = ("grout_score", "profile_dips", "view_spans", "profile_arrays")
+DIP_KERNELS = ("dip_rows", "part_summary", "part_layout", "dip_recentre")
 
 
-@pytest.mark.skipif(not kernel.AVAILABLE, reason="numba is not installed")
 def test_the_compiled_part_measurement_is_the_numpy_one_bit_for_bit(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
@@ -115,12 +112,13 @@ def test_the_compiled_part_measurement_is_the_numpy_one_bit_for_bit(
     standard error) from the compiled kernels as from the numpy computation, so do every
     family's light-grout score, every profile's darkness, noise and dips, every dip's
     measurement on its whole profile, where its parts lie and whether it is moved onto its
-    centre, the profiles and in-view spans of every warp, and whole extractions agree field
-    for field."""
+    centre, and the profiles and in-view spans of every warp (the numpy references:
+    ``tests/numpy_profiles.py``)."""
     views = _floor_views(2)
     names = ("part_rows", "part_profiles", "grout_score", "profile_dips", "dip_rows",
              "view_spans", "profile_arrays", "part_summary", "part_layout", "dip_recentre")
-    home = {name: projection_kernel if name in PROJECTION_KERNELS else kernel for name in names}
+    home = {name: projection_kernel if name in PROJECTION_KERNELS
+            else dip_kernel if name in DIP_KERNELS else kernel for name in names}
     compiled = {name: getattr(home[name], name) for name in names}
     seen: dict[str, list[tuple]] = {name: [] for name in names}
 
@@ -136,71 +134,57 @@ def test_the_compiled_part_measurement_is_the_numpy_one_bit_for_bit(
     assert sum(res.accepted for res in fast) >= len(views) // 2
     assert sum(int(args[0].shape[0]) for args in seen["part_rows"]) > 100
     for args in seen["part_rows"]:
-        for a, b in zip(compiled["part_rows"](*args), profiles.part_rows_numpy(*args),
+        for a, b in zip(compiled["part_rows"](*args), npf.part_rows_numpy(*args),
                         strict=True):
             assert _bits(a) == _bits(b)
     assert len(seen["part_profiles"]) == len(seen["part_rows"])
     for flat, stride, *rest in seen["part_profiles"]:
         integ = flat.reshape(-1, stride)
         assert _bits(compiled["part_profiles"](flat, stride, *rest)) == _bits(
-            profiles.part_profiles_numpy(integ, *rest))
+            npf.part_profiles_numpy(integ, *rest))
     assert sum(compiled["grout_score"](*args)[0] for args in seen["grout_score"]) >= len(views)
     for args in seen["grout_score"]:
         used, value = compiled["grout_score"](*args)
-        used_np, value_np = projection.grout_score_numpy(*args)
+        used_np, value_np = npf.grout_score_numpy(*args)
         assert used == used_np and (not used or value.hex() == value_np.hex())
     assert len(seen["profile_dips"]) >= len(views)
     for args in seen["profile_dips"]:
-        for a, b in zip(compiled["profile_dips"](*args), projection.profile_dips_numpy(*args),
+        for a, b in zip(compiled["profile_dips"](*args), npf.profile_dips_numpy(*args),
                         strict=True):
             assert a.dtype == b.dtype and _bits(a) == _bits(b)
     assert sum(int(args[4].size) for args in seen["dip_rows"]) > 100
     for args in seen["dip_rows"]:
-        for a, b in zip(compiled["dip_rows"](*args), profiles.dip_rows_numpy(*args),
+        for a, b in zip(compiled["dip_rows"](*args), npf.dip_rows_numpy(*args),
                         strict=True):
             assert a.shape == b.shape and _bits(a) == _bits(b)
     assert len(seen["part_summary"]) == len(seen["part_rows"])
     for args in seen["part_summary"]:
-        for a, b in zip(compiled["part_summary"](*args), profiles.part_summary_numpy(*args),
+        for a, b in zip(compiled["part_summary"](*args), npf.part_summary_numpy(*args),
                         strict=True):
             assert a.shape == b.shape and _bits(a) == _bits(b)
     assert len(seen["part_layout"]) == len(seen["part_rows"])
     for args in seen["part_layout"]:
-        for a, b in zip(compiled["part_layout"](*args), profiles.part_layout_numpy(*args),
+        for a, b in zip(compiled["part_layout"](*args), npf.part_layout_numpy(*args),
                         strict=True):
             assert a.dtype == b.dtype and a.shape == b.shape and _bits(a) == _bits(b)
     assert len(seen["dip_recentre"]) >= len(views)
     assert any(compiled["dip_recentre"](*args)[1] for args in seen["dip_recentre"])
     for args in seen["dip_recentre"]:
         (peak, moved), (peak_np, moved_np) = (compiled["dip_recentre"](*args),
-                                              profiles.dip_recentre_numpy(*args))
+                                              npf.dip_recentre_numpy(*args))
         assert moved == moved_np and np.array_equal(peak, peak_np)
     assert len(seen["profile_arrays"]) >= len(views)
     for args in seen["profile_arrays"]:
-        for a, b in zip(compiled["profile_arrays"](*args), projection.profile_arrays_numpy(*args),
+        for a, b in zip(compiled["profile_arrays"](*args), npf.profile_arrays_numpy(*args),
                         strict=True):
             assert a.shape == b.shape and _bits(a) == _bits(b)
     assert len(seen["view_spans"]) >= 2 * len(views)
     for n, off, c, s, w, h, along in seen["view_spans"]:
-
-        class Run:  # the view size view_spans reads
-            pass
-
-        run = Run()
-        run.w, run.h = w, h  # type: ignore[attr-defined]
-        ref = projection.view_spans(run, np.arange(n) - off, c, s,  # type: ignore[arg-type]
-                                  along_rows=along)
+        ref = npf.view_spans(w, h, np.arange(n) - off, c, s, along_rows=along)
         for a, b in zip(compiled["view_spans"](n, off, c, s, w, h, along), ref, strict=True):
             assert _bits(a) == _bits(b)
-    monkeypatch.setattr(kernel, "AVAILABLE", False)
-    slow = [extract(img, camera=cam, tile_size=ts, vision=ROBUST) for img, cam, ts in views]
-    for a, b in zip(fast, slow, strict=True):
-        for f in fields(a):
-            if f.name != "timings":
-                assert _same(getattr(a, f.name), getattr(b, f.name)), f.name
 
 
-@pytest.mark.skipif(not kernel.AVAILABLE, reason="numba is not installed")
 @settings(max_examples=60, deadline=None)
 @given(seed=st.integers(0, 2**31 - 1), r=st.sampled_from([12, 20, 37, 69]),
        nan_share=st.sampled_from([0.0, 0.05, 0.3]))
@@ -223,12 +207,11 @@ def test_the_compiled_part_measurement_matches_numpy_on_any_profile(
     pp[rng.random(pp.shape) < nan_share] = np.nan
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
         fast = kernel.part_rows(pp, jf, cj, hj, r)
-        ref = profiles.part_rows_numpy(pp, jf, cj, hj, r)
+        ref = npf.part_rows_numpy(pp, jf, cj, hj, r)
     for a, b in zip(fast, ref, strict=True):
         assert _bits(a) == _bits(b)
 
 
-@pytest.mark.skipif(not kernel.AVAILABLE, reason="numba is not installed")
 @settings(max_examples=80, deadline=None)
 @given(seed=st.integers(0, 2**31 - 1), n=st.integers(1, 120),
        closing=st.sampled_from([17, 35, 61]))
@@ -240,13 +223,12 @@ def test_the_compiled_light_grout_score_matches_numpy_on_any_profile(
     rng = np.random.default_rng(seed)
     sums = rng.normal(0.0, 3000.0, n)
     length = rng.uniform(0.0, 300.0, n)
-    used, value = projection_kernel.grout_score(sums, length, closing)
-    used_np, value_np = projection.grout_score_numpy(sums, length, closing)
+    used, value = projection_kernel.grout_score(sums, length, closing, 8.0, 0.15, 8)
+    used_np, value_np = npf.grout_score_numpy(sums, length, closing, 8.0, 0.15, 8)
     assert used == used_np
     assert not used or value.hex() == value_np.hex()
 
 
-@pytest.mark.skipif(not kernel.AVAILABLE, reason="numba is not installed")
 @settings(max_examples=60, deadline=None)
 @given(seed=st.integers(0, 2**31 - 1), h=st.integers(1, 60), w=st.integers(1, 80),
        angle=st.floats(-1.0, 1.0), zero_share=st.sampled_from([0.0, 0.5, 1.0]))
@@ -265,24 +247,24 @@ def test_the_compiled_heading_votes_match_numpy_on_any_gradients(
     mag[rng.random((h, w)) < zero_share] = 0.0
     dx = np.rint(mag * np.cos(phi)).astype(np.int16)
     dy = np.rint(mag * np.sin(phi)).astype(np.int16)
-    ref = heading.heading_votes_numpy(dx, dy, 0.2, heading.HEADING_BINS)
+    hst = DEFAULT_SETTINGS.heading
+    ref = nk.heading_votes_numpy(dx, dy, 0.2, hst.bins, hst.near, hst.min_voters)
     q = heading_kernel.heading_magnitudes(dx, dy)
-    thr = heading.voters(q, 0.2)
+    thr = heading.voters(q, 0.2, hst.min_voters)
     assert (thr > 0) == ref[0]
     if thr > 0:
-        y0, share = heading_kernel.heading_votes(dx, dy, q, thr, heading.HEADING_BINS)
+        y0, share = heading_kernel.heading_votes(dx, dy, q, thr, hst.bins, hst.near)
         assert y0.hex() == ref[1].hex() and share.hex() == ref[2].hex()
     clean_dx = np.full((40, 40), int(round(3000 * np.cos(angle))), np.int16)
     clean_dy = np.full((40, 40), int(round(3000 * np.sin(angle))), np.int16)
-    found, y_clean, _ = heading.heading_votes_numpy(clean_dx, clean_dy, 0.2,
-                                                    heading.HEADING_BINS)
+    found, y_clean, _ = nk.heading_votes_numpy(clean_dx, clean_dy, 0.2, hst.bins, hst.near,
+                                               hst.min_voters)
     if found:
         # gradient directions are normal to the lines; y3 is modulo pi / 2
         want = np.arctan2(float(clean_dy[0, 0]), float(clean_dx[0, 0]))
         assert abs(np.remainder(y_clean - want + np.pi / 4, np.pi / 2) - np.pi / 4) < 1e-9
 
 
-@pytest.mark.skipif(not kernel.AVAILABLE, reason="numba is not installed")
 @settings(max_examples=200, deadline=None)
 @given(seed=st.integers(0, 2**31 - 1), n=st.integers(1, 3000), bits=st.integers(1, 62),
        zero_share=st.sampled_from([0.0, 0.5, 0.95]), share=st.floats(0.0, 1.0))
@@ -325,7 +307,6 @@ def test_the_foreign_edge_medians_are_numpys(
         assert want3.tobytes() == grout_levels.neighbour_medians(line).tobytes()
 
 
-@pytest.mark.skipif(not kernel.AVAILABLE, reason="numba is not installed")
 @settings(max_examples=150, deadline=None)
 @given(seed=st.integers(0, 2**31 - 1), y3=st.one_of(st.just(0.0), st.floats(-0.79, 0.79)),
        size=st.sampled_from([(320, 240), (640, 480), (100, 300)]), lp=st.floats(15.0, 400.0),
@@ -350,14 +331,13 @@ def test_the_compiled_missing_line_check_matches_numpy_on_any_lattice(
     args = (float(n[0]), float(n[1]), float(np.hypot(-n[1], n[0])), ref, lp, reach,
             int(rng.integers(5, 40)), w, h, float(rng.uniform(0.2, 0.9)))
     tail = (peak, fam, k, int(rng.integers(0, 40)), float(rng.uniform(0.0, 400.0)),
-            float(rng.uniform(1.0, 10.0)))
+            float(rng.uniform(1.0, 10.0)), 0.25)
     for got in (found, every, np.zeros(0)):
-        assert lattice_kernel.missing_line(*args, got, *tail) == lattice.missing_line_numpy(
+        assert lattice_kernel.missing_line(*args, got, *tail) == nk.missing_line_numpy(
             *args, got, *tail)
-    assert not lattice.missing_line_numpy(*args, every, *tail)
+    assert not nk.missing_line_numpy(*args, every, *tail)
 
 
-@pytest.mark.skipif(not kernel.AVAILABLE, reason="numba is not installed")
 @settings(max_examples=150, deadline=None)
 @given(seed=st.integers(0, 2**31 - 1), m=st.integers(1, 20), unmeasured=st.floats(0.0, 0.6),
        tilt=st.floats(-0.05, 0.05))
@@ -377,19 +357,18 @@ def test_the_compiled_fit_matches_numpy_on_any_parts(
     pp = np.where(wp > 0, straight + rng.normal(0.0, 0.3, (m, 4)), np.nan)
     sig = np.where(wp > 0, rng.random((m, 4)), 0.0)
     spr = np.where(wp > 0, rng.random((m, 4)), 0.0)
-    args = (wp, tp, pp, sig, spr, n0, 4.0, 4.5, 2.0)
+    args = (wp, tp, pp, sig, spr, n0, 4.0, 4.5, 2.0, 0.25)
     with np.errstate(invalid="ignore", divide="ignore"):
-        ref = fit.fit_arrays_numpy(*args)
+        ref = nk.fit_arrays_numpy(*args)
     got = fit_kernel.fit_arrays(*args)
     assert all(_bits(a) == _bits(b) for a, b in zip(got, ref, strict=True))
     exact = np.where(wp > 0, straight, np.nan)
     with np.errstate(invalid="ignore", divide="ignore"):
-        eps = fit.fit_arrays_numpy(wp, tp, exact, sig, spr, n0, 4.0, 4.5, 2.0)[0]
+        eps = nk.fit_arrays_numpy(wp, tp, exact, sig, spr, n0, 4.0, 4.5, 2.0, 0.25)[0]
     if ((wp > 0).sum(axis=1) >= 2).all():  # every line measured in two parts or more
         assert abs(eps - tilt) < 1e-6
 
 
-@pytest.mark.skipif(not kernel.AVAILABLE, reason="numba is not installed")
 @settings(max_examples=100, deadline=None)
 @given(y3=st.one_of(st.just(0.0), st.just(np.pi / 2), st.floats(-3.2, 3.2)),
        offsets=st.lists(st.floats(-500.0, 500.0), max_size=12),
@@ -420,7 +399,6 @@ def _edge_view(rng: np.random.Generator, h: int, w: int, share: float
     return dx, dy, edges
 
 
-@pytest.mark.skipif(not kernel.AVAILABLE, reason="numba is not installed")
 @settings(max_examples=80, deadline=None)
 @given(seed=st.integers(0, 2**31 - 1), size=st.sampled_from([(240, 320), (31, 17)]),
        share=st.sampled_from([0.0, 0.2, 0.7]), count=st.integers(0, 12))
@@ -430,7 +408,7 @@ def test_the_compiled_edge_shares_match_numpy(
     """Random straight edges (some under 1 px, some along the pixel axes) on random gradients
     and edge pixels: the compiled shares are numpy's bit for bit; an edge drawn along a column
     of edge pixels whose gradients are normal to it is seen on every point."""
-    from tileviz.vision.robust import foreign, foreign_kernel
+    from tileviz.vision.robust import foreign_kernel
 
     rng = np.random.default_rng(seed)
     h, w = size
@@ -440,9 +418,9 @@ def test_the_compiled_edge_shares_match_numpy(
     if count >= 2:
         seg[0, 2:] = seg[0, :2] + rng.uniform(-0.6, 0.6, 2)  # under 1 px
         seg[1, 2] = seg[1, 0]  # along a column
-    cos_tol = float(np.cos(foreign.NORMAL_TOLERANCE))
+    cos_tol = float(np.cos(DEFAULT_SETTINGS.foreign.normal_tolerance))
     got = foreign_kernel.edge_shares(dx, dy, edges, seg, cos_tol)
-    assert got.tobytes() == foreign.edge_shares_numpy(dx, dy, edges, seg, cos_tol).tobytes()
+    assert got.tobytes() == nk.edge_shares_numpy(dx, dy, edges, seg, cos_tol).tobytes()
     col = w // 2
     edges[:, col] = 255
     dx[:, col] = 300  # a step across the column: its gradient is normal to the column
@@ -451,7 +429,6 @@ def test_the_compiled_edge_shares_match_numpy(
     assert foreign_kernel.edge_shares(dx, dy, edges, along, cos_tol)[0] == 1.0
 
 
-@pytest.mark.skipif(not kernel.AVAILABLE, reason="numba is not installed")
 @settings(max_examples=150, deadline=None)
 @given(seed=st.integers(0, 2**31 - 1), y3=st.one_of(st.just(0.0), st.floats(-0.79, 0.79)),
        angle=st.one_of(st.sampled_from([0.0, np.pi / 2, np.pi, -np.pi / 2]),
@@ -463,7 +440,7 @@ def test_the_compiled_end_steps_match_numpy(
     """Random edge ends (in the view and on its border, any direction, along the pixel axes
     too) on random lattices, gradients and edge pixels: the compiled steps to the border, the
     bands met and the edge seen before and beyond them are numpy's bit for bit."""
-    from tileviz.vision.robust import foreign, foreign_kernel
+    from tileviz.vision.robust import foreign_kernel
 
     rng = np.random.default_rng(seed)
     h, w = 240, 320
@@ -473,9 +450,10 @@ def test_the_compiled_end_steps_match_numpy(
     n = (np.sin(y3), -np.cos(y3)), (-np.cos(y3), -np.sin(y3))
     args = (px, py, float(np.cos(angle)), float(np.sin(angle)), band, float(n[0][0]),
             float(n[0][1]), float(n[1][0]), float(n[1][1]), float(rng.uniform(-lp, lp)),
-            float(rng.uniform(-lp, lp)), lp, float(np.cos(foreign.NORMAL_TOLERANCE)))
+            float(rng.uniform(-lp, lp)), lp,
+            float(np.cos(DEFAULT_SETTINGS.foreign.normal_tolerance)), 4, 6, 0.5)
     got = foreign_kernel.end_steps(dx, dy, edges, *args)
-    ref = foreign.end_steps_numpy(dx, dy, edges, *args)
+    ref = nk.end_steps_numpy(dx, dy, edges, *args)
     assert got[0] == ref[0] and tuple(got[3:8]) == tuple(ref[3:8])
     assert np.array_equal(got[1], ref[1]) and np.array_equal(got[2], ref[2])
     assert float(got[8]).hex() == float(ref[8]).hex()
@@ -484,7 +462,6 @@ def test_the_compiled_end_steps_match_numpy(
         assert 0 <= ref[3] < ref[4] <= ref[5] <= ref[1].size
 
 
-@pytest.mark.skipif(not kernel.AVAILABLE, reason="numba is not installed")
 @settings(max_examples=150, deadline=None)
 @given(seed=st.integers(0, 2**31 - 1), reach=st.integers(10, 300), lo=st.integers(0, 300),
        hi=st.integers(0, 300), step=st.floats(1.0, 20.0))
@@ -494,7 +471,7 @@ def test_the_compiled_stretch_range_matches_numpy(
     """Random gray levels along a grout line (any stretch of it in view, the crossing inside
     or outside it): the compiled largest range of the stretches clear of the crossing is
     numpy's, NaN when too few stretches are clear."""
-    from tileviz.vision.robust import foreign_kernel, grout_levels
+    from tileviz.vision.robust import foreign_kernel
 
     rng = np.random.default_rng(seed)
     u = np.arange(-reach, reach + 1) * step
@@ -502,7 +479,8 @@ def test_the_compiled_stretch_range_matches_numpy(
     b = max(b, a + 20)
     idx = np.arange(a, b + 1)
     lv = np.floor(rng.uniform(0.0, 256.0, idx.size - 2))
-    args = (lv, idx, u, grout_levels.VARIATION_CLEAR, grout_levels.VARIATION_STRETCHES)
+    fst = DEFAULT_SETTINGS.foreign
+    args = (lv, idx, u, fst.variation_clear, fst.variation_stretches)
     got = foreign_kernel.stretch_range(*args)
-    ref = grout_levels.stretch_range_numpy(*args)
+    ref = nk.stretch_range_numpy(*args)
     assert float(got).hex() == float(ref).hex() or (np.isnan(got) and np.isnan(ref))

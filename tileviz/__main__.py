@@ -1,5 +1,5 @@
 """``python -m tileviz COMMAND ...``: serve, record, replay, extract, evaluate, calibrate,
-import-bag."""
+import-bag, sample-data."""
 
 from __future__ import annotations
 
@@ -15,6 +15,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "calibrate": ("tileviz.datasets.calibrate", "calibrate a real camera from checkerboard "
                   "images (meta.json's camera_model)"),
     "import-bag": ("tileviz.datasets.bag_import", "import a ROS 1 or ROS 2 bag as a dataset"),
+    "sample-data": ("tileviz.datasets.sample", "write sample checkerboard images and a small "
+                    "ROS bag to try calibrate and import-bag on"),
 }
 
 
@@ -23,7 +25,7 @@ def main(argv: list[str] | None = None) -> int:
     args = list(sys.argv[1:] if argv is None else argv)
     if not args or args[0] in ("-h", "--help"):
         lines = ["usage: python -m tileviz COMMAND [options]", "", "commands:"]
-        lines += [f"  {name:<11} {text}" for name, (_, text) in COMMANDS.items()]
+        lines += [f"  {name:<12} {text}" for name, (_, text) in COMMANDS.items()]
         lines += ["", "python -m tileviz COMMAND --help shows a command's options."]
         print("\n".join(lines))
         return 0 if args else 2

@@ -207,6 +207,18 @@ FIRST_RUN_NOTICE = ("still starting: the first run after an install compiles the
 """The second half of the line :func:`notice_if_slow` prints while the kernels compile."""
 
 
+def read_json(path: str, option: str) -> Any:
+    """The JSON document of the file ``path`` given to ``option``; CliError naming both when the
+    file cannot be read, is not UTF-8 text or not JSON (the dataset reader's
+    :func:`tileviz.datasets.format.json_file`)."""
+    from tileviz.datasets.format import DatasetError, json_file
+
+    try:
+        return json_file(path, f"{option}: ")
+    except DatasetError as e:
+        raise CliError(str(e)) from None
+
+
 def run_cli(prog: str, body: Callable[[], int]) -> int:
     """Run ``body`` as the command ``prog`` (every ``python -m tileviz`` command and ``serve.py``
     go through here): first the process set-up (:func:`tileviz.vision.set_opencv_threads`: OpenCV

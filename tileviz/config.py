@@ -193,10 +193,10 @@ class VisionConfig:
     declares this bound for every view. The robust extractor declares each view's own bound
     from the evidence in that image (docs/vision.md), scales its consistency checks with the
     smaller of this and 2 px, and refuses a view whose bound exceeds the larger of this and
-    its own limit (``RobustSettings.max_bound_px``, 5 px: ``imprecise``)."""
+    its own limit (``RobustSettings.bound.max_px``, 5 px: ``imprecise``)."""
     heading_error: float = 0.025
     """Bound on the error of y3, rad: the faithful extractor's declared bound; for the robust
-    extractor as ``position_error_px`` (its own limit ``RobustSettings.max_bound_rad``,
+    extractor as ``position_error_px`` (its own limit ``RobustSettings.bound.max_rad``,
     0.05 rad)."""
 
     def __post_init__(self) -> None:
@@ -240,8 +240,8 @@ class LocalizerConfig:
     bounds widened by the fault model, contracted by every view; when a view or the compass
     rejects the set, the localizer takes the fault set's contraction instead (it tracks through
     the slip). 0 and 0: no fault model. A ``max_slip`` recovery (above, not both 0) replaces the
-    fault model. The default (0.2 m/s, 0.1 rad/s) was chosen by measurement
-    (``bench/fault_defaults.py``, ``docs/faults.md``, "The default fault model")."""
+    fault model. The default (0.2 m/s, 0.1 rad/s): ``docs/faults.md``, "The default fault
+    model"."""
     fault_yaw_rate: float = 0.1
     """Fault model: how much faster, in rad/s, a fault may turn the robot than the odometry and
     its ``yaw_rate_error`` allow."""
@@ -374,9 +374,8 @@ def _to_tuple(value: Any) -> Any:
 PRESET_VISION = VisionConfig(position_error_px=1.5, heading_error=0.0065)
 """Vision bounds of both presets' cameras (noise 3 gray levels, blur 0.7 px, no JPEG): the
 faithful extractor declares them for every view; the robust extractor declares each view's own
-bound (docs/vision.md), about 0.8 px / 0.004 rad on the presets' clean views, within these
-nearly always (``bench/preset_bounds.py``, ``tests/test_preset_bounds.py``), and its checks
-scale with them."""
+bound (docs/vision.md), within these on the presets' clean views (``tests/test_preset_bounds.py``;
+the figures: ``bench/preset_bounds.py``, docs/figures.md), and its checks scale with them."""
 
 
 FLOOR_STYLES: dict[str, dict[str, Any]] = {
@@ -409,7 +408,7 @@ def floor_style(floor: FloorConfig, name: str) -> FloorConfig:
 def with_floor_style(cfg: Config, name: str) -> Config:
     """``cfg`` with its floor in the style ``name`` (:func:`floor_style`). A style other than
     ``default`` also takes the general vision limits (``VisionConfig`` defaults, the extractor
-    kept): the presets' tighter limits were measured on the presets' own floor."""
+    kept): the presets' tighter limits hold for the presets' own floor."""
     out = replace(cfg, floor=floor_style(cfg.floor, name))
     if name != "default":
         out = replace(out, vision=replace(VisionConfig(), extractor=cfg.vision.extractor))

@@ -11,7 +11,19 @@ from typing import Protocol
 
 from tileviz.types import BoxSet
 
-__all__ = ["SCALE_FRAMES", "SCALE_TOLERANCE", "RunTally"]
+__all__ = ["FAITHFUL_NOTE", "SCALE_FRAMES", "SCALE_TOLERANCE", "RunTally", "counted",
+           "extractor_note", "frame_ranges", "outside_region"]
+
+FAITHFUL_NOTE = ("the faithful extractor's views can break their declared bounds, so with it the "
+                 "set can miss the truth (containment below 100 % is expected, not a broken "
+                 "guarantee)")
+"""What every summary of a run with the faithful extractor says (docs/guarantees.md, H4)."""
+
+
+def extractor_note(extractor: str) -> str:
+    """The sentence a summary or a status adds for views made by ``extractor`` (a
+    ``VisionConfig.extractor`` name): :data:`FAITHFUL_NOTE` for ``faithful``, "" otherwise."""
+    return FAITHFUL_NOTE if extractor == "faithful" else ""
 
 
 class _Record(Protocol):
@@ -39,6 +51,12 @@ class RunTally:
     periods: list[float] = field(default_factory=list)
     """The tile period each view's lines showed over the declared one (robust extractor,
     views with two lines of a family or more: ``details["period_ratio"]``)."""
+    extractors: Counter[str] = field(default_factory=Counter)
+    """Frames by the extractor that made their view (``VisionResult.extractor``)."""
+    outside_region: list[int] = field(default_factory=list)
+    """Frame indices at which the localizer held re-localization candidates cut to a region
+    (``LocalizerStep.region``) while the true pose, where known, was outside that region: the
+    hypothesis of re-localization was broken there (docs/guarantees.md)."""
 
     @property
     def frames(self) -> int:
@@ -54,13 +72,20 @@ class RunTally:
         hull = rec.updated.hull()
         if hull is not None and rec.status != "lost":
             self.widths.append(hull.widths)
+        if outside_region(rec):
+            self.outside_region.append(int(getattr(rec, "index", self.frames - 1)))
         vision = getattr(rec, "vision", None)
+        extractor = getattr(vision, "extractor", "")
+        if extractor:
+            self.extractors[extractor] += 1
         ratio = getattr(vision, "details", {}).get("period_ratio")
         if ratio is not None and math.isfinite(ratio):
             self.periods.append(float(ratio))
 
     def parts(self) -> list[str]:
-        """The summary's pieces: statuses, median set size, containment (when known)."""
+        """The summary's pieces: statuses, median set size, containment (when known), what the
+        extractor's views promise (:func:`extractor_note`), the frames outside the
+        re-localization region, the scale warning."""
         out = [f"statuses: {', '.join(f'{n} {k}' for k, n in self.statuses.most_common())}"
                if self.statuses else "no frame"]
         finite = [w for w in self.widths if all(math.isfinite(v) for v in w)]
@@ -71,6 +96,11 @@ class RunTally:
         if self.vouched:
             out.append(f"truth inside the set in {100.0 * self.inside / self.vouched:.1f} % of "
                        f"the {self.vouched} frames it vouched for")
+        out += [note for note in map(extractor_note, sorted(self.extractors)) if note]
+        if self.outside_region:
+            out.append(f"the robot was outside the re-localization region at "
+                       f"{len(self.outside_region)} frames ({frame_ranges(self.outside_region)}):"
+                       f" the set could not vouch for the truth there")
         scale = self.scale_warning()
         if scale:
             out.append(scale)
@@ -93,9 +123,39 @@ class RunTally:
                 f"lie outside their bound)")
 
 
+def outside_region(rec: object) -> bool:
+    """True when ``rec`` (a frame record) knows the true pose and its localizer step cut the set
+    to a re-localization region (``LocalizerStep.region``) that does not hold the truth's x, y."""
+    step = getattr(rec, "step", None)
+    truth = getattr(rec, "truth", None)
+    region = getattr(step, "region", None)
+    if region is None or truth is None:
+        return False
+    x0, y0, x1, y1 = region
+    return not (x0 <= truth.x <= x1 and y0 <= truth.y <= y1)
+
+
+def counted(n: int, singular: str, plural: str | None = None) -> str:
+    """``n`` and the noun in the right number: ``1 box``, ``2 boxes`` (``plural`` defaults to
+    ``singular + "s"``)."""
+    return f"{n} {singular if n == 1 else (plural or singular + 's')}"
+
+
+def frame_ranges(frames: list[int], most: int = 3) -> str:
+    """Sorted frame indices as at most ``most`` ranges, e.g. ``245-256, 300, ...``."""
+    runs: list[list[int]] = []
+    for k in frames:
+        if runs and k == runs[-1][1] + 1:
+            runs[-1][1] = k
+        else:
+            runs.append([k, k])
+    text = ", ".join(f"{a}-{b}" if b > a else f"{a}" for a, b in runs[:most])
+    return text + (", ..." if len(runs) > most else "")
+
+
 SCALE_FRAMES = 5
 """Views that measured the tile period before :meth:`RunTally.scale_warning` speaks."""
 SCALE_TOLERANCE = 0.003
 """Largest relative difference of the measured tile period from the declared one that
-:meth:`RunTally.scale_warning` lets pass: a view's lines measure it within about 0.02 %; at
-0.3 % a line 100 px from the view's centre is read 0.3 px off, most of a clean view's bound."""
+:meth:`RunTally.scale_warning` lets pass, far above what a view's lines read on a correct scale:
+at 0.3 % a line 100 px from the view's centre is read 0.3 px off, most of a clean view's bound."""

@@ -26,14 +26,14 @@ from tileviz.config import (
 )
 
 __all__ = [
-    "LAYERS", "MAX_TEXT", "MAX_WAYPOINTS", "PANEL_VIEWS", "SIMULATOR_ONLY", "Command", "Inject",
-    "Kidnap", "Live", "Pause",
+    "LABELS", "LAYERS", "MAX_TEXT", "MAX_WAYPOINTS", "PANEL_VIEWS", "SIMULATOR_ONLY", "Command",
+    "Inject", "Kidnap", "Live", "Pause",
     "ExportMcap", "Play", "Relocalize", "RelocalizeRegion", "Report", "SetFollow", "ShowPanel",
     "Reset", "Restart", "Seek", "SetDisplay", "SetExtractor", "SetInflation", "SetLayer",
     "SetFaultModel", "SetManualTarget", "SetMaxSpeed", "SetMcl", "SetMode", "SetNoise",
     "SetSetpoint", "SetSpeed",
     "SetWaypoints", "StartRecording", "Step", "StepBack", "StopRecording", "TogglePlay",
-    "parse_region", "parse_waypoints",
+    "label", "parse_region", "parse_waypoints",
 ]
 
 LAYERS = (
@@ -438,6 +438,28 @@ Command = (
     | StartRecording | StopRecording | ExportMcap | Report | SetFollow | ShowPanel
 )
 """Any command the loop understands."""
+
+LABELS: dict[type[Command], str] = {
+    Play: "Play", Pause: "Pause", TogglePlay: "Play", Step: "Step", StepBack: "Step back",
+    Seek: "Timeline", Live: "Go live", SetSpeed: "Speed", SetMaxSpeed: "As fast as possible",
+    SetSetpoint: "Setpoint", SetManualTarget: "Manual target",
+    SetWaypoints: "Drive the waypoints", Kidnap: "Kidnap", Relocalize: "Relocalize",
+    RelocalizeRegion: "Re-localize in the region", Reset: "Reset",
+    Restart: "Floor and camera", SetMode: "Mode", SetExtractor: "Extractor",
+    SetNoise: "Noise bounds", SetInflation: "Truth inflation", SetFaultModel: "Fault model",
+    SetDisplay: "Stage images", SetMcl: "Monte Carlo Localization", SetLayer: "Layers",
+    Inject: "Inject a fault", StartRecording: "Start recording",
+    StopRecording: "Stop recording", ExportMcap: "Export MCAP", Report: "Note",
+    SetFollow: "Follow the robot", ShowPanel: "Panel",
+}
+"""What the page calls the control that sends each command (a refused command's note names
+the control, not the class)."""
+
+
+def label(cmd: Command) -> str:
+    """The page's name for the control that sent ``cmd`` (:data:`LABELS`)."""
+    return LABELS.get(type(cmd), "a control")
+
 
 SIMULATOR_ONLY: dict[type[Command], str] = {
     SetSetpoint: "the setpoint", SetManualTarget: "the setpoint", SetWaypoints: "the setpoint",

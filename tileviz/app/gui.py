@@ -27,6 +27,7 @@ from tileviz.config import (
     TILE_SIZE_RANGE,
     Config,
 )
+from tileviz.datasets.mcap_export import mcap_missing
 from tileviz.sim.camera import FAULT_KINDS
 from tileviz.sim.source import ODOMETRY_FAULTS
 
@@ -42,7 +43,7 @@ if TYPE_CHECKING:
         ViserServer,
     )
 
-__all__ = ["Controls"]
+__all__ = ["Controls", "format_region"]
 
 FAULTS = ODOMETRY_FAULTS + FAULT_KINDS
 """Faults the simulator can inject (``SimSource.inject``): its odometry faults, then the
@@ -69,12 +70,18 @@ wheel slip beyond the bounds; Relocalize or Reset).
 at the end). *Step back* and the *timeline* show stored frames as they were; nothing is
 recomputed. *Go live* jumps to the newest frame.
 
-**The left panel.** The camera view and each stage of the image pipeline (report Fig 4.2 and
-4.3), or the plots: *Does the view agree with the true pose?* draws the six equivalence
-residuals of report table 6.1 (Fig 6.3; zero when the view fits the true pose), *Size of the
-set* the widths of the blue set, *Distance from the set's centre to the truth* its error.
-Orange: the Monte Carlo Localization baseline, calibrated to the views' measured errors
+**The left panel.** The camera view and each stage of the image pipeline (report Fig 4.2 and 4.3)
+with, under them, the robust extractor's checks of the frame on screen (the readings tried, each
+check's value, limit and result, and the check that refused the frame), or the plots: *Is the view
+within its bound of the true pose?* draws, per coordinate, how far the view is from the truth (at
+the tile and quarter turn that fit best) over the bound the view declared: at or below the grey
+line at 1, the view agrees (report Fig 6.3 draws the same as six residuals; `--output-file` writes
+those), *Size of the set* the widths of the blue set, *Distance from the set's centre to the truth*
+its error. Orange: the Monte Carlo Localization baseline, calibrated to the views' measured errors
 (particles and 95 % ellipse), when switched on.
+
+**Without a GPU** the browser draws in software and the page runs slower: the floor's texture is
+a layer to switch on (Layers), off at the start.
 """
 """The page's "How to read this page" text (markdown)."""
 
@@ -105,11 +112,14 @@ class Controls:
 
     def __init__(self, server: ViserServer, submit: Callable[[C.Command], None], cfg: Config, *,
                  layers: dict[str, bool], display: bool, playing: bool, speed: float = 1.0,
-                 max_speed: bool = False, mcl: bool = False, replay: str | None = None) -> None:
+                 max_speed: bool = False, mcl: bool = False, replay: str | None = None,
+                 region: tuple[float, float, float, float] = (-2.0, -2.0, 2.0, 2.0)) -> None:
         self.server = server
         self._submit = submit
         gui = server.gui
-        self.status = gui.add_html("starting...")
+        self.status = gui.add_html("<b>starting</b>: computing the first frame (the first start "
+                                   "after an install compiles the vision kernels: up to a "
+                                   "minute, once)")
         with gui.add_folder("How to read this page", expand_by_default=False):
             gui.add_markdown(HELP)
         if replay is not None:
@@ -146,7 +156,11 @@ class Controls:
             self.set_waypoints = gui.add_button("Drive the waypoints")
             self.kidnap = gui.add_button("Kidnap (teleport the robot)")
             self.relocalize = gui.add_button("Relocalize (tell the true pose)")
-            self.region = gui.add_text("Region x0, y0, x1, y1 (m)", "-2, -2, 2, 2")
+            self._region_default = format_region(region)
+            """The region the page offered last; the text follows the default until edited."""
+            self.region = gui.add_text("Region x0, y0, x1, y1 (m)", self._region_default,
+                                       hint="where the robot is, as far as you know: "
+                                            "re-localization assumes it stays in here")
             self.relocalize_region = gui.add_button("Re-localize in the region")
             self.seed = gui.add_number("Seed", cfg.sim.seed, min=SEED_RANGE[0], max=SEED_RANGE[1],
                                       step=1)
@@ -236,9 +250,14 @@ class Controls:
         with gui.add_folder("Record") as folders["record"]:
             self.record_name = gui.add_text("Dataset name", "live-run")
             self.record = gui.add_button("Start recording")
+            missing = mcap_missing()
             self.export = gui.add_button(
-                "Export MCAP", hint="Write the last recording as NAME.mcap beside its folder, "
+                "Export MCAP" if missing is None else "Export MCAP (not installed)",
+                disabled=missing is not None,
+                hint=missing or "Write the last recording as NAME.mcap beside its folder, "
                 "for Foxglove (as `python -m tileviz replay NAME --mcap` does)")
+            if missing is not None:
+                gui.add_markdown(f"*{missing}*")
         self._recording = False
         self._on_click(self.record, lambda: (C.StopRecording() if self._recording
                                              else C.StartRecording(self.record_name.value)))
@@ -309,7 +328,8 @@ class Controls:
 
     # ------------------------------------------------------------------ refresh (loop thread)
     def refresh(self, *, first: int, last: int, shown: int, playing: bool, setpoint: str,
-                target: tuple[float, float], recording: bool, status: str) -> None:
+                target: tuple[float, float], recording: bool, status: str,
+                region: tuple[float, float, float, float] | None = None) -> None:
         """Bring the controls the loop changes up to date (values set here are not echoed back
         as commands)."""
         # (*) a handle's value is settable; mypy sees viser's props field as read-only
@@ -331,12 +351,23 @@ class Controls:
         if setpoint == "manual" and tuple(self.target.value) != tuple(target):
             self.target.value = target  # type: ignore[misc]  # (*)
             self.gizmo.position = (target[0], target[1], 0.05)
+        if region is not None:
+            offered = format_region(region)
+            if offered != self._region_default:
+                if self.region.value == self._region_default:  # not edited: follow the floor
+                    self.region.value = offered  # type: ignore[misc]  # (*)
+                self._region_default = offered
         self._recording = recording
         label = "Stop recording" if recording else "Start recording"
         if self.record.label != label:
             self.record.label = label
         if self.status.content != status:
             self.status.content = status
+
+
+def format_region(region: tuple[float, float, float, float]) -> str:
+    """A region (x0, y0, x1, y1, metres) as the text the region field takes."""
+    return ", ".join(f"{v:g}" for v in region)
 
 
 def floor_point(origin: tuple[float, float, float],

@@ -41,14 +41,16 @@ _EMPTY_IMAGE.flags.writeable = False
 
 METRIC_NAMES = (
     "t",
-    "r1", "r2", "r3", "r4", "r5", "r6",
+    "view_x", "view_y", "view_heading",
     "width_x", "width_y", "width_theta",
     "error_xy", "error_theta",
     "truth_x", "truth_y", "est_x", "est_y",
     "inside", "status", "boxes", "frame_ms",
     "mcl_error_xy", "mcl_covered",
 )
-"""Columns of :class:`Series`. Units: t s; r1..r6 dimensionless; widths m, m, rad (hull of the
+"""Columns of :class:`Series`. Units: t s; view_x, view_y, view_heading the view's error from
+the true pose (``FrameRecord.view_error``) over its declared bound, dimensionless (<= 1: the view
+agrees with the truth within its bound); widths m, m, rad (hull of the
 updated set); error_xy m (distance from the truth to the hull centre), error_theta rad (wrapped
 to [-pi, pi]); truth/est x, y m; inside 1/0 (NaN when unknown or ``lost``); status the index in
 ``tileviz.types.STATUSES``; boxes count; frame_ms the vision + localizer time; mcl_error_xy m
@@ -96,31 +98,40 @@ def strip_record(rec: FrameRecord) -> FrameRecord:
     return replace(rec, image=_EMPTY_IMAGE, vision=vision)
 
 
+_METRIC = {name: i for i, name in enumerate(METRIC_NAMES)}
+
+
 def metrics_of(rec: FrameRecord, mcl: ParticleView | None = None) -> np.ndarray:
     """One row of :data:`METRIC_NAMES` for ``rec`` and its MCL view (NaN where unknown)."""
     nan = math.nan
     row = np.full(len(METRIC_NAMES), nan)
-    row[0] = rec.t
-    if rec.residuals is not None:
-        row[1:7] = rec.residuals
+    c = _METRIC
+    row[c["t"]] = rec.t
+    obs = rec.vision.observation
+    if rec.view_error is not None and obs is not None:
+        e1, e2, e3 = rec.view_error
+        pos, head = obs.position_error, obs.heading_error
+        row[c["view_x"]] = abs(e1) / pos if pos > 0 else math.inf
+        row[c["view_y"]] = abs(e2) / pos if pos > 0 else math.inf
+        row[c["view_heading"]] = abs(e3) / head if head > 0 else math.inf
     hull = rec.updated.hull()
     if hull is not None:
-        row[7:10] = hull.widths
+        row[[c["width_x"], c["width_y"], c["width_theta"]]] = hull.widths
         cx, cy, ct = hull.centre
-        row[14:16] = (cx, cy)
+        row[c["est_x"]], row[c["est_y"]] = cx, cy
         if rec.truth is not None:
-            row[10] = math.hypot(rec.truth.x - cx, rec.truth.y - cy)
-            row[11] = math.remainder(rec.truth.theta - ct, 2.0 * math.pi)
+            row[c["error_xy"]] = math.hypot(rec.truth.x - cx, rec.truth.y - cy)
+            row[c["error_theta"]] = math.remainder(rec.truth.theta - ct, 2.0 * math.pi)
     if rec.truth is not None:
-        row[12:14] = (rec.truth.x, rec.truth.y)
+        row[c["truth_x"]], row[c["truth_y"]] = rec.truth.x, rec.truth.y
     inside = rec.truth_inside()
-    row[16] = nan if inside is None else float(inside)
-    row[17] = STATUSES.index(rec.status) if rec.status in STATUSES else nan
-    row[18] = len(rec.updated)
-    row[19] = rec.timings.get("vision_ms", 0.0) + rec.timings.get("localizer_ms", 0.0)
+    row[c["inside"]] = nan if inside is None else float(inside)
+    row[c["status"]] = STATUSES.index(rec.status) if rec.status in STATUSES else nan
+    row[c["boxes"]] = len(rec.updated)
+    row[c["frame_ms"]] = rec.timings.get("vision_ms", 0.0) + rec.timings.get("localizer_ms", 0.0)
     if mcl is not None and rec.truth is not None:
-        row[20] = math.hypot(rec.truth.x - mcl.mean[0], rec.truth.y - mcl.mean[1])
-        row[21] = float(bool(mcl.covered))
+        row[c["mcl_error_xy"]] = math.hypot(rec.truth.x - mcl.mean[0], rec.truth.y - mcl.mean[1])
+        row[c["mcl_covered"]] = float(bool(mcl.covered))
     return row
 
 

@@ -1,5 +1,6 @@
-"""Plots (viser's uPlot): the equivalence residuals over time (report Fig 6.3), the widths of the
-localizer's box and the error of its centre, over the frames up to the one shown. Titles and
+"""Plots (viser's uPlot): how far each view is from the true pose over its declared bound (the
+readable form of report Fig 6.3's residuals: the branch that fits, per coordinate), the widths of
+the localizer's box and the error of its centre, over the frames up to the one shown. Titles and
 series labels are in plain words; the page's help ("How to read this page") gives the report's
 figure and table numbers.
 
@@ -24,14 +25,13 @@ if TYPE_CHECKING:
 __all__ = ["Plots"]
 
 _COL = {name: i for i, name in enumerate(METRIC_NAMES)}
-_RESIDUAL_COLOURS = ("#e6194b", "#3cb44b", "#4363d8", "#f58231", "#911eb4", "#42d4f4")
-RESIDUAL_LABELS = ("x, upright", "y, upright", "heading, upright", "x, quarter turn",
-                   "y, quarter turn", "heading, quarter turn")
-"""Legend of r1..r6 (``tileviz.core.tiles.equivalence_residuals``): the first three compare the view
-with the true pose for the upright and half-turned readings, the last three for the quarter
-turns."""
+VIEW_LABELS = ("x error / bound", "y error / bound", "heading error / bound", "the bound")
+"""Legend of the view plot: each view's error from the true pose (``FrameRecord.view_error``,
+the tile and heading branch that fits best) over the bound the view declared, per coordinate,
+and the bound itself (1)."""
+_VIEW_COLOURS = ("#e6194b", "#3cb44b", "#4363d8", "#888888")
 TITLES = {
-    "residuals": "Does the view agree with the true pose? (0 = yes)",
+    "residuals": "Is the view within its bound of the true pose? (at or below 1 = yes)",
     "widths": "Size of the set",
     "error": "Distance from the set's centre to the truth",
     "mcl": "Monte Carlo Localization baseline",
@@ -61,11 +61,11 @@ class Plots:
         x = np.zeros(2)
         zeros = np.zeros(2)
         self.residuals = gui.add_uplot(
-            (x, *([zeros] * 6)),
+            (x, *([zeros] * 4)),
             (_series("t", "black"),
-             *(_series(label, c) for label, c in zip(RESIDUAL_LABELS, _RESIDUAL_COLOURS,
-                                                     strict=True))),
-            title=TITLES["residuals"], scales=_xscale(), axes=_axes("residual"),
+             *(_series(label, c, 1.0 if label == VIEW_LABELS[-1] else 1.5)
+               for label, c in zip(VIEW_LABELS, _VIEW_COLOURS, strict=True))),
+            title=TITLES["residuals"], scales=_xscale(), axes=_axes("error / bound"),
             height=height, padding=PADDING)
         self.widths = gui.add_uplot(
             (x, zeros, zeros, zeros),
@@ -92,11 +92,11 @@ class Plots:
         series with fewer than two points is emptied (a new run shows nothing of the old one)."""
         rows = rows.reshape(-1, len(METRIC_NAMES))
         t = rows[:, _COL["t"]]
-        res = rows[:, _COL["r1"]: _COL["r6"] + 1]
+        res = rows[:, [_COL["view_x"], _COL["view_y"], _COL["view_heading"]]]
         ok = np.isfinite(res).all(axis=1)
         if ok.sum() < 2:
             ok[:] = False
-        self.residuals.data = (t[ok], *(res[ok, i] for i in range(6)))
+        self.residuals.data = (t[ok], *(res[ok, i] for i in range(3)), np.ones(int(ok.sum())))
         w = rows[:, [_COL["width_x"], _COL["width_y"], _COL["width_theta"]]]
         ok = np.isfinite(w).all(axis=1)
         if ok.sum() < 2:

@@ -10,7 +10,6 @@ runs on its own thread (:class:`McapJob`) and :meth:`Recorder.poll` notes its en
 
 from __future__ import annotations
 
-import os
 import shutil
 import threading
 from collections.abc import Callable
@@ -137,8 +136,11 @@ class Recorder:
             why, level = (f"{why}; {e}" if why else str(e)), "error"
         if w.count > 0:
             self.last = self.path
+        from tileviz.datasets import dataset_mb
+
         tail = f" ({why})" if why else ""
-        self._note(f"recorded {w.count} frames to {self.path}{tail}", level)
+        self._note(f"recorded {w.count} frames ({dataset_mb(w.folder):.1f} MB) to {self.path}"
+                   f"{tail}", level)
 
     def cancel(self, why: str) -> None:
         """The run restarted or the server stops: stop the recording and forget one asked for."""
@@ -163,7 +165,9 @@ class Recorder:
             what = ("stop the recording first" if self.active
                     else "record a run first (Start recording, then Stop recording)")
             raise ValueError(f"nothing to export: {what}")
-        size = sum(p.stat().st_size for p in self.last.rglob("*") if p.is_file())
+        from tileviz.datasets import dataset_mb
+
+        size = dataset_mb(self.last) * 1e6
         free = free_bytes(self.last)
         if free < size + MIN_FREE_BYTES:
             raise ValueError(f"no room to export {self.last}: {_gib(free)} free on its disk, "
@@ -208,7 +212,7 @@ class McapJob:
 
         try:
             # the replay table is not kept: the MCAP file is what was asked for
-            self.frames = replay(self.dataset, out=os.devnull, mcap=self.out, jobs=1)
+            self.frames = replay(self.dataset, mcap=self.out, jobs=1)
         except Exception as e:  # noqa: BLE001 - reported as one line by Recorder.poll
             self.error = f"{type(e).__name__}: {e}" if not isinstance(e, (OSError, ValueError)) \
                 else str(e)

@@ -7,11 +7,10 @@ line-segment nodes for the outlines, a fixed-size mesh for the heading wedge. No
 per frame.
 
 The long polylines (trails, path, waypoint loop) are flat ribbon meshes, one quad a segment, not
-viser line segments: the browser draws a line-segment node as one instance a segment, and
-without a GPU (software WebGL) each instance costs tens of microseconds a frame, so two
-1000-segment trails alone cost more than the rest of the scene's geometry
-(``bench/page_draw_profile.py``); a mesh is one draw whatever its length. Line segments remain
-for the few short outlines (footprint, arrows, box outlines: as many segments as boxes shown).
+viser line segments: the browser draws a line-segment node as one instance a segment, and without
+a GPU (software WebGL) every instance costs it on every frame, while a mesh is one draw whatever
+its length (docs/demo.md, "Without a GPU"). Line segments remain for the few short outlines
+(footprint, arrows, box outlines: as many segments as boxes shown).
 
 Layers (drawing heights, metres): floor texture z = 0 (off by default: see
 :func:`tile_grid`), tile grid 0.002, path 0.004, trails 0.006,
@@ -79,8 +78,8 @@ Z_WEDGE = 0.29
 Z_TRUTH = 0.31
 TEXTURE_PIXELS = 1024
 """Largest side of the floor texture (the ``floor`` layer, off by default), pixels: a 1 m tile of
-the default room gets 85 texture pixels, grout lines included. Without a GPU the texture's cost
-is the view's pixels it covers more than its size (``bench/page_draw_profile.py``)."""
+the default room gets 85 texture pixels, grout lines included. Without a GPU the texture costs
+by the view's pixels it covers more than by its size (docs/demo.md, "Without a GPU")."""
 PATH_KINDS = ("lissajous", "dataset")
 """Setpoint kinds (``set_world``) whose path is drawn: the Lissajous lap, a dataset's true path."""
 
@@ -115,9 +114,9 @@ def floor_texture(floor: FloorConfig, half_size: float,
 def tile_grid(tile_size: float, half_size: float, z: float) -> np.ndarray:
     """The grout lines' centre lines x = kL and y = kL (L = ``tile_size``) across the room
     [-half_size, half_size]^2 at height z, metres: segments (n, 2, 3), the lines of constant x
-    first. A few dozen line segments: the browser draws them for next to nothing, where a
-    full-room floor (a texture, or viser's grid shader) costs software WebGL about as much
-    as the rest of the page (``bench/page_draw_profile.py``)."""
+    first. A few dozen line segments, cheap for the browser to draw, where a full-room floor (a
+    texture, or viser's grid shader) fills every pixel of the view (docs/demo.md, "Without a
+    GPU")."""
     k = np.arange(math.ceil(-half_size / tile_size - 1e-9),
                   math.floor(half_size / tile_size + 1e-9) + 1)
     c = k * tile_size

@@ -54,6 +54,7 @@ from tileviz.config import (
     preset,
 )
 from tileviz.sim.lens import LENSES
+from tileviz.summary import counted
 
 __all__ = ["main", "options_from_args", "parser", "serve_config"]
 
@@ -214,7 +215,7 @@ def _summary(s: Session, wanted: int, frames: int, seconds: float) -> int:
     if frames < wanted and s.ended is not None:
         parts.append(f"stopped early: {s.ended}")
     if s.errors:
-        parts.append(f"{s.errors} frame(s) failed")
+        parts.append(f"{counted(s.errors, 'frame')} failed")
     print("tileviz serve: " + "; ".join(parts), flush=True)
     return 1 if failed else 0
 
@@ -275,7 +276,7 @@ def main(command: str = "serve", argv: list[str] | None = None) -> int:
             signal.signal(signal.SIGTERM, previous)
             signal.signal(signal.SIGINT, previous_int)
             # a watchdog: once the files are closed, a server that does not shut down in time
-            # (seen once in CI-like runs, not reproduced) must not keep the terminal
+            # must not keep the terminal
             watchdog = threading.Timer(20.0, _force_exit)
             watchdog.daemon = True
             watchdog.start()

@@ -4,18 +4,22 @@
 put commands on the queue. The loop thread drains the queue between frames, advances the run
 (:class:`tileviz.app.session.Session`: simulator -> runner -> history) and pushes the frame being
 shown to the scene, the image panels, the plots and the readouts, at most ``push_rate`` times a
-second (the browser cannot take more than ~60 updates a second; the loop itself runs faster).
-An exception inside a frame is logged as one line, shown in the GUI, and the loop goes on.
+second (:class:`tileviz.app.schedule.LoopSchedule` paces frames and pushes; each part refreshes
+at its own :class:`~tileviz.app.schedule.RateLimit`). The readout is
+:func:`tileviz.app.status.render_status` of the session's state. An exception inside a frame is
+logged as one line, shown in the GUI, and the loop goes on.
 
 Its command line (``python -m tileviz serve``) is :mod:`tileviz.app.serve_cli`.
 """
 
 from __future__ import annotations
 
-import html
+import contextlib
+import io
 import math
 import queue
 import socket
+import sys
 import threading
 import time
 import warnings
@@ -27,26 +31,35 @@ from tileviz.app import commands as C
 from tileviz.app.history import METRIC_NAMES, Entry
 from tileviz.app.plots import summary
 from tileviz.app.scene import TRAIL_SEGMENTS
+from tileviz.app.schedule import LoopSchedule, RateLimit
 from tileviz.app.session import Session, SessionOptions
-from tileviz.cliutil import (
-    CliError,
-)
-from tileviz.config import (
-    Config,
-    LocalizerConfig,
-)
-from tileviz.core.localizer import FAULT_MAX_REJECTIONS, LocalizerStep
+from tileviz.app.status import StatusState, render_status
+from tileviz.cliutil import CliError
+from tileviz.config import Config
 
 if TYPE_CHECKING:
     from viser import GuiButtonGroupHandle, GuiEvent, ViserServer
 
-__all__ = ["App", "fault_line", "port_free"]
+__all__ = ["App", "port_free"]
 
 _COL = {name: i for i, name in enumerate(METRIC_NAMES)}
 VIEW_LABELS = {"camera": "Camera", "stages": "Camera and stages", "plots": "Plots"}
 """The left panel's choices (``commands.PANEL_VIEWS``) as the button group shows them."""
-FOLLOW_OFFSET = (0.0, -2.2, 2.6)
+FOLLOW_OFFSET = (0.0, -3.0, 3.4)
 """Where the initial view stands relative to the robot, metres (behind it to the south, up)."""
+PANEL_TAB = "Set, camera, plots"
+"""The left panel's tab (short enough to be read whole)."""
+LEFT_PANEL_PX = 345
+"""The left panel's width: the 320 px camera view and its margins."""
+RIGHT_PANEL_PX = 300
+"""The control panel's width: the scene keeps half of a 1280 px wide window."""
+STARTING_NOTE = ("**Starting: computing the first frame.** The first start after an install "
+                 "compiles the vision kernels (up to a minute, once); the set, the camera view "
+                 "and the plots appear here when it is done.")
+"""What the left panel says until the first frame is shown."""
+HIDE_SOFTWARE_WEBGL_NOTICE = "<style>#webgl-software-rendering{display:none !important}</style>"
+"""Hides viser's notice that WebGL runs in software (it would cover the scene on a machine
+without a GPU); ``docs/demo.md``, "Without a GPU", says what that costs."""
 DEFAULT_PORT = 8080
 """Where ``serve`` listens unless ``--port`` says otherwise (the next free port if it is busy)."""
 QUEUE_SIZE = 1000
@@ -80,9 +93,9 @@ class App:
         """Pause once the run has made this many frames (None: never)."""
         self.strict_port = strict_port
         self.image_rate = float(image_rate)
-        self._next_images = 0.0
+        self._images = RateLimit(self.image_rate)
         self.readout_rate = float(readout_rate)
-        self._next_readout = 0.0
+        self._readouts = RateLimit(self.readout_rate)
         self._readout_key: object = None
         self.options = options or SessionOptions()
         self.host = host
@@ -128,8 +141,11 @@ class App:
                            "serve?): stop it or choose another --port")
         self.session = Session(self.cfg, self.options)
         s = self.session
-        self.server = viser.ViserServer(host=self.host, port=self.requested_port,
-                                        verbose=self.verbose)
+        # viser prints its address as it starts listening; tileviz says where to go once the
+        # first frame is shown (serve's 'open ...' line), so that banner is kept unless verbose
+        with contextlib.redirect_stdout(sys.stdout if self.verbose else io.StringIO()):
+            self.server = viser.ViserServer(host=self.host, port=self.requested_port,
+                                            verbose=self.verbose)
         server = self.server
         if self.strict_port and self.requested_port not in (0, self.port):
             self.stop()
@@ -145,17 +161,22 @@ class App:
                                           FOLLOW_OFFSET[2])
         server.initial_camera.look_at = (rx, ry, 0.0)
         server.scene.configure_default_lights(enabled=True, cast_shadow=False)
-        # no image-based lighting: with software WebGL (no GPU) the environment map made every lit
-        # mesh cost seconds a frame (bench/bench_page.py); the default lights light the scene
+        # no image-based lighting: with software WebGL (no GPU) the environment map makes every
+        # lit mesh costly to draw (docs/demo.md, "Without a GPU"); the default lights light it
         server.scene.configure_environment_map(None)
         self.scene = SceneView(server.scene, pool=max(1, self.cfg.localizer.max_boxes),
                                particles=self.options.mcl_particles)
         self.controls = Controls(server, self.submit, self.cfg, layers=s.layers,
                                  display=s.display, playing=s.playing, speed=s.speed,
                                  max_speed=s.max_speed, mcl=s.mcl is not None,
-                                 replay=None if s.source.simulator else s.source.describe())
+                                 replay=None if s.source.simulator else s.source.describe(),
+                                 region=s.default_region())
+        # no GPU: the browser's notice that WebGL runs in software would cover the scene; the
+        # page's help says what that costs (the floor texture layer is off by default)
+        server.gui.add_html(HIDE_SOFTWARE_WEBGL_NOTICE)
         panel = server.gui.add_panel()
-        with panel.add_tab("The set, camera and plots"):
+        with panel.add_tab(PANEL_TAB):
+            self.starting = server.gui.add_markdown(STARTING_NOTE)
             self.inset = InsetView(server.gui)
             self.view = server.gui.add_button_group("Below", tuple(VIEW_LABELS.values()))
             with server.gui.add_folder("Camera and image pipeline") as self.images_folder:
@@ -164,11 +185,12 @@ class App:
             with server.gui.add_folder("Plots", visible=False) as self.plots_folder:
                 self.plots = Plots(server.gui)
         panel.dock_left()
-        panel.set_width(380)
+        panel.set_width(LEFT_PANEL_PX)
         # the controls docked at the right edge, not floating over the scene: the 3-D view gets
         # only the window's middle, which it does not share, and without a GPU every pixel of
-        # the view costs the browser on every frame (bench/bench_page_parts.py)
+        # the view costs the browser on every frame (docs/demo.md, "Without a GPU")
         server.gui.main_panel.dock_right()
+        server.gui.main_panel.set_width(RIGHT_PANEL_PX)
         self._panel_view = s.panel
         view_of_label = {label: view for view, label in VIEW_LABELS.items()}
 
@@ -267,36 +289,27 @@ class App:
             self._started.set()
             return
         self._started.set()
-        next_frame = next_push = time.perf_counter()
-        push_period = 1.0 / self.push_rate
-        last_plot = 0.0
+        sched = LoopSchedule(self.push_rate, self.plot_rate, time.perf_counter())
         while not self._stop.is_set():
             now = time.perf_counter()
             # wait for a command until the next frame is due (or a push is due)
-            wait = max(0.0, next_frame - now) if s.playing else 0.25
-            if s.version != self._pushed_version:
-                wait = min(wait, max(0.0, next_push - now))
-            self._drain(wait)
+            self._drain(sched.wait(now, playing=s.playing,
+                                   push_pending=s.version != self._pushed_version))
             if self._stop.is_set():
                 break
             s.poll()
             now = time.perf_counter()
-            if s.playing and now >= next_frame:
+            if s.playing and sched.frame_due(now):
                 try:
                     s.advance()  # catches what a frame raises; this guards the rest
                 except Exception as e:  # noqa: BLE001 - the loop must go on
                     s.note(f"loop: {type(e).__name__}: {e}", "error")
                 if self.frames is not None and s.frames_computed >= self.frames:
                     s.playing = False
-                period = s.frame_period
-                next_frame = max(next_frame + period, now - 0.25) if period > 0 else now
-            if s.version != self._pushed_version and now >= next_push:
-                plots = now - last_plot >= 1.0 / self.plot_rate
-                self._push(plots=plots)
+                sched.frame_made(now, s.frame_period)
+            if s.version != self._pushed_version and sched.push_due(now):
                 # on a schedule, so a loop a little faster than the cap still pushes at the cap
-                next_push = max(next_push + push_period, now - push_period)
-                if plots:
-                    last_plot = now
+                self._push(plots=sched.pushed(now))
 
     def _drain(self, wait: float) -> None:
         """Apply every queued command; block up to ``wait`` seconds for the first one."""
@@ -311,7 +324,7 @@ class App:
                 try:
                     s.apply(cmd)
                 except Exception as e:  # noqa: BLE001 - a bad command must not stop the loop
-                    s.note(f"{type(cmd).__name__}: {e}", "error")
+                    s.note(f"{C.label(cmd)}: {e}", "error")
             try:
                 cmd = self.queue.get_nowait()
             except queue.Empty:
@@ -350,6 +363,8 @@ class App:
         pos = s.display_position()
         entry = s.history.get(pos) if pos in s.history else None
         if entry is not None:
+            if self.starting.visible:
+                self.starting.visible = False  # the first frame is shown: the panels take over
             rows = s.history.window(pos, self.plot_window)
             self._contained = summary(rows)
             trail = rows[-(TRAIL_SEGMENTS + 1):]
@@ -363,13 +378,13 @@ class App:
                 self._panel_view = s.panel
                 self.images_folder.visible = s.panel != "plots"
                 self.plots_folder.visible = s.panel == "plots"
-            if not s.playing or now >= self._next_images or switched:
+            if not s.playing or self._images.due(now) or switched:
                 # the browser decodes every image it gets: while playing, images at image_rate;
                 # only the images the left panel shows
                 self.inset.show(entry.record, s.cfg.floor.tile_size)
                 if s.panel != "plots":
                     self.panels.show(entry, s.display, stages=s.panel == "stages")
-                self._next_images = max(self._next_images + 1.0 / self.image_rate, now)
+                self._images.spend(now)
             if (plots or switched) and s.panel == "plots":
                 self.plots.update(rows)
             if s.follow and s.playing:
@@ -379,15 +394,17 @@ class App:
         now = time.perf_counter()
         key = (s.playing, s.recording_active, s.setpoint_kind, len(s.history) == 0,
                id(s.notes[-1]) if s.notes else None)
-        if s.playing and key == self._readout_key and now < self._next_readout:
+        if s.playing and key == self._readout_key and not self._readouts.due(now):
             return
         self._readout_key = key
-        self._next_readout = max(self._next_readout + 1.0 / self.readout_rate, now)
+        self._readouts.spend(now)
         self.controls.refresh(first=s.history.first, last=s.history.last, shown=pos,
                               playing=s.playing, setpoint=s.setpoint_kind,
                               target=tuple(s.cfg.sim.manual_target),  # type: ignore[arg-type]
                               recording=s.recording_active,
-                              status=self.status_text(entry, live=s.shown == s.history.last))
+                              status=render_status(StatusState.of(
+                                  s, entry, self._contained, live=s.shown == s.history.last)),
+                              region=s.default_region())
 
     def _follow(self, entry: Entry) -> None:
         """Move every client's view with the robot (its true pose, else the set's centre),
@@ -413,112 +430,6 @@ class App:
                     cam.position = np.asarray(cam.position) + (dx, dy, 0.0)
             except (AssertionError, ValueError):
                 continue  # a client whose camera is not known yet
-
-    def status_text(self, entry: Entry | None, *, live: bool) -> str:
-        """The readout of ``entry`` as HTML: a box of fixed height (frame, status, widths, error,
-        rates; it scrolls if it must, so the controls under it never move), then the newest notes
-        in a second box of fixed height."""
-        s = self.session
-        assert s is not None
-        lines: list[str] = []
-        state = "playing" if s.playing else "paused"
-        if entry is None:
-            lines.append(f"<b>no frame yet</b> ({state})")
-        else:
-            r = entry.record
-            hull = r.updated.hull()
-            lines.append(f"<b>frame {r.index}</b>, t = {r.t:.2f} s, {state}"
-                         f"{'' if live else ' (from the history)'}")
-            lines.append(f"status <b>{r.status}</b>: {html.escape(STATUS_WORDS.get(r.status, ''))}"
-                         f", {len(r.updated)} box(es)")
-            fault = fault_line(r.step, s.cfg.localizer)
-            if fault:
-                lines.append(fault)
-            reason = r.vision.reason
-            lines.append("camera view used" if r.vision.observation is not None
-                         else f"camera view not used: {html.escape(reason)}")
-            if hull is not None:
-                wx, wy, wt = hull.widths
-                lines.append(f"set {100 * wx:.1f} x {100 * wy:.1f} cm, heading "
-                             f"{math.degrees(wt):.2f} deg wide")
-                if r.truth is not None:
-                    cx, cy, ct = hull.centre
-                    err = math.hypot(r.truth.x - cx, r.truth.y - cy)
-                    inside = r.truth_inside()
-                    mark = {True: "inside", False: "<b>OUTSIDE</b>",
-                            None: "not vouched for"}[inside]
-                    et = abs(math.degrees(math.remainder(r.truth.theta - ct, 2 * math.pi)))
-                    lines.append(f"centre {100 * err:.1f} cm, {et:.2f} deg from the truth; truth "
-                                 f"{mark}")
-            if entry.mcl is not None and r.truth is not None:
-                m = entry.mcl
-                err = math.hypot(r.truth.x - m.mean[0], r.truth.y - m.mean[1])
-                where = "inside" if m.covered else "<b>outside</b>"
-                lines.append(f"MCL ({len(m.particles)} particles): mean {100 * err:.1f} cm off,"
-                             f" truth {where} its 95 % ellipse")
-            ms = r.timings.get("vision_ms", 0.0) + r.timings.get("localizer_ms", 0.0)
-            lines.append(f"frame time {ms:.1f} ms (vision {r.timings.get('vision_ms', 0.0):.1f},"
-                         f" localizer {r.timings.get('localizer_ms', 0.0):.2f})")
-        c = self._contained
-        if entry is not None and c is not None and c["frames"] > 0:
-            lines.append(f"truth inside the set in {100 * c['contained']:.1f} % of the last "
-                         f"{c['frames']:.0f} frames it vouched for")
-        rate = f"{s.rate:.0f} frames/s" if s.playing else "-"
-        lines.append(f"loop {rate}, history {len(s.history)}/{s.history.capacity}, "
-                     f"mode {s.cfg.localizer.mode}, extractor {s.cfg.vision.extractor}")
-        notes: list[str] = []
-        recent = list(s.notes)[-3:]
-        if not s.source.simulator:
-            # its end stays in view after newer notes pushed the note about it out
-            said = s.ended is not None and any(n.text.startswith(s.ended) for n in recent)
-            notes.append(f"replaying <code>{html.escape(s.source.describe())}</code>"
-                         + (f": <b>{html.escape(s.ended)}</b>" if s.ended and not said else ""))
-        writer = s.recorder.writer
-        if writer is not None:
-            notes.append(f"recording to <code>{html.escape(str(s.recorder.path))}</code> "
-                         f"({writer.count} frames)")
-        if s.degraded:
-            notes.append("<b>a frame failed: the set may miss the truth (Relocalize or "
-                         "Reset)</b>")
-        for n in reversed(recent):  # newest first
-            notes.append(("<b>error:</b> " if n.level == "error" else "") + html.escape(n.text))
-        return (f'<div class="tileviz-status" style="{STATUS_STYLE}">{"<br>".join(lines)}</div>'
-                f'<div class="tileviz-notes" style="{NOTES_STYLE}">{"<br>".join(notes)}</div>')
-
-
-def fault_line(step: LocalizerStep | None, loc: LocalizerConfig) -> str:
-    """The fault model's state at one frame, in words ('' when there is nothing to say): the
-    candidates of a re-localization in a region, the frame of a followed fault
-    (``LocalizerStep.fault_frame``) and the views in a row that fitted neither the set nor the
-    fault set, out of the number that makes the status ``lost``."""
-    if step is None or step.status == "lost":
-        return ""
-    parts = []
-    if step.relocalizing:
-        parts.append(f"re-localizing: {len(step.updated)} candidate(s) in the region")
-    if not (loc.fault_speed or loc.fault_yaw_rate) or loc.max_slip != (0.0, 0.0) or (
-            loc.mode != "autonomous"):
-        return "; ".join(parts)
-    if step.fault_frame > 0:
-        parts.append(f"tracking through a fault: frame {step.fault_frame} of the fault set")
-    if step.rejections > 0:
-        limit = min(loc.max_rejections, FAULT_MAX_REJECTIONS)
-        parts.append(f"{step.rejections} view(s) in a row fit neither set ({limit} make it lost)")
-    return "; ".join(parts)
-
-
-STATUS_WORDS = {
-    "contracted": "the camera's view shrank the set",
-    "predicted": "no usable view: odometry and compass only",
-    "rejected": "the view disagrees with the set (an outlier), ignored",
-    "lost": "no set the method can vouch for",
-}
-"""The statuses in plain words (``tileviz.types.STATUSES``)."""
-_BOX = ("box-sizing:border-box;overflow-y:auto;font-size:0.8em;line-height:1.35em;"
-        "padding:0.2em 0.4em;")
-STATUS_STYLE = _BOX + "height:12.4em;"
-"""Fixed height: the status block never grows, so the buttons under it never move."""
-NOTES_STYLE = _BOX + "height:5.6em;margin-top:0.2em;border-top:1px solid #8884;opacity:0.85;"
 
 
 def port_free(host: str, port: int) -> bool:

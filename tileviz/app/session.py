@@ -34,16 +34,22 @@ from tileviz.app.recorder import McapJob, Recorder
 from tileviz.cliutil import one_line
 from tileviz.config import Config, LocalizerConfig, NoiseConfig, with_floor_style
 from tileviz.pipeline import FrameLoop, FrameRecord, initial_box
+from tileviz.pipeline.replay import relocalize_after
 from tileviz.sim.camera import FAULT_KINDS
-from tileviz.summary import RunTally
+from tileviz.summary import RunTally, outside_region
 
 if TYPE_CHECKING:
     from tileviz.app.sources import LiveSimulator
 
-__all__ = ["MCL", "Session", "SessionOptions"]
+__all__ = ["MCL", "REGION_MARGIN", "Session", "SessionOptions"]
 
 MCL = "mcl"
 """The MCL baseline's name in the frame loop and its records."""
+
+
+REGION_MARGIN = 0.5
+"""Metres added around the path the robot follows for the page's default re-localization
+region (:meth:`Session.default_region`): the controller's overshoot stays well inside it."""
 
 
 @dataclass(frozen=True)
@@ -145,12 +151,13 @@ class Session:
         """The configuration before any floor style (``Restart.style`` "default" goes back)."""
         self.setpoint_kind = cfg.sim.setpoint
         self._mcl_wanted = bool(o.mcl)
+        self._region_broken = False
+        """The robot was seen outside the current re-localization region (said once)."""
         self.ended: str | None = None
         """Why the source has no more frames (a replay's end or bad row), or None."""
         self._build(cfg)
         # the floor as its tile grid; the textured floor is a layer to switch on: without a GPU
-        # (software WebGL) a floor filling the view costs the browser as much as the rest of
-        # the page together (bench/bench_page_parts.py)
+        # (software WebGL) every pixel it fills costs the browser (docs/demo.md, "Without a GPU")
         self.layers["floor"] = False
         if not self.source.simulator:
             self.layers["setpoint"] = False  # a dataset has none
@@ -247,6 +254,22 @@ class Session:
         x, y = self.cfg.sim.initial_pose[:2]
         return float(x), float(y)
 
+    def default_region(self) -> tuple[float, float, float, float]:
+        """The re-localization region the page offers (x0, y0, x1, y1, metres): where the robot
+        drives, plus :data:`REGION_MARGIN`: the Lissajous curve's square, the waypoints'
+        bounding box, else (a manual target anywhere, a dataset) the floor drawn."""
+        sim = self.cfg.sim
+        m = REGION_MARGIN
+        if self.setpoint_kind == "lissajous":
+            h = sim.lissajous_amplitude + m
+            return (-h, -h, h, h)
+        if self.setpoint_kind == "waypoints" and sim.waypoints:
+            xs = [p[0] for p in sim.waypoints]
+            ys = [p[1] for p in sim.waypoints]
+            return (min(xs) - m, min(ys) - m, max(xs) + m, max(ys) + m)
+        h = sim.room_half_size
+        return (-h, -h, h, h)
+
     def shown_entry(self) -> Entry | None:
         """The entry being shown, or None before the first frame."""
         if self.shown < 0 or self.shown not in self.history:
@@ -341,9 +364,17 @@ class Session:
                            before=lens_stages)
         self.shown = self.history.append(entry)
         self.tally.add(rec)
+        if outside_region(rec) and not self._region_broken:
+            self._region_broken = True
+            assert rec.step is not None and rec.step.region is not None
+            x0, y0, x1, y1 = rec.step.region
+            self.note(f"the robot left the re-localization region ({x0:g}, {y0:g})-({x1:g}, "
+                      f"{y1:g}) m at frame {rec.index}: the hypothesis is broken and the set "
+                      "may miss the truth (re-localize in a larger region, or Reset)", "error")
         region = self.options.relocalize_region
-        if region is not None and rec.status == "lost" and self.runner.primary is not None:
-            self.runner.primary.localizer.relocalize(region)  # from the next frame on
+        if region is not None and rec.status == "lost":
+            if relocalize_after(self.runner, region, rec):  # from the next frame on
+                self._region_broken = False
         self.frames_computed += 1
         self._count_rate()
         self.version += 1
@@ -432,7 +463,7 @@ class Session:
         them; nothing is changed then."""
         what = C.SIMULATOR_ONLY.get(type(cmd))
         if what is not None and not self.source.simulator:
-            self.note(f"{type(cmd).__name__}: {what} belongs to the simulator; "
+            self.note(f"{C.label(cmd)}: {what} belongs to the simulator; "
                       f"replaying {self.source.describe()} (nothing changed)")
             return
         match cmd:
@@ -567,8 +598,12 @@ class Session:
         if primary is None:
             self.note("Re-localize: no interval localizer runs; nothing changed")
             return
-        n = primary.localizer.relocalize(region)  # ValueError (too large): nothing changed
+        last = self.history.get(self.history.last) if len(self.history) else None
+        compass = last.record.compass if last is not None else None
+        # the pose of the last frame computed; ValueError (too large): nothing changed
+        n = primary.localizer.relocalize(region, compass=compass)
         self.degraded = False
+        self._region_broken = False
         x0, y0, x1, y1 = region
         self.note(f"localizer restarted somewhere in ({x0:g}, {y0:g})-({x1:g}, {y1:g}) m "
                   f"(up to {n} candidates; keep the robot in the region)")
@@ -604,7 +639,8 @@ class Session:
         cfg = with_floor_style(cfg, cmd.style)
         self._new_run(cfg)
         self.compute()
-        self.note(f"new run: tile size {cmd.tile_size:g} m, {cmd.ppm:g} px/m")
+        self.note(f"new run: tile size {cmd.tile_size:g} m, {cmd.ppm:g} px/m, floor style "
+                  f"{cmd.style}")
 
     def _reconfigure(self, cfg: Config, what: str = "new settings") -> None:
         """New localizer or vision settings: from the next frame on (the simulator), or from frame

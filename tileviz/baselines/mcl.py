@@ -82,7 +82,7 @@ distribution of the extractor (``likelihood = "measured"``, :mod:`tileviz.baseli
 a Student-t per coordinate fitted to views of simulated runs, scales in units of the declared
 bounds, widened by the long-run variance factor of the correlated errors of consecutive views:
 the same tile edges give nearly the same error frame after frame, and the errors' autocorrelation
-is a white part plus a slow part (share about 0.7-0.8) that decays over seconds, so a filter
+is a white part plus a slow part that decays over seconds (docs/evaluation.md), so a filter
 that multiplies the views' likelihoods as if independent averages a bias it cannot see; its
 outlier weight is the measured share of views outside their bound, at least 1 %), the compass
 likelihood the standard deviation bound / sqrt(3) of its uniform error, resampling every frame

@@ -99,8 +99,9 @@ class LocalizerStep(NamedTuple):
     taken from the fault set (module docstring, "Fault model"). ``fault_frame``: fault model
     only: k >= 1 while the localizer follows a noticed fault (the k-th frame since the view or
     compass rejected the set and the fault set was taken; ``slip_window`` frames after the last
-    such rejection), 0 otherwise. ``relocalizing``: the set still holds the candidates of a
-    re-localization (:meth:`Localizer.relocalize`), cut to its region.
+    such rejection), 0 otherwise. ``region``: the re-localization region (x0, y0, x1, y1,
+    metres) this step's sets were cut to while its candidates remain (:meth:`Localizer.relocalize`;
+    the hypothesis: the robot is in it), else None.
     """
 
     predicted: BoxSet
@@ -112,24 +113,39 @@ class LocalizerStep(NamedTuple):
     rejections: int = 0
     reinflated: bool = False
     fault_frame: int = 0
-    relocalizing: bool = False
+    region: tuple[float, float, float, float] | None = None
+
+    @property
+    def relocalizing(self) -> bool:
+        """The set still holds the candidates of a re-localization, cut to :attr:`region`."""
+        return self.region is not None
 
 
 def region_candidates(region: tuple[float, float, float, float], tile_size: float,
-                      heading: tuple[float, float] | None = None) -> int:
+                      heading: tuple[float, float] | None = None, lever: float = 0.0) -> int:
     """The most candidate boxes a re-localization in ``region`` (x0, y0, x1, y1, metres) can
-    leave on a floor of ``tile_size`` m tiles: the tile cells the region meets times the heading
-    branches (a view's heading repeats every quarter turn) that ``heading`` (lo, hi rad; None: a
-    whole turn) meets. ValueError when that exceeds :data:`RELOCALIZE_MAX_CANDIDATES`."""
+    leave on a floor of ``tile_size`` m tiles, with the camera ``lever`` metres from the robot
+    point (the norm of ``camera_offset``): the tile cells that the camera centre's range (the
+    region widened by the lever) meets times the heading branches (a view's heading repeats
+    every quarter turn) that ``heading`` (lo, hi rad; None: a whole turn) meets. After the first
+    view every candidate is narrower than a tile and its motion and the next views never split
+    it (docs/method.md, "Re-localization"), so the set never holds more boxes than this.
+    ValueError, in words a user reads, when that exceeds :data:`RELOCALIZE_MAX_CANDIDATES`."""
     x0, y0, x1, y1 = region
     t_lo, t_hi = (-math.pi, math.pi) if heading is None else heading
-    cells = (math.floor((x1 - x0) / tile_size) + 2) * (math.floor((y1 - y0) / tile_size) + 2)
+    reach = 2.0 * abs(lever)
+    nx = math.floor((x1 - x0 + reach) / tile_size) + 2
+    ny = math.floor((y1 - y0 + reach) / tile_size) + 2
     branches = min(4, math.floor((t_hi - t_lo) / (math.pi / 2)) + 2)
-    need = cells * branches
+    need = nx * ny * branches
     if need > RELOCALIZE_MAX_CANDIDATES:
-        raise ValueError(f"region spans up to {need} candidate boxes (tile cells x heading "
-                         f"branches), more than {RELOCALIZE_MAX_CANDIDATES}: give a smaller "
-                         f"region")
+        side = tile_size * max(1, math.isqrt(RELOCALIZE_MAX_CANDIDATES // branches) - 2) - reach
+        hint = (f"a region of at most about {side:.3g} m x {side:.3g} m" if side > 0 else
+                "a smaller region")
+        raise ValueError(f"the region ({x0:g}, {y0:g})-({x1:g}, {y1:g}) m spans {nx} x {ny} "
+                         f"tiles of {tile_size:g} m and {branches} heading branches: up to "
+                         f"{need} candidate boxes, more than the {RELOCALIZE_MAX_CANDIDATES} "
+                         f"re-localization can follow; give {hint}")
     return need
 
 
@@ -207,33 +223,67 @@ class Localizer:
         self._cap = self._cfg.max_boxes
 
     def relocalize(self, region: tuple[float, float, float, float],
-                   heading: tuple[float, float] | None = None) -> int:
+                   heading: tuple[float, float] | None = None, *,
+                   compass: float | None = None) -> int:
         """Start again from "somewhere in ``region``" = (x0, y0, x1, y1), metres, x0 <= x1,
-        y0 <= y1 (the robot's point between the wheels), heading within ``heading`` = (lo, hi),
-        rad, or anywhere (None: the compass of the next frames cuts it). Clears the ``lost``
-        state like :meth:`reset`.
+        y0 <= y1 (the robot's point between the wheels, at the pose of the last step), heading
+        within ``heading`` = (lo, hi), rad, or within ``compass_error`` of ``compass`` (that
+        step's reading, rad), or anywhere (both None: the compass of the next frames cuts it).
+        Clears the ``lost`` state like :meth:`reset`.
 
         The next view cuts the region into one candidate box per lattice cell (the floor repeats:
         every tile in the region offers a pose that fits the view), so the set may hold that many
-        boxes: the box cap is raised to the count the region needs while candidates remain. Until
-        one candidate remains (a single box narrower than a tile in x and y), every set is cut to
-        the region: candidates whose motion takes them out of it are dropped, which breaks the
-        floor's symmetry. Hypothesis (H1 for this start): the robot is in the region from now until
-        one candidate remains. Returns the number of candidate boxes allowed; ValueError when the
-        region would need more than :data:`RELOCALIZE_MAX_CANDIDATES`, or on a bad bound."""
+        boxes: the box cap becomes the count :func:`region_candidates` bounds while candidates
+        remain (never a hull of candidates). Until one candidate remains (a single box narrower
+        than a tile in x and y), every set is cut to the region: candidates whose motion takes
+        them out of it are dropped, which breaks the floor's symmetry. Hypothesis (H1 for this
+        start, ``docs/guarantees.md``): the robot is in the region from now until one candidate
+        remains. Returns the number of candidate boxes allowed; ValueError (nothing changed)
+        when the region would need more than :data:`RELOCALIZE_MAX_CANDIDATES`, or on a bad
+        bound."""
+        x0, y0, x1, y1 = region = self._region_of(region)
+        t_lo, t_hi = heading = self._heading_of(heading, compass)
+        need = self.candidates(region, heading)
+        self.reset(Box(x0, x1, y0, y1, t_lo, t_hi))
+        self._region = region
+        self._cap = max(self._cfg.max_boxes, need)
+        return self._cap
+
+    def candidates(self, region: tuple[float, float, float, float],
+                   heading: tuple[float, float] | None = None, *,
+                   compass: float | None = None) -> int:
+        """The candidate boxes :meth:`relocalize` would allow for these arguments
+        (:func:`region_candidates` with this floor and camera), changing nothing; ValueError as
+        :meth:`relocalize`."""
+        lever = 0.0 if self._lever is None else self._lever[1]
+        return region_candidates(self._region_of(region), self._L,
+                                 self._heading_of(heading, compass), lever)
+
+    @staticmethod
+    def _region_of(region: tuple[float, float, float, float]) -> tuple[float, float, float, float]:
+        """``region`` checked: four finite numbers, x0 <= x1, y0 <= y1 (ValueError)."""
         if len(region) != 4:
             raise ValueError(f"region must be (x0, y0, x1, y1), got {region!r}")
         x0, y0, x1, y1 = (finite(f"region[{i}]", v) for i, v in enumerate(region))
         if x0 > x1 or y0 > y1:
             raise ValueError(f"region must have x0 <= x1 and y0 <= y1, got {region!r}")
+        return (x0, y0, x1, y1)
+
+    def _heading_of(self, heading: tuple[float, float] | None,
+                    compass: float | None) -> tuple[float, float]:
+        """The heading interval of a re-localization (rad): ``heading``, else ``compass`` +-
+        ``compass_error`` (outward), else a whole turn."""
+        if heading is None and compass is not None:
+            c = finite("compass", compass)
+            heading = (_nextafter(c - self._ec, -_INF), _nextafter(c + self._ec, _INF))
         t_lo, t_hi = (-math.pi, math.pi) if heading is None else heading
-        t_lo = finite("heading[0]", t_lo)
-        t_hi = finite("heading[1]", t_hi)
-        need = region_candidates((x0, y0, x1, y1), self._L, (t_lo, t_hi))
-        self.reset(Box(x0, x1, y0, y1, t_lo, t_hi))
-        self._region = (x0, y0, x1, y1)
-        self._cap = max(self._cfg.max_boxes, need)
-        return self._cap
+        return (finite("heading[0]", t_lo), finite("heading[1]", t_hi))
+
+    @property
+    def region(self) -> tuple[float, float, float, float] | None:
+        """The re-localization region (x0, y0, x1, y1, metres) while its candidates remain, else
+        None (:meth:`relocalize`)."""
+        return self._region
 
     def _in_region(self, boxes: list[Box]) -> list[Box]:
         """The parts of ``boxes`` whose x and y lie in the re-localization region (exact: min and
@@ -268,14 +318,26 @@ class Localizer:
         """One frame: predict with ``odometry`` (the motion since the previous step; None = no
         motion, e.g. frame 0), intersect with ``compass`` (rad, wrapped to (-pi, pi], or None),
         contract with ``observation`` (or None). ``truth`` is needed in mode ``truth`` only.
-        Raises ValueError naming the quantity on NaN/inf, negative dt, negative bounds."""
-        cfg = self._cfg
-        mode = cfg.mode
-        cap = self._cap  # cfg.max_boxes, unless re-localization candidates need more
-        hulled = False
-        # validate every input first, so a bad frame changes nothing. The fast test: every value
-        # within +-LIMIT (bound to a local; NaN fails, a non-number raises TypeError); on
-        # failure the checks that name the culprit run.
+        Raises ValueError naming the quantity on NaN/inf, negative dt, negative bounds (a bad
+        frame changes nothing).
+
+        One regime a frame (module docstring): the fault model (:meth:`_step_fault_model`), the
+        ``max_slip`` recovery (:meth:`_step_recovery`), or neither (:meth:`_step_plain`: also
+        every mode but ``autonomous``, and every frame once ``lost``)."""
+        self._check_inputs(odometry, compass, observation, truth)
+        if self._lost:
+            return self._step_plain(odometry, compass, observation, truth)
+        if self._faulty:
+            return self._step_fault_model(odometry, compass, observation)
+        if self._recover:
+            return self._step_recovery(odometry, compass, observation)
+        return self._step_plain(odometry, compass, observation, truth)
+
+    def _check_inputs(self, odometry: Odometry | None, compass: float | None,
+                      observation: Observation | None, truth: Pose | None) -> None:
+        """ValueError naming the first bad input of a frame (see :meth:`step`). The fast test:
+        every value within +-LIMIT (NaN fails, a non-number raises TypeError); on failure the
+        checks that name the culprit run."""
         lim = LIMIT
         neg_lim = -LIMIT
         if odometry is not None:
@@ -319,224 +381,351 @@ class Localizer:
                 finite("truth.x", tx)
                 finite("truth.y", ty)
                 finite("truth.theta", tt)
-        elif mode == "truth":
+        elif self._cfg.mode == "truth":
             raise ValueError("truth: mode 'truth' needs the true pose every frame, got None")
 
-        # prediction
-        if mode == "truth":
-            ix, iy, it = self._inflation
-            n = _nextafter
-            boxes = in_range([Box(n(tx - ix, -_INF), n(tx + ix, _INF), n(ty - iy, -_INF),
-                                  n(ty + iy, _INF), n(tt - it, -_INF), n(tt + it, _INF))])
-        elif odometry is not None:
-            n = _nextafter
-            v_lo, v_hi = n(v - self._ev, -_INF), n(v + self._ev, _INF)
-            w_lo, w_hi = n(w - self._ew, -_INF), n(w + self._ew, _INF)
-            prior = self._boxes
-            boxes = ([predict_box(prior[0], v_lo, v_hi, w_lo, w_hi, dt)] if len(prior) == 1 else
-                     [predict_box(b, v_lo, v_hi, w_lo, w_hi, dt) for b in prior])
-            for b in boxes:
-                if not (neg_lim <= b[0] and b[1] <= lim and neg_lim <= b[2] and b[3] <= lim
-                        and neg_lim <= b[4] and b[5] <= lim and b[5] - b[4] <= ONE_TURN):
-                    boxes = in_range(boxes)  # raises, or cuts a heading to one turn
-                    break
-            if len(boxes) > 1:  # (one box is tidy: cap >= 1, LocalizerConfig checks it)
-                boxes, hulled = tidy(boxes, cap)
-        else:
-            boxes = list(self._boxes)
+    # --- the three regimes -----------------------------------------------------------------------
 
-        fault: list[Box] | None = None  # the fault set's prediction (fault model on)
-        compass_beyond = False  # the compass misses the fault set too
-        if self._faulty and not self._lost:
-            fault = self._fault
-            if odometry is not None:
-                n = _nextafter
-                ev, ew = self._fault_bounds
-                fault = in_range([predict_box(b, n(v - ev, -_INF), n(v + ev, _INF),
-                                               n(w - ew, -_INF), n(w + ew, _INF), dt)
-                                   for b in fault])
-                if len(fault) > 1:
-                    fault, h = tidy(fault, cap)
-                    hulled = hulled or h
-            if compass is not None:
-                cut = self._compass_cut(fault, compass)
-                if cut:  # (a compass that misses the fault set too is ignored)
-                    fault, h = tidy(cut, cap)
-                    hulled = hulled or h
-                else:
-                    compass_beyond = True
+    def _step_plain(self, odometry: Odometry | None, compass: float | None,
+                    observation: Observation | None, truth: Pose | None) -> LocalizerStep:
+        """Neither the fault model nor recovery: predict, cut by the compass (ignored when it
+        misses the set), contract by the view; a view that fits no pose of the set is
+        ``rejected`` and ``max_rejections`` of those in a row (mode ``autonomous``) are
+        ``lost``. Once ``lost``: the hull of the prediction, views ignored."""
+        cfg = self._cfg
+        cap = self._cap
+        boxes, hulled = self._predict(odometry, truth, cap)
         compass_rejected = False
-        reinflated = False
-        raw = boxes  # the prediction before the compass: what recovery inflates
-        recover = self._recover and not self._lost
-        following = recover and self._window > 0  # a fault noticed lately: follow it
-        # the fault model: a fault noticed lately, the view contracts the fault set first
-        fault_following = fault is not None and self._window > 0
-        if following or fault_following:
-            self._window -= 1
         if compass is not None:
-            c_lo = _nextafter(compass - self._ec, -_INF)
-            c_hi = _nextafter(compass + self._ec, _INF)
-            cut = (compass_pieces(boxes[0], c_lo, c_hi) if len(boxes) == 1 else
-                   [p for b in boxes for p in compass_pieces(b, c_lo, c_hi)])
-            if len(cut) == 1:
-                boxes = cut
-            elif cut:
-                boxes, h = tidy(cut, cap)
-                hulled = hulled or h
-            else:
+            cut, h = self._cut_by_compass(boxes, compass, cap)
+            if cut is None:
                 compass_rejected = True
-                if fault is not None:
-                    # the compass misses the prediction: the fault set holds what a fault allows
-                    boxes = fault
-                    reinflated = True
-                    self._window = cfg.slip_window
-                    self._fault_frame = 0
-                elif recover:
-                    # the prediction misses the compass: keep it (the compass may be the outlier)
-                    # and add the slip candidates the compass allows (the odometry may be)
-                    self._window = cfg.slip_window
-                    extra, _, h = self._slip_candidates(raw, compass, None)
-                    if extra:
-                        boxes, h2 = tidy(boxes + extra, cap)
-                        hulled = hulled or h or h2
-                        reinflated = True
+            else:
+                boxes = cut
+                hulled = hulled or h
         relocalizing = self._region is not None and not self._lost
         if relocalizing:
-            # re-localization: the robot is in the region (Localizer.relocalize)
-            cut = self._in_region(boxes)
-            if cut:  # (a prediction wholly outside it: the view decides, below)
-                boxes = cut
-            if fault is not None:
-                cut = self._in_region(fault)
-                if cut:
-                    fault = cut
+            boxes = self._in_region(boxes) or boxes
         predicted = BoxSet(tuple(boxes))
-
         passes = 0
         status: Status
-        if self._lost and mode != "truth":
+        if self._lost and cfg.mode != "truth":
             status = "lost"
-            updated_boxes = [hull_of(boxes)]
-        elif mode == "odometry" or observation is None:
+            updated = [hull_of(boxes)]
+        elif cfg.mode == "odometry" or observation is None:
             status = "predicted"
-            updated_boxes = boxes
-            if compass_rejected and compass_beyond:
-                # fault model: the compass fits neither the set nor the fault set (a turn beyond
-                # the model, or a compass outlier): a rejection, as a view that fits neither,
-                # so frames without a usable view cannot vouch for long for a set that misses
-                # the truth
-                self._rejections += 1
-                if self._rejections >= min(cfg.max_rejections, FAULT_MAX_REJECTIONS):
-                    status = "lost"
-                    self._lost = True
-                    self._window = 0
-                    updated_boxes = [hull_of(updated_boxes)]
+            updated = boxes
+        else:
+            out, passes, h = self._contract_all(boxes, view_window(observation))
+            hulled = hulled or h
+            if relocalizing and out:
+                out = self._in_region(out)  # none left: the view fits no candidate in it
+            if out:
+                status, updated, h = self._contracted(out, cap)
+                hulled = hulled or h
+            else:
+                status, updated = self._rejected(boxes, cfg.max_rejections)
+        return self._finish(predicted, boxes, updated, status, passes, hulled, compass_rejected,
+                            False, relocalizing)
+
+    def _step_recovery(self, odometry: Odometry | None, compass: float | None,
+                       observation: Observation | None) -> LocalizerStep:
+        """The ``max_slip`` recovery (module docstring, "Recovery"), mode ``autonomous``, not
+        ``lost``: a compass or a view that misses the prediction keeps it and adds the slip
+        candidates; for ``slip_window`` frames after, the view contracts the prediction widened
+        by ``max_slip``."""
+        cfg = self._cfg
+        cap = self._cap
+        boxes, hulled = self._predict(odometry, None, cap)
+        raw = boxes  # the prediction before the compass: what recovery inflates
+        following = self._tick_window()  # a fault noticed lately: follow it
+        compass_rejected = False
+        reinflated = False
+        if compass is not None:
+            cut, h = self._cut_by_compass(boxes, compass, cap)
+            if cut is None:
+                # the prediction misses the compass: keep it (the compass may be the outlier)
+                # and add the slip candidates the compass allows (the odometry may be)
+                compass_rejected = True
+                self._window = cfg.slip_window
+                extra, _, h = self._slip_candidates(raw, compass, None)
+                if extra:
+                    boxes, h2 = tidy(boxes + extra, cap)
+                    hulled = hulled or h or h2
+                    reinflated = True
+            else:
+                boxes = cut
+                hulled = hulled or h
+        relocalizing = self._region is not None
+        if relocalizing:
+            boxes = self._in_region(boxes) or boxes
+        predicted = BoxSet(tuple(boxes))
+        passes = 0
+        status: Status
+        if observation is None:
+            status = "predicted"
+            updated = boxes
         else:
             view = view_window(observation)
-            out: list[Box] = []
-            view_hulled = False
             if following:
                 # within slip_window frames of a noticed fault: the view contracts the prediction
                 # inflated by max_slip (it holds the plain prediction)
                 out, passes, h = self._slip_candidates(raw, compass, view)
-                hulled = hulled or h
                 reinflated = bool(out)
             else:
-                out, passes, view_hulled = self._contract_all(boxes, view)
-                hulled = hulled or view_hulled
-            if fault is not None:
-                # the set is taken from the fault set only when the view cuts it to a few
-                # disjoint boxes: a hull (more cells than max_boxes) would be a wide box called
-                # contracted, so such a frame counts as a rejection instead
-                if fault_following and not reinflated and out:
-                    # within slip_window frames of a noticed fault: the set is the fault set's
-                    # contraction whenever the view fits it in a few boxes (a slip still going
-                    # on is followed, not noticed again frames later)
-                    got_f, _, f_hulled = self._contract_all(fault, view)
-                    hulled = hulled or f_hulled
-                    if got_f:
-                        fault = got_f
-                        if not f_hulled and len(got_f) <= cap:
-                            out = got_f
-                            reinflated = True
-                elif reinflated:  # (boxes is the fault set already: contracted above)
-                    if out:
-                        fault = out
-                    if view_hulled or len(out) > cap:
-                        out = []
-                else:
-                    got_f, _, f_hulled = self._contract_all(fault, view)
-                    hulled = hulled or f_hulled
-                    if got_f:
-                        fault = got_f
-                        if not out and not f_hulled and len(got_f) <= cap:
-                            # the view rejects the prediction, not the fault set
-                            out = got_f
-                            reinflated = True
-                            self._window = cfg.slip_window
-                            self._fault_frame = 0
+                out, passes, h = self._contract_all(boxes, view)
+            hulled = hulled or h
             if relocalizing and out:
-                out = self._in_region(out)  # none left: the view fits no candidate in it
+                out = self._in_region(out)
             if out:
-                status = "contracted"
-                self._rejections = 0
-                if len(out) == 1:
-                    updated_boxes = out
-                else:
-                    updated_boxes, h = tidy(out, cap)
-                    hulled = hulled or h
+                status, updated, h = self._contracted(out, cap)
+                hulled = hulled or h
             else:
-                self._rejections += 1
-                status = "rejected"
-                updated_boxes = boxes
-                if recover:
-                    # the view misses the prediction: either the view is the outlier (keep the
-                    # prediction) or the odometry is (keep what the view allows within max_slip)
-                    self._window = cfg.slip_window
-                    if not following:  # (when following, that set was just found empty)
-                        extra, p, h = self._slip_candidates(raw, compass, view)
-                        passes = max(passes, p)
+                # the view misses the prediction: either the view is the outlier (keep the
+                # prediction) or the odometry is (keep what the view allows within max_slip)
+                self._window = cfg.slip_window
+                updated = boxes
+                if not following:  # (when following, that set was just found empty)
+                    extra, p, h = self._slip_candidates(raw, compass, view)
+                    passes = max(passes, p)
+                    hulled = hulled or h
+                    if extra:
+                        updated, h = tidy(boxes + extra, cap)
                         hulled = hulled or h
-                        if extra:
-                            updated_boxes, h = tidy(boxes + extra, cap)
-                            hulled = hulled or h
-                            reinflated = True
-                limit = cfg.max_rejections
-                if self._faulty and limit > FAULT_MAX_REJECTIONS:
-                    limit = FAULT_MAX_REJECTIONS
-                if mode == "autonomous" and self._rejections >= limit:
-                    status = "lost"
-                    self._lost = True
-                    self._window = 0
-                    updated_boxes = [hull_of(updated_boxes)]
-        self._boxes = updated_boxes
+                        reinflated = True
+                status, updated = self._rejected(updated, cfg.max_rejections)
+        return self._finish(predicted, boxes, updated, status, passes, hulled, compass_rejected,
+                            reinflated, relocalizing)
+
+    def _step_fault_model(self, odometry: Odometry | None, compass: float | None,
+                          observation: Observation | None) -> LocalizerStep:
+        """The fault model (module docstring, "Fault model"), mode ``autonomous``, not ``lost``:
+        the fault set is predicted and cut beside the set; when the compass or the view rejects
+        the set, the set is taken from the fault set's contraction; a view that fits neither
+        (or a compass that misses both, without a view) is a rejection, and
+        :data:`FAULT_MAX_REJECTIONS` of those in a row are ``lost``."""
+        cfg = self._cfg
+        cap = self._cap
+        boxes, hulled = self._predict(odometry, None, cap)
+        fault, compass_beyond, h = self._predict_fault_set(odometry, compass, cap)
+        hulled = hulled or h
+        fault_following = self._tick_window()  # a fault noticed lately: the fault set first
+        compass_rejected = False
+        reinflated = False
+        if compass is not None:
+            cut, h = self._cut_by_compass(boxes, compass, cap)
+            if cut is None:
+                # the compass misses the prediction: the fault set holds what a fault allows
+                compass_rejected = True
+                boxes = fault
+                reinflated = True
+                self._window = cfg.slip_window
+                self._fault_frame = 0
+            else:
+                boxes = cut
+                hulled = hulled or h
+        relocalizing = self._region is not None
         if relocalizing:
-            b = updated_boxes[0]
-            if self._lost or (len(updated_boxes) == 1 and b[1] - b[0] < self._L
+            boxes = self._in_region(boxes) or boxes
+            fault = self._in_region(fault) or fault
+        predicted = BoxSet(tuple(boxes))
+        limit = min(cfg.max_rejections, FAULT_MAX_REJECTIONS)
+        passes = 0
+        status: Status
+        if observation is None:
+            status = "predicted"
+            updated = boxes
+            if compass_rejected and compass_beyond:
+                # the compass fits neither the set nor the fault set (a turn beyond the model,
+                # or a compass outlier): a rejection, as a view that fits neither, so frames
+                # without a usable view cannot vouch for long for a set that misses the truth
+                self._rejections += 1
+                if self._rejections >= limit:
+                    status = "lost"
+                    updated = self._declare_lost(updated)
+        else:
+            view = view_window(observation)
+            out, passes, view_hulled = self._contract_all(boxes, view)
+            hulled = hulled or view_hulled
+            # the set is taken from the fault set only when the view cuts it to a few disjoint
+            # boxes: a hull (more cells than max_boxes) would be a wide box called contracted,
+            # so such a frame counts as a rejection instead
+            if fault_following and not reinflated and out:
+                # within slip_window frames of a noticed fault: the set is the fault set's
+                # contraction whenever the view fits it in a few boxes (a slip still going on is
+                # followed, not noticed again frames later)
+                got_f, _, f_hulled = self._contract_all(fault, view)
+                hulled = hulled or f_hulled
+                if got_f:
+                    fault = got_f
+                    if not f_hulled and len(got_f) <= cap:
+                        out = got_f
+                        reinflated = True
+            elif reinflated:  # (boxes is the fault set already: contracted above)
+                if out:
+                    fault = out
+                if view_hulled or len(out) > cap:
+                    out = []
+            else:
+                got_f, _, f_hulled = self._contract_all(fault, view)
+                hulled = hulled or f_hulled
+                if got_f:
+                    fault = got_f
+                    if not out and not f_hulled and len(got_f) <= cap:
+                        # the view rejects the prediction, not the fault set
+                        out = got_f
+                        reinflated = True
+                        self._window = cfg.slip_window
+                        self._fault_frame = 0
+            if relocalizing and out:
+                out = self._in_region(out)
+            if out:
+                status, updated, h = self._contracted(out, cap)
+                hulled = hulled or h
+            else:
+                status, updated = self._rejected(boxes, limit)
+        # the fault set after this frame
+        if reinflated:  # the set was taken from the fault set: they agree again
+            fault = updated
+        elif len(fault) > 1:
+            fault, h = tidy(fault, cap)
+            hulled = hulled or h
+        self._fault = fault
+        self._fault_frame = (self._fault_frame + 1
+                             if (reinflated or self._window > 0) and not self._lost else 0)
+        return self._finish(predicted, boxes, updated, status, passes, hulled, compass_rejected,
+                            reinflated, relocalizing, self._fault_frame)
+
+    # --- the pieces the regimes share ------------------------------------------------------------
+
+    def _predict(self, odometry: Odometry | None, truth: Pose | None,
+                 cap: int) -> tuple[list[Box], bool]:
+        """The set predicted for this frame (docs/method.md, "Prediction"): in mode ``truth``
+        the inflated truth; else the last set moved by ``odometry`` +- its bounds (None: not
+        moved). Returns (boxes, whether the cap ``cap`` hulled them)."""
+        n = _nextafter
+        if self._cfg.mode == "truth":
+            assert truth is not None
+            tx, ty, tt = truth.x, truth.y, truth.theta
+            ix, iy, it = self._inflation
+            return in_range([Box(n(tx - ix, -_INF), n(tx + ix, _INF), n(ty - iy, -_INF),
+                                 n(ty + iy, _INF), n(tt - it, -_INF), n(tt + it, _INF))]), False
+        if odometry is None:
+            return list(self._boxes), False
+        v, w, dt = odometry.speed, odometry.yaw_rate, odometry.dt
+        v_lo, v_hi = n(v - self._ev, -_INF), n(v + self._ev, _INF)
+        w_lo, w_hi = n(w - self._ew, -_INF), n(w + self._ew, _INF)
+        prior = self._boxes
+        boxes = ([predict_box(prior[0], v_lo, v_hi, w_lo, w_hi, dt)] if len(prior) == 1 else
+                 [predict_box(b, v_lo, v_hi, w_lo, w_hi, dt) for b in prior])
+        lim = LIMIT
+        neg_lim = -LIMIT
+        for b in boxes:
+            if not (neg_lim <= b[0] and b[1] <= lim and neg_lim <= b[2] and b[3] <= lim
+                    and neg_lim <= b[4] and b[5] <= lim and b[5] - b[4] <= ONE_TURN):
+                boxes = in_range(boxes)  # raises, or cuts a heading to one turn
+                break
+        if len(boxes) > 1:  # (one box is tidy: cap >= 1, LocalizerConfig checks it)
+            return tidy(boxes, cap)
+        return boxes, False
+
+    def _predict_fault_set(self, odometry: Odometry | None, compass: float | None,
+                           cap: int) -> tuple[list[Box], bool, bool]:
+        """The fault set predicted with the odometry bounds widened by the fault model, cut by
+        the compass when the compass meets it. Returns (boxes, whether the compass misses it,
+        whether the cap hulled it)."""
+        fault = self._fault
+        hulled = False
+        if odometry is not None:
+            n = _nextafter
+            v, w, dt = odometry.speed, odometry.yaw_rate, odometry.dt
+            ev, ew = self._fault_bounds
+            fault = in_range([predict_box(b, n(v - ev, -_INF), n(v + ev, _INF),
+                                           n(w - ew, -_INF), n(w + ew, _INF), dt)
+                               for b in fault])
+            if len(fault) > 1:
+                fault, hulled = tidy(fault, cap)
+        compass_beyond = False
+        if compass is not None:
+            cut = self._compass_cut(fault, compass)
+            if cut:  # (a compass that misses the fault set too is ignored)
+                fault, h = tidy(cut, cap)
+                hulled = hulled or h
+            else:
+                compass_beyond = True
+        return fault, compass_beyond, hulled
+
+    def _tick_window(self) -> bool:
+        """Whether this frame is within ``slip_window`` frames of a noticed fault (one frame of
+        the window is used up)."""
+        if self._window > 0:
+            self._window -= 1
+            return True
+        return False
+
+    def _cut_by_compass(self, boxes: list[Box], compass: float,
+                        cap: int) -> tuple[list[Box] | None, bool]:
+        """``boxes`` cut by the compass reading +- its bound (mod 2 pi): (the pieces, whether the
+        cap hulled them), or (None, False) when the compass misses every box."""
+        c_lo = _nextafter(compass - self._ec, -_INF)
+        c_hi = _nextafter(compass + self._ec, _INF)
+        cut = (compass_pieces(boxes[0], c_lo, c_hi) if len(boxes) == 1 else
+               [p for b in boxes for p in compass_pieces(b, c_lo, c_hi)])
+        if len(cut) == 1:
+            return cut, False
+        if cut:
+            return tidy(cut, cap)
+        return None, False
+
+    def _contracted(self, out: list[Box], cap: int) -> tuple[Status, list[Box], bool]:
+        """A frame whose view fits the set (``out``: the contracted pieces): the streak of
+        rejections ends. Returns ("contracted", the set, whether the cap hulled it)."""
+        self._rejections = 0
+        if len(out) == 1:
+            return "contracted", out, False
+        boxes, hulled = tidy(out, cap)
+        return "contracted", boxes, hulled
+
+    def _rejected(self, boxes: list[Box], limit: int) -> tuple[Status, list[Box]]:
+        """A frame whose view fits no pose of the set (``boxes``: what the set becomes): one
+        more rejection in a row; ``limit`` of those in mode ``autonomous`` are ``lost``."""
+        self._rejections += 1
+        if self._cfg.mode == "autonomous" and self._rejections >= limit:
+            return "lost", self._declare_lost(boxes)
+        return "rejected", boxes
+
+    def _declare_lost(self, boxes: list[Box]) -> list[Box]:
+        """Enter the ``lost`` state (until :meth:`reset`); the set becomes the hull of
+        ``boxes``."""
+        self._lost = True
+        self._window = 0
+        return [hull_of(boxes)]
+
+    def _finish(self, predicted: BoxSet, boxes: list[Box], updated: list[Box], status: Status,
+                passes: int, hulled: bool, compass_rejected: bool, reinflated: bool,
+                relocalizing: bool, fault_frame: int = 0) -> LocalizerStep:
+        """Keep ``updated`` as the set (``boxes``: the prediction it may be), end a
+        re-localization once one candidate is left (or ``lost``), and return the frame's
+        :class:`LocalizerStep`."""
+        region = self._region if relocalizing else None
+        self._boxes = updated
+        if relocalizing:
+            b = updated[0]
+            if self._lost or (len(updated) == 1 and b[1] - b[0] < self._L
                               and b[3] - b[2] < self._L):
                 self._region = None  # one candidate left (or lost): plain tracking again
-                self._cap = cfg.max_boxes
-        if fault is not None:
-            if reinflated:  # the set was taken from the fault set: they agree again
-                fault = updated_boxes
-            elif len(fault) > 1:
-                fault, h = tidy(fault, cap)
-                hulled = hulled or h
-            self._fault = fault
-            self._fault_frame = (self._fault_frame + 1
-                                 if (reinflated or self._window > 0) and not self._lost else 0)
+                self._cap = self._cfg.max_boxes
         return LocalizerStep(
             predicted,
-            predicted if updated_boxes is boxes else BoxSet(tuple(updated_boxes)),
+            predicted if updated is boxes else BoxSet(tuple(updated)),
             status,
             passes,
             hulled,
             compass_rejected,
             self._rejections,
             reinflated,
-            self._fault_frame,
-            relocalizing,
+            fault_frame,
+            region,
         )
 
     def _compass_cut(self, boxes: list[Box], compass: float) -> list[Box]:
@@ -582,7 +771,7 @@ class Localizer:
         hulled = False
         for b in boxes:
             got, p, h = contract_view(b, view, None, self._L, self._lever, cfg.passes,
-                                      cfg.max_boxes)
+                                      self._cap)
             out.extend(got)
             if p > passes:
                 passes = p

@@ -17,9 +17,9 @@ from tileviz.datasets.format import (
     replay_config,
 )
 from tileviz.datasets.reader import DatasetSource
-from tileviz.datasets.writer import DatasetWriter
+from tileviz.datasets.writer import DatasetWriter, dataset_mb
 
 __all__ = [
     "FAULTS_FILE", "FORMAT", "FRAME_COLUMNS", "MAX_MAGNITUDE", "REQUIRED_COLUMNS", "DatasetError",
-    "DatasetMeta", "DatasetSource", "DatasetWriter", "read_meta", "replay_config",
+    "DatasetMeta", "DatasetSource", "DatasetWriter", "dataset_mb", "read_meta", "replay_config",
 ]

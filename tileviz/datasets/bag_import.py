@@ -35,7 +35,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from tileviz.cliutil import CliError, Parser, nonneg_float, positive_float, run_cli
+from tileviz.cliutil import CliError, Parser, nonneg_float, positive_float, read_json, run_cli
 
 __all__ = ["IMAGE_TYPES", "combine_compass", "combine_odometry", "import_bag", "main"]
 
@@ -161,9 +161,8 @@ def camera_model_file(path: str) -> tuple[Any, tuple[int, int] | None]:
     what ``calibrate`` prints) and the rectified view size it gives (``image_width``,
     ``image_height``), or None (then the raw size). CliError naming the file."""
     from tileviz.datasets.camera_model import CameraModel, CameraModelError
-    from tileviz.datasets.format import json_file
 
-    doc = json_file(path, "--camera-model: ")
+    doc = read_json(path, "--camera-model")
     if not isinstance(doc, dict) or doc.get("camera_model") is None:
         raise CliError(f"--camera-model: {path} has no camera_model block")
     try:

@@ -15,7 +15,12 @@ image's undistorted corners and their floor points.
 Prints the calibration's RMS reprojection error in pixels (intrinsics, over every image) and the
 floor fit's RMS error in pixels and in millimetres on the floor; writes the block into
 ``--meta`` (other keys kept) or prints it as JSON (the errors then on stderr, so that the
-output can be saved as the file ``import-bag --camera-model`` takes). One-line errors: an
+output can be saved as the file ``import-bag --camera-model`` takes). ``--meta`` is a dataset's
+meta.json (it has a ``format`` key; the view it describes is then checked against what the
+camera sees) or a camera file: any other JSON object, or a file that does not exist yet, which
+is created (with its folder) holding the ``camera_model`` block alone, the file
+``import-bag --camera-model`` takes (a dataset's meta.json also needs the floor, the view and
+the sensor bounds, which calibration cannot know). One-line errors: an
 image where the board is not found (named), two images (too few for intrinsics, one is enough
 for the floor alone), a degenerate pose (the board too small or seen edge-on, a homography that
 sees no floor).
@@ -32,7 +37,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from tileviz.cliutil import CliError, Parser, positive_float, run_cli
+from tileviz.cliutil import CliError, Parser, positive_float, read_json, run_cli
 from tileviz.datasets.camera_model import CameraModel, CameraModelError, Rectifier
 
 __all__ = ["board_floor_points", "calibrate", "main"]
@@ -169,6 +174,38 @@ def _pose(text: str) -> tuple[float, float, float]:
     return values
 
 
+def _read_meta(path: str) -> tuple[dict[str, object], CameraModel | None]:
+    """The ``--meta`` file's JSON object and its camera model (None when it has none): a
+    dataset's meta.json (a ``format`` key) is checked whole, a camera file's block alone.
+    CliError naming the file."""
+    from tileviz.datasets import DatasetMeta
+
+    doc = read_json(path, "--meta")
+    if not isinstance(doc, dict):
+        raise CliError(f"--meta: {path} is not a JSON object")
+    if "format" in doc:
+        return doc, DatasetMeta.from_json(doc, where=path).camera_model
+    if doc.get("camera_model") is None:
+        return doc, None
+    try:
+        return doc, CameraModel.from_json(doc["camera_model"], path)
+    except CameraModelError as e:
+        raise CliError(str(e)) from None
+
+
+def _write(path: str, doc: dict[str, object]) -> None:
+    """Write ``doc`` as ``path`` (its folder made when missing) as a whole: a write that fails
+    or is killed leaves the previous file; CliError when it cannot."""
+    from tileviz.safefile import write_atomic
+
+    target = Path(path)
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        write_atomic(target, (json.dumps(doc, indent=2) + "\n").encode("utf-8"))
+    except OSError as e:
+        raise CliError(f"--meta: cannot write {path} ({e.strerror or e})") from None
+
+
 def _parser(prog: str) -> Parser:
     p = Parser(prog=prog, description="Calibrate a downward camera from checkerboard images: "
                "intrinsics, distortion and the floor homography (meta.json's camera_model).")
@@ -182,8 +219,10 @@ def _parser(prog: str) -> Parser:
                    help="board centre (forward, left; metres, robot frame) and the direction "
                    "of its COLS axis (rad from forward) in the first image")
     p.add_argument("--meta", default=None, metavar="META",
-                   help="a dataset's meta.json: write the camera_model block into it (and take "
-                   "its camera for a single image)")
+                   help="a dataset's meta.json or a camera file: write the camera_model block "
+                   "into it (and take its camera for a single image); a file that does not "
+                   "exist is created with the block alone (what import-bag --camera-model "
+                   "takes)")
     return p
 
 
@@ -198,14 +237,13 @@ def main(command: str, argv: list[str]) -> int:
             raise CliError(f"--board must be COLSxROWS inner corners (each >= 2), got "
                            f"{args.board!r}")
         pose = _pose(args.board_pose)
-        meta_doc = None
+        meta_doc: dict[str, object] | None = None
         given = None
-        if args.meta is not None:
-            from tileviz.datasets import DatasetMeta
-            from tileviz.datasets.format import json_file
-
-            meta_doc = json_file(args.meta, "--meta: ")
-            given = DatasetMeta.from_json(meta_doc, where=args.meta).camera_model
+        created = args.meta is not None and not Path(args.meta).exists()
+        if created:
+            meta_doc = {}
+        elif args.meta is not None:
+            meta_doc, given = _read_meta(args.meta)
         model, errors = calibrate(args.images, cols=int(m.group(1)), rows=int(m.group(2)),
                                   square=args.square, pose=pose, given=given)
         # without --meta, stdout is the block alone (to save as a file) and the errors go to stderr
@@ -221,10 +259,16 @@ def main(command: str, argv: list[str]) -> int:
         from tileviz.datasets import DatasetMeta
 
         meta_doc["camera_model"] = model.to_json()
+        if "format" not in meta_doc:  # a camera file: the block, no view to check
+            _write(args.meta, meta_doc)
+            print(f"created {args.meta} with the camera_model block alone (for import-bag "
+                  "--camera-model; a dataset's meta.json also needs the floor, view and bounds)"
+                  if created else f"wrote camera_model into {args.meta}")
+            return 0
         meta = DatasetMeta.from_json(meta_doc, where=args.meta)
         rect = Rectifier(model, ppm=meta.ppm, width=meta.image_width, height=meta.image_height,
                          camera_offset=meta.camera_offset)
-        Path(args.meta).write_text(json.dumps(meta_doc, indent=2) + "\n", encoding="utf-8")
+        _write(args.meta, meta_doc)
         print(f"wrote camera_model into {args.meta}")
         if rect.seen_fraction < 1.0:
             print(f"note: {1 - rect.seen_fraction:.1%} of the {meta.image_width}x"

@@ -8,7 +8,8 @@ held over ``t[k+1] - t[k]`` seconds (``meta.dt`` when ``t`` is missing on the ne
 no next row).
 
 Errors are :class:`DatasetError` (a ValueError) whose message names the file and, for rows, the
-row number (1-based line number of ``frames.csv`` counting the header as line 1).
+line of the file (1-based, the header is line 1) and the frame (its ``index``) once that is read:
+``frames.csv line 52 (frame 50)``.
 """
 
 from __future__ import annotations

@@ -52,6 +52,20 @@ STATUS_SCHEMA = {
 }
 
 
+MCAP_INSTALL = "pip install -e '.[ros]'"
+"""The install line that brings the MCAP writer's packages (the ``ros`` extra)."""
+
+
+def mcap_missing() -> str | None:
+    """None when the MCAP export can run here, else one line saying what to install."""
+    from importlib.util import find_spec
+
+    for module in ("mcap", "mcap_protobuf", "foxglove_schemas_protobuf"):
+        if find_spec(module) is None:
+            return f"MCAP export needs the mcap and foxglove packages: {MCAP_INSTALL}"
+    return None
+
+
 def _modules() -> tuple[Any, ...]:
     try:
         from foxglove_schemas_protobuf.Color_pb2 import Color
@@ -62,8 +76,8 @@ def _modules() -> tuple[Any, ...]:
         from mcap.writer import Writer
         from mcap_protobuf.schema import register_schema
     except ImportError:
-        raise CliError("--mcap needs the mcap and foxglove packages: pip install -e "
-                       "'.[ros]'") from None
+        raise CliError(f"MCAP export needs the mcap and foxglove packages: {MCAP_INSTALL}"
+                       ) from None
     return Writer, register_schema, CompressedImage, PoseInFrame, SceneUpdate, CubePrimitive, Color
 
 

@@ -82,7 +82,7 @@ class DatasetSource:
         except UnicodeDecodeError:
             raise DatasetError(f"{self.frames_path}: not UTF-8 text") from None
         except csv.Error as e:
-            raise DatasetError(f"{self.frames_path} row 1: not a CSV header ({e})") from None
+            raise DatasetError(f"{self.frames_path} line 1: not a CSV header ({e})") from None
         if header is None:
             raise DatasetError(f"{self.frames_path}: empty (no header row)")
         header = [h.strip() for h in header]
@@ -162,15 +162,16 @@ class DatasetSource:
         rows = csv.reader(lines)
         lineno = 1
         try:
-            for lineno, cells in enumerate(rows, start=1):
+            for cells in rows:
+                lineno = rows.line_num  # the line where the row ends (quotes may span lines)
                 if lineno == 1 or not cells:
                     continue
                 try:
                     out[int(cells[0])] = tuple(x for x in cells[1].split(";") if x)
                 except (ValueError, IndexError):
-                    raise DatasetError(f"{path} row {lineno}: expected 'index,labels'") from None
+                    raise DatasetError(f"{path} line {lineno}: expected 'index,labels'") from None
         except csv.Error as e:
-            raise DatasetError(f"{path} row {lineno + 1}: not a CSV row ({e})") from None
+            raise DatasetError(f"{path} line {lineno + 1}: not a CSV row ({e})") from None
         return out
 
     def row_count(self) -> int:
@@ -199,7 +200,7 @@ class DatasetSource:
         except UnicodeDecodeError:
             raise DatasetError(f"{self.frames_path}: not UTF-8 text") from None
         except csv.Error as e:  # e.g. a cell longer than the csv module takes
-            raise DatasetError(f"{self.frames_path} row {self._line + 1}: not a CSV row "
+            raise DatasetError(f"{self.frames_path} line {self._line + 1}: not a CSV row "
                                f"({e})") from None
 
     def _parse_rows(self) -> Iterator[_Row]:
@@ -209,14 +210,19 @@ class DatasetSource:
             expected_index = 0
             last_t = -math.inf
             self._line = 1
-            for lineno, cells in enumerate(reader, start=2):
+            for cells in reader:
+                lineno = reader.line_num  # the line where the row ends (quotes may span lines)
                 self._line = lineno
-                if self._cut_line is not None and reader.line_num >= self._cut_line:
+                if self._cut_line is not None and lineno >= self._cut_line:
                     return  # a cut-off last row (ended_early says so)
-                where = f"{self.frames_path} row {lineno}"
+                where = self._where(lineno)
                 if not cells or all(not c.strip() for c in cells):
                     continue
                 if len(cells) < len(self.columns):
+                    first = self.columns.index("index")
+                    given = cells[first].strip() if first < len(cells) else ""
+                    if given.isdigit():  # the frame, when its index is there to read
+                        where = self._where(lineno, int(given))
                     raise DatasetError(f"{where}: truncated ({len(cells)} of "
                                        f"{len(self.columns)} columns)")
                 rec = {c: cells[i].strip() for i, c in enumerate(self.columns)}
@@ -228,6 +234,7 @@ class DatasetSource:
                 if index != expected_index:
                     raise DatasetError(f"{where}: index {index}, expected {expected_index}")
                 expected_index += 1
+                where = self._where(lineno, index)
                 t = parse_float(rec["t"], "t", where)
                 if t <= last_t:
                     raise DatasetError(f"{where}: t={t!r} does not increase")
@@ -248,6 +255,12 @@ class DatasetSource:
                     truth = Pose(*(parse_float(v, c, where)
                                    for v, c in zip(cells_truth, ("x", "y", "theta"), strict=True)))
                 yield _Row(lineno, index, t, rec["image"], speed, yaw_rate, compass, truth)
+
+    def _where(self, line: int, index: int | None = None) -> str:
+        """How an error names a row of frames.csv: its line in the file (the header is line 1)
+        and, once its index is read, the frame (``frames.csv line 52 (frame 50)``)."""
+        frame = f" (frame {index})" if index is not None else ""
+        return f"{self.frames_path} line {line}{frame}"
 
     def load_image(self, name: str, where: str) -> np.ndarray:
         """Read one image as HxWx3 RGB uint8 (rectified: HxW gray, see the class docstring);
@@ -297,7 +310,7 @@ class DatasetSource:
         rows = self._rows()
         current = next(rows, None)
         while current is not None:
-            where = f"{self.frames_path} row {current.line}"
+            where = self._where(current.line, current.index)
             try:
                 nxt = next(rows, None)
             except DatasetError:

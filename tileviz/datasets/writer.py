@@ -20,7 +20,7 @@ from tileviz.types import FrameInput
 if TYPE_CHECKING:
     from tileviz.pipeline import FrameRecord
 
-__all__ = ["SYNC_PERIOD", "DatasetWriter", "meta_bytes"]
+__all__ = ["SYNC_PERIOD", "DatasetWriter", "dataset_mb", "meta_bytes"]
 
 SYNC_PERIOD = 1.0
 """Seconds between syncs of frames.csv to the disk while recording (``durable``): a power cut
@@ -198,3 +198,16 @@ class DatasetWriter:
     def __exit__(self, exc_type: object, *exc: object) -> None:
         # a block that raised stopped the recording before its end: the dataset ended early
         self.close(complete=exc_type is None)
+
+
+def dataset_mb(folder: str | os.PathLike[str]) -> float:
+    """The size of the files under ``folder`` (a dataset: meta.json, frames.csv, images),
+    megabytes (10^6 bytes); files that vanish while it counts are left out."""
+    total = 0
+    for path in Path(folder).rglob("*"):
+        try:
+            if path.is_file():
+                total += path.stat().st_size
+        except OSError:
+            continue
+    return total / 1e6

@@ -22,6 +22,7 @@ from tileviz.evaluation.cluster import parse_scheduler
 from tileviz.evaluation.report import figures, write_outputs
 from tileviz.evaluation.scenarios import DEFAULT_SCENARIOS, SCENARIOS
 from tileviz.evaluation.store import RunStore
+from tileviz.summary import FAITHFUL_NOTE, counted
 
 __all__ = ["main"]
 
@@ -126,13 +127,17 @@ def main(command: str, argv: list[str]) -> int:
                  f"roughening, KLD-sampling of {min(CAL_MIN_PARTICLES, args.particles)} to "
                  f"{args.particles} particles, AMCL recovery with sensor resetting in place "
                  f"(tileviz/baselines/mcl.py); "
-                 f"{args.runs} run(s) of {args.duration:g} s per scenario, seeds {args.seed}.."
+                 f"{counted(args.runs, 'run')} of {args.duration:g} s per scenario, seeds "
+                 f"{args.seed}.."
                  f"{args.seed + args.runs - 1}.",
                  "interval (autonomous): " + (
                      f"fault model {model[0]:g} m/s, {model[1]:g} rad/s beyond the odometry "
                      "bounds (--fault-model)" if model[0] > 0 or model[1] > 0 else
                      "no fault model (--fault-model 0,0)") + "; interval (recovery on): "
                  "max_slip recovery, no fault model."]
+        faithful = [s for s in scenarios if SCENARIOS[s].config(0).vision.extractor == "faithful"]
+        if faithful:
+            notes.append(f"Scenario {', '.join(faithful)}: {FAITHFUL_NOTE}.")
         rows = write_outputs(results, out, cmd.strip(), notes)
         for line in figures(rows):
             print(line)

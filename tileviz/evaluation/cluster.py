@@ -1,8 +1,9 @@
 """Evaluation runs on a Dask distributed cluster (``tileviz evaluate --scheduler ...``).
 
 ``--scheduler tcp://host:8786`` connects to a running scheduler (started with Dask's own
-``dask scheduler`` and ``dask worker`` commands, see the README); ``--scheduler local:N`` starts a
-local cluster of N worker processes (one thread each) for this campaign and closes it after.
+``dask scheduler`` and ``dask worker`` commands, see docs/cluster.md); ``--scheduler local:N``
+starts a local cluster of N worker processes (one thread each) for this campaign and closes it
+after.
 
 Each run is one task, :func:`tileviz.evaluation.simulate.run_one` on its
 :class:`~tileviz.evaluation.simulate.Task`: the same function, the same seeds as ``--jobs``, so
@@ -140,7 +141,7 @@ def run_on_cluster(
                            "(or pip install 'dask[distributed]')") from None
     target, n = parse_scheduler(scheduler)
     # (a local cluster's workers get this configuration: no statistical profiler sampling the
-    # runs' stacks every 10 ms)
+    # runs' stacks)
     with dask.config.set({"distributed.scheduler.allowed-failures": ALLOWED_FAILURES,
                           "distributed.worker.profile.enabled": False}):
         cluster = None

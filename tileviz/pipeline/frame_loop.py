@@ -29,7 +29,7 @@ from tileviz.core.estimators import Estimator, IntervalEstimator, StepInputs, se
 from tileviz.core.localizer import LocalizerStep
 from tileviz.core.tiles import equivalence_residuals
 from tileviz.types import Box, BoxSet, FrameInput, Odometry, Pose, SensorBounds, Status
-from tileviz.vision import VisionResult, extract
+from tileviz.vision import VisionResult, extract, observation_error
 
 __all__ = ["PRIMARY", "FrameLoop", "FrameRecord", "Source", "initial_box"]
 
@@ -59,7 +59,7 @@ class FrameRecord:
     the loop (name -> the error). ``timings``: milliseconds (``vision_ms``, ``localizer_ms`` the
     primary's step, ``<name>_ms`` every estimator's step). ``residuals``: the six equivalence
     residuals (``docs/method.md``, "Equivalence") between the true pose and the observation, or
-    None.
+    None (computed with ``view_error`` when the loop's ``residuals`` is on).
     """
 
     index: int
@@ -71,6 +71,10 @@ class FrameRecord:
     setpoint: tuple[float, float] | None
     vision: VisionResult
     residuals: tuple[float, ...] | None
+    view_error: tuple[float, float, float] | None = None
+    """How far the observation is from the true pose, modulo the floor's symmetries (e1, e2 m,
+    e3 rad: :func:`tileviz.vision.observation_error`), or None (no observation, no truth, or
+    residuals off)."""
     timings: dict[str, float] = field(default_factory=dict)
     step: LocalizerStep | None = None
     motion: Odometry | None = None
@@ -278,10 +282,11 @@ class FrameLoop:
         else:
             timings["localizer_ms"] = timings[f"{PRIMARY}_ms"]
         residuals = None
+        view_error = None
         if self.residuals and frame.truth is not None and vision.observation is not None:
-            residuals = equivalence_residuals(
-                frame.truth, vision.observation, self.cfg.floor.tile_size, self.cfg.camera.offset
-            )
+            floor, offset = self.cfg.floor.tile_size, self.cfg.camera.offset
+            residuals = equivalence_residuals(frame.truth, vision.observation, floor, offset)
+            view_error = observation_error(vision.observation, frame.truth, floor, offset)
         return FrameRecord(
             index=frame.index,
             t=frame.t,
@@ -292,6 +297,7 @@ class FrameLoop:
             setpoint=frame.setpoint,
             vision=vision,
             residuals=residuals,
+            view_error=view_error,
             timings=timings,
             step=step,
             motion=inputs.odometry,

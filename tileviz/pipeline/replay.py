@@ -13,7 +13,6 @@ from collections.abc import Callable, Iterator
 from dataclasses import replace
 
 from tileviz.config import Extractor, Mode
-from tileviz.core.localizer import region_candidates
 from tileviz.datasets import DatasetSource, replay_config
 from tileviz.pipeline.frame_loop import FrameLoop, FrameRecord
 from tileviz.pipeline.outputs import (
@@ -31,7 +30,7 @@ __all__ = ["default_jobs", "replay"]
 def replay(
     dataset: str | os.PathLike[str],
     *,
-    out: str | os.PathLike[str],
+    out: str | os.PathLike[str] | None = None,
     output_file: str | os.PathLike[str] | None = None,
     mode: Mode | None = None,
     extractor: Extractor | None = None,
@@ -44,8 +43,9 @@ def replay(
     on_frame: Callable[[FrameRecord], None] | None = None,
     on_notice: Callable[[str], None] | None = None,
 ) -> int:
-    """Replay ``dataset`` and write the replay CSV ``out`` (one row per frame) and, when given,
-    the equivalence-residual CSV ``output_file``; returns the number of frames replayed. ``mode``,
+    """Replay ``dataset`` and write the replay CSV ``out`` (one row per frame; None: no CSV)
+    and, when given, the equivalence-residual CSV ``output_file``; returns the number of frames
+    replayed. ``mode``,
     ``extractor``, ``max_boxes`` override the dataset's configuration
     (:func:`tileviz.datasets.replay_config`); ``jobs``: vision processes (default
     :func:`default_jobs`). ``mcap``: also write the run for Foxglove to this MCAP file
@@ -74,11 +74,13 @@ def replay(
     if fault_model is not None:
         cfg = replace(cfg, localizer=replace(cfg.localizer, fault_speed=fault_model[0],
                                              fault_yaw_rate=fault_model[1]))
-    if relocalize_region is not None:
-        region_candidates(relocalize_region, cfg.floor.tile_size)  # too large: refused now
-    csv_out = CsvOut(out, REPLAY_COLUMNS)
+    loop = FrameLoop(cfg, residuals=bool(output_file))  # residuals: for output_file only
+    if relocalize_region is not None and loop.primary is not None:
+        # too large even with a compass reading to cut the heading: refused now (a lost frame
+        # without a compass reading whose region needs one stays lost until a reading comes)
+        loop.primary.localizer.candidates(relocalize_region, compass=0.0)
+    csv_out = CsvOut(out, REPLAY_COLUMNS) if out is not None else None
     eq = CsvOut(output_file, RESIDUAL_COLUMNS) if output_file else None
-    loop = FrameLoop(cfg, residuals=eq is not None)  # residuals: for output_file only
     if on_notice is not None and source.ended_early is not None:
         on_notice(source.ended_early)
     if on_total is not None:
@@ -99,22 +101,38 @@ def replay(
         mcap_out = McapExport(mcap, source.folder)
     try:
         for rec in records:
-            csv_out.row(replay_row(rec))
+            if csv_out is not None:
+                csv_out.row(replay_row(rec))
             if mcap_out is not None:
                 mcap_out.write(rec, rec.image_name)
             if eq is not None:
                 eq.row(residual_row(rec))
             n += 1
             if relocalize_region is not None and rec.status == "lost":
-                primary = loop.primary
-                if primary is not None:
-                    primary.localizer.relocalize(relocalize_region)
+                relocalize_after(loop, relocalize_region, rec)
             if on_frame is not None:
                 on_frame(rec)
     finally:
-        csv_out.close()
+        if csv_out is not None:
+            csv_out.close()
         if eq is not None:
             eq.close()
         if mcap_out is not None:
             mcap_out.close()
     return n
+
+
+def relocalize_after(loop: FrameLoop, region: tuple[float, float, float, float],
+                     rec: FrameRecord) -> bool:
+    """Restart ``loop``'s interval localizer from "somewhere in ``region``" after the frame
+    ``rec`` (the pose of that frame; heading from its compass reading when it has one,
+    ``Localizer.relocalize``). False (nothing changed) when there is no interval localizer or
+    the region needs more candidates than re-localization can follow with that heading."""
+    primary = loop.primary
+    if primary is None:
+        return False
+    try:
+        primary.localizer.relocalize(region, compass=rec.compass)
+    except ValueError:
+        return False
+    return True

@@ -39,8 +39,9 @@ from tileviz.vision import VisionResult, extract, set_opencv_threads
 __all__ = ["CHUNK", "vision_ahead", "worker_context"]
 
 CHUNK = 8
-"""Frames per task handed to a worker: one task per frame cost each side about 0.2-0.4 ms of
-CPU in the executor's queues and wake-ups, a tenth of a frame's vision."""
+"""Frames per task handed to a worker: each task costs both sides the executor's queues and
+wake-ups once, so several frames share that cost; more would leave a worker idle longer at the
+end of a dataset (docs/replay.md)."""
 
 T = TypeVar("T")
 

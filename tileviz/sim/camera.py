@@ -59,7 +59,7 @@ _FAULT_PARAMS: dict[str, tuple[str, ...]] = {
     "dropout": ("gray",),
 }
 FAULT_KINDS = tuple(_FAULT_PARAMS)
-"""Camera faults :meth:`FloorRenderer.render` knows (issue 7)."""
+"""Camera faults :meth:`FloorRenderer.render` knows (docs/faults.md)."""
 
 
 @dataclass(frozen=True)
@@ -283,8 +283,8 @@ class FloorRenderer:
         mx = self._texture_map(gx, ix0, float(ax), float(bx))
         my = self._texture_map(gy, iy0, float(ay), float(by))
         shade = cv2.remap(self._appearance, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_WRAP)
-        # colour = shade * (tile + cov * (grout - tile)), channel by channel (OpenCV is much
-        # faster than numpy broadcasting over a last axis of 3)
+        # colour = shade * (tile + cov * (grout - tile)), channel by channel (OpenCV, rather than
+        # numpy broadcasting over a last axis of 3)
         cov *= shade
         return cv2.merge(
             [

@@ -18,8 +18,8 @@ sideways slide, one sign of speed) then for any readings within the bounds of th
 with [v] = v_meas +- speed_error and [w] = w_meas +- yaw_rate_error: the mean of vectors that all
 lie in the convex box [v](cos, sin)(hull) lies in it (docs/method.md, "Prediction").
 
-Faults (issue 7) add a deliberate error on top: :class:`OdometryFault` values are added to the
-readings after the bounded noise, so the reading is off by more than the bound.
+Faults (docs/faults.md) add a deliberate error on top: :class:`OdometryFault` values are added
+to the readings after the bounded noise, so the reading is off by more than the bound.
 """
 
 from __future__ import annotations

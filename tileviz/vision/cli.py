@@ -3,15 +3,24 @@
 Options: ``--preset {default,seed}`` (the camera and vision constants; with a preset given the
 image size must be the preset's), ``--ppm P``, ``--tile-size L`` (metres), ``--extractor
 {faithful,robust}``, ``--json`` (one JSON object per image and line: ``image``, ``y1``, ``y2``,
-``y3`` (docs/method.md convention; null when refused), ``accepted``, ``reason``, ``lines``, ...),
-``--stages DIR`` (every stage image as ``DIR/<image stem>_<nn>_<stage>.png``; a stem met again
-in the same run becomes ``<stem>-2``, ``<stem>-3``...), ``--camera-model
-META`` (a dataset's meta.json with a ``camera_model`` block: each image is a raw camera image,
-rectified first; the meta's ppm, view size, tile size and widened view bound are used).
+``y3`` (docs/method.md convention; null when refused), ``accepted``, ``reason``, ``lines``, ...;
+with the robust extractor also ``decision``: every check run with its value and limit, the
+readings tried and the refusing check, :meth:`tileviz.vision.decision.Decision.as_dict`),
+``--explain`` (after each image's line, the robust extractor's decision path as a table: the
+readings tried and, for the view and each reading, every check with its id, value, limit and
+pass / fail; the check that refused the view is named first, with its value and limit; the
+check ids and their settings are listed in :mod:`tileviz.vision.robust.checks`; with
+``--json`` the same data is the ``decision`` key), ``--stages DIR`` (every stage image as
+``DIR/<image stem>_<nn>_<stage>.png``; a stem met again in the same run becomes ``<stem>-2``,
+``<stem>-3``...), ``--camera-model META`` (a dataset's meta.json with a ``camera_model`` block:
+each image is a raw camera image, rectified first; the meta's ppm, view size, tile size and
+widened view bound are used).
 
 An image that cannot be used (unreadable, wrong size) gives a one-line error on stderr and the
-others are still processed; the exit status is then 2. A frame the extractor refuses (e.g. a
-constant image) is a normal result: ``no observation (reason)``. The JSON's ``timings_ms`` are
+others are still processed. A frame the extractor refuses (e.g. a constant image) is a result:
+``no observation (reason)``. Exit status (:data:`EXIT_HELP`): 0 when every image gave an
+observation, 1 when an image gave none (and none was bad input), 2 when an image or an option
+could not be used. The JSON's ``timings_ms`` are
 the view's own: the robust extractor's compiled kernels are loaded before the first image
 (:func:`tileviz.vision.warmup.warm_up`), not counted in its stages.
 """
@@ -36,19 +45,27 @@ from tileviz.cliutil import (
     Parser,
     notice_if_slow,
     positive_float,
+    read_json,
     run_cli,
 )
 from tileviz.config import EXTRACTORS, PRESETS, Config, preset
 from tileviz.vision import VisionResult, extract
+from tileviz.vision.decision import explain_lines
 
 if TYPE_CHECKING:
     from tileviz.datasets.camera_model import Rectifier
 
-__all__ = ["main"]
+__all__ = ["EXIT_HELP", "main"]
+
+EXIT_HELP = ("exit status: 0 when every image gave an observation, 1 when an image gave none "
+             "(the extractor refused it: the line says why), 2 when an image or an option could "
+             "not be used (one line on stderr each; the other images are still read)")
+"""What ``extract --help`` says of its exit status."""
 
 
 def _parser(prog: str) -> Parser:
-    p = Parser(prog=prog, description="Extract the tile parameters (y1, y2, y3) from images.")
+    p = Parser(prog=prog, description="Extract the tile parameters (y1, y2, y3) from images.",
+               epilog=EXIT_HELP)
     p.add_argument("images", nargs="+", metavar="IMAGE", help="image files (PNG, JPEG, ...)")
     p.add_argument("--preset", choices=PRESETS, default=None,
                    help="camera/vision constants; given, every image must have the "
@@ -59,7 +76,11 @@ def _parser(prog: str) -> Parser:
                    help="tile size L, metres")
     p.add_argument("--extractor", choices=EXTRACTORS, default=None,
                    help=f"{EXTRACTOR_HELP} (default: the preset's)")
-    p.add_argument("--json", action="store_true", help="one JSON object per image")
+    p.add_argument("--json", action="store_true",
+                   help="one JSON object per image (with the robust extractor's decision path)")
+    p.add_argument("--explain", action="store_true",
+                   help="print the robust extractor's decision path: the readings tried and "
+                   "every check (id, value, limit, pass/fail)")
     p.add_argument("--stages", metavar="DIR", default=None, help="write every stage image here")
     p.add_argument("--camera-model", metavar="META", default=None,
                    help="meta.json with a camera_model block: rectify each raw image first")
@@ -70,9 +91,7 @@ def _camera_model(path: str, base: Config) -> tuple[Config, Rectifier]:
     """The configuration (over ``base``) and the rectification of a meta.json's camera model;
     CliError naming the file when it has none or is not valid."""
     from tileviz.datasets import DatasetMeta, replay_config
-    from tileviz.datasets.format import json_file
-
-    meta = DatasetMeta.from_json(json_file(path, "--camera-model: "), where=path)
+    meta = DatasetMeta.from_json(read_json(path, "--camera-model"), where=path)
     rectifier = meta.rectifier()
     if rectifier is None:
         raise CliError(f"--camera-model: {path} has no camera_model block")
@@ -134,6 +153,15 @@ def _line(path: str, res: VisionResult) -> str:
     )
 
 
+def _explain(res: VisionResult) -> list[str]:
+    """The decision path of ``res`` as indented lines (:func:`~tileviz.vision.decision.
+    explain_lines`), or one line saying the extractor records none."""
+    if res.decision is None:
+        return [f"  the {res.extractor} extractor records no decision path "
+                "(--extractor robust does)"]
+    return ["  " + line for line in explain_lines(res.decision)]
+
+
 def _stage_stem(path: str, used: dict[str, int]) -> str:
     """The file name stem of ``path``'s stage images: the image's own stem, with ``-2``,
     ``-3``... when an image of the same stem came before in this run (``used`` counts them)."""
@@ -184,6 +212,7 @@ def main(command: str, argv: list[str]) -> int:
         if args.camera_model is not None:
             base, rectify = _camera_model(args.camera_model, preset(args.preset or "default"))
         status = 0
+        refused = False
         stems: dict[str, int] = {}
         with notice_if_slow(f"{prog}: {FIRST_RUN_NOTICE}", after=10.0) as slow:
             if args.extractor != "faithful":
@@ -200,12 +229,15 @@ def main(command: str, argv: list[str]) -> int:
                     status = 2
                     continue
                 slow.cancel()  # a first result is in: no notice of a slow start
+                refused = refused or res.observation is None
                 if folder is not None:
                     _write_stages(folder, _stage_stem(path, stems), res)
                 if args.json:
                     print(json.dumps({"image": path, **res.as_dict()}))
                 else:
                     print(_line(path, res))
-        return status
+                    if args.explain:
+                        print("\n".join(_explain(res)))
+        return status or int(refused)
 
     return run_cli(prog, body)

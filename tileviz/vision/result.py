@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from tileviz.types import Observation
+from tileviz.vision.decision import Decision
 
 __all__ = ["BAG_HORIZONTAL", "BAG_REJECTED", "BAG_VERTICAL", "REASONS", "VisionResult"]
 
@@ -60,6 +61,9 @@ class VisionResult:
     - ``stages``: ordered name -> HxWx3 uint8 RGB image (empty unless ``keep_stages``).
     - ``timings``: milliseconds per stage. ``details``: extractor-specific numbers (e.g. the
       robust extractor's measured spacing residual in pixels).
+    - ``decision``: how the robust extractor decided (every check run with its value and
+      limit, the readings tried, the refusing check; :class:`~tileviz.vision.decision.
+      Decision`); None for the faithful extractor.
     """
 
     observation: Observation | None
@@ -75,6 +79,7 @@ class VisionResult:
     stages: dict[str, np.ndarray] = field(default_factory=dict)
     timings: dict[str, float] = field(default_factory=dict)
     details: dict[str, float] = field(default_factory=dict)
+    decision: Decision | None = None
 
     @property
     def lines(self) -> int:
@@ -82,9 +87,11 @@ class VisionResult:
         return int(np.count_nonzero(self.bags))
 
     def as_dict(self) -> dict[str, object]:
-        """A JSON-able summary: y1, y2, y3 (None when refused), accepted, reason, lines, ..."""
+        """A JSON-able summary: y1, y2, y3 (None when refused), accepted, reason, lines, ...,
+        and ``decision`` (:meth:`~tileviz.vision.decision.Decision.as_dict`) when the
+        extractor gives one."""
         obs = self.observation
-        return {
+        out: dict[str, object] = {
             "y1": None if obs is None else obs.y1,
             "y2": None if obs is None else obs.y2,
             "y3": None if obs is None else obs.y3,
@@ -97,3 +104,6 @@ class VisionResult:
             "heading_error": None if obs is None else obs.heading_error,
             "timings_ms": {k: round(v, 4) for k, v in self.timings.items()},
         }
+        if self.decision is not None:
+            out["decision"] = self.decision.as_dict()
+        return out

@@ -1,13 +1,18 @@
 """The robust extractor: sub-pixel lattice parameters, and a refusal when the view is doubtful.
 
-Modules, one per job: :mod:`.settings` (thresholds), :mod:`.state` (one frame's state),
-:mod:`.statistics` (step 1), :mod:`.heading` (step 2), :mod:`.projection` (step 3),
-:mod:`.profiles` (step 4), :mod:`.periodic` (step 4's tile period), :mod:`.fit` (step 5 and
-the line checks), :mod:`.lattice` (spacing, the observation), :mod:`.bound` (the view's error
-bound), :mod:`.foreign` (the last checks; :mod:`.grout_levels` reads the grout where an edge
-meets it) and :mod:`.extractor` (the entry point, the result and the stage images); the
-compiled loops are in :mod:`.kernel`, :mod:`.projection_kernel`, :mod:`.heading_kernel`,
-:mod:`.fit_kernel`, :mod:`.lattice_kernel` and :mod:`.foreign_kernel`.
+Modules, one per job: :mod:`.settings` (every threshold, by stage), :mod:`.checks` (every
+check: id, limit, the settings it reads; the list of check ids is its docstring),
+:mod:`.state` (the view's immutable data and one reading's working state), :mod:`.readings`
+(the candidate readings tried in order by one loop, and the function that reads a view for
+one reading), :mod:`.statistics` (step 1), :mod:`.heading` (step 2), :mod:`.projection` (step
+3), :mod:`.profiles` (step 4), :mod:`.periodic` (step 4's tile period), :mod:`.fit` (step 5
+and the line checks), :mod:`.lattice` (spacing, the observation), :mod:`.bound` (the view's
+error bound), :mod:`.foreign` (the last checks; :mod:`.grout_levels` reads the grout where an
+edge meets it) and :mod:`.extractor` (the entry point, the decision, the result and the stage
+images); the compiled loops are in :mod:`.kernel`, :mod:`.projection_kernel`,
+:mod:`.heading_kernel`, :mod:`.fit_kernel`, :mod:`.lattice_kernel` and :mod:`.foreign_kernel`.
+The result carries the decision path (:class:`~tileviz.vision.decision.Decision`: every check
+with its value and limit, the readings tried, the refusing check).
 
 How it measures (vectorised numpy/OpenCV; timings in ``bench/bench_vision.py``):
 
@@ -34,10 +39,11 @@ How it measures (vectorised numpy/OpenCV; timings in ``bench/bench_vision.py``):
 5. A least-squares fit over every line's part positions gives the residual tilt of the warp
    (one slope shared by all lines, one intercept per line): the heading correction, each
    line's offset at the image centre, and standard errors from the scatter of the parts. A
-   large correction redoes the warp. When a view is refused after its lines were found not
-   straight, it is read again leaving out the one part that alone kept them from straight
-   (:func:`.fit.drop_stray_part`: a texture's dip measured beside the grout), and that
-   reading is kept when it passes every check.
+   large correction redoes the warp. Lines that fail the line checks are read again at other
+   headings and with the other polarity, and a view refused after its lines were found not
+   straight is read again leaving out the one part that alone kept them from straight
+   (:func:`.fit.drop_stray_part`: a texture's dip measured beside the grout): the plan of
+   :mod:`.readings`.
 6. Checks, in order; the first that fails is the ``reason``:
    ``constant image``, ``glare``, ``no lines``, ``low contrast``, ``one family``, ``blurred``
    (edges too soft), ``step edge`` (a line with a different level on each side),
@@ -47,7 +53,7 @@ How it measures (vectorised numpy/OpenCV; timings in ``bench/bench_vision.py``):
    ``inconsistent spacing`` (line offsets not multiples of L apart, or a well-visible
    lattice line missing), ``too few segments`` (too little line length per
    family), ``imprecise`` (the view's own bound, :mod:`.bound`, exceeds the largest a view
-   may declare: ``RobustSettings.max_bound_px`` / ``max_bound_rad``, 5 px / 0.05 rad, or the
+   may declare: ``RobustSettings.bound.max_px`` / ``max_rad``, 5 px / 0.05 rad, or the
    configured ``VisionConfig`` bounds when larger), then
    ``foreign line`` / ``step edge`` again for a long straight edge that is not on the lattice
    (a cable; a box or shadow edge), found by a probabilistic Hough transform on the Canny edges

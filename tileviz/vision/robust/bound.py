@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-from tileviz.vision.robust.state import RobustRun
+from tileviz.vision.robust.state import ReadingState
 
 __all__ = ["frame_bound"]
 
 
-def frame_bound(run: RobustRun, se: float) -> tuple[float, float]:
+def frame_bound(run: ReadingState, se: float) -> tuple[float, float]:
     """This view's error bound (px, rad) from its own evidence (docs/vision.md, "The
     bound of a view"): ``sigmas`` standard errors of the fit (the scatter of every line's
     parts about one straight lattice), plus the largest deviations the fit could not
@@ -15,9 +15,9 @@ def frame_bound(run: RobustRun, se: float) -> tuple[float, float]:
     line's width beyond the narrowest line's, chord-weighted as the lines' offsets are), plus a
     floor for what the scatter cannot show (interpolation, a band's width under uneven
     light, blur)."""
-    st = run.st
+    st = run.st.bound
     d = run.details
-    pos = (st.sigmas * se + d["spacing_residual_px"] + 0.5 * d["straightness_px"]
+    pos = (run.st.fit.sigmas * se + d["spacing_residual_px"] + 0.5 * d["straightness_px"]
            + d["position_parts"] + d["width_excess_px"]
            + st.floor_px + st.floor_width * d["width"] + st.floor_rise * d["rise"])
     head = st.heading_sigmas * d["heading_se"] + d["heading_parts"] + st.floor_rad

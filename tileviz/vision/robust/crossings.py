@@ -15,41 +15,38 @@ import math
 
 import numpy as np
 
-from tileviz.vision.robust.state import Line, RobustRun
+from tileviz.vision.robust import checks
+from tileviz.vision.robust.state import Line, ReadingState
 
 __all__ = ["crossing_depths", "crossing_spread", "crossings_agree"]
 
-REACH = 20
-"""Longest stretch (px) of each line read on each side of a crossing, beyond the other
-line's band."""
-MIN_REACH = 6
-"""Shortest such stretch (px): a crossing nearer the border of the view is not read."""
-
-
-def crossings_agree(run: RobustRun, lines: list[list[Line]]) -> bool:
+def crossings_agree(run: ReadingState, lines: list[list[Line]]) -> bool:
     """Whether the lines of lighter grout (an inverted view) are one grout by their depths
-    beside the crossings (:func:`crossing_spread`): the two lines of every crossing read
-    agree within ``crossing_ratio``, and every line not read at a crossing (both near the
-    border of the view) agrees in contrast (depth over the tiles' inverted level, or over
-    the grout's own level) within ``contrast_ratio`` with one that was. Records
-    ``crossing_spread`` and ``crossing_lines`` (how many lines were read) in the details."""
-    st = run.st
+    beside the crossings (:func:`crossing_spread`): some line is read beside a crossing
+    (check ``foreign_line.crossings_read``), the two lines of every crossing read agree within
+    ``lines.crossing_ratio`` (``foreign_line.crossings``), and every line not read at a
+    crossing (both near the border of the view) agrees in contrast (depth over the tiles'
+    inverted level, or over the grout's own level) within ``lines.contrast_ratio`` with one
+    that was (``foreign_line.unread``). Records ``crossing_spread`` and ``crossing_lines``
+    (how many lines were read) in the details, and the checks in ``run.record``."""
+    st = run.st.lines
     worst, read = crossing_spread(run, lines)
     run.details["crossing_spread"] = worst
     run.details["crossing_lines"] = float(len(read))
-    if not read or worst > st.crossing_ratio:
+    rec = run.record
+    if not (rec.check(checks.CROSSINGS_READ, run, len(read))
+            and rec.check(checks.CROSSINGS, run, worst)):
         return False
-    for ln in lines[0] + lines[1]:
-        if any(ln is r for r in read):
-            continue
-        if not any(ratio(ln.contrast, r.contrast) <= st.contrast_ratio
-                   or ratio(ln.contrast_grout, r.contrast_grout) <= st.contrast_ratio
-                   for r in read):
-            return False
-    return True
+    unlike = sum(
+        1 for ln in lines[0] + lines[1]
+        if not any(ln is r for r in read)
+        and not any(ratio(ln.contrast, r.contrast) <= st.contrast_ratio
+                    or ratio(ln.contrast_grout, r.contrast_grout) <= st.contrast_ratio
+                    for r in read))
+    return rec.check(checks.CROSSINGS_UNREAD, run, unlike)
 
 
-def crossing_spread(run: RobustRun, lines: list[list[Line]]) -> tuple[float, list[Line]]:
+def crossing_spread(run: ReadingState, lines: list[list[Line]]) -> tuple[float, list[Line]]:
     """The largest ratio (>= 1) of the two lines' depths over the crossings of a line of
     each family that the view lets read (inf when a depth is not positive; 1 when none is
     read), and the lines read at one crossing at least. ``run.projection`` must hold the
@@ -68,16 +65,16 @@ def crossing_spread(run: RobustRun, lines: list[list[Line]]) -> tuple[float, lis
     return worst, list(read.values())
 
 
-def crossing_depths(run: RobustRun, a: Line, b: Line) -> tuple[float, float] | None:
+def crossing_depths(run: ReadingState, a: Line, b: Line) -> tuple[float, float] | None:
     """The depths (levels of the warped view, as the profiles read them) of line ``a``
-    (family 1, a warp row) and line ``b`` (family 2, a warp column) beside their crossing,
-    read between the same tiles: each band's profile averaged along its line over up to
-    ``REACH`` px (as far as the view allows, alike) on both sides of the crossing, beyond the
-    other band's window, its depth the mean of the 4 samples beyond its own window on each
-    side minus the band's lowest sample. Where the view holds only one side of the crossing
-    for either line (near its border), each line is read on one side and its depth taken
-    over the plateau of the one tile both readings share (of the quarters the view holds,
-    the one where the two depths agree best). None when no quarter can be read."""
+    (family 1, a warp row) and line ``b`` (family 2, a warp column) beside their crossing, read
+    between the same tiles: each band's profile averaged along its line over up to
+    ``lines.crossing_reach`` px (as far as the view allows, alike) on both sides of the crossing,
+    beyond the other band's window, its depth the mean of the 4 samples beyond its own window on
+    each side minus the band's lowest sample. Where the view holds only one side of the crossing for
+    either line (near its border), each line is read on one side and its depth taken over the
+    plateau of the one tile both readings share (of the quarters the view holds, the one where the
+    two depths agree best). None when no quarter can be read."""
     proj = run.projection
     if proj is None or run.y3 is None:
         return None
@@ -116,15 +113,15 @@ def ratio(a: float, b: float) -> float:
     return max(a, b) / min(a, b) if a > 0.0 and b > 0.0 else math.inf
 
 
-def band_profiles(run: RobustRun, k: int, at: float, along: float, half: float,
+def band_profiles(run: ReadingState, k: int, at: float, along: float, half: float,
                   other: float) -> list[tuple[float, float, float] | None] | None:
     """The family-``k`` band centred at profile coordinate ``at`` (a warp row for k = 0, a
-    column for k = 1), read along the band beside the tangent position ``along`` (warp
-    column for k = 0, row for k = 1), beyond ``other`` px (the crossing band's half window)
-    + 2; ``half``: this band's own half window. Three readings: on both sides alike, on the
-    lower side only, on the higher side only; each (depth over both plateaus, depth over
-    the lower-side plateau, depth over the higher-side plateau), or None where the view does
-    not hold ``MIN_REACH`` px of it. None when the band's window leaves the warped view."""
+    column for k = 1), read along the band beside the tangent position ``along`` (warp column for k
+    = 0, row for k = 1), beyond ``other`` px (the crossing band's half window) + 2; ``half``: this
+    band's own half window. Three readings: on both sides alike, on the lower side only, on the
+    higher side only; each (depth over both plateaus, depth over the lower-side plateau, depth over
+    the higher-side plateau), or None where the view does not hold ``lines.crossing_min_reach`` px
+    of it. None when the band's window leaves the warped view."""
     proj = run.projection
     integ = proj.integ
     r0 = int(math.ceil(other + 2.0))
@@ -143,8 +140,9 @@ def band_profiles(run: RobustRun, k: int, at: float, along: float, half: float,
     gap_lo = mid - r0
     gap_hi = mid + r0 + 1  # exclusive
     # (a side whose start lies beyond the view has no room)
-    room_lo = min(REACH, int(math.floor(gap_lo - lo))) if gap_lo <= hi + 1.0 else 0
-    room_hi = min(REACH, int(math.floor(hi + 1.0 - gap_hi))) if gap_hi >= lo else 0
+    reach, least = run.st.lines.crossing_reach, run.st.lines.crossing_min_reach
+    room_lo = min(reach, int(math.floor(gap_lo - lo))) if gap_lo <= hi + 1.0 else 0
+    room_hi = min(reach, int(math.floor(hi + 1.0 - gap_hi))) if gap_hi >= lo else 0
     cum = integ[idx + 1] - integ[idx] if k == 0 else (integ[:, idx + 1] - integ[:, idx]).T
     j = idx - at
     core = np.abs(j) <= max(1.0, 0.5 * (half - 1.5) / 1.5 + 1.0)
@@ -155,7 +153,7 @@ def band_profiles(run: RobustRun, k: int, at: float, along: float, half: float,
         return None
 
     def read(lo_n: int, hi_n: int) -> tuple[float, float, float] | None:
-        if min(r for r in (lo_n, hi_n) if r) < MIN_REACH:
+        if min(r for r in (lo_n, hi_n) if r) < least:
             return None
         tot = np.zeros(idx.size)
         if lo_n:
@@ -168,6 +166,6 @@ def band_profiles(run: RobustRun, k: int, at: float, along: float, half: float,
         return 0.5 * (pl + pr) - bottom, pl - bottom, pr - bottom
 
     both = min(room_lo, room_hi)
-    return [read(both, both) if both >= MIN_REACH else None,
-            read(room_lo, 0) if room_lo >= MIN_REACH else None,
-            read(0, room_hi) if room_hi >= MIN_REACH else None]
+    return [read(both, both) if both >= least else None,
+            read(room_lo, 0) if room_lo >= least else None,
+            read(0, room_hi) if room_hi >= least else None]

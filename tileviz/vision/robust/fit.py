@@ -7,25 +7,26 @@ import math
 
 import numpy as np
 
-from tileviz.vision.robust import fit_kernel, kernel
+from tileviz.vision.robust import checks, fit_kernel
+from tileviz.vision.robust.checks import Refusal
 from tileviz.vision.robust.crossings import crossings_agree
 from tileviz.vision.robust.profiles import beside_dip
-from tileviz.vision.robust.state import Fail, Line, RobustRun
+from tileviz.vision.robust.state import Line, ReadingState
 from tileviz.vision.robust.statistics import list_median
 
-__all__ = ["check_lines", "drop_stray_part", "fit_arrays_numpy", "fit_tilt", "shoulder_px"]
+__all__ = ["check_lines", "drop_stray_part", "fit_tilt", "shoulder_px"]
 
 
-def fit_tilt(run: RobustRun, lines: list[list[Line]]) -> float:
+def fit_tilt(run: ReadingState, lines: list[list[Line]]) -> float:
     """Fit one residual tilt eps for all lines (family-1 rows drift by +eps per unit of t,
     family-2 columns by -eps) and one intercept per line, weighted by part lengths; set each
     line's ``pos`` (at t = 0), ``var`` and ``infl``, and ``run.part_bound``; return eps (rad).
     Also records the tilt of each family on its own (``tilt_gap``: their difference in
-    standard errors). All lines at once (:func:`fit_arrays_numpy`; compiled:
-    :func:`~tileviz.vision.robust.fit_kernel.fit_arrays`)."""
+    standard errors). All lines at once, compiled
+    (:func:`~tileviz.vision.robust.fit_kernel.fit_arrays`)."""
     every = lines[0] + lines[1]
     m = len(every)
-    st = run.st
+    st = run.st.fit
     if m == 0:
         run.details["straightness_px"] = 0.0
         run.part_bound = np.zeros(0)
@@ -33,12 +34,11 @@ def fit_tilt(run: RobustRun, lines: list[list[Line]]) -> float:
         run.details["heading_se"] = math.inf
         run.details["tilt_gap"] = 0.0
         return 0.0
-    fit = fit_kernel.fit_arrays if kernel.AVAILABLE else fit_arrays_numpy
-    eps, pos, var, g, d_eps, part_bound, straight, heading_se, tilt_gap = fit(
+    eps, pos, var, g, d_eps, part_bound, straight, heading_se, tilt_gap = fit_kernel.fit_arrays(
         np.array([ln.wpart for ln in every]), np.array([ln.tpart for ln in every]),
         np.array([ln.parts for ln in every]), np.array([ln.sigma for ln in every]),
         np.array([ln.spread for ln in every]), len(lines[0]), st.part_sigmas,
-        st.prior_dof * st.prior_sigma**2, st.prior_dof)
+        st.prior_dof * st.prior_sigma**2, st.prior_dof, run.st.lines.straight_part_share)
     run.details["straightness_px"] = straight
     run.part_bound = part_bound
     run.details["heading_parts"] = float(np.dot(np.abs(d_eps), part_bound))
@@ -51,79 +51,21 @@ def fit_tilt(run: RobustRun, lines: list[list[Line]]) -> float:
     return eps
 
 
-def fit_arrays_numpy(
-    wp: np.ndarray, tp: np.ndarray, pp: np.ndarray, sig: np.ndarray, spr: np.ndarray, n0: int,
-    part_sigmas: float, prior: float, prior_dof: float
-) -> tuple[float, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, float, float,
-           float]:
-    """The fit of :func:`fit_tilt` on the (lines, PARTS) arrays of the parts' lengths ``wp``
-    (0: not measured, weighing nothing), tangent coordinates ``tp``, positions ``pp``,
-    standard errors ``sig`` and spreads ``spr`` (the first ``n0`` lines of family 1): eps
-    (rad); each line's pos and var; its influence row ``g`` (d pos / d every measured part);
-    d eps / d every measured part; every measured part's own bound (``part_sigmas`` sigma +
-    spread); the straightness (px), the heading's standard error and the tilt gap. ``prior``
-    is ``prior_dof`` x the prior sigma squared. :func:`~tileviz.vision.robust.fit_kernel.
-    fit_arrays` is the same computation compiled (bit-identical)."""
-    m = wp.shape[0]
-    ok = wp > 0
-    w = np.where(ok, wp, 0.0)
-    t = np.where(ok, tp, 0.0)
-    p = np.where(ok, pp, 0.0)
-    sign = np.ones(m)
-    sign[n0:] = -1.0
-    sw = w.sum(axis=1)
-    tb = (w * t).sum(axis=1) / sw
-    pb = (w * p).sum(axis=1) / sw
-    dt = np.where(ok, t - tb[:, None], 0.0)
-    num_l = sign * (w * dt * (p - pb[:, None])).sum(axis=1)
-    den_l = (w * dt * dt).sum(axis=1)
-    first = np.arange(m) < n0
-    num = (float(num_l[first].sum()), float(num_l[~first].sum()))
-    den = (float(den_l[first].sum()), float(den_l[~first].sum()))
-    dall = den[0] + den[1]
-    eps = (num[0] + num[1]) / dall if dall > 1e-9 else 0.0
-    pos = pb - sign * eps * tb
-    res = np.where(ok, p - (pos[:, None] + sign[:, None] * eps * t), 0.0)
-    ss = float((w * res * res).sum())
-    nobs = int(ok.sum())
-    big = ok & (wp >= 0.25 * wp.max(axis=1)[:, None])
-    straight = float(np.abs(res[big]).max()) if big.any() else 0.0
-    # The fit is linear in the part positions: d eps / d p_i = sign w_i (t_i - tb) / dall,
-    # d pos / d p_i = w_i / sum(w) [its own line] - sign tb d eps / d p_i. With every part
-    # within its own bound b_i, eps and pos are within sum |d / d p_i| b_i. (Parts in the
-    # order of the lines, then of their parts; only the measured ones.)
-    d_eps = (sign[:, None] * w * dt)[ok] / max(dall, 1e-9)
-    part_bound = (part_sigmas * sig + spr)[ok]
-    g = -(sign * tb)[:, None] * d_eps[None, :]
-    own = np.repeat(np.arange(m), ok.sum(axis=1))
-    g[own, np.arange(own.size)] += (w / sw[:, None])[ok]
-    # Scatter of the parts about the fit, per unit of part length (px^2 px), with a weak
-    # prior so that a fit with few degrees of freedom is not trusted blindly.
-    dof = max(nobs - (m + 1), 0)
-    sigma2 = (ss + prior) / (dof + prior_dof)
-    var_eps = sigma2 / dall if dall > 1e-9 else math.inf
-    var = sigma2 / sw + tb * tb * var_eps
-    # the two families must be perpendicular: their own tilts agree within their errors
-    gap = 0.0
-    if den[0] > 1e-9 and den[1] > 1e-9:
-        gap = abs(num[0] / den[0] - num[1] / den[1])
-        gap = gap / math.sqrt(sigma2 / den[0] + sigma2 / den[1])
-    return eps, pos, var, g, d_eps, part_bound, straight, math.sqrt(var_eps), gap
-
-
-def drop_stray_part(run: RobustRun, lines: list[list[Line]], eps: float) -> bool:
+def drop_stray_part(run: ReadingState, lines: list[list[Line]], eps: float) -> bool:
     """Leave out (``wpart`` 0, position NaN) the one part that keeps the lines from being
     straight, when it is unambiguous: exactly one part of the whole view (among those the
-    straightness weighs, a quarter of its line's longest part or more) lies farther than the
-    straightness limit (``straight_fraction`` x ``run.bound_px``) from the common fit of tilt
-    ``eps`` (rad) and its line's other parts, which are at least 2 (of those so weighed) and
-    lie within half that limit of their own mean offset from that fit; no other line has a
+    straightness weighs, ``lines.straight_part_share`` of its line's longest part or more) lies
+    farther than the straightness limit (``lines.straight_fraction`` x ``run.bound_px``) from
+    the common fit of tilt ``eps`` (rad) and its line's other parts, which are at least
+    ``lines.stray_min_rest`` (of those so weighed) and lie within ``lines.stray_share`` of that
+    limit of their own mean offset from that fit; no other line has a
     part beyond the limit. A dip of the texture (a mortar joint of a brick
     photograph a few px beside the grout) measured instead of the grout in one part of a short
     line moves that part alone; the line is then measured by its other parts. True when a
     part was left out (the caller fits again; every check then applies as before). Used only
-    in a second reading of a view the first refused (``RobustRun.drop_stray``)."""
-    limit = run.st.straight_fraction * run.bound_px
+    in a second reading of a view the first refused (``ReadingState.drop_stray``)."""
+    st = run.st.lines
+    limit = checks.ANGLE_STRAIGHT.limit(run)
     stray: list[tuple[Line, int]] = []
     for k, fam in enumerate(lines):
         sign = 1.0 if k == 0 else -1.0
@@ -131,19 +73,20 @@ def drop_stray_part(run: RobustRun, lines: list[list[Line]], eps: float) -> bool
             ok = ln.wpart > 0
             if not ok.any():
                 continue
-            big = np.flatnonzero(ok & (ln.wpart >= 0.25 * float(ln.wpart.max())))
+            big = np.flatnonzero(ok & (ln.wpart >= st.straight_part_share
+                                       * float(ln.wpart.max())))
             res = ln.parts[big] - (ln.pos + sign * eps * ln.tpart[big])
             if float(np.abs(res).max()) <= limit:
                 continue
             found = []
             for j in range(big.size):
                 rest = np.delete(np.arange(big.size), j)
-                if rest.size < 2:
+                if rest.size < st.stray_min_rest:
                     continue
                 # the line without part j: its parts' mean offset from the common fit
                 m = float(np.average(res[rest], weights=ln.wpart[big[rest]]))
                 if (abs(res[j] - m) > limit
-                        and float(np.abs(res[rest] - m).max()) <= 0.5 * limit):
+                        and float(np.abs(res[rest] - m).max()) <= st.stray_share * limit):
                     found.append(int(big[j]))
             if len(found) != 1:
                 return False
@@ -158,30 +101,23 @@ def drop_stray_part(run: RobustRun, lines: list[list[Line]], eps: float) -> bool
     return True
 
 
-def check_lines(run: RobustRun, lines: list[list[Line]]) -> None:
-    """Refuse (the first failing check) unless the lines look like one lattice's grout."""
-    st = run.st
-    if not lines[0] and not lines[1]:
-        raise Fail("no lines")
-    if run.details["depth"] < st.min_depth:
-        raise Fail("low contrast")
-    if not lines[0] or not lines[1]:
-        raise Fail("one family")
+def check_lines(run: ReadingState, lines: list[list[Line]]) -> None:
+    """Refuse (the first failing check, :mod:`.checks`: ``lines.found`` .. ``foreign_line.
+    shoulder``) unless the lines look like one lattice's grout."""
+    rec = run.record
+    rec.require(checks.LINES_FOUND, run, len(lines[0]) + len(lines[1]))
+    rec.require(checks.CONTRAST_DEPTH, run, run.details["depth"])
+    rec.require(checks.LINES_FAMILIES, run, min(len(lines[0]), len(lines[1])))
     every = lines[0] + lines[1]
     rises = [ln.rise for ln in every if math.isfinite(ln.rise)]
     rise = list_median(rises) if rises else math.inf
     run.details["rise"] = rise
-    if not rise <= st.max_rise:
-        raise Fail("blurred")
+    rec.require(checks.BLUR_RISE, run, rise)
     step = max(ln.step for ln in every)
     run.details["step"] = step
-    if step > st.max_step:
-        raise Fail("step edge")
-    if (
-        run.details["straightness_px"] > st.straight_fraction * run.bound_px
-        or run.details["tilt_gap"] > st.sigmas
-    ):
-        raise Fail("inconsistent angle")
+    rec.require(checks.STEP_LEVELS, run, step)
+    rec.require(checks.ANGLE_STRAIGHT, run, run.details["straightness_px"])
+    rec.require(checks.ANGLE_PERPENDICULAR, run, run.details["tilt_gap"])
     # Grout lines of both families share one width and one colour: a line unlike the
     # others (a cable along the grout direction, a seam) is foreign.
     widths = [ln.width for ln in every if math.isfinite(ln.width)]
@@ -194,11 +130,11 @@ def check_lines(run: RobustRun, lines: list[list[Line]]) -> None:
         # falling off across the view cancels); a line unlike the others differs in both
         run.details["contrast_spread"] = min(
             run.details["contrast_spread"], spread([ln.contrast_grout for ln in every]))
-    if not widths or max(widths) > st.width_ratio * min(widths) + st.width_slack:
-        raise Fail("foreign line")
-    if run.details["contrast_spread"] > st.contrast_ratio and not (
+    rec.require(checks.FOREIGN_WIDTH, run, max(widths) if widths else math.nan,
+                min(widths) if widths else math.nan)
+    if not rec.check(checks.FOREIGN_CONTRAST, run, run.details["contrast_spread"]) and not (
             run.inverted and crossings_agree(run, lines)):
-        raise Fail("foreign line")
+        raise Refusal(rec.results[-1], "foreign line")
     # one grout line is one band: a second band just beside it (a cable along the grout)
     # darkens the plateaus its position is measured against, and may be read instead of
     # it; with two lines or more of a family in view, one read off the grout is off the
@@ -207,12 +143,10 @@ def check_lines(run: RobustRun, lines: list[list[Line]]) -> None:
     beside = max((beside_dip(run, k, lines[k][0]) for k in range(2) if len(lines[k]) == 1),
                  default=0.0)
     run.details["beside"] = beside
-    if beside >= st.beside_share:
-        raise Fail("foreign line")
+    rec.require(checks.FOREIGN_BESIDE, run, beside)
     shoulder = max(shoulder_px(ln) for ln in every)
     run.details["shoulder_px"] = shoulder
-    if shoulder > st.shoulder_px:
-        raise Fail("foreign line")
+    rec.require(checks.FOREIGN_SHOULDER, run, shoulder)
 
 
 def shoulder_px(line: Line) -> float:

@@ -1,9 +1,9 @@
-"""The common fit of the lines' parts, compiled with numba (:func:`fit_arrays`): exactly (bit
-for bit) what :func:`~tileviz.vision.robust.fit.fit_arrays_numpy` computes, with the
+"""The common fit of the lines' parts, compiled with numba (:func:`fit_arrays`), with the
 conventions of :mod:`~tileviz.vision.robust.kernel` (numpy's order of operations and of its
 sums, its NaN propagation and error model). A view has a dozen lines of four parts: one
 compiled pass instead of some forty numpy calls on arrays that small.
-``tests/test_vision_speed_paths.py`` checks the equality on random fits.
+``tests/test_vision_speed_paths.py`` checks it bit for bit against a numpy reference
+(``tests/numpy_kernels.py``) on random fits.
 """
 
 from __future__ import annotations
@@ -20,10 +20,24 @@ __all__ = ["fit_arrays"]
 @compiled
 def fit_arrays(
     wp: np.ndarray, tp: np.ndarray, pp: np.ndarray, sig: np.ndarray, spr: np.ndarray, n0: int,
-    part_sigmas: float, prior: float, prior_dof: float
+    part_sigmas: float, prior: float, prior_dof: float, big_share: float
 ) -> tuple[float, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, float, float,
            float]:
-    """:func:`~tileviz.vision.robust.fit.fit_arrays_numpy` compiled (bit-identical)."""
+    """The fit of :func:`~tileviz.vision.robust.fit.fit_tilt` on the (lines, PARTS) arrays of
+    the parts' lengths ``wp`` (0: not measured, weighing nothing), tangent coordinates ``tp``,
+    positions ``pp``, standard errors ``sig`` and spreads ``spr`` (the first ``n0`` lines of
+    family 1): eps (rad); each line's pos and var; its influence row ``g`` (d pos / d every
+    measured part); d eps / d every measured part; every measured part's own bound
+    (``part_sigmas`` sigma + spread); the straightness (px: the largest residual of the parts
+    ``big_share`` of their line's longest or more), the heading's standard error and the tilt gap
+    (the two families' own tilts apart, in standard errors). ``prior`` is ``prior_dof`` x the
+    prior sigma squared.
+
+    The fit is linear in the part positions: d eps / d p_i = sign w_i (t_i - tb) / sum, d pos
+    / d p_i = w_i / sum(w) [its own line] - sign tb d eps / d p_i; with every part within its
+    own bound b_i, eps and pos are within sum |d / d p_i| b_i. The scatter of the parts about
+    the fit, per unit of part length, carries a weak prior so that a fit with few degrees of
+    freedom is not trusted blindly."""
     m, parts = wp.shape
     w = np.empty((m, parts))
     t = np.empty((m, parts))
@@ -90,7 +104,7 @@ def fit_arrays(
             flat[i * parts + j] = w[i, j] * r * r
             if ok[i, j]:
                 nobs += 1
-                if wp[i, j] >= 0.25 * wmax:
+                if wp[i, j] >= big_share * wmax:
                     straight = _max(straight, abs(r))
                     anybig = True
                 d_eps[k] = sign[i] * w[i, j] * dt[i, j] / dmax

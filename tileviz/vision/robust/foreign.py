@@ -7,15 +7,13 @@ levels where such an edge meets a grout line (:func:`straddle`, :func:`conclusiv
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 
 import cv2
 import numpy as np
 
 from tileviz.vision.geometry import family_normals
-from tileviz.vision.robust import foreign_kernel, kernel
+from tileviz.vision.robust import checks, foreign_kernel
 from tileviz.vision.robust.grout_levels import (
-    STRADDLE_ONE_SIDED,
     conclusive,
     pass_unchanged,
     straddle,
@@ -23,61 +21,74 @@ from tileviz.vision.robust.grout_levels import (
     trend_range,
 )
 from tileviz.vision.robust.lattice import clip_line
-from tileviz.vision.robust.state import Fail, RobustRun
+from tileviz.vision.robust.state import ReadingState
 
 __all__ = ["classify_edge", "clear_of_lattice", "draw_lattice_mask", "foreign_edges"]
 
 
-def foreign_edges(run: RobustRun) -> None:
-    """Refuse when a long straight edge is not explained by the predicted grout lines."""
+def foreign_edges(run: ReadingState) -> None:
+    """Refuse when a long straight edge is not explained by the predicted grout lines (check
+    ``foreign_edge``: ``step edge`` or ``foreign line`` by :func:`classify_edge`)."""
     assert run.y is not None and run.dxy is not None
-    # Edges at least ``foreign_contrast`` of the grout's own contrast (in gray levels: a
-    # texture's fine edges are not objects) and above the noise. Scharr answers 16 x a unit
-    # step; its noise is about 15.4 sigma per component.
+    # Edges at least ``foreign.contrast`` of the grout's own contrast (in gray levels: a
+    # texture's fine edges are not objects) and above the noise.
+    st = run.st.foreign
     dx, dy = run.dxy
-    high = max(240.0, 6.0 * 15.4 * run.details["noise_sigma"],
-               16.0 * run.st.foreign_contrast * run.details["depth"])
-    run.edges = cv2.Canny(dx, dy, 0.5 * high, high, L2gradient=True)
+    high = max(st.min_edge, st.edge_noise * SCHARR_NOISE * run.noise,
+               SCHARR_STEP * st.contrast * run.details["depth"])
+    run.edges = cv2.Canny(dx, dy, st.canny_low * high, high, L2gradient=True)
     free = run.edges.copy()
     wmax = max(ln.width for fam in run.lines for ln in fam)
     thick = int(math.ceil(wmax + 2.0 * max(2.0, 0.5 * wmax) + 2.0))
     draw_lattice_mask(free, run.y, run.ppm, run.tile_size, thick)
     run.free_edges = free
-    minlen = max(25.0, run.st.foreign_length * run.side)
-    votes = int(0.5 * minlen)
+    minlen = max(st.min_length, st.length * run.side)
+    votes = int(st.vote_share * minlen)
+    seg = straight_edges(free, votes, minlen, st.max_gap)
+    if seg is None:
+        seg = _NO_EDGES
+    else:
+        clear = clear_of_lattice(run, seg)
+        run.details["foreign_clear"] = float(clear.sum())
+        seg = seg[~clear]
+    if seg.size:
+        run.foreign = seg
+        run.details["foreign_segments"] = float(len(seg))
+    run.record.require(checks.FOREIGN_EDGE, run, len(seg),
+                       reason=classify_edge(run, seg) if seg.size else None)
+
+
+def straight_edges(free: np.ndarray, votes: int, minlen: float, gap: float
+                   ) -> np.ndarray | None:
+    """The straight edges (rows: x1, y1, x2, y2, px) of the edge pixels ``free`` (HxW uint8)
+    that a probabilistic Hough transform finds with ``votes`` votes, at least ``minlen`` px
+    long, bridging gaps up to ``gap`` px; None when it is not run (too few edge pixels for the
+    votes) or finds none."""
     # a segment needs that many votes, at most one per edge pixel: with fewer free edge
     # pixels (a clean view: every edge lies on the grout) the search finds none
     if cv2.countNonZero(free) < votes:
-        return
-    seg = cv2.HoughLinesP(
-        free, 1.0, math.pi / 180.0, votes, minLineLength=minlen, maxLineGap=3.0
-    )
-    if seg is None:
-        return
-    seg = np.asarray(seg, np.float64).reshape(-1, 4)
-    clear = clear_of_lattice(run, seg)
-    run.details["foreign_clear"] = float(clear.sum())
-    seg = seg[~clear]
-    if seg.size == 0:
-        return
-    run.foreign = seg
-    run.details["foreign_segments"] = float(len(seg))
-    raise Fail(classify_edge(run, seg))
+        return None
+    seg = cv2.HoughLinesP(free, 1.0, math.pi / 180.0, votes, minLineLength=minlen,
+                          maxLineGap=gap)
+    return None if seg is None else np.asarray(seg, np.float64).reshape(-1, 4)
 
 
-def clear_of_lattice(run: RobustRun, seg: np.ndarray) -> np.ndarray:
+_NO_EDGES = np.zeros((0, 4))
+
+
+def clear_of_lattice(run: ReadingState, seg: np.ndarray) -> np.ndarray:
     """Which straight edges (rows of ``seg``: x1, y1, x2, y2, px) are no foreign object that
     could have moved a measured grout line. Exempt:
 
     - a chance alignment of a texture's edges (grains, chips, a wavy grain): fewer than
-      :data:`TEXTURE_SHARE` of its points lie on an edge pixel whose gradient is normal to it
+      ``foreign.texture_share`` of its points lie on an edge pixel whose gradient is normal to it
       (:func:`edge_share`); the edge of one object has nearly all of them;
-    - an edge along one line family (within :data:`PARALLEL`) whose whole line, extended
-      across the view, stays between two measurement bands of that family (a dip's position
-      reads its profile only within its band, :func:`measurement_band`), where that family's
-      profile shows no dip a quarter as deep as the other family's grout (a missed grout
-      line would, whatever the lines were taken for): the mortar of a brick photograph, a
-      plank's edge, a cable or a shadow along the grout in the middle of a tile;
+    - an edge along one line family (within ``foreign.parallel``) whose whole line, extended across
+      the view, stays between two measurement bands of that family (a dip's position reads its
+      profile only within its band, :func:`measurement_band`), where that family's profile shows no
+      dip ``foreign.grout_like`` as deep as the other family's grout (a missed grout line would,
+      whatever the lines were taken for): the mortar of a brick photograph, a plank's edge, a cable
+      or a shadow along the grout in the middle of a tile;
     - an edge whose object stops, on both sides, before or at the grout lines (:func:`ends`):
       its line, followed from each end, sees the edge on at most half the steps to the next
       band, or runs into the grout without changing the grout's gray level there
@@ -109,12 +120,14 @@ def clear_of_lattice(run: RobustRun, seg: np.ndarray) -> np.ndarray:
         return lo >= band and lo + abs(b - a) <= lp - band
 
     def offsets(px: float, py: float) -> tuple[float, float]:
-        return tuple(n[0] * (px - cx) + n[1] * (py - cy) + sh
-                     for n, sh in zip(normals, shift, strict=True))
+        (a0, a1), (b0, b1) = normals
+        return (a0 * (px - cx) + a1 * (py - cy) + shift[0],
+                b0 * (px - cx) + b1 * (py - cy) + shift[1])
 
+    st = run.st.foreign
     share = edge_share(run, seg)
     for i, (x1, y1, x2, y2) in enumerate(seg.tolist()):
-        if share[i] < TEXTURE_SHARE:
+        if share[i] < st.texture_share:
             out[i] = True
             continue
         ln = max(math.hypot(x2 - x1, y2 - y1), 1e-9)
@@ -124,7 +137,7 @@ def clear_of_lattice(run: RobustRun, seg: np.ndarray) -> np.ndarray:
             continue
         ea, eb = offsets(e[0], e[1]), offsets(e[2], e[3])
         span = max(math.hypot(e[2] - e[0], e[3] - e[1]), 1e-9)
-        if any(abs(eb[k] - ea[k]) <= PARALLEL * span and free_cell(ea[k], eb[k])
+        if any(abs(eb[k] - ea[k]) <= st.parallel * span and free_cell(ea[k], eb[k])
                for k in range(2)) and not grout_like(run, proj, e):
             out[i] = True
             continue
@@ -136,82 +149,26 @@ def clear_of_lattice(run: RobustRun, seg: np.ndarray) -> np.ndarray:
     return out
 
 
-PARALLEL = 0.03
-"""An edge runs along a line family when its direction is within this angle (rad) of it: it
-crosses the other family's lines nearly at right angles, adding about the same to every
-sample of their profiles (:func:`clear_of_lattice`)."""
-
-
-def edge_share(run: RobustRun, seg: np.ndarray) -> np.ndarray:
+def edge_share(run: ReadingState, seg: np.ndarray) -> np.ndarray:
     """For each straight edge (rows of ``seg``: x1, y1, x2, y2, px), the share of the points
     along it (1 px apart) within 1 px of an edge pixel whose gradient is normal to it within
-    :data:`NORMAL_TOLERANCE` (:func:`oriented_hits`): about 1 for the edge of one object (a
-    cable, a box, a shadow), much less for a chance alignment of a texture's edges (grains,
-    chips, a wavy grain), whose directions scatter. Compiled
-    (:func:`~tileviz.vision.robust.foreign_kernel.edge_shares`) when numba is installed, else
-    :func:`edge_shares_numpy`: the same values."""
+    ``foreign.normal_tolerance``, of either sign: about 1 for the edge of one object (a cable, a
+    box, a shadow), much less for a chance alignment of a texture's edges (grains, chips, a
+    wavy grain), whose directions scatter (compiled:
+    :func:`~tileviz.vision.robust.foreign_kernel.edge_shares`)."""
     assert run.edges is not None and run.dxy is not None
-    shares = foreign_kernel.edge_shares if kernel.AVAILABLE else edge_shares_numpy
-    return shares(run.dxy[0], run.dxy[1], run.edges, np.ascontiguousarray(seg, np.float64),
-                  _COS_TOL)
+    return foreign_kernel.edge_shares(run.dxy[0], run.dxy[1], run.edges,
+                                      np.ascontiguousarray(seg, np.float64),
+                                      math.cos(run.st.foreign.normal_tolerance))
 
 
-def edge_shares_numpy(dx: np.ndarray, dy: np.ndarray, edges: np.ndarray, seg: np.ndarray,
-                      cos_tol: float) -> np.ndarray:
-    """:func:`edge_share` on the gradients ``dx``, ``dy`` and edge pixels ``edges`` (HxW),
-    with the tolerance's cosine ``cos_tol``: the share of each edge's points (1 px apart)
-    that :func:`oriented_points` sees with its normal; 0 for an edge under 1 px."""
-    out = np.zeros(len(seg))
-    for i, (x1, y1, x2, y2) in enumerate(seg[:, :4].tolist()):
-        ln = math.hypot(x2 - x1, y2 - y1)
-        if ln < 1.0:
-            continue
-        t = np.arange(0.0, ln + 0.5, 1.0) / ln
-        xs = np.rint(x1 + t * (x2 - x1)).astype(np.intp)
-        ys = np.rint(y1 + t * (y2 - y1)).astype(np.intp)
-        hit = oriented_points(dx, dy, edges, xs, ys, -(y2 - y1) / ln, (x2 - x1) / ln, cos_tol)
-        out[i] = float(hit.mean())
-    return out
+SCHARR_STEP = 16.0
+"""Scharr's answer to a unit step of gray levels (its gain)."""
+SCHARR_NOISE = 15.4
+"""Scharr's noise per gray level of pixel noise std, per component."""
 
 
-def oriented_hits(run: RobustRun, xs: np.ndarray, ys: np.ndarray, nx: float, ny: float
-                  ) -> np.ndarray:
-    """Whether each pixel (xs, ys) lies within 1 px (its 3 x 3 neighbourhood) of an edge pixel
-    of ``run.edges`` whose gradient is within :data:`NORMAL_TOLERANCE` of the unit normal
-    (nx, ny), of either sign: the points where a straight edge with that normal is seen."""
-    assert run.edges is not None and run.dxy is not None
-    return oriented_points(run.dxy[0], run.dxy[1], run.edges, xs, ys, nx, ny, _COS_TOL)
-
-
-def oriented_points(dx: np.ndarray, dy: np.ndarray, edges: np.ndarray, xs: np.ndarray,
-                    ys: np.ndarray, nx: float, ny: float, cos_tol: float) -> np.ndarray:
-    """:func:`oriented_hits` on the gradients ``dx``, ``dy`` and edge pixels ``edges`` (HxW),
-    with the tolerance's cosine ``cos_tol``."""
-    h, w = edges.shape
-    # the 3 x 3 neighbours of every pixel at once (rows: the 9 offsets), as flat indices
-    xx = np.clip(xs[None, :] + _NX[:, None], 0, w - 1)
-    yy = np.clip(ys[None, :] + _NY[:, None], 0, h - 1)
-    flat = yy * w + xx
-    gx = dx.ravel()[flat].astype(np.float64)
-    gy = dy.ravel()[flat].astype(np.float64)
-    g = np.hypot(gx, gy)
-    along = np.abs(gx * nx + gy * ny) >= cos_tol * g
-    return ((edges.ravel()[flat] > 0) & along & (g > 0)).any(axis=0)
-
-
-_NX = np.array([-1, -1, -1, 0, 0, 0, 1, 1, 1], np.intp)
-_NY = np.array([-1, 0, 1, -1, 0, 1, -1, 0, 1], np.intp)
-
-
-TEXTURE_SHARE = 0.75
-"""A straight edge with a smaller :func:`edge_share` is a chance alignment of texture edges."""
-NORMAL_TOLERANCE = math.radians(25.0)
-"""An edge pixel belongs to a straight edge when its gradient is this close to the edge's
-normal (rad)."""
-_COS_TOL = math.cos(NORMAL_TOLERANCE)
-
-
-def measurement_band(run: RobustRun) -> float:
+def measurement_band(run: ReadingState) -> float:
     """How far from a grout line (px) its measurement reads the image: a dip's position uses
     its profile out to 4 plateau samples beyond its window c +- (1.5 w + 1.5)
     (:func:`~tileviz.vision.robust.profiles.dips`, w its half-depth width), and never beyond
@@ -220,9 +177,9 @@ def measurement_band(run: RobustRun) -> float:
     return min(float(run.window), 1.5 * wmax + 1.5 + 5.0) + 2.0
 
 
-def grout_like(run: RobustRun, proj: object, e: tuple[float, float, float, float]) -> bool:
+def grout_like(run: ReadingState, proj: object, e: tuple[float, float, float, float]) -> bool:
     """Whether the profile of the warp family that the line ``e`` (endpoints, px) runs along
-    dips there at least a quarter as deep as the other family's grout lines."""
+    dips there at least ``foreign.grout_like`` as deep as the other family's grout lines."""
     from tileviz.vision.robust.projection import Projection
 
     assert isinstance(proj, Projection)
@@ -237,10 +194,10 @@ def grout_like(run: RobustRun, proj: object, e: tuple[float, float, float, float
     dark = proj.dark[k, max(i0, 0) : max(i1 + 1, 0)]
     dark = dark[np.isfinite(dark)]
     grout = float(np.median([g.depth for g in run.lines[1 - k]]))
-    return dark.size > 0 and float(dark.max()) >= 0.25 * grout
+    return dark.size > 0 and float(dark.max()) >= run.st.foreign.grout_like * grout
 
 
-def ends(run: RobustRun, px: float, py: float, dx: float, dy: float, band: float,
+def ends(run: ReadingState, px: float, py: float, dx: float, dy: float, band: float,
          normals: tuple[tuple[float, float], tuple[float, float]],
          shift: tuple[float, float]) -> bool:
     """Whether the object of a straight edge ending at (px, py) stops short of the grout lines
@@ -248,47 +205,48 @@ def ends(run: RobustRun, px: float, py: float, dx: float, dy: float, band: float
     (``band``: :func:`measurement_band`; ``normals``, ``shift``: each family's unit normal and
     offset, px, so that its lines lie where ``n . (p - centre) + shift`` is a multiple of the
     tile period). A step *sees the edge* when it lies within 1 px of an edge pixel whose
-    gradient is normal to the edge (:func:`oriented_hits`; a texture's edges across it do not
-    count).
+    gradient is normal to the edge within ``foreign.normal_tolerance`` (a texture's edges across
+    it do not count; compiled: :func:`~tileviz.vision.robust.foreign_kernel.end_steps`).
 
     - The border of the view comes before any band: True.
-    - At least 4 steps lead to the next band and at most half of them see the edge: it ends
-      inside the tile (True).
+    - At least ``foreign.inside_steps`` steps lead to the next band and at most
+      ``foreign.seen_share`` of them see the edge: it ends inside the tile (True).
     - Where the line meets the grout's centre line, the grout's gray level beside the line
       (:func:`straddle`) tells: an object crossing the grout covers it on one side (a cable,
       a box) or darkens it (a shadow), so the level varies there by more than
-      :data:`STRADDLE_SIGMAS` x the image noise + :data:`STRADDLE_LEVELS` and more than the
+      ``foreign.straddle_sigmas`` x the image noise + ``straddle_levels`` and more than the
       grout varies by itself elsewhere on its line (:func:`grout_variation`; where that
       cannot be read, about the levels' straight trend, :func:`trend_range`) (False); a
       texture's edge stops at the grout and leaves it alike (True when both sides of the
       crossing are read and the edge is not seen beyond the band). Where the line crosses
-      the grout at under :data:`STRADDLE_ONE_SIDED`, or one side only is read, the far side
-      in view (at least 6 steps) without the edge is enough (True), as where the grout
-      cannot be read.
-    - Beyond the band, up to the next band (at least 6 steps in view), at least half the
-      steps see the edge (the object may go on across the grout, or the line runs along
-      another tile's texture), or only one side of the crossing is in view and the far side
-      is not: True only when the object, had it crossed, would have changed the grout's level
+      the grout at under ``foreign.straddle_one_sided``, or one side only is read, the far side
+      in view (at least ``foreign.far_steps`` steps) without the edge is enough (True), as
+      where the grout cannot be read.
+    - Beyond the band, up to the next band (at least ``far_steps`` steps in view), at least
+      ``seen_share`` of the steps see the edge (the object may go on across the grout, or the line
+      runs along another tile's texture), or only one side of the crossing is in view and the far
+      side is not: True only when the object, had it crossed, would have changed the grout's level
       there (:func:`conclusive`), else False.
-    - The line does not reach the grout's core in the view: False when the edge is seen
-      beyond the band; else True when the band runs to the border of the view or the far
-      side is in view (6 steps or more); else (it leaves the band within 6 steps of the
+    - The line does not reach the grout's core in the view: False when the edge is seen beyond the
+      band; else True when the band runs to the border of the view or the far side is in view
+      (``far_steps`` steps or more); else (it leaves the band within ``far_steps`` steps of the
       border or of another band) the grout's core beside its pass through the band
-      (:func:`pass_unchanged`) must not vary by more than that limit and be conclusive, as
-      where a crossing is read on one side only. The grout cannot be read where the line
-      meets it (within 0.05 rad of the grout, or the crossing out of the view): True when the
-      far side is in view without the edge, else the grout's core beside the line's pass
-      through the band decides in the same way (:func:`pass_unchanged`).
+      (:func:`pass_unchanged`) must not vary by more than that limit and be conclusive, as where a
+      crossing is read on one side only. The grout cannot be read where the line meets it (within
+      ``foreign.straddle_parallel`` of the grout, or the crossing out of the view): True when the
+      far side is in view without the edge, else the grout's core beside the line's pass through the
+      band decides in the same way (:func:`pass_unchanged`).
 
     Assumed: an object whose gray level matches the grout's where it crosses it (within
-    :data:`CONCLUSIVE` x the straddle's limit when the edge is seen beyond the band or the
+    ``foreign.conclusive`` x the straddle's limit when the edge is seen beyond the band or the
     far side is out of view; within that limit otherwise), or whose step darkens the tiles
     by less than that limit, is not told from texture at that end."""
     assert run.edges is not None and run.dxy is not None
-    steps = foreign_kernel.end_steps if kernel.AVAILABLE else end_steps_numpy
-    done, xs, ys, i0, i1, i2, far, k, dmin = steps(
+    st = run.st.foreign
+    done, xs, ys, i0, i1, i2, far, k, dmin = foreign_kernel.end_steps(
         run.dxy[0], run.dxy[1], run.edges, px, py, dx, dy, band, normals[0][0], normals[0][1],
-        normals[1][0], normals[1][1], shift[0], shift[1], run.lp, _COS_TOL)
+        normals[1][0], normals[1][1], shift[0], shift[1], run.lp,
+        math.cos(st.normal_tolerance), st.inside_steps, st.far_steps, st.seen_share)
     if done:
         return True  # the border comes first, or the edge ends inside the tile
     n2 = i2 - i1
@@ -298,23 +256,23 @@ def ends(run: RobustRun, px: float, py: float, dx: float, dy: float, band: float
         # the line does not reach the grout of this band in the view
         if far:
             return False  # seen beyond the band
-        if i1 == xs.size or n2 >= 6:
+        if i1 == xs.size or n2 >= st.far_steps:
             return True
-        # it leaves the band within 6 steps of the border or of the next band: the grout
+        # it leaves the band within far_steps steps of the border or of the next band: the grout
         # beside its pass through the band decides, as at a crossing seen on one side only
         return pass_unchanged(run, xs, ys, i0, i1, px, py, dx, dy, normals[k], shift[k])
     read = straddle(run, px, py, dx, dy, normals[k], shift[k])
     if read is None:
-        if n2 >= 6 and not far:
+        if n2 >= st.far_steps and not far:
             return True
-        # the crossing cannot be read (the line meets the grout within STRADDLE_PARALLEL of
+        # the crossing cannot be read (the line meets the grout within straddle_parallel of
         # it, or where it lies out of view): the grout's core beside the line's whole pass
         # through the band decides, as where the line does not reach the core
         return pass_unchanged(run, xs, ys, i0, i1, px, py, dx, dy, normals[k], shift[k],
                               seen_beyond)
     core, both, own = read
-    steep = both and abs(normals[k][0] * dx + normals[k][1] * dy) >= STRADDLE_ONE_SIDED
-    if not far and n2 >= 6 and not steep:
+    steep = both and abs(normals[k][0] * dx + normals[k][1] * dy) >= st.straddle_one_sided
+    if not far and n2 >= st.far_steps and not steep:
         return True  # as where the grout cannot be read: the far side is in view, unseen
     limit = straddle_limit(run)
     allowed = max(limit, own) if math.isfinite(own) else limit
@@ -336,80 +294,7 @@ def ends(run: RobustRun, px: float, py: float, dx: float, dy: float, band: float
     return conclusive(run, px, py, dx, dy, float(np.median(core)), limit, seen_beyond)
 
 
-def end_steps_numpy(dx: np.ndarray, dy: np.ndarray, edges: np.ndarray, px: float, py: float,
-                    ux: float, uy: float, band: float, n00: float, n01: float, n10: float,
-                    n11: float, sh0: float, sh1: float, lp: float, cos_tol: float
-                    ) -> tuple[int, np.ndarray, np.ndarray, int, int, int, bool, int, float]:
-    """The steps of :func:`ends` from a straight edge's end (px, py) along the unit vector
-    (ux, uy), 1 px apart, to the border of the view (``edges``: the edge pixels, HxW; ``dx``,
-    ``dy``: the gradients), and where they meet the grout bands (half-width ``band``, px; the
-    families' unit normals (n00, n01), (n10, n11) and offsets sh0, sh1, px, so that a line
-    lies where ``n . (p - centre) + sh`` is a multiple of the period ``lp``, px).
-
-    Returns (done, xs, ys, i0, i1, i2, far, k, dmin): ``done`` (1) when the border of the view
-    comes before any band, or at least 4 steps lead to the first band and at most half of them
-    see the edge (:func:`oriented_hits` with tolerance cosine ``cos_tol``); else the steps
-    (xs, ys, pixels), the first step in a band ``i0``, the first after it out of the bands
-    ``i1``, the first in a band again ``i2`` (the number of steps when none), whether at
-    least 6 steps lie between and at least half of them see the edge (``far``), the family
-    ``k`` whose lines come nearest in ``i0..i1`` and that distance ``dmin`` (px)."""
-    h, w = edges.shape
-    empty = np.zeros(0, np.intp)
-    # the steps to the border: t = 1 .. tmax, inside [-0.5, W - 0.5) x [-0.5, H - 0.5)
-    lim = []
-    for p, d, size in ((px, ux, w), (py, uy, h)):
-        if d > 1e-12:
-            lim.append((size - 0.5 - p) / d)
-        elif d < -1e-12:
-            lim.append((-0.5 - p) / d)
-    tmax = int(math.floor(min(lim) - 1e-9)) if lim else 0
-    if tmax < 1:
-        return 1, empty, empty, 0, 0, 0, False, 0, 0.0
-    t = np.arange(1.0, tmax + 1.0)
-    xs = np.rint(px + t * ux).astype(np.intp)
-    ys = np.rint(py + t * uy).astype(np.intp)
-    keep = (xs >= 0) & (xs < w) & (ys >= 0) & (ys < h)
-    xs, ys = xs[keep], ys[keep]
-    m = int(xs.size)
-    if m == 0:
-        return 1, empty, empty, 0, 0, 0, False, 0, 0.0
-    cx, cy = (w - 1) / 2.0, (h - 1) / 2.0
-    # distance of each step to the nearest line of each family (px), from the offsets
-    dk = []
-    for n0, n1, sh in ((n00, n01, sh0), (n10, n11, sh1)):
-        o = n0 * (xs - cx) + n1 * (ys - cy) + sh
-        dk.append(np.abs(o - lp * np.rint(o / lp)))
-    inb = np.minimum(dk[0], dk[1]) < band
-    i0 = int(np.argmax(inb)) if inb.any() else m
-    if i0 == m:
-        return 1, xs, ys, i0, m, m, False, 0, 0.0  # the border comes first
-    hit = _oriented(dx, dy, edges, -uy, ux, cos_tol)
-    if i0 >= 4 and int(hit(xs[:i0], ys[:i0]).sum()) <= 0.5 * i0:
-        return 1, xs, ys, i0, m, m, False, 0, 0.0  # it ends inside the tile
-    out = np.flatnonzero(~inb[i0:])
-    i1 = i0 + int(out[0]) if out.size else m
-    back = np.flatnonzero(inb[i1:])
-    i2 = i1 + int(back[0]) if back.size else m
-    n2 = i2 - i1
-    far = n2 >= 6 and int(hit(xs[i1:i2], ys[i1:i2]).sum()) >= 0.5 * n2
-    k = 0 if float(dk[0][i0:i1].min()) <= float(dk[1][i0:i1].min()) else 1
-    return 0, xs, ys, i0, i1, i2, far, k, float(dk[k][i0:i1].min())
-
-
-def _oriented(dx: np.ndarray, dy: np.ndarray, edges: np.ndarray, nx: float, ny: float,
-              cos_tol: float) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
-    """:func:`oriented_hits` on the given gradients and edge pixels, for the unit normal
-    (nx, ny) (tolerance cosine ``cos_tol``)."""
-
-    def hit(xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
-        return oriented_points(dx, dy, edges, xs, ys, nx, ny, cos_tol)
-
-    return hit
-
-
-
-
-def classify_edge(run: RobustRun, seg: np.ndarray) -> str:
+def classify_edge(run: ReadingState, seg: np.ndarray) -> str:
     """``step edge`` when the longest foreign segment separates two different levels (a box,
     a shadow), ``foreign line`` when it is a dark or bright ridge with the same level on
     both sides (a cable): the gray profile across it, median along it, from -16 to 16 px."""
@@ -427,7 +312,6 @@ def classify_edge(run: RobustRun, seg: np.ndarray) -> str:
     a, b = prof[0], prof[-1]
     ridge = max(min(a, b) - prof.min(), prof.max() - max(a, b))
     return "step edge" if abs(a - b) > ridge else "foreign line"
-
 
 
 def draw_lattice_mask(

@@ -1,18 +1,16 @@
-"""The foreign-edge search's loops over the points of a straight edge, compiled with numba:
-exactly (bit for bit) what their numpy counterparts in
-:mod:`~tileviz.vision.robust.foreign` compute, with the conventions of
-:mod:`~tileviz.vision.robust.kernel` (numpy's order of operations, ``np.rint``'s rounding half
-to even, ``argmax`` / ``argmin`` taking the first extreme):
+"""The foreign-edge search's loops over the points of a straight edge, compiled with numba,
+with the conventions of :mod:`~tileviz.vision.robust.kernel` (numpy's order of operations,
+``np.rint``'s rounding half to even, ``argmax`` / ``argmin`` taking the first extreme):
 
-- :func:`edge_shares` (``edge_shares_numpy``): each straight edge's share of points seen as an
-  edge with its normal;
-- :func:`end_steps` (``end_steps_numpy``): the steps from an edge's end to the border of the
-  view, where they meet the grout bands and whether the edge is seen before and beyond them;
-- :func:`stretch_range` (``stretch_range_numpy``): the grout's own variation along its line.
+- :func:`edge_shares`: each straight edge's share of points seen as an edge with its normal;
+- :func:`end_steps`: the steps from an edge's end to the border of the view, where they meet
+  the grout bands and whether the edge is seen before and beyond them;
+- :func:`stretch_range`: the grout's own variation along its line.
 
 A photograph's view has dozens of such edges, each followed from both ends: one compiled loop
 each instead of some forty numpy calls on arrays of a few dozen points.
-``tests/test_vision_speed_paths.py`` checks the equality on random edges and gradients.
+``tests/test_vision_speed_paths.py`` checks them bit for bit against a numpy reference
+(``tests/numpy_kernels.py``) on random edges and gradients.
 """
 
 from __future__ import annotations
@@ -63,8 +61,7 @@ def _count_hits(dx: np.ndarray, dy: np.ndarray, edges: np.ndarray, xs: np.ndarra
 @compiled
 def edge_shares(dx: np.ndarray, dy: np.ndarray, edges: np.ndarray, seg: np.ndarray,
                 cos_tol: float) -> np.ndarray:
-    """:func:`~tileviz.vision.robust.foreign.edge_shares_numpy` compiled (bit-identical): for
-    each straight edge (rows of ``seg``: x1, y1, x2, y2, px), the share of its points (1 px
+    """For each straight edge (rows of ``seg``: x1, y1, x2, y2, px), the share of its points (1 px
     apart) that :func:`_hit` sees with its normal; 0 for an edge under 1 px."""
     out = np.zeros(seg.shape[0])
     for i in range(seg.shape[0]):
@@ -92,13 +89,24 @@ def edge_shares(dx: np.ndarray, dy: np.ndarray, edges: np.ndarray, seg: np.ndarr
 @compiled
 def end_steps(dx: np.ndarray, dy: np.ndarray, edges: np.ndarray, px: float, py: float,
               ux: float, uy: float, band: float, n00: float, n01: float, n10: float,
-              n11: float, sh0: float, sh1: float, lp: float, cos_tol: float
+              n11: float, sh0: float, sh1: float, lp: float, cos_tol: float,
+              inside_steps: int, far_steps: int, seen_share: float
               ) -> tuple[int, np.ndarray, np.ndarray, int, int, int, bool, int, float]:
-    """:func:`~tileviz.vision.robust.foreign.end_steps_numpy` compiled (bit-identical): the
-    steps from a straight edge's end (px, py) along the unit vector (ux, uy) to the border of
-    the view and where they meet the grout bands (the families' unit normals (n00, n01),
-    (n10, n11) and offsets sh0, sh1, px; the period ``lp``, px; the band's half-width
-    ``band``, px). Returns (done, xs, ys, i0, i1, i2, far, k, dmin); see the numpy version."""
+    """The steps of :func:`~tileviz.vision.robust.foreign.ends` from a straight edge's end
+    (px, py) along the unit vector (ux, uy), 1 px apart, to the border of the view (``edges``:
+    the edge pixels, HxW; ``dx``, ``dy``: the gradients), and where they meet the grout bands
+    (half-width ``band``, px; the families' unit normals (n00, n01), (n10, n11) and offsets
+    sh0, sh1, px, so that a line lies where ``n . (p - centre) + sh`` is a multiple of the
+    period ``lp``, px).
+
+    Returns (done, xs, ys, i0, i1, i2, far, k, dmin): ``done`` (1) when the border of the view
+    comes before any band, or at least ``inside_steps`` steps lead to the first band and at
+    most ``seen_share`` of them see the edge (:func:`_hit` with tolerance cosine ``cos_tol``);
+    else the steps (xs, ys, pixels), the first step in a band ``i0``, the first after it out of
+    the bands ``i1``, the first in a band again ``i2`` (the number of steps when none), whether
+    at least ``far_steps`` steps lie between and at least ``seen_share`` of them see the edge
+    (``far``), the family ``k`` whose lines
+    come nearest in ``i0..i1`` and that distance ``dmin`` (px)."""
     h, w = edges.shape
     empty = np.zeros(0, np.intp)
     lim = math.inf
@@ -152,7 +160,8 @@ def end_steps(dx: np.ndarray, dy: np.ndarray, edges: np.ndarray, px: float, py: 
         return 1, xs, ys, i0, m, m, False, 0, 0.0  # the border comes first
     nx = -uy
     ny = ux
-    if i0 >= 4 and _count_hits(dx, dy, edges, xs, ys, 0, i0, nx, ny, cos_tol) <= 0.5 * i0:
+    if (i0 >= inside_steps
+            and _count_hits(dx, dy, edges, xs, ys, 0, i0, nx, ny, cos_tol) <= seen_share * i0):
         return 1, xs, ys, i0, m, m, False, 0, 0.0  # it ends inside the tile
     i1 = m
     for i in range(i0, m):
@@ -165,7 +174,8 @@ def end_steps(dx: np.ndarray, dy: np.ndarray, edges: np.ndarray, px: float, py: 
             i2 = i
             break
     n2 = i2 - i1
-    far = n2 >= 6 and _count_hits(dx, dy, edges, xs, ys, i1, i2, nx, ny, cos_tol) >= 0.5 * n2
+    far = n2 >= far_steps and (
+        _count_hits(dx, dy, edges, xs, ys, i1, i2, nx, ny, cos_tol) >= seen_share * n2)
     m0 = dk0[i0]
     m1 = dk1[i0]
     for i in range(i0 + 1, i1):
@@ -178,8 +188,7 @@ def end_steps(dx: np.ndarray, dy: np.ndarray, edges: np.ndarray, px: float, py: 
 @compiled
 def stretch_range(lv: np.ndarray, idx: np.ndarray, u: np.ndarray, clear: int,
                   stretches: int) -> float:
-    """:func:`~tileviz.vision.robust.grout_levels.stretch_range_numpy` compiled (bit-identical):
-    the largest range of 19 consecutive levels ``lv`` (at the samples ``idx[1:-1]`` of the
+    """The largest range of 19 consecutive levels ``lv`` (at the samples ``idx[1:-1]`` of the
     positions ``u`` along the line) among the stretches ``clear`` samples clear of the
     crossing's own (u = 0 +- 9), NaN when fewer than ``stretches`` are."""
     zero = 0

@@ -13,15 +13,15 @@ import cv2
 import numpy as np
 
 from tileviz.vision.geometry import family_normals
-from tileviz.vision.robust import foreign_kernel, kernel
-from tileviz.vision.robust.state import RobustRun
+from tileviz.vision.robust import foreign_kernel
+from tileviz.vision.robust.state import ReadingState
 
 __all__ = ["alongside", "at_edge", "conclusive", "cross_profile", "gray_levels",
            "grout_variation", "neighbour_medians", "on_grout", "pass_unchanged", "row_medians",
-           "side_level", "straddle", "straddle_limit", "stretch_range_numpy", "trend_range"]
+           "side_level", "straddle", "straddle_limit", "trend_range"]
 
 
-def pass_unchanged(run: RobustRun, xs: np.ndarray, ys: np.ndarray, i0: int, i1: int,
+def pass_unchanged(run: ReadingState, xs: np.ndarray, ys: np.ndarray, i0: int, i1: int,
                    px: float, py: float, dx: float, dy: float, n: tuple[float, float],
                    sh: float, beyond: tuple[float, float] | None = None) -> bool:
     """Whether the grout of the family with unit normal ``n`` and offset ``sh`` (px) stays
@@ -49,13 +49,7 @@ def pass_unchanged(run: RobustRun, xs: np.ndarray, ys: np.ndarray, i0: int, i1: 
             and conclusive(run, px, py, dx, dy, float(np.median(core)), limit, beyond))
 
 
-STRADDLE_SIGMAS = 3.0
-STRADDLE_LEVELS = 4.0
-"""An edge crosses the grout when the grout's gray level differs on its two sides
-(:func:`straddle`) by more than this many times the image's noise plus this many levels."""
-
-
-def straddle(run: RobustRun, px: float, py: float, dx: float, dy: float,
+def straddle(run: ReadingState, px: float, py: float, dx: float, dy: float,
              n: tuple[float, float], sh: float) -> tuple[np.ndarray, bool, float] | None:
     """The grout's gray levels where the line through (px, py) along (dx, dy) crosses the
     grout's centre line (the next line ahead of the family with unit normal ``n`` and offset
@@ -66,13 +60,14 @@ def straddle(run: RobustRun, px: float, py: float, dx: float, dy: float,
 
     Returns the samples (median of 3 neighbours), whether both sides were read (3 samples
     or more each; one side is enough when the line crosses the grout at
-    :data:`STRADDLE_ONE_SIDED` or more) and the grout's own variation over as long a stretch
+    ``foreign.straddle_one_sided`` or more) and the grout's own variation over as long a stretch
     elsewhere on its line (:func:`grout_variation`, gray levels, NaN when not read). None
-    when the line runs within :data:`STRADDLE_PARALLEL` of the grout or neither side can be
+    when the line runs within ``foreign.straddle_parallel`` of the grout or neither side can be
     read."""
     cx, cy = (run.w - 1) / 2.0, (run.h - 1) / 2.0
     nd = n[0] * dx + n[1] * dy
-    if abs(nd) < STRADDLE_PARALLEL:
+    st = run.st.foreign
+    if abs(nd) < st.straddle_parallel:
         return None
     o = n[0] * (px - cx) + n[1] * (py - cy) + sh
     # the next grout centre line ahead: o + t nd = m lp
@@ -87,18 +82,18 @@ def straddle(run: RobustRun, px: float, py: float, dx: float, dy: float,
     ok = (xs >= 0) & (xs <= run.w - 1) & (ys >= 0) & (ys <= run.h - 1)
     sides = (int(ok[:9].sum()), int(ok[10:].sum()))
     both = min(sides) >= 3
-    if not both and (max(sides) < 3 or abs(nd) < STRADDLE_ONE_SIDED):
+    if not both and (max(sides) < 3 or abs(nd) < st.straddle_one_sided):
         return None
     return gray_levels(run, xs[ok], ys[ok]), both, grout_variation(run, qx, qy, g, 1.0 / abs(nd))
 
 
-def grout_variation(run: RobustRun, qx: float, qy: float, g: tuple[float, float],
+def grout_variation(run: ReadingState, qx: float, qy: float, g: tuple[float, float],
                     step: float) -> float:
     """How much the grout's gray level varies by itself over a stretch as long as a straddle's
     (19 samples ``step`` px apart along the unit direction ``g``) elsewhere on the same grout
     centre line through the crossing (qx, qy): the largest range of the stretches in view that
-    keep :data:`VARIATION_CLEAR` samples clear of the crossing's own stretch (an object's
-    other edge lies within them), NaN when fewer than :data:`VARIATION_STRETCHES`. A thin
+    keep ``foreign.variation_clear`` samples clear of the crossing's own stretch (an object's
+    other edge lies within them), NaN when fewer than ``foreign.variation_stretches``. A thin
     grout band takes in the texture beside it (the mortar of a brick photograph brightens it
     where it meets it) and a lighting gradient runs along it, all along the line; an object
     changes it only where it crosses it (a cable) or on one side of that crossing (a box, a
@@ -111,37 +106,9 @@ def grout_variation(run: RobustRun, qx: float, qy: float, g: tuple[float, float]
     if idx.size < 21:
         return math.nan
     lv = gray_levels(run, xs[idx], ys[idx])  # at the samples idx[1:-1]
-    ranges = foreign_kernel.stretch_range if kernel.AVAILABLE else stretch_range_numpy
-    return float(ranges(lv, idx, u, VARIATION_CLEAR, VARIATION_STRETCHES))
-
-
-def stretch_range_numpy(lv: np.ndarray, idx: np.ndarray, u: np.ndarray, clear: int,
-                        stretches: int) -> float:
-    """The largest range of 19 consecutive gray levels ``lv`` (at the samples ``idx[1:-1]``,
-    indices into the positions ``u`` along a line, px, one interval in view, at least 19
-    levels) among the stretches that keep ``clear`` samples clear of the crossing's own
-    samples -9..9 about u = 0; NaN when fewer than ``stretches`` stretches are clear."""
-    win = np.lib.stride_tricks.sliding_window_view(lv, 19)
-    first = idx[1 : 1 + win.shape[0]]
-    zero = int(np.argmin(np.abs(u)))
-    lim = 9 + clear
-    far = (first + 18 < zero - lim) | (first > zero + lim)
-    if int(far.sum()) < stretches:
-        return math.nan
-    return float((win.max(axis=1) - win.min(axis=1))[far].max())
-
-
-VARIATION_CLEAR = 19
-VARIATION_STRETCHES = 10
-"""The grout's own variation (:func:`grout_variation`) is read on at least 10 stretches of its
-line, each at least 19 samples clear of the crossing's."""
-
-
-STRADDLE_PARALLEL = 0.05
-STRADDLE_ONE_SIDED = 0.15
-"""The grout is read where a line crosses it at an angle (rad, sine) of at least
-``STRADDLE_PARALLEL`` when both sides of the crossing are in view, ``STRADDLE_ONE_SIDED`` when
-only one is (:func:`straddle`)."""
+    st = run.st.foreign
+    return float(foreign_kernel.stretch_range(lv, idx, u, st.variation_clear,
+                                              st.variation_stretches))
 
 
 def trend_range(v: np.ndarray) -> float:
@@ -153,7 +120,7 @@ def trend_range(v: np.ndarray) -> float:
     return float(rest.max() - rest.min())
 
 
-def alongside(run: RobustRun, xs: np.ndarray, ys: np.ndarray, n: tuple[float, float],
+def alongside(run: ReadingState, xs: np.ndarray, ys: np.ndarray, n: tuple[float, float],
               sh: float) -> np.ndarray | None:
     """The grout's gray levels beside the pixels (xs, ys): at the foot of each on the nearest
     centre line of the family with unit normal ``n`` and offset ``sh`` (px), bilinear, median
@@ -169,7 +136,7 @@ def alongside(run: RobustRun, xs: np.ndarray, ys: np.ndarray, n: tuple[float, fl
     return gray_levels(run, fx[ok], fy[ok])
 
 
-def gray_levels(run: RobustRun, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
+def gray_levels(run: ReadingState, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
     """The view's gray levels at the points (xs, ys) (px, in the view, at least 3, in order
     along a line): bilinear, each the median of itself and its 2 neighbours (n - 2 values)."""
     v = cv2.remap(run.gray, xs.astype(np.float32).reshape(1, -1),
@@ -184,13 +151,14 @@ def neighbour_medians(v: np.ndarray) -> np.ndarray:
     return np.maximum(np.minimum(a, b), np.minimum(np.maximum(a, b), c))
 
 
-def straddle_limit(run: RobustRun) -> float:
+def straddle_limit(run: ReadingState) -> float:
     """How much the grout's gray level may vary where a texture's edge meets it (gray levels):
-    :data:`STRADDLE_SIGMAS` x the image noise + :data:`STRADDLE_LEVELS`."""
-    return STRADDLE_SIGMAS * run.details["noise_sigma"] + STRADDLE_LEVELS
+    ``foreign.straddle_sigmas`` x the image noise + ``foreign.straddle_levels``."""
+    st = run.st.foreign
+    return st.straddle_sigmas * run.noise + st.straddle_levels
 
 
-def cross_profile(run: RobustRun, px: float, py: float, dx: float, dy: float, t0: float,
+def cross_profile(run: ReadingState, px: float, py: float, dx: float, dy: float, t0: float,
                   t1: float) -> np.ndarray:
     """The gray levels across a straight edge through (px, py) along the unit vector
     (dx, dy): at each of -8..8 px across it (positive along (-dy, dx)), the median of the
@@ -214,11 +182,11 @@ def cross_profile(run: RobustRun, px: float, py: float, dx: float, dy: float, t0
     return lv
 
 
-def conclusive(run: RobustRun, px: float, py: float, dx: float, dy: float, grout: float,
+def conclusive(run: ReadingState, px: float, py: float, dx: float, dy: float, grout: float,
                limit: float, beyond: tuple[float, float] | None = None) -> bool:
     """Whether an object whose straight edge ends at (px, py) (a unit vector (dx, dy) pointing
     on along its line) would have changed the grout's gray level ``grout`` by more than
-    :data:`CONCLUSIVE` x ``limit`` had it gone on across the grout, from the levels across
+    ``foreign.conclusive`` x ``limit`` had it gone on across the grout, from the levels across
     the edge's last 15 px (:func:`cross_profile`; the two sides' levels by :func:`side_level`,
     5..8 px off). Two kinds of object are ruled out:
 
@@ -251,7 +219,7 @@ def conclusive(run: RobustRun, px: float, py: float, dx: float, dy: float, grout
         lv = cross_profile(run, px, py, dx, dy, -48.0, -2.0)
         seen = np.isfinite(lv)
         a, b = side_level(lv, seen, o), side_level(lv, seen, -o)
-    need = CONCLUSIVE * limit
+    need = run.st.foreign.conclusive * limit
     if not seen.any():
         return False
     if not (math.isfinite(a) and math.isfinite(b)):
@@ -341,7 +309,7 @@ def side_level(lv: np.ndarray, seen: np.ndarray, o: np.ndarray) -> float:
     return math.nan
 
 
-def on_grout(run: RobustRun, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
+def on_grout(run: ReadingState, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
     """Which points (xs, ys) (px) lie on the grout the observation predicts: within half the
     grout's half-depth width + 2 px (its edges' blur) of a grout line of either family."""
     assert run.y is not None
@@ -354,7 +322,3 @@ def on_grout(run: RobustRun, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
     return out
 
 
-CONCLUSIVE = 2.0
-"""An edge seen beyond the grout is taken for texture only when the grout's level there
-(:func:`straddle`) shows no crossing, and any object seen beside the grout would have changed
-it by this many times the straddle's limit (:func:`conclusive`)."""

@@ -7,84 +7,77 @@ import math
 import cv2
 import numpy as np
 
-from tileviz.vision.robust import heading_kernel, kernel
-from tileviz.vision.robust.state import Fail, RobustRun
+from tileviz.vision.robust import checks, heading_kernel
+from tileviz.vision.robust.checks import Context, Record
+from tileviz.vision.robust.settings import HeadingSettings
+from tileviz.vision.robust.state import View
 
-__all__ = ["HEADING_BINS", "SMOOTHING", "first_heading", "angles", "gradient_votes",
-           "heading_votes_numpy", "lattice_headings", "lattice_power", "smoothed_headings",
+__all__ = ["first_heading", "gradient_votes",
+           "lattice_headings", "lattice_power", "smoothed_headings",
            "voters"]
 
 
-def first_heading(run: RobustRun, dx: np.ndarray, dy: np.ndarray) -> float:
+def first_heading(ctx: Context, dx: np.ndarray, dy: np.ndarray, rec: Record,
+                  details: dict[str, float]) -> float:
     """First y3 estimate (rad) from the gradient directions of the strongest gradients.
 
     Every pixel votes (not only Canny's edge pixels: on a textured surface those are mostly
     the texture's): 4 phi of its gradient, weighted by the gradient magnitude, over the
-    pixels in the top ``heading_share`` of magnitudes; the peak of the smoothed histogram,
+    pixels in the top ``heading.share`` of magnitudes; the peak of the smoothed histogram,
     then the weighted circular mean of the votes near the peak (report eq. 4.4 per pixel).
     Grout lines, tile-to-tile shade steps and a surface laid along the tiles all vote for
     the lattice direction (mod pi/2); isotropic texture adds a flat floor. Every other row
     and column votes: a quarter of the votes is plenty for a first estimate (the fit over
-    the lattice refines it). :func:`heading_votes_numpy` computes the votes;
-    :func:`~tileviz.vision.robust.heading_kernel.heading_votes` is the same computation compiled
-    (bit-identical)."""
-    found = gradient_votes(dx, dy, run.st.heading_share)
-    if found is None:
-        raise Fail("no lines")
-    y0, share = found
-    run.details["orientation_share"] = share
+    the lattice refines it). The votes are compiled
+    (:func:`~tileviz.vision.robust.heading_kernel.heading_votes`). Refuses (``no lines``,
+    check ``heading.gradients``) when no gradient is non-zero; records the share of the votes
+    near the peak (``orientation_share``) in ``details``."""
+    st = ctx.st.heading
+    q = heading_kernel.heading_magnitudes(dx, dy)
+    thr = voters(q, st.share, st.min_voters)
+    rec.require(checks.HEADING_GRADIENTS, ctx, thr)
+    y0, share = heading_kernel.heading_votes(dx, dy, q, thr, st.bins, st.near)
+    details["orientation_share"] = share
     return y0
 
 
-def gradient_votes(dx: np.ndarray, dy: np.ndarray, share: float) -> tuple[float, float] | None:
+def gradient_votes(dx: np.ndarray, dy: np.ndarray, st: HeadingSettings
+                   ) -> tuple[float, float] | None:
     """The votes of :func:`first_heading` on the Scharr gradients ``dx``, ``dy`` (int16): the
     heading (rad, modulo pi/2) and the share of the votes' weight near the peak; None when no
-    gradient is non-zero. Compiled when numba is present (bit-identical to
-    :func:`heading_votes_numpy`)."""
-    if kernel.AVAILABLE:
-        q = heading_kernel.heading_magnitudes(dx, dy)
-        thr = voters(q, share)
-        if thr <= 0:
-            return None
-        return heading_kernel.heading_votes(dx, dy, q, thr, HEADING_BINS)
-    found, y0, near = heading_votes_numpy(dx, dy, share, HEADING_BINS)
-    return (y0, near) if found else None
+    gradient is non-zero."""
+    q = heading_kernel.heading_magnitudes(dx, dy)
+    thr = voters(q, st.share, st.min_voters)
+    if thr <= 0:
+        return None
+    return heading_kernel.heading_votes(dx, dy, q, thr, st.bins, st.near)
 
 
-def smoothed_headings(run: RobustRun) -> list[float]:
+def smoothed_headings(view: View) -> list[tuple[float, float]]:
     """The votes of :func:`first_heading` again on the view smoothed by a Gaussian of each
-    :data:`SMOOTHING` std (px): headings (rad, modulo pi/2). Strong camera noise (and the
-    8 x 8 blocks of a JPEG) outvotes a thin grout line pixel by pixel; smoothing weakens the
-    noise's gradients far more than the grout's edges, which span several pixels."""
+    ``heading.smoothing`` std (px): (std, heading (rad, modulo pi/2)) where a gradient votes.
+    Strong camera noise (and the 8 x 8 blocks of a JPEG) outvotes a thin grout line pixel by
+    pixel; smoothing weakens the noise's gradients far more than the grout's edges, which span
+    several pixels."""
     out = []
-    for sigma in SMOOTHING:
-        g = cv2.GaussianBlur(run.gray, (0, 0), sigma)
+    for sigma in view.st.heading.smoothing:
+        g = cv2.GaussianBlur(view.gray, (0, 0), sigma)
         dx = cv2.Scharr(g, cv2.CV_16S, 1, 0)
         dy = cv2.Scharr(g, cv2.CV_16S, 0, 1)
-        found = gradient_votes(dx, dy, run.st.heading_share)
+        found = gradient_votes(dx, dy, view.st.heading)
         if found is not None:
-            out.append(found[0])
+            out.append((sigma, found[0]))
     return out
 
 
-SMOOTHING = (1.0, 2.0)
-"""Gaussian stds (px) of :func:`smoothed_headings`."""
-
-HEADING_BINS = 90
-"""Bins of the 4 phi histogram of :func:`first_heading` (4 degrees of 4 phi, 1 of phi)."""
-
-
-def voters(q: np.ndarray, share: float) -> int:
-    """The smallest squared magnitude among the top ``share`` (at least 20) of ``q`` (int64):
-    every gradient at least as strong votes. Compiled when numba is present
+def voters(q: np.ndarray, share: float, least: int) -> int:
+    """The smallest squared magnitude among the top ``share`` (at least ``least``) of ``q``
+    (int64): every gradient at least as strong votes
     (:func:`~tileviz.vision.robust.heading_kernel.kth_largest`, the same value as numpy's
     partition)."""
     n = q.size
-    k = min(max(20, int(share * n)), n)
-    if kernel.AVAILABLE:
-        thr = int(heading_kernel.kth_largest(q, k))
-    else:
-        thr = int(np.partition(q, n - k)[n - k])
+    k = min(max(least, int(share * n)), n)
+    thr = int(heading_kernel.kth_largest(q, k))
     if thr > 0:
         return thr
     # a noise-free view (a clean render, a drawing) is flat but for its edges: fewer than
@@ -92,77 +85,14 @@ def voters(q: np.ndarray, share: float) -> int:
     return 1 if int(q.max()) > 0 else 0
 
 
-def angles(y: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """atan2(y, x) within 3e-4 rad (never both 0), as
-    :func:`~tileviz.vision.robust.heading_kernel._angle` computes it: an odd polynomial of
-    min / max on the octant, then the octant."""
-    ax = np.abs(x)
-    ay = np.abs(y)
-    a = np.minimum(ax, ay) / np.maximum(ax, ay)
-    z = a * a
-    c0, c1, c2 = heading_kernel.ATAN
-    r = ((c0 * z + c1) * z + c2) * z * a + a
-    r = np.where(ay > ax, 0.5 * math.pi - r, r)
-    r = np.where(x < 0.0, math.pi - r, r)
-    return np.where(y < 0.0, -r, r)
-
-
-def heading_votes_numpy(dx: np.ndarray, dy: np.ndarray, share: float, nb: int
-                        ) -> tuple[bool, float, float]:
-    """The votes of :func:`first_heading` from the Scharr gradients ``dx``, ``dy`` (int16) of
-    every other row and column: whether any gradient is non-zero; the heading (rad, modulo
-    pi / 2); the share of the votes' weight near the histogram's peak.
-
-    The squared magnitude q = gx^2 + gy^2 and the doubled-angle vector (c2, s2) = (gx^2 -
-    gy^2, 2 gx gy) are exact integers, so is 4 phi's vector (c2^2 - s2^2, 2 c2 s2) (length
-    q^2): the pixels in the top ``share`` of q vote with weight sqrt(q) in ``nb`` bins of
-    4 phi = atan2 of that vector; the peak of the 3-bin smoothed histogram; the votes within
-    :data:`~tileviz.vision.robust.heading_kernel.NEAR` of it are averaged as vectors (weight x
-    unit vector, each its integer vector / q^1.5). Sums run in pixel order (row by row), one
-    term after the other."""
-    gx = dx[::2, ::2].astype(np.int64).ravel()
-    gy = dy[::2, ::2].astype(np.int64).ravel()
-    q = gx * gx + gy * gy
-    thr = voters(q, share)
-    if thr <= 0:
-        return False, 0.0, 0.0
-    sel = np.flatnonzero(q >= thr)
-    gx, gy, qs = gx[sel], gy[sel], q[sel]
-    c2 = gx * gx - gy * gy
-    s2 = 2 * gx * gy
-    cc = (c2 * c2 - s2 * s2).astype(np.float64)
-    ss = (2 * c2 * s2).astype(np.float64)
-    qf = qs.astype(np.float64)
-    g = np.sqrt(qf)
-    r = qf * g
-    theta = angles(ss, cc)
-    vc = cc / r
-    vs = ss / r
-    b = ((theta + math.pi) * (nb / (2.0 * math.pi))).astype(np.intp) % nb
-    hist = np.bincount(b, weights=g, minlength=nb)
-    smooth = (hist + np.roll(hist, 1)) + np.roll(hist, -1)
-    peak = (int(np.argmax(smooth)) + 0.5) * (2.0 * math.pi / nb) - math.pi
-    d = theta - peak
-    d = np.where(d > math.pi, d - 2.0 * math.pi, np.where(d < -math.pi, d + 2.0 * math.pi, d))
-    near = np.abs(d) < heading_kernel.NEAR
-
-    def total(a: np.ndarray) -> float:
-        # one term after the other, from 0.0 (as the compiled loop adds)
-        return float(np.cumsum(np.concatenate(([0.0], a)))[-1])
-
-    sw = total(g)
-    return (True, math.atan2(total(vs[near]), total(vc[near])) / 4.0,
-            total(g[near]) / max(sw, 1e-9))
-
-
-def lattice_power(img: np.ndarray, period: float, angles: np.ndarray, *, detrend: bool = True
-                  ) -> np.ndarray:
+def lattice_power(img: np.ndarray, period: float, angles: np.ndarray, *, detrend: bool = True,
+                  harmonics: int = 4) -> np.ndarray:
     """How strongly ``img`` (float32, its mean removed) repeats with ``period`` (px) along the two
     directions of each of ``angles`` (rad): the row and the column means of the image turned by
     the angle, over the central square that every turn keeps inside the view, projected on the
-    first four harmonics of the period (summed power of both); with ``detrend``, blind to a
-    quadratic trend of the light across the square."""
-    return _Turns(img, period).power(angles, detrend)
+    first ``harmonics`` harmonics of the period (summed power of both); with ``detrend``, blind
+    to a quadratic trend of the light across the square."""
+    return _Turns(img, period, harmonics).power(angles, detrend)
 
 
 class _Turns:
@@ -170,7 +100,7 @@ class _Turns:
     :func:`lattice_power`), kept per angle: both variants of the search (blind to a trend of
     the light and not) read the same turns."""
 
-    def __init__(self, img: np.ndarray, period: float) -> None:
+    def __init__(self, img: np.ndarray, period: float, harmonics: int) -> None:
         self.img = img
         h, w = img.shape
         side = int(min(w, h) / math.sqrt(2.0)) - 2
@@ -178,8 +108,8 @@ class _Turns:
         self.cx, self.cy = (w - 1) / 2.0, (h - 1) / 2.0
         self.x0 = (side - 1) / 2.0
         n = np.arange(side) - self.x0
-        ks = np.arange(1, 5)[:, None] * (2.0 * math.pi / period) * n[None, :]
-        basis = np.concatenate([np.cos(ks), np.sin(ks)])  # (8, side)
+        ks = np.arange(1, harmonics + 1)[:, None] * (2.0 * math.pi / period) * n[None, :]
+        basis = np.concatenate([np.cos(ks), np.sin(ks)])  # (2 harmonics, side)
         # blind to a slope and a bow of the light across the square (a lighting gradient,
         # vignetting): the harmonics' part along 1, n, n^2 is removed
         q, _ = np.linalg.qr(np.stack([np.ones(side), n, n * n], axis=1))
@@ -211,23 +141,28 @@ class _Turns:
         return out
 
 
-def lattice_headings(run: RobustRun) -> list[float]:
+def lattice_headings(view: View) -> list[float]:
     """Headings (rad, modulo pi/2) at which the view repeats most strongly with the tile
     period in both directions (:func:`lattice_power`), blind to a trend of the light and not:
-    every 0.01 rad on the image at half size, then every 0.002 rad around the best at full
-    size. Used when the gradient directions of :func:`first_heading` lead to no lattice
-    (texture can outvote the grout, blur and uneven light can hide it)."""
-    img = run.gray.astype(np.float32)
+    every ``heading.lattice_coarse_step`` on the image at ``heading.lattice_scale``, then every
+    ``lattice_fine_step`` within ``lattice_fine_span`` of the best at full size (the
+    trend-blind heading first). Used when the
+    gradient directions of :func:`first_heading` lead to no lattice (texture can outvote the
+    grout, blur and uneven light can hide it)."""
+    st = view.st.heading
+    img = view.gray.astype(np.float32)
     img -= float(img.mean())
-    small = cv2.resize(img, None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA)
-    coarse = np.arange(-0.25 * math.pi, 0.25 * math.pi, 0.01)
-    turns_small = _Turns(small, 0.5 * run.lp)
-    turns = _Turns(img, run.lp)
+    scale = st.lattice_scale
+    small = cv2.resize(img, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
+    coarse = np.arange(-0.25 * math.pi, 0.25 * math.pi, st.lattice_coarse_step)
+    turns_small = _Turns(small, scale * view.lp, st.lattice_harmonics)
+    turns = _Turns(img, view.lp, st.lattice_harmonics)
     out = []
     for detrend in (True, False):
         pw = turns_small.power(coarse, detrend)
         best = float(coarse[int(np.argmax(pw))])
-        fine = best + np.arange(-0.012, 0.0121, 0.002)
+        span, step = st.lattice_fine_span, st.lattice_fine_step
+        fine = best + np.arange(-span, span + 0.5 * step, step)
         pw = turns.power(fine, detrend)
         out.append(float(fine[int(np.argmax(pw))]))
     return out

@@ -1,9 +1,8 @@
 """The first heading's votes, compiled with numba (:func:`heading_magnitudes`,
-:func:`heading_votes`): exactly (bit for bit) what
-:func:`~tileviz.vision.robust.heading.heading_votes_numpy` computes, in the same order, with
-the same conventions as the profile kernels (:mod:`~tileviz.vision.robust.kernel`: numpy's
-error model, cached next to this module, the numpy path when numba is not installed).
-``tests/test_vision_speed_paths.py`` checks the equality on random gradients.
+:func:`kth_largest`, :func:`heading_votes`), with the conventions of the profile kernels
+(:mod:`~tileviz.vision.robust.kernel`: numpy's error model, cached next to this module).
+``tests/test_vision_speed_paths.py`` checks them bit for bit against a numpy reference
+(``tests/numpy_kernels.py``) on random gradients.
 """
 
 from __future__ import annotations
@@ -14,10 +13,8 @@ import numpy as np
 
 from tileviz.vision.robust.kernel import compiled
 
-__all__ = ["ATAN", "NEAR", "heading_magnitudes", "heading_votes", "kth_largest"]
+__all__ = ["ATAN", "heading_magnitudes", "heading_votes", "kth_largest"]
 
-NEAR = 0.35
-"""Heading votes within this angle (rad, of 4 phi) of their histogram's peak are averaged."""
 ATAN = (-0.0464964749, 0.15931422, -0.327622764)
 """Coefficients of :func:`_angle`'s polynomial (z = a^2): atan(a) ~ a + a z (c2 + z (c1 + z c0))."""
 
@@ -40,7 +37,7 @@ def _angle(y: float, x: float) -> float:
 @compiled
 def heading_magnitudes(dx: np.ndarray, dy: np.ndarray) -> np.ndarray:
     """gx^2 + gy^2 (int64) of every other row and column of the Scharr gradients ``dx``,
-    ``dy`` (int16), row by row (:func:`~tileviz.vision.robust.heading.heading_votes_numpy`)."""
+    ``dy`` (int16), row by row."""
     h, w = dx.shape
     q = np.empty(((h + 1) // 2) * ((w + 1) // 2), np.int64)
     i = 0
@@ -89,12 +86,20 @@ def kth_largest(q: np.ndarray, k: int) -> int:
 
 
 @compiled
-def heading_votes(dx: np.ndarray, dy: np.ndarray, q: np.ndarray, thr: int, nb: int
-                  ) -> tuple[float, float]:
-    """:func:`~tileviz.vision.robust.heading.heading_votes_numpy` compiled (bit-identical),
-    given the squared magnitudes ``q`` (:func:`heading_magnitudes`) and the threshold
-    ``thr`` (> 0) of the voters: the first heading (rad, modulo pi / 2) and the share of the
-    votes' weight near the histogram's peak."""
+def heading_votes(dx: np.ndarray, dy: np.ndarray, q: np.ndarray, thr: int, nb: int,
+                  near_peak: float) -> tuple[float, float]:
+    """The votes of :func:`~tileviz.vision.robust.heading.first_heading` from the Scharr
+    gradients ``dx``, ``dy`` (int16) of every other row and column, given their squared
+    magnitudes ``q`` (:func:`heading_magnitudes`) and the threshold ``thr`` (> 0) of the
+    voters: the heading (rad, modulo pi / 2) and the share of the votes' weight near the
+    histogram's peak.
+
+    The squared magnitude q = gx^2 + gy^2 and the doubled-angle vector (c2, s2) = (gx^2 - gy^2, 2 gx
+    gy) are exact integers, so is 4 phi's vector (c2^2 - s2^2, 2 c2 s2) (length q^2): the pixels
+    with q >= ``thr`` vote with weight sqrt(q) in ``nb`` bins of 4 phi = atan2 of that vector
+    (:func:`_angle`); the peak of the 3-bin smoothed histogram; the votes within ``near_peak`` (rad,
+    of 4 phi) of it are averaged as vectors (weight x unit vector, each its integer vector / q^1.5).
+    Sums run in pixel order (row by row), one term after the other."""
     h, w = dx.shape
     n = 0
     for v in q:
@@ -159,7 +164,7 @@ def heading_votes(dx: np.ndarray, dy: np.ndarray, q: np.ndarray, thr: int, nb: i
         d = theta[j] - peak
         d = d - 2.0 * math.pi if d > math.pi else (d + 2.0 * math.pi if d < -math.pi else d)
         # adding +0.0 leaves a sum that starts at +0.0 as it was: no branch on the vote
-        near = abs(d) < NEAR
+        near = abs(d) < near_peak
         swn += wgt[j] if near else 0.0
         sc += vc[j] if near else 0.0
         sn += vs[j] if near else 0.0

@@ -1,29 +1,27 @@
-"""The robust extractor's loops over profile samples, compiled with numba: one loop per dip or
-per part profile instead of many numpy passes over all of them, and the compile decorator and
-numpy-exact helpers the other kernels share. Each kernel computes exactly (bit for bit) what its
-numpy counterpart in :mod:`~tileviz.vision.robust.profiles` computes: :func:`part_rows`
-(``part_rows_numpy``: plateaus, crossings, centroid and midpoints of every part profile),
-:func:`part_profiles` (``part_profiles_numpy``: the part profiles from the integral image),
-:func:`dip_rows` (``dip_rows_numpy``: every dip's depth, centre, window, parts and plateaus on
-its whole profile), :func:`dip_recentre` (a wide band's dips moved onto their centres),
-:func:`part_layout` (``part_layout_numpy``: where each part lies), :func:`part_summary` (each
-line's medians and parts). The projection's
-kernels (spans, profiles, dips, the light-grout test) are in
+"""The robust extractor's loops over profile samples, compiled with numba (a required
+dependency; these kernels are the only implementation): one loop per dip or per part profile
+instead of many numpy passes over all of them, and the compile decorator and numpy-exact helpers
+the other kernels share. :func:`part_rows` (plateaus, crossings, centroid and midpoints of every
+part profile), :func:`part_profiles` (the part profiles from the integral image). The dips'
+kernels (each dip on its whole profile, its parts, each line's medians) are in
+:mod:`~tileviz.vision.robust.dip_kernel`, the projection's kernels
+(spans, profiles, dips, the light-grout test) are in
 :mod:`~tileviz.vision.robust.projection_kernel`, the first heading's in
 :mod:`~tileviz.vision.robust.heading_kernel`, the common fit of the lines' parts in
-:mod:`~tileviz.vision.robust.fit_kernel`, the lattice's missing-line check in
-:mod:`~tileviz.vision.robust.lattice_kernel`.
+:mod:`~tileviz.vision.robust.fit_kernel`, the lattice's missing-line check and line clipping in
+:mod:`~tileviz.vision.robust.lattice_kernel`, the foreign-edge search's in
+:mod:`~tileviz.vision.robust.foreign_kernel`.
 
 Every operation is the numpy one in the same order: sums over a profile are numpy's pairwise
 sums (:func:`_pairwise`, the order ``ndarray.sum`` adds a contiguous row in), medians sort the
 finite values, ``argmax`` takes the first maximum, ``np.minimum`` / ``np.maximum`` / ``np.clip``
 propagate NaN, float32 stays float32 where numpy keeps it. Division follows numpy's error model
-(x / 0 is inf or NaN, no exception), as under the extractor's ``np.errstate``.
-``tests/test_vision_speed_paths.py`` checks the equality on every floor family and on random
-profiles.
+(x / 0 is inf or NaN, no exception), as under the extractor's ``np.errstate``. The tests keep a
+numpy reference of every kernel (``tests/numpy_profiles.py``, ``tests/numpy_kernels.py``) and
+check the equality bit for bit on every floor family and on random inputs
+(``tests/test_vision_speed_paths.py``).
 
-Without numba (``AVAILABLE`` false) the extractor uses the numpy versions; the results are the
-same. The compiled code is cached next to this module (``cache=True``): only the first robust
+The compiled code is cached next to this module (``cache=True``): only the first robust
 extraction after an install (or after a change of this file) compiles the kernels, which takes
 seconds of CPU; a later process loads them from the cache.
 """
@@ -34,25 +32,16 @@ import math
 from collections.abc import Callable
 from typing import Any
 
+import numba
 import numpy as np
 
-from tileviz.vision.robust.state import PARTS
-
-try:
-    import numba
-except ImportError:  # numba is a dependency; an older environment keeps the numpy path
-    numba = None  # type: ignore[assignment]
-
-__all__ = ["AVAILABLE", "compiled", "dip_recentre", "dip_rows", "part_layout", "part_profiles",
-           "part_rows", "part_summary"]
-
-AVAILABLE = numba is not None
+__all__ = ["compiled", "part_profiles",
+           "part_rows"]
 
 
 def compiled(fn: Callable[..., Any]) -> Callable[..., Any]:
-    """Compiled with numba when it is installed (numpy's error model: x / 0 is inf or NaN)."""
-    if numba is None:
-        return fn
+    """``fn`` compiled with numba, cached, without the GIL, with numpy's error model (x / 0 is
+    inf or NaN)."""
     return numba.njit(cache=True, error_model="numpy", nogil=True)(fn)
 
 
@@ -184,7 +173,9 @@ def _plateaus(p: np.ndarray, j: np.ndarray, c: float, half: float,
 
 @compiled
 def _crossings(d: np.ndarray, j: np.ndarray, jp: float, lv: float) -> tuple[float, float]:
-    """One row of :func:`~tileviz.vision.robust.profiles.crossings`."""
+    """Where the darkness ``d`` (over sample offsets ``j``) first falls below ``lv`` on the
+    left and on the right of its peak ``jp``, interpolated linearly; NaN when it does not (or
+    runs into missing data first)."""
     n = j.size
     big = j[n - 1] + 1.0
     jl = -big
@@ -209,7 +200,10 @@ def _crossings(d: np.ndarray, j: np.ndarray, jp: float, lv: float) -> tuple[floa
 @compiled
 def _centroid(p: np.ndarray, j: np.ndarray, c: float, half: float, ll: float, lr: float,
               q: np.ndarray, qj: np.ndarray) -> float:
-    """One row of :func:`~tileviz.vision.robust.profiles.centroid` (3 iterations)."""
+    """Centroid of the darkness ``1 - p / level`` over [c - half, c + half] (sample offsets
+    ``j``), the level stepping from ``ll`` to ``lr`` at the current centre; each sample weighs
+    by its overlap with the window; re-centred 3 times. NaN where the window holds missing data
+    or no darkness. ``q``, ``qj``: scratch buffers."""
     dl = lr - ll
     cc = c
     n = j.size
@@ -227,7 +221,8 @@ def _centroid(p: np.ndarray, j: np.ndarray, c: float, half: float, ll: float, lr
 
 @compiled
 def _median_finite(a: np.ndarray, n: int) -> float:
-    """:func:`~tileviz.vision.robust.profiles.nanmedian` of a[:n] (NaN if no finite value)."""
+    """Median of the finite values of a[:n] (NaN if none), as
+    :func:`~tileviz.vision.robust.profiles.nanmedian` gives it; reorders ``a``."""
     cnt = 0
     for i in range(n):
         if math.isfinite(a[i]):
@@ -243,8 +238,18 @@ def _median_finite(a: np.ndarray, n: int) -> float:
 def _midpoints(p: np.ndarray, j: np.ndarray, start: float, c: float, half: float,
                lev_l: float, lev_r: float, dn: np.ndarray, tmp: np.ndarray,
                mids: np.ndarray) -> float:
-    """One row of :func:`~tileviz.vision.robust.profiles.midpoints`: the 50, 25 and 75 %
-    midpoints into ``mids`` (3,), the predicted standard error returned."""
+    """Where the part profile ``p`` (over sample offsets ``j``, its dip within 3 samples of
+    ``start``) crosses 50, 25 and 75 % of its own depth, as the midpoints of its left and right
+    crossings (into ``mids`` (3,), NaN where a crossing is missing); returns the predicted
+    standard error of the 50 % midpoint, px.
+
+    Each side's darkness is measured against that side's plateau (``lev_l``, ``lev_r``, taken
+    outside the window ``c +- half``) and normalised by that side's depth (plateau - bottom of
+    the dip), so a shade step between the tiles does not move the crossings; the level
+    switches sides at the midpoint (found twice, from ``start``). The standard error: the
+    profile's roughness outside the window (noise and texture at the sample scale) over each
+    side's depth, divided by the slope of the normalised edge (from its 25 and 75 %
+    crossings), half the root sum of squares of the two sides."""
     n = j.size
     nd = 0
     for i in range(n - 1):
@@ -299,11 +304,16 @@ def _midpoints(p: np.ndarray, j: np.ndarray, start: float, c: float, half: float
 def part_rows(pp: np.ndarray, jf: np.ndarray, cj: np.ndarray, hj: np.ndarray, r: int
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
                          np.ndarray]:
-    """Every part profile's measurement (rows of ``pp``, sample offsets ``jf`` = -r..r, the
-    dip's centre ``cj`` and half window ``hj``): half-depth width, 20-80 % rise, contrast
-    (depth / brighter plateau), centroid (NaN unless usable), the 50/25/75 % midpoints
-    (3, rows) and the 50 % midpoint's standard error; see
-    :func:`~tileviz.vision.robust.profiles.part_rows_numpy`."""
+    """Every part profile's measurement (rows of ``pp`` over sample offsets ``jf`` = -r..r,
+    the dip's centre ``cj`` and half window ``hj`` per row): half-depth width, 20-80 % rise,
+    contrast (depth / brighter plateau), centroid (NaN where its window leaves the profile or
+    it strays beyond the half window), the 50/25/75 % midpoints (3, rows) and the 50 %
+    midpoint's standard error (:func:`_midpoints`).
+
+    The position is the midpoint of the dip's 50 % crossings, each side against its own
+    plateau and depth (texture beside the grout, a slope of the light or a shade step between
+    the tiles pull the centroid, much less the edges); measured where the centroid's window is
+    inside the profile."""
     rows, n = pp.shape
     width = np.empty(rows)
     rise = np.empty(rows)
@@ -354,8 +364,10 @@ def part_rows(pp: np.ndarray, jf: np.ndarray, cj: np.ndarray, hj: np.ndarray, r:
 @compiled
 def part_profiles(flat: np.ndarray, stride: int, fam: np.ndarray, line: np.ndarray,
                   idx: np.ndarray, mean: float, p0: np.ndarray) -> np.ndarray:
-    """:func:`~tileviz.vision.robust.profiles.part_profiles_numpy` compiled: the (m PARTS, W)
-    part profiles from the integral image (``flat``, rows of ``stride`` values)."""
+    """The part profiles of m dips (m PARTS, W): row i * PARTS + j is part j of dip i, the mean
+    gray level of each warp row (family 1) or column (family 2) ``line[i]`` (m, W) over the
+    stretch [idx[i, j], idx[i, j + 1]) of the tangent axis, from the integral image ``flat``
+    (rows of ``stride`` values), plus ``mean``; NaN where the whole profile ``p0`` (m, W) is."""
     m, nw = line.shape
     parts = idx.shape[1] - 1
     rows_i = flat.size // stride
@@ -387,163 +399,3 @@ def part_profiles(flat: np.ndarray, stride: int, fam: np.ndarray, line: np.ndarr
     return pp
 
 
-@compiled
-def dip_rows(prof: np.ndarray, dark: np.ndarray, lo: np.ndarray, hi: np.ndarray,
-             fam: np.ndarray, peak: np.ndarray, r: int
-             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
-                        np.ndarray, np.ndarray, np.ndarray]:
-    """:func:`~tileviz.vision.robust.profiles.dip_rows_numpy` compiled (bit-identical): every
-    dip's profile, depth, centre, half window, parts (start, length) and plateau levels."""
-    size = prof.shape[1]
-    pf = prof.ravel()
-    df = dark.ravel()
-    lf = lo.ravel()
-    hf = hi.ravel()
-    m = fam.size
-    n = 2 * r + 1
-    jf = np.empty(n)
-    for t in range(n):
-        jf[t] = float(t - r)
-    p0 = np.empty((m, n))
-    depth = np.empty(m)
-    c0 = np.empty(m)
-    half = np.empty(m)
-    u_lo = np.empty(m)
-    step = np.empty(m)
-    lev_l = np.empty(m)
-    lev_r = np.empty(m)
-    d0 = np.empty(n)
-    buf = np.empty(n)
-    for i in range(m):
-        at = fam[i] * size + peak[i] - r  # flat index of the window's first sample
-        for t in range(n):
-            p0[i, t] = pf[at + t]
-            d0[t] = df[at + t]
-        best = -math.inf
-        jp = -2
-        for t in range(r - 2, r + 3):
-            v = d0[t]
-            if math.isnan(v):
-                v = -math.inf
-            if t == r - 2 or v > best:  # np.argmax: the first maximum
-                best = v
-                jp = t - r
-        depth[i] = best
-        hl, hr = _crossings(d0, jf, float(jp), 0.5 * best)
-        c = 0.5 * (hl + hr)
-        h = 1.5 * (hr - hl) + 1.5
-        c0[i] = c
-        half[i] = h
-        cu = 0.0 if math.isnan(c) else c
-        hu = (0.0 if math.isnan(h) else h) + 5.0
-        a = -math.inf
-        b = math.inf
-        for t in range(n):
-            if abs(jf[t] - cu) <= hu:
-                if lf[at + t] > a:
-                    a = lf[at + t]
-                if hf[at + t] < b:
-                    b = hf[at + t]
-        u_lo[i] = a + 1.0
-        step[i] = ((b - 1.0) - (a + 1.0)) / PARTS
-        lev_l[i], lev_r[i] = _plateaus(p0[i], jf, c, h, buf)
-    return p0, depth, c0, half, u_lo, step, lev_l, lev_r
-
-
-@compiled
-def part_summary(width: np.ndarray, rise: np.ndarray, contrast: np.ndarray, cen: np.ndarray,
-                 mids: np.ndarray, msig: np.ndarray, count: np.ndarray, base: np.ndarray,
-                 lev_l: np.ndarray, lev_r: np.ndarray
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
-                            np.ndarray, np.ndarray, np.ndarray]:
-    """:func:`~tileviz.vision.robust.profiles.part_summary_numpy` compiled (bit-identical):
-    the lines' medians, plateau steps and per-part positions, lengths, errors and spreads."""
-    m = count.shape[0]
-    wmed = np.empty(m)
-    rmed = np.empty(m)
-    cmed = np.empty(m)
-    stepr = np.empty(m)
-    parts = np.empty((m, PARTS))
-    wpart = np.empty((m, PARTS))
-    sigma = np.empty((m, PARTS))
-    spread = np.empty((m, PARTS))
-    buf = np.empty(PARTS)
-    for i in range(m):
-        for j in range(PARTS):
-            k = i * PARTS + j
-            m0 = mids[0, k]
-            pos = m0 if math.isfinite(cen[k]) else math.nan
-            sp = _max(abs(mids[1, k] - m0), abs(mids[2, k] - m0))
-            if not (math.isfinite(sp) and math.isfinite(msig[k])):
-                sp = 0.5 * width[k] + 0.5
-            ok = math.isfinite(pos)
-            wpart[i, j] = float(count[i, j]) if ok else 0.0
-            parts[i, j] = float(base[i]) + pos if ok else math.nan
-            sigma[i, j] = msig[k] if (ok and math.isfinite(msig[k])) else 0.0
-            spread[i, j] = sp if ok else 0.0
-        for j in range(PARTS):
-            buf[j] = width[i * PARTS + j]
-        wmed[i] = _median_finite(buf, PARTS)
-        for j in range(PARTS):
-            buf[j] = rise[i * PARTS + j]
-        rmed[i] = _median_finite(buf, PARTS)
-        for j in range(PARTS):
-            buf[j] = contrast[i * PARTS + j]
-        cmed[i] = _median_finite(buf, PARTS)
-        lo_lev = _min(lev_l[i], lev_r[i])
-        hi_lev = _max(lev_l[i], lev_r[i])
-        stepr[i] = (hi_lev - lo_lev) / _max(hi_lev, 1e-9)
-    return wmed, rmed, cmed, stepr, parts, wpart, sigma, spread
-
-
-@compiled
-def dip_recentre(c0: np.ndarray, half: np.ndarray, peak: np.ndarray, r: int, first: int,
-                 last: int) -> tuple[np.ndarray, bool]:
-    """The dips' peaks moved onto their half-depth centres where the window of ``r`` samples
-    does not reach the plateaus (``|c0| + half + 4 > r``), kept within [``first``, ``last``],
-    and whether any moved: :func:`~tileviz.vision.robust.profiles.dips`' numpy steps compiled
-    (bit-identical)."""
-    m = c0.size
-    out = peak.copy()
-    moved = False
-    for i in range(m):
-        reach = abs(c0[i]) + half[i] + 4.0
-        if math.isfinite(reach) and reach > r:
-            off = np.intp(np.rint(c0[i]))
-            if off != 0:
-                moved = True
-            out[i] = peak[i] + off
-    if moved:
-        for i in range(m):
-            out[i] = min(max(out[i], first), last)
-    return out, moved
-
-
-@compiled
-def part_layout(fam: np.ndarray, u_lo: np.ndarray, step: np.ndarray, x0: float, y0: float,
-                cols: np.ndarray, pad: int, lim: int, c0: np.ndarray, half: np.ndarray
-                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
-                           np.ndarray]:
-    """:func:`~tileviz.vision.robust.profiles.part_layout_numpy` compiled (bit-identical): the
-    parts' sample bounds, lengths and mean tangent coordinates, every window sample's warp row
-    or column, and each part's dip centre and half window."""
-    m = fam.size
-    n = cols.shape[1]
-    idx = np.empty((m, PARTS + 1), np.intp)
-    count = np.empty((m, PARTS), np.intp)
-    tpart = np.empty((m, PARTS))
-    line = np.empty((m, n), np.intp)
-    cj = np.empty(m * PARTS)
-    hj = np.empty(m * PARTS)
-    for i in range(m):
-        along = x0 if fam[i] == 0 else y0
-        for k in range(PARTS + 1):
-            idx[i, k] = np.intp(np.ceil(along + (u_lo[i] + step[i] * float(k))))
-        for k in range(PARTS):
-            count[i, k] = idx[i, k + 1] - idx[i, k]
-            tpart[i, k] = 0.5 * float(idx[i, k] + idx[i, k + 1] - 1) - along
-            cj[i * PARTS + k] = c0[i]
-            hj[i * PARTS + k] = half[i]
-        for t in range(n):
-            line[i, t] = min(max(cols[i, t] - pad, 0), lim)
-    return idx, count, tpart, line, cj, hj

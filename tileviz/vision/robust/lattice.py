@@ -8,11 +8,11 @@ import math
 import numpy as np
 
 from tileviz.vision.geometry import QUARTER, family_normals
-from tileviz.vision.robust import kernel, lattice_kernel
+from tileviz.vision.robust import checks, lattice_kernel
 from tileviz.vision.robust.bound import frame_bound
-from tileviz.vision.robust.state import Fail, Line, RobustRun
+from tileviz.vision.robust.state import Line, ReadingState
 
-__all__ = ["chords", "clip_line", "lattice_offsets", "measured_period", "missing_line_numpy",
+__all__ = ["clip_line", "lattice_offsets", "measured_period",
            "missing_lines", "normalise"]
 
 
@@ -59,9 +59,9 @@ def clip_line(
     return (px + lo * tx, py + lo * ty, px + hi * tx, py + hi * ty)
 
 
-def lattice_offsets(run: RobustRun, lines: list[list[Line]], y3: float) -> None:
-    """Offsets modulo L per family, the spacing checks, and the observation."""
-    st = run.st
+def lattice_offsets(run: ReadingState, lines: list[list[Line]], y3: float) -> None:
+    """Offsets modulo L per family, the spacing checks, the bound and the observation
+    (checks ``spacing.missing`` .. ``bound.heading``)."""
     x0, y0 = run.centre
     lp = run.lp
     ys: list[float] = []
@@ -100,22 +100,20 @@ def lattice_offsets(run: RobustRun, lines: list[list[Line]], y3: float) -> None:
         measured_period(run, s_arr, ref)
         missing_lines(run, k, ref, s_arr, y3)
     run.details["spacing_residual_px"] = worst
-    if worst > st.spacing_fraction * run.bound_px:
-        raise Fail("inconsistent spacing")
-    for fam in lines:
-        if sum(ln.chord for ln in fam) < st.min_evidence * run.side:
-            raise Fail("too few segments")
+    rec = run.record
+    rec.require(checks.SPACING, run, worst)
+    for k, fam in enumerate(lines):
+        rec.require(checks.EVIDENCE, run, sum(ln.chord for ln in fam), subject=FAMILY[k])
     run.details["position_se_px"] = se
     pos_px, head = frame_bound(run, se)
     run.details["bound_px"] = pos_px
     run.details["bound_rad"] = head
-    if (pos_px > max(run.vision.position_error_px, st.max_bound_px)
-            or head > max(run.vision.heading_error, st.max_bound_rad)):
-        raise Fail("imprecise")
+    rec.require(checks.BOUND_POSITION, run, pos_px)
+    rec.require(checks.BOUND_HEADING, run, head)
     run.y = normalise(ys[0], ys[1], y3, run.tile_size)
 
 
-def measured_period(run: RobustRun, s: np.ndarray, ref: float) -> None:
+def measured_period(run: ReadingState, s: np.ndarray, ref: float) -> None:
     """The tile period that one family's lines show (signed offsets ``s``, px, about the
     family's phase ``ref``), over the declared one (``tile_size`` x ``ppm``): the slope of a
     least-squares line through the offsets against their lattice indices, when they span at
@@ -134,13 +132,12 @@ def measured_period(run: RobustRun, s: np.ndarray, ref: float) -> None:
     run.details["period_span"] = span
 
 
-def missing_lines(run: RobustRun, k: int, ref: float, found: np.ndarray, y3: float) -> None:
+def missing_lines(run: ReadingState, k: int, ref: float, found: np.ndarray, y3: float) -> None:
     """Refuse when the lattice predicts a well-visible line of family k that was not found
     (the signed offsets ``ref + j L ppm``, px) and the family's profile shows no dip there
     either (within half the grout's width + 1.5 px of it): a grout line as light as the
     tiles beside it, or cut short by the border, may give no line yet be seen
-    (:func:`missing_line_numpy`; compiled: :func:`~tileviz.vision.robust.lattice_kernel.
-    missing_line`)."""
+    (compiled: :func:`~tileviz.vision.robust.lattice_kernel.missing_line`)."""
     n = family_normals(y3)[k]
     reach = 0.5 * math.hypot(run.w, run.h)
     # a dip is measured over its window and 4 plateau samples on each side
@@ -156,61 +153,16 @@ def missing_lines(run: RobustRun, k: int, ref: float, found: np.ndarray, y3: flo
         peak, fam, pad = proj.peak, proj.fam, proj.pad
     centre = run.centre[1] if k == 0 else run.centre[0]
     near = 0.5 * run.details["width"] + 1.5
-    check = lattice_kernel.missing_line if kernel.AVAILABLE else missing_line_numpy
-    if check(n[0], n[1], math.hypot(-n[1], n[0]), ref, run.lp, reach, margin, run.w, run.h,
-             run.st.min_chord, found, peak, fam, k, pad, centre, near):
-        raise Fail("inconsistent spacing")
+    missing = lattice_kernel.missing_line(
+        n[0], n[1], math.hypot(-n[1], n[0]), ref, run.lp, reach, margin, run.w, run.h,
+        run.st.lattice.min_chord, found, peak, fam, k, pad, centre, near,
+        run.st.lattice.found_share)
+    run.record.require(checks.SPACING_MISSING, run, 1.0 if missing else 0.0, subject=FAMILY[k])
 
 
 _NO_DIPS = np.zeros(0, np.intp)
 
-
-def missing_line_numpy(n0: float, n1: float, hyp: float, ref: float, lp: float, reach: float,
-                       margin: int, width: int, height: int, min_chord: float,
-                       found: np.ndarray, peak: np.ndarray, fam: np.ndarray, k: int, pad: int,
-                       centre: float, near: float) -> bool:
-    """Whether a line of family ``k`` that the lattice predicts at the signed offsets ``ref + j
-    lp`` (px; ``(n0, n1)`` the family's unit normal, ``hyp`` its ``math.hypot``) within
-    ``reach`` of the centre is missing: visible along at least ``min_chord`` of the longest
-    chord at the offset and ``margin`` px each side of it, neither a line ``found`` (offsets,
-    px) within a quarter of the period nor a dip of the family (``peak``, ``fam``: the
-    projection's dips, padded by ``pad``; ``centre`` the warp centre's profile coordinate)
-    within ``near`` px. :func:`~tileviz.vision.robust.lattice_kernel.missing_line` is the same
-    computation compiled (bit-identical)."""
-    j0 = math.floor((-reach - ref) / lp)
-    j1 = math.ceil((reach - ref) / lp)
-    s = ref + np.arange(j0, j1 + 1) * lp
-    # the longest chord of a direction through a rectangle passes through its centre
-    ch = chords((n0, n1), np.concatenate(([0.0], s - margin, s, s + margin)), width, height,
-                hyp)
-    need = min_chord * ch[0]
-    visible = (ch[1:].reshape(3, -1) >= need).all(axis=0)
-    dips = -(peak[fam == k] - pad - centre).astype(np.float64)
-    for sj in s[visible].tolist():
-        if found.size == 0 or float(np.min(np.abs(found - sj))) > 0.25 * lp:
-            if dips.size and float(np.min(np.abs(dips - sj))) <= near:
-                continue
-            return True
-    return False
+FAMILY = ("family 1", "family 2")
+"""How a per-family check names its family (family 1 gives y1, family 2 y2)."""
 
 
-def chords(n: tuple[float, float], s: np.ndarray, width: int, height: int,
-           hyp: float | None = None) -> np.ndarray:
-    """The length (px) inside the image of each line ``n . (p - centre) = s`` (n a unit normal
-    in pixel coordinates, ``s`` an array of offsets, px); 0 where it misses the image. The
-    same clipping as :func:`clip_line`, for many parallel lines at once. ``hyp``: the
-    normal's ``math.hypot`` when the caller has it."""
-    cxp, cyp = (width - 1) / 2.0, (height - 1) / 2.0
-    tx, ty = -n[1], n[0]
-    lo = np.full(s.shape, -np.inf)
-    hi = np.full(s.shape, np.inf)
-    for p0, d, size in ((cxp + s * n[0], tx, width), (cyp + s * n[1], ty, height)):
-        if abs(d) < 1e-12:
-            hi = np.where((p0 >= -0.5) & (p0 <= size - 0.5), hi, -np.inf)
-            continue
-        a = (-0.5 - p0) / d
-        b = (size - 0.5 - p0) / d
-        lo = np.maximum(lo, np.minimum(a, b))
-        hi = np.minimum(hi, np.maximum(a, b))
-    span = hi - lo
-    return np.where(span > 0, span, 0.0) * (math.hypot(tx, ty) if hyp is None else hyp)

@@ -1,9 +1,10 @@
-"""The lattice's check for a missing line, compiled with numba (:func:`missing_line`): exactly
-(bit for bit) what :func:`~tileviz.vision.robust.lattice.missing_line_numpy` decides, with the
-conventions of :mod:`~tileviz.vision.robust.kernel` (numpy's order of operations, its NaN
+"""The lattice's loops, compiled with numba: the check for a missing line
+(:func:`missing_line`) and the clipping of many lines to the view (:func:`clip_lines`), with
+the conventions of :mod:`~tileviz.vision.robust.kernel` (numpy's order of operations, its NaN
 propagation and error model). A family has a few dozen predicted lines: one compiled loop
-instead of some twenty numpy calls on arrays that short.
-``tests/test_vision_speed_paths.py`` checks the equality on random lattices.
+instead of some twenty numpy calls on arrays that short. ``tests/test_vision_speed_paths.py``
+checks them against a numpy reference (``tests/numpy_kernels.py``) and
+:func:`~tileviz.vision.robust.lattice.clip_line` on random lattices.
 """
 
 from __future__ import annotations
@@ -59,9 +60,14 @@ def _nearest(values: np.ndarray, x: float) -> float:
 def missing_line(n0: float, n1: float, hyp: float, ref: float, lp: float, reach: float,
                  margin: int, width: int, height: int, min_chord: float, found: np.ndarray,
                  peak: np.ndarray, fam: np.ndarray, k: int, pad: int, centre: float,
-                 near: float) -> bool:
-    """:func:`~tileviz.vision.robust.lattice.missing_line_numpy` compiled (bit-identical
-    decisions): whether a well-visible line that the lattice predicts is missing."""
+                 near: float, found_share: float) -> bool:
+    """Whether a line of family ``k`` that the lattice predicts at the signed offsets ``ref + j
+    lp`` (px; ``(n0, n1)`` the family's unit normal, ``hyp`` its ``math.hypot``) within
+    ``reach`` of the centre is missing: visible along at least ``min_chord`` of the longest
+    chord at the offset and ``margin`` px each side of it, neither a line ``found`` (offsets,
+    px) within ``found_share`` of the period nor a dip of the family (``peak``, ``fam``: the
+    projection's dips, padded by ``pad``; ``centre`` the warp centre's profile coordinate)
+    within ``near`` px."""
     j0 = math.floor((-reach - ref) / lp)
     j1 = math.ceil((reach - ref) / lp)
     need = min_chord * _chord(n0, n1, hyp, 0.0, width, height)
@@ -81,7 +87,7 @@ def missing_line(n0: float, n1: float, hyp: float, ref: float, lp: float, reach:
                 and _chord(n0, n1, hyp, sj, width, height) >= need
                 and _chord(n0, n1, hyp, sj + margin, width, height) >= need):
             continue
-        if found.size == 0 or _nearest(found, sj) > 0.25 * lp:
+        if found.size == 0 or _nearest(found, sj) > found_share * lp:
             if ndips and _nearest(dips, sj) <= near:
                 continue
             return True

@@ -11,14 +11,13 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from tileviz.vision.robust import kernel, projection_kernel
-from tileviz.vision.robust.state import RobustRun
+from tileviz.vision.robust import projection_kernel
+from tileviz.vision.robust.state import ReadingState
 
-__all__ = ["Projection", "fill_ends", "grout_score_numpy", "light_grout", "profile_arrays_numpy",
-           "profile_dips_numpy", "profiles", "project", "view_spans"]
+__all__ = ["Projection", "light_grout", "profiles", "project"]
 
 
-def light_grout(run: RobustRun, sums: tuple[np.ndarray, np.ndarray],
+def light_grout(run: ReadingState, sums: tuple[np.ndarray, np.ndarray],
                 spans: tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
                 ) -> bool:
     """Whether the grout is lighter than the tiles: the family profiles (row and column
@@ -28,36 +27,16 @@ def light_grout(run: RobustRun, sums: tuple[np.ndarray, np.ndarray],
     the in-view stretch of every row and column (:func:`view_spans`).
     :func:`~tileviz.vision.robust.projection_kernel.grout_score` computes a family's term
     compiled (bit-identical)."""
-    term = projection_kernel.grout_score if kernel.AVAILABLE else grout_score_numpy
+    st = run.st.profiles
     score = 0.0
     for k in range(2):
         lo, hi = spans[k]
-        used, value = term(sums[k], np.maximum(hi - lo, 0.0), run.closing)
+        used, value = projection_kernel.grout_score(sums[k], np.maximum(hi - lo, 0.0),
+                                                    run.closing, st.min_row, st.min_row_share,
+                                                    st.min_rows)
         if used:
             score += value
     return score > 0.0
-
-
-def grout_score_numpy(sums: np.ndarray, length: np.ndarray, closing: int) -> tuple[bool, float]:
-    """One family's term of :func:`light_grout`: whether the family has 8 rows long enough
-    (at least 8 px and 15 % of the longest), and then the highest narrow peak of its profile
-    (``sums / length`` over those rows, float32) above a grey opening minus the deepest
-    narrow dip below a grey closing, both ``closing`` samples wide. :func:`~tileviz.vision.
-    robust.projection_kernel.grout_score` is the same computation compiled (bit-identical)."""
-    ok = length >= max(8.0, 0.15 * float(length.max()))
-    if int(ok.sum()) < 8:
-        return False, 0.0
-    prof = (sums[ok] / length[ok]).astype(np.float32)[None, :]
-    # beyond the view: the median level (the tiles'), so that a stretch of tile or a line cut
-    # by the border is neither a peak nor a dip
-    mid = float(np.median(prof))
-    kern = np.ones((1, closing), np.uint8)
-    bt = cv2.BORDER_CONSTANT
-    close = cv2.erode(cv2.dilate(prof, kern, borderType=bt, borderValue=mid), kern,
-                      borderType=bt, borderValue=mid)
-    opening = cv2.dilate(cv2.erode(prof, kern, borderType=bt, borderValue=mid), kern,
-                         borderType=bt, borderValue=mid)
-    return True, float((prof - opening).max()) - float((close - prof).max())
 
 
 @dataclass
@@ -79,7 +58,7 @@ class Projection:
     peak: np.ndarray  # (m,) its deepest sample (padded index)
 
 
-def project(run: RobustRun, y3: float, attempt: int) -> Projection:
+def project(run: ReadingState, y3: float, attempt: int) -> Projection:
     """Warp the image by y3 (on the first attempt, also decide the grout's polarity), and find
     the dips of both family profiles."""
     c, s = math.cos(y3), math.sin(y3)
@@ -104,14 +83,8 @@ def project(run: RobustRun, y3: float, attempt: int) -> Projection:
         borderMode=cv2.BORDER_CONSTANT,
         borderValue=0,
     )
-    if kernel.AVAILABLE:
-        spans = (projection_kernel.view_spans(ho, y0, c, s, w, h, True),
-                 projection_kernel.view_spans(wo, x0, c, s, w, h, False))
-    else:
-        spans = (
-            view_spans(run, np.arange(ho) - y0, c, s, along_rows=True),
-            view_spans(run, np.arange(wo) - x0, c, s, along_rows=False),
-        )
+    spans = (projection_kernel.view_spans(ho, y0, c, s, w, h, True),
+             projection_kernel.view_spans(wo, x0, c, s, w, h, False))
     # integral image: the sum over any stretch of any row or column in four look-ups
     integ = cv2.integral(warped, sdepth=cv2.CV_64F)
     sums = (integ[1:, -1] - integ[:-1, -1], integ[-1, 1:] - integ[-1, :-1])
@@ -133,31 +106,8 @@ def project(run: RobustRun, y3: float, attempt: int) -> Projection:
     return profiles(run, y3, integ, sums, spans)
 
 
-def view_spans(
-    run: RobustRun, q: np.ndarray, c: float, s: float, *, along_rows: bool
-) -> tuple[np.ndarray, np.ndarray]:
-    """The in-view stretch [lo, hi] of each warped row (``along_rows``) or column at offset
-    ``q`` from the warp centre, in the tangent coordinate u (relative to the centre); empty
-    where hi <= lo. :func:`~tileviz.vision.robust.projection_kernel.view_spans` is the same
-    computation compiled (bit-identical)."""
-    cx, cy = (run.w - 1) / 2.0, (run.h - 1) / 2.0
-    lo = np.full(q.shape, -np.inf)
-    hi = np.full(q.shape, np.inf)
-    # src col = cx + a u + b q, row = cy + e u + f q
-    a, b, e, f = (c, -s, s, c) if along_rows else (-s, c, c, s)
-    for coef, base, size in ((a, cx + b * q, run.w), (e, cy + f * q, run.h)):
-        if abs(coef) < 1e-12:
-            lo = np.where((base >= -0.5) & (base <= size - 0.5), lo, np.inf)
-            continue
-        u1 = (-0.5 - base) / coef
-        u2 = (size - 0.5 - base) / coef
-        lo = np.maximum(lo, np.minimum(u1, u2))
-        hi = np.minimum(hi, np.maximum(u1, u2))
-    return lo, hi
-
-
 def profiles(
-    run: RobustRun,
+    run: ReadingState,
     y3: float,
     integ: np.ndarray,
     sums: tuple[np.ndarray, np.ndarray],
@@ -165,13 +115,14 @@ def profiles(
 ) -> Projection:
     """Both family profiles (row and column means of the warped image: ``sums`` over the
     in-view ``spans``), their baselines and their dips."""
-    r = run.closing + 8  # the widest window (see execute)
+    st = run.st.profiles
+    r = run.widest
     mean = run.mean
-    build = projection_kernel.profile_arrays if kernel.AVAILABLE else profile_arrays_numpy
-    prof, lo, hi, total = build(sums[0], sums[1], spans[0][0], spans[0][1], spans[1][0],
-                                spans[1][1], r, mean)
-    dips_of = projection_kernel.profile_dips if kernel.AVAILABLE else profile_dips_numpy
-    dark, noise, fam, peak = dips_of(prof, mean, run.closing, run.st.min_depth)
+    prof, lo, hi, total = projection_kernel.profile_arrays(
+        sums[0], sums[1], spans[0][0], spans[0][1], spans[1][0], spans[1][1], r, mean,
+        st.min_row, st.min_row_share)
+    dark, noise, fam, peak = projection_kernel.profile_dips(
+        prof, mean, run.closing, run.st.lines.min_depth, st.min_rows, st.dip_noise)
     for sig in noise.tolist():
         if math.isfinite(sig):
             run.details["profile_noise"] = max(run.details.get("profile_noise", 0.0), sig)
@@ -181,91 +132,3 @@ def profiles(
     )
 
 
-def profile_arrays_numpy(
-    sums0: np.ndarray, sums1: np.ndarray, lo0: np.ndarray, hi0: np.ndarray, lo1: np.ndarray,
-    hi1: np.ndarray, r: int, mean: float
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The (2, size) arrays of a :class:`Projection` (family k in row k, samples shifted by
-    ``r``): the profile (``sums`` / in-view length + ``mean``, NaN beyond the data and where a
-    row or column is shorter than 8 px or 15 % of the family's longest), the in-view spans
-    ``lo``, ``hi`` (inf, -inf beyond the data) and their length. :func:`~tileviz.vision.
-    robust.projection_kernel.profile_arrays` is the same computation compiled (bit-identical)."""
-    sums = (sums0, sums1)
-    spans = ((lo0, hi0), (lo1, hi1))
-    size = max(sums0.size, sums1.size) + 2 * r
-    # family k in row k; columns shifted by r; missing data NaN
-    prof = np.full((2, size), np.nan)
-    lo = np.full((2, size), np.inf)
-    hi = np.full((2, size), -np.inf)
-    total = np.zeros((2, size))
-    for k in range(2):
-        n = sums[k].size
-        lo[k, r : r + n], hi[k, r : r + n] = spans[k]
-        length = np.maximum(hi[k, r : r + n] - lo[k, r : r + n], 0.0)
-        total[k, r : r + n] = length
-        valid = length >= max(8.0, 0.15 * float(length.max()))
-        with np.errstate(invalid="ignore", divide="ignore"):  # length 0: not valid, NaN
-            prof[k, r : r + n] = np.where(valid, sums[k] / length + mean, np.nan)
-    return prof, lo, hi, total
-
-
-def profile_dips_numpy(
-    prof: np.ndarray, mean: float, closing: int, min_depth: float
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The dips of both family profiles (rows of ``prof``, NaN where there is no data): the
-    darkness ``dark`` below a grey closing of ``closing`` samples (max then min filter along
-    each row, removing dips narrower than its window; missing data read as the nearest valid
-    sample of its row, :func:`fill_ends`), each family's profile noise (robust std of its
-    sample-to-sample steps; NaN when the family has fewer than 8 samples), and the dips:
-    the deepest sample of every run of samples darker than 5 x the noise (at least
-    ``min_depth`` / 2), as (family, padded index) arrays. :func:`~tileviz.vision.robust.
-    projection_kernel.profile_dips` is the same computation compiled (bit-identical)."""
-    missing = np.isnan(prof)
-    filled = fill_ends(prof, mean).astype(np.float32)
-    kern = np.ones((1, closing), np.uint8)
-    base = cv2.erode(
-        cv2.dilate(filled, kern, borderType=cv2.BORDER_REPLICATE),
-        kern,
-        borderType=cv2.BORDER_REPLICATE,
-    )
-    dark = base - prof  # NaN where no data
-    noise = np.full(prof.shape[0], np.nan)
-    peaks: list[tuple[int, int]] = []
-    for k in range(prof.shape[0]):
-        ok = ~missing[k]
-        if int(ok.sum()) < 8:
-            continue
-        diffs = np.abs(np.diff(prof[k][ok]))
-        kth = diffs.size // 2
-        sig = 1.4826 * float(np.partition(diffs, kth)[kth]) / math.sqrt(2.0)
-        noise[k] = sig
-        thr = max(0.5 * min_depth, 5.0 * sig)
-        dk = np.where(ok, dark[k], -np.inf)
-        above = dk > thr
-        if not above.any():
-            continue
-        edges = np.diff(above.astype(np.int8), prepend=0, append=0)
-        starts = np.flatnonzero(edges == 1)
-        ends = np.flatnonzero(edges == -1)
-        for s0, s1 in zip(starts.tolist(), ends.tolist(), strict=True):
-            peaks.append((k, s0 + int(np.argmax(dk[s0:s1]))))
-    return (dark, noise, np.array([k for k, _ in peaks], np.intp),
-            np.array([p for _, p in peaks], np.intp))
-
-
-def fill_ends(prof: np.ndarray, mean: float) -> np.ndarray:
-    """``prof`` (rows of samples, NaN where missing) with each missing sample replaced by the
-    nearest valid sample of its row before it, or else after it (``mean`` in a row with none):
-    a row's valid data is one stretch, so its ends are replicated outward. A level beyond the
-    view unlike the tiles at its border (the image mean next to a dark tile) would make a
-    dip of that tile's border, or hide a grout line's edge next to it."""
-    out = prof.copy()
-    for k in range(prof.shape[0]):
-        ok = np.flatnonzero(~np.isnan(prof[k]))
-        if ok.size == 0:
-            out[k] = mean
-            continue
-        idx = np.clip(np.searchsorted(ok, np.arange(prof.shape[1]), side="right") - 1, 0,
-                      ok.size - 1)
-        out[k] = prof[k, ok[idx]]
-    return out

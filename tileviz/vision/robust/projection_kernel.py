@@ -1,10 +1,9 @@
 """The projection's loops, compiled with numba: the in-view spans of the warp's rows and
 columns (:func:`view_spans`), both family profiles (:func:`profile_arrays`), their darkness and
 dips (:func:`profile_dips`) and a family's term of the light-grout test (:func:`grout_score`),
-each bit-identical to its numpy / OpenCV counterpart in :mod:`~tileviz.vision.robust.projection`
-(``view_spans``, ``profile_arrays_numpy``, ``profile_dips_numpy``, ``grout_score_numpy``), with
-the conventions of :mod:`~tileviz.vision.robust.kernel` (numpy's order of operations, its NaN
-propagation and error model, float32 where numpy keeps it). The grey morphology is an exact
+with the conventions of :mod:`~tileviz.vision.robust.kernel` (numpy's order of operations, its
+NaN propagation and error model, float32 where numpy keeps it; the tests' numpy / OpenCV
+references in ``tests/numpy_profiles.py`` give the same bits). The grey morphology is an exact
 running extreme (only comparisons), so it gives OpenCV's values whatever the order.
 """
 
@@ -62,23 +61,26 @@ def _morph(a: np.ndarray, half: int, border: np.float32, bigger: bool) -> np.nda
 
 
 @compiled
-def grout_score(sums: np.ndarray, length: np.ndarray, closing: int) -> tuple[bool, float]:
-    """One family's term of :func:`~tileviz.vision.robust.projection.light_grout` (whether the
-    family counts, and its peak height minus its dip depth), bit-identical to the numpy /
-    OpenCV computation there: the profile ``sums / length`` as float32 over the rows long
-    enough, its median as the border level, grey closing and opening by ``closing``
-    samples."""
+def grout_score(sums: np.ndarray, length: np.ndarray, closing: int, min_row: float,
+                min_row_share: float, min_rows: int) -> tuple[bool, float]:
+    """One family's term of :func:`~tileviz.vision.robust.projection.light_grout`: whether
+    the family has ``min_rows`` rows long enough (at least ``min_row`` px and ``min_row_share``
+    of the longest), and then the
+    highest narrow peak of its profile (``sums / length`` over those rows, float32) above a
+    grey opening minus the deepest narrow dip below a grey closing, both ``closing`` samples
+    wide. Beyond the view the profile reads its median level (the tiles'), so that a stretch
+    of tile or a line cut by the border is neither a peak nor a dip."""
     lmax = length[0]
     for v in length:
         if v > lmax:
             lmax = v
-    thr = 0.15 * lmax
-    thr = thr if thr > 8.0 else 8.0
+    thr = min_row_share * lmax
+    thr = thr if thr > min_row else min_row
     n = 0
     for v in length:
         if v >= thr:
             n += 1
-    if n < 8:
+    if n < min_rows:
         return False, 0.0
     prof = np.empty(n, np.float32)
     k = 0
@@ -112,12 +114,17 @@ def grout_score(sums: np.ndarray, length: np.ndarray, closing: int) -> tuple[boo
 
 
 @compiled
-def profile_dips(prof: np.ndarray, mean: float, closing: int, min_depth: float
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """:func:`~tileviz.vision.robust.projection.profile_dips_numpy` compiled (bit-identical):
-    the darkness below the grey closing of both family profiles (rows of ``prof``, NaN where
-    missing), each family's profile noise (NaN when it has fewer than 8 samples) and the
-    dips (family, deepest sample) in order."""
+def profile_dips(prof: np.ndarray, mean: float, closing: int, min_depth: float, min_rows: int,
+                 dip_noise: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The dips of both family profiles (rows of ``prof``, NaN where there is no data): the
+    darkness ``dark`` below a grey closing of ``closing`` samples (max then min filter along
+    each row, removing dips narrower than its window; a missing sample reads as the nearest
+    valid sample of its row before it, else after it, ``mean`` in a row with none: a level
+    beyond the view unlike the tiles at its border would make a dip of that tile's border),
+    each family's profile noise (robust std of its sample-to-sample steps; NaN when the family
+    has fewer than ``min_rows`` samples), and the dips: the deepest sample of every run of
+    samples darker than ``dip_noise`` x the noise (at least ``min_depth`` / 2), as (family,
+    padded index) arrays."""
     fams, size = prof.shape
     half = closing // 2
     dark = np.empty((fams, size))
@@ -168,12 +175,12 @@ def profile_dips(prof: np.ndarray, mean: float, closing: int, min_depth: float
                     nd += 1
                 prev = row[x]
                 nok += 1
-        if nok < 8:
+        if nok < min_rows:
             continue
         srt = np.partition(diffs[:nd], nd // 2)  # the middle order statistic, exactly
         sig = 1.4826 * srt[nd // 2] / math.sqrt(2.0)
         noise[k] = sig
-        thr = 5.0 * sig
+        thr = dip_noise * sig
         if not thr > 0.5 * min_depth:
             thr = 0.5 * min_depth
         x = 0
@@ -202,9 +209,10 @@ def profile_dips(prof: np.ndarray, mean: float, closing: int, min_depth: float
 @compiled
 def view_spans(n: int, off: float, c: float, s: float, w: int, h: int, along_rows: bool
                ) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`~tileviz.vision.robust.projection.view_spans` compiled (bit-identical) for the
-    ``n`` warp rows (``along_rows``) or columns at offsets ``i - off`` from the warp centre, in
-    a ``w`` x ``h`` view turned by (cos, sin) = (``c``, ``s``)."""
+    """The in-view stretch [lo, hi] of each of the ``n`` warp rows (``along_rows``) or columns
+    at offsets ``i - off`` from the warp centre, in the tangent coordinate u (relative to the
+    centre), of a ``w`` x ``h`` view turned by (cos, sin) = (``c``, ``s``); empty where
+    hi <= lo."""
     cx = (w - 1) / 2.0
     cy = (h - 1) / 2.0
     if along_rows:
@@ -236,10 +244,13 @@ def view_spans(n: int, off: float, c: float, s: float, w: int, h: int, along_row
 
 @compiled
 def profile_arrays(sums0: np.ndarray, sums1: np.ndarray, lo0: np.ndarray, hi0: np.ndarray,
-                   lo1: np.ndarray, hi1: np.ndarray, r: int, mean: float
-                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """:func:`~tileviz.vision.robust.projection.profile_arrays_numpy` compiled (bit-identical):
-    the profiles, spans and lengths of both families as (2, size) arrays."""
+                   lo1: np.ndarray, hi1: np.ndarray, r: int, mean: float, min_row: float,
+                   min_row_share: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The (2, size) arrays of a :class:`~tileviz.vision.robust.projection.Projection`
+    (family k in row k, samples shifted by ``r``): the profile (``sums`` / in-view length +
+    ``mean``, NaN beyond the data and where a row or column is shorter than ``min_row`` px or
+    ``min_row_share`` of the family's longest), the in-view spans ``lo``, ``hi`` (inf, -inf beyond
+    the data) and their length."""
     size = max(sums0.size, sums1.size) + 2 * r
     prof = np.full((2, size), math.nan)
     lo = np.full((2, size), math.inf)
@@ -260,8 +271,8 @@ def profile_arrays(sums0: np.ndarray, sums1: np.ndarray, lo0: np.ndarray, hi0: n
                 lmax = math.nan
             elif length > lmax:
                 lmax = length
-        v = 0.15 * lmax
-        thr = v if v > 8.0 else 8.0  # Python's max(8.0, v): NaN gives 8.0
+        v = min_row_share * lmax
+        thr = v if v > min_row else min_row  # Python's max(min_row, v): NaN gives min_row
         for i in range(n):
             length = total[k, r + i]
             if length >= thr:

@@ -1,24 +1,28 @@
-"""The state of one frame through the robust extractor, shared by its steps.
-
-:class:`RobustRun` holds the frame, its settings and every intermediate result (the stage images
-read them); :class:`Line` is one measured grout line candidate; :class:`Fail` carries the reason
-of the first failed check. Each step (:mod:`.statistics`, :mod:`.heading`, :mod:`.profiles`,
-:mod:`.fit`, :mod:`.lattice`, :mod:`.bound`, :mod:`.foreign`) is a function of a RobustRun.
-"""
+"""What the robust extractor's steps read and write: :class:`View`, one frame's immutable data
+shared by every reading of it (the image, its geometry, the settings, the check scale, the gray
+statistics, the gradients and the first heading), and :class:`ReadingState`, the working state
+of one reading (:func:`~tileviz.vision.robust.readings.read`), made for that reading and
+dropped with it; :class:`Line` is one measured grout line candidate. Each step
+(:mod:`.profiles`, :mod:`.fit`, :mod:`.lattice`, :mod:`.bound`, :mod:`.foreign`) is a function
+of a ReadingState; the view's steps (:mod:`.statistics`, :mod:`.heading`) of a View."""
 
 from __future__ import annotations
 
 import math
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from types import MappingProxyType
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from tileviz.config import CameraConfig, VisionConfig
+from tileviz.vision.decision import CheckResult, Reading
+from tileviz.vision.robust.checks import Record
 from tileviz.vision.robust.settings import RobustSettings
 
-__all__ = ["PARTS", "Fail", "Line", "RobustRun"]
+__all__ = ["PARTS", "Line", "ReadingState", "Scale", "View", "check_scale"]
 
 PARTS = 4
 """Each line is measured in this many parts along its length."""
@@ -51,40 +55,110 @@ class Line:
     var: float = math.inf  # variance of pos from the fit's scatter, px^2
 
 
-class Fail(Exception):
-    """A refusal: ``reason`` is one of the extractor's reasons (``tileviz.vision.REASONS``)."""
+@dataclass(frozen=True, eq=False)
+class View:
+    """One frame's data, the same for every reading of it (read only: no step writes into its
+    arrays). Geometry: ``gray`` (HxW uint8), ``h``, ``w``, ``side`` (the smaller, px),
+    ``ppm``, ``tile_size`` (m) and ``lp`` (the tile period, px); ``vision`` and ``st`` (the
+    settings); the check scale ``bound_px`` / ``bound_rad`` (the smaller of the declared
+    bounds and ``st.scale``); the profiles' grey ``closing`` (samples), the first measurement
+    ``window`` and the ``widest`` (half-sizes, samples). Measured on the whole view
+    (:func:`~tileviz.vision.robust.extractor.prepare`): the gray ``mean``, the ``noise`` std
+    (gray levels), the Scharr gradients ``dxy`` (CV_16S), the first ``heading`` (rad, modulo
+    pi/2), their ``details`` and the ``checks`` run on the view."""
 
-    def __init__(self, reason: str) -> None:
-        super().__init__(reason)
-        self.reason = reason
+    gray: np.ndarray
+    h: int
+    w: int
+    side: float
+    ppm: float
+    tile_size: float
+    lp: float
+    vision: VisionConfig
+    st: RobustSettings
+    bound_px: float
+    bound_rad: float
+    closing: int
+    window: int
+    widest: int
+    mean: float = 0.0
+    noise: float = math.nan
+    dxy: tuple[np.ndarray, np.ndarray] | None = None
+    heading: float = math.nan
+    details: Mapping[str, float] = field(default_factory=lambda: MappingProxyType({}))
+    checks: tuple[CheckResult, ...] = ()
+
+    @classmethod
+    def of(cls, gray: np.ndarray, camera: CameraConfig, tile_size: float, vision: VisionConfig,
+           settings: RobustSettings, **measured: Any) -> View:
+        """The view's geometry, settings and check scale (:func:`check_scale`), with the
+        ``measured`` fields (``mean``, ``noise``, ...)."""
+        h, w = gray.shape
+        ppm = float(camera.ppm)
+        lp = float(tile_size) * ppm
+        pst = settings.profiles
+        # grey-closing window of the profile baseline (wider than any grout dip), samples
+        # (up to a third of the tile period: ProfileSettings.closing_*)
+        closing = 2 * int(round(min(max(pst.closing_min, pst.closing_share * lp),
+                                    pst.closing_max))) + 1
+        widest = closing + pst.window_slack
+        bound_px, bound_rad = check_scale(vision, settings)
+        return cls(
+            gray=gray, h=h, w=w, side=float(min(h, w)), ppm=ppm, tile_size=float(tile_size),
+            lp=lp, vision=vision, st=settings, bound_px=bound_px, bound_rad=bound_rad,
+            closing=closing, window=min(pst.window, widest), widest=widest, **measured)
 
 
-class RobustRun:
-    """One frame through the robust extractor (keeps intermediate arrays for the stages)."""
+def check_scale(vision: VisionConfig, settings: RobustSettings) -> tuple[float, float]:
+    """The scale of the consistency checks (px, rad): the smaller of the declared bounds and
+    ``settings.scale`` (the declared bounds keep a margin over the errors the checks let
+    through)."""
+    return (min(float(vision.position_error_px), settings.scale.position_px),
+            min(float(vision.heading_error), settings.scale.heading))
 
-    def __init__(
-        self,
-        gray: np.ndarray,
-        camera: CameraConfig,
-        tile_size: float,
-        vision: VisionConfig,
-        settings: RobustSettings,
-        timings: dict[str, float],
-    ) -> None:
-        self.gray = gray
-        self.vision = vision
-        self.st = settings
-        self.tm = timings
-        self.h, self.w = gray.shape
-        self.side = float(min(self.h, self.w))
-        self.ppm = float(camera.ppm)
-        self.tile_size = float(tile_size)
-        self.lp = self.tile_size * self.ppm  # tile period, px
-        # the consistency checks work at the smaller of the declared bounds and the check
-        # scales (the declared bounds keep a margin over the errors the checks let through)
-        self.bound_px = min(float(vision.position_error_px), settings.check_position_px)
-        self.bound_rad = min(float(vision.heading_error), settings.check_heading)
-        self.mean = 0.0
+
+class Scale(NamedTuple):
+    """The view-level checks' context (:class:`~tileviz.vision.robust.checks.Context`) before
+    the :class:`View` is made: settings, check scale (px), smaller side (px), declared bounds,
+    noise std (gray levels; NaN until measured)."""
+
+    st: RobustSettings
+    bound_px: float
+    side: float
+    vision: VisionConfig
+    noise: float
+
+
+class ReadingState:
+    """The working state of one reading of ``view`` (:class:`~tileviz.vision.decision.
+    Reading`): made by :func:`~tileviz.vision.robust.readings.read` for that reading alone and
+    dropped after it (its arrays are kept for the stage images). The view's data it reads are
+    referenced here under the view's names (``gray``, ``w``, ``st``, ...)."""
+
+    def __init__(self, view: View, reading: Reading) -> None:
+        self.view = view
+        self.reading = reading
+        self.gray = view.gray
+        self.h, self.w, self.side = view.h, view.w, view.side
+        self.ppm, self.tile_size, self.lp = view.ppm, view.tile_size, view.lp
+        self.vision, self.st = view.vision, view.st
+        self.bound_px, self.bound_rad = view.bound_px, view.bound_rad
+        self.closing, self.widest = view.closing, view.widest
+        self.dxy = view.dxy
+        self.noise = view.noise
+        # this reading's
+        self.tm: dict[str, float] = {}
+        self.details: dict[str, float] = {}
+        self.record = Record()  # every check run, in order
+        self.mean = view.mean  # the levels measured: the gray ones, or 255 - gray (inverted)
+        self.window = view.window  # half-size of the window each dip is measured in
+        self.inverted = False  # grout lighter than the tiles: the gray levels are inverted
+        # the grout's polarity imposed (True: lighter) instead of decided from the profiles
+        self.force_inverted: bool | None = (
+            None if reading.polarity == "auto" else reading.polarity == "light")
+        # leave out the one part that alone keeps the lines from straight (fit.drop_stray_part)
+        self.drop_stray = reading.stray
+        self.not_straight = False  # whether the lines were found not straight
         self.edges: np.ndarray | None = None
         self.free_edges: np.ndarray | None = None
         self.warped: np.ndarray | None = None
@@ -93,30 +167,12 @@ class RobustRun:
         self.y3: float | None = None
         self.y: tuple[float, float, float] | None = None
         self.foreign: np.ndarray = np.zeros((0, 4))
-        self.dxy: tuple[np.ndarray, np.ndarray] | None = None  # Scharr gradients (CV_16S)
-        self.details: dict[str, float] = {}
         # each measured part's own error bound (px), in the fit's order of parts (set by it)
         self.part_bound: np.ndarray = np.zeros(0)
-        # grey-closing window of the profile baseline (wider than any grout dip) and the
-        # half-size of the window each dip is measured in, samples (px)
-        # (up to a third of the tile period: a grout band up to ~20 px wide on any floor whose
-        # tiles span 80 px or more)
-        self.closing = 2 * int(round(min(max(8.0, 0.17 * self.lp), 30.0))) + 1
-        # half-size of the window each dip is measured in: 20 samples suit grout up to ~9 px
-        # wide; a wider band measures again with a window up to closing + 8 (see execute)
-        self.window = min(20, self.closing + 8)
         # half-depth width (px) of the deepest dip when the window could not measure it in
         # parts (NaN otherwise; set by profiles.dips): a wider window is tried
         self.unmeasured_width = math.nan
-        self.inverted = False  # grout lighter than the tiles: the gray levels are inverted
-        # the grout's polarity imposed (True: lighter) instead of decided from the profiles
-        self.force_inverted: bool | None = None
         self.projection: Any = None  # the last profiles.Projection (reused by a wider window)
-        # leave out the one part that alone keeps the lines from straight (fit.drop_stray_part)
-        # only when reading the view again after a refusal; whether a reading found the lines
-        # not straight (so that reading again may differ)
-        self.drop_stray = False
-        self.not_straight = False
 
     def lap(self, name: str, t0: float) -> float:
         """Add the time since ``t0`` (perf_counter, s) to stage ``name`` (ms); the time now."""

@@ -33,6 +33,8 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
+from tileviz.testing import missing
+
 FAMILIES = ("plain", "light_grout", "wide_grout", "shade_steps", "photo", "terrazzo", "wood",
             "degraded", "coarse")
 CORRUPTIONS = ("cable", "box", "shadow", "glare", "motion_blur")
@@ -47,8 +49,7 @@ def photo(name: str) -> np.ndarray:
     try:
         import skimage.data
     except ImportError as exc:
-        raise ImportError("the photo floors need scikit-image (a test dependency: "
-                          "pip install -e '.[test]')") from exc
+        raise ImportError(missing("scikit-image", "the photo floors")) from exc
 
     img = getattr(skimage.data, name)()
     if img.ndim == 3:

@@ -1,9 +1,9 @@
 """An adversary for the localizer's guarantee, independent of its implementation.
 
 It builds runs that respect every declared bound (hypotheses H1-H4 of ``docs/guarantees.md``) at
-their nastiest, computes the truth in exact arithmetic (``tests/exact_truth.py``, 256 bits) and
-checks, every frame, that the true pose is in ``predicted``, in ``updated`` and in the hull that
-``replay --out`` writes (``BoxSet.hull()``), and that the status is ``contracted`` or
+their nastiest, computes the truth in exact arithmetic (:mod:`tileviz.testing.exact_truth`, 256
+bits) and checks, every frame, that the true pose is in ``predicted``, in ``updated`` and in the
+hull that ``replay --out`` writes (``BoxSet.hull()``), and that the status is ``contracted`` or
 ``predicted`` (under H1-H4 a rejection would mean the truth had been dropped).
 
 - The robot is a unicycle integrated exactly over many sub-steps per frame; within each sub-step
@@ -28,9 +28,9 @@ import random
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
-from tests.exact_truth import HALF_PI, MP, PI, TWO_PI, TWO_PI_FINE, margin, mpf, sub
 from tileviz.config import LocalizerConfig
 from tileviz.core.localizer import Localizer
+from tileviz.testing.exact_truth import HALF_PI, MP, PI, TWO_PI, TWO_PI_FINE, margin, mpf, sub
 from tileviz.types import Box, BoxSet, Observation, Odometry, SensorBounds
 
 KINDS = ("wrap", "branch_edge", "grout", "lever", "scales", "speeds", "degenerate", "mixed")
@@ -155,6 +155,7 @@ def reading(truth: Any, bound: float, side: int, period: Any | None = None,
         if dist(r) <= bound:
             return r
         if toward is None:  # periodic: step toward the nearest copy of the truth
+            assert period is not None
             d = _mod(mpf(r) - truth, period)
             r = math.nextafter(r, -math.inf if d < period / 2 else math.inf)
         else:
@@ -355,8 +356,9 @@ def run(scn: Scenario, stop_at_first: bool = True) -> Report:
                 y1, y2, y3 = exact_view(x, y, th, scn.tile, scn.offset, 0)
             r = (reading(y1, scn.e, s1, L, (mpf(0), L)), reading(y2, scn.e, s2, L, (mpf(0), L)),
                  reading(y3, scn.e3, s3))
-            if None not in r:
-                obs = Observation(r[0], r[1], r[2], scn.e, scn.e3)
+            r1, r2, r3 = r
+            if r1 is not None and r2 is not None and r3 is not None:
+                obs = Observation(r1, r2, r3, scn.e, scn.e3)
         where = f"{scn.kind} frame {k}"
         try:
             step = loc.step(odo, compass, obs)

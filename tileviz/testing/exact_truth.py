@@ -13,8 +13,17 @@ from +x, continuous (a pose is in a box when theta + 2 pi k is, for some integer
 from __future__ import annotations
 
 from collections.abc import Iterable
+from typing import Any
 
-import mpmath
+from tileviz.testing import missing
+
+try:
+    import mpmath
+except ImportError as exc:
+    raise ImportError(missing("mpmath", "tileviz.testing.exact_truth")) from exc
+
+Exact = Any
+"""An mpmath number (or a float: read exactly)."""
 
 PREC = 256
 MP = mpmath.MPContext()
@@ -29,12 +38,12 @@ with MP.workprec(PI_PREC):
 """2 pi to PI_PREC bits, for the membership tests (a heading of 1e-300 rad next to a turn)."""
 
 
-def sub(a: object, b: object) -> object:
+def sub(a: Exact, b: Exact) -> Exact:
     """a - b exactly (floats or mpmath numbers: binary rationals), whatever their magnitudes."""
     return MP.fsub(mpf(a), mpf(b), exact=True)
 
 
-def heading_margin(t_lo: float, t_hi: float, theta: object) -> object:
+def heading_margin(t_lo: float, t_hi: float, theta: Exact) -> Exact:
     """The largest d such that theta + 2 pi k lies in [t_lo + d, t_hi - d] for some integer k
     (>= 0: theta is in the heading interval, modulo 2 pi; < 0: it misses it by -d). Exact but
     for pi itself, known to PI_PREC bits."""
@@ -54,7 +63,7 @@ def heading_margin(t_lo: float, t_hi: float, theta: object) -> object:
     return best
 
 
-def margin(box: object, x: object, y: object, theta: object) -> object:
+def margin(box: Any, x: Exact, y: Exact, theta: Exact) -> Exact:
     """How deep the pose is inside ``box`` (a ``tileviz.types.Box`` or anything with x_lo, ...,
     t_hi), in its worst dimension, exactly: >= 0 inside (0: on the boundary), < 0 outside."""
     mx = min(sub(x, box.x_lo), sub(box.x_hi, x))
@@ -62,11 +71,11 @@ def margin(box: object, x: object, y: object, theta: object) -> object:
     return min(mx, my, heading_margin(box.t_lo, box.t_hi, theta))
 
 
-def in_box(box: object, x: object, y: object, theta: object) -> bool:
+def in_box(box: Any, x: Exact, y: Exact, theta: Exact) -> bool:
     """Whether the exact pose is in the box (heading modulo 2 pi)."""
     return margin(box, x, y, theta) >= 0
 
 
-def in_set(boxes: Iterable[object], x: object, y: object, theta: object) -> bool:
+def in_set(boxes: Iterable[Any], x: Exact, y: Exact, theta: Exact) -> bool:
     """Whether the exact pose is in some box of ``boxes`` (a BoxSet's ``boxes``)."""
     return any(in_box(b, x, y, theta) for b in boxes)

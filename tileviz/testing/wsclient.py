@@ -1,5 +1,5 @@
-"""A minimal viser websocket client for the server tests and bench/bench_server.py (a test
-helper: it needs the test extras and this checkout's serve.py).
+"""A minimal viser websocket client for the server tests and ``bench/bench_server.py`` (it needs
+the test extra's msgpack, zstandard and websockets, and this checkout's ``serve.py``).
 
 viser's wire format (``viser/infra/_infra.py``, version 1.1): the client asks for the subprotocol
 ``viser-v<version>``. Each server->client websocket message is one *window* of messages:
@@ -26,12 +26,17 @@ import subprocess
 import sys
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
-from pathlib import Path
 from typing import Any
 
-import msgpack
 import numpy as np
-import zstandard
+
+from tileviz.testing import REPO, missing
+
+try:
+    import msgpack
+    import zstandard
+except ImportError as exc:
+    raise ImportError(missing(exc.name or "msgpack", "tileviz.testing.wsclient")) from exc
 
 __all__ = ["ViserClient", "decode_window", "serving", "start_serve", "stop_serve",
            "subprotocol"]
@@ -59,9 +64,8 @@ def start_serve(args: Sequence[str], *, cwd: str | os.PathLike[str] | None = Non
     """Start ``serve.py`` of this checkout with ``args`` in its own process and return it with
     the URL it prints once it serves (e.g. ``http://127.0.0.1:PORT/``). If it exits before
     printing one, raises RuntimeError with its stderr. The caller stops the process."""
-    repo = Path(__file__).resolve().parents[1]
-    env = dict(os.environ, PYTHONPATH=str(repo))
-    proc = subprocess.Popen([sys.executable, str(repo / "serve.py"), *args], cwd=cwd, env=env,
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    proc = subprocess.Popen([sys.executable, str(REPO / "serve.py"), *args], cwd=cwd, env=env,
                             stdout=subprocess.PIPE, stderr=stderr, text=True)
     for line in proc.stdout:  # type: ignore[union-attr]
         m = re.search(r"open (http://\S+)", line)
@@ -129,8 +133,9 @@ class ViserClient:
 
     async def __aenter__(self) -> ViserClient:
         import websockets
+        from websockets.typing import Subprotocol
 
-        self._ws = await websockets.connect(self.url, subprotocols=[subprotocol()],
+        self._ws = await websockets.connect(self.url, subprotocols=[Subprotocol(subprotocol())],
                                             max_size=None, compression=None)
         self._reader = asyncio.create_task(self._read())
         await self.send({

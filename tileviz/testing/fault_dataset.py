@@ -1,6 +1,7 @@
-"""A fault dataset generator for the tests of the fault model (issue 18): a simulated run of the
-default preset with a wheel slip beyond the declared speed bound, a kidnap and a camera dropout,
-written as a tileviz-dataset/1 folder (``faults.csv`` labels the frames of each event).
+"""A fault dataset generator for the tests of the fault model (docs/faults.md): a simulated run
+of the default preset with a wheel slip beyond the declared speed bound, a kidnap and a camera
+dropout, written as a tileviz-dataset/1 folder (``faults.csv`` labels the frames of each
+event).
 
 The events are set in frames (20 frames a second in the default preset):
 

@@ -1,8 +1,9 @@
-"""codac 2 side of the oracle test and the benchmark. Run ONLY as a subprocess.
+"""codac 2 side of the oracle test and the benchmark. codac runs ONLY in a subprocess.
 
-``import codac`` switches the whole process to upward rounding, so this script is never imported
-by tileviz or by the pytest process: ``tests/test_codac_oracle.py`` and
-``bench/bench_localizer.py`` start it with ``sys.executable`` and talk JSON over stdin/stdout.
+``import codac`` switches the whole process to upward rounding, so codac is never imported by
+tileviz or by the pytest process: ``tests/test_codac_oracle.py`` and ``bench/bench_localizer.py``
+call :func:`run`, which starts this file as a script with ``sys.executable`` and talks JSON over
+stdin/stdout (importing this module imports no codac).
 Under upward rounding CPython parses about one decimal float literal in five one ulp off (its
 fast path divides in floats), so the worker reads and parses its whole input *before* importing
 codac, and writes every bound it returns as ``float.hex`` (read back with :func:`decode`).
@@ -52,6 +53,21 @@ cd: Any = None
 """The codac module, imported by :func:`main` once the input is parsed (see the docstring)."""
 
 
+def run(spec: dict, timeout: float = 900.0) -> dict:
+    """The worker's answer to ``spec`` (one of the inputs above), from a fresh interpreter;
+    ``results`` decoded (:func:`decode`). RuntimeError with the worker's stderr if it fails."""
+    import subprocess
+
+    r = subprocess.run([sys.executable, __file__], input=json.dumps(spec), capture_output=True,
+                       text=True, timeout=timeout)
+    if r.returncode != 0:
+        raise RuntimeError(f"codac worker failed: {r.stderr.strip()}")
+    out = json.loads(r.stdout)
+    if "results" in out:
+        out["results"] = decode(out["results"])
+    return out
+
+
 def decode(results: list) -> list:
     """``results`` of a ``contract`` answer with every ``float.hex`` bound read back as a float
     (for the caller, in its own round-to-nearest process)."""
@@ -59,7 +75,7 @@ def decode(results: list) -> list:
             for r in results]
 
 
-def _branch_function(L: float, rho: float, phi: float, m: int) -> tuple[object, object]:
+def _branch_function(L: float, rho: float, phi: float, m: int) -> tuple[Any, Any]:
     """(sin-constraint function, cell function) of branch m over (x, y, theta, y1, y2, y3)."""
     v = cd.VectorVar(6)
     cx = v[0] + rho * cd.cos(v[2] + phi)
@@ -78,17 +94,17 @@ def _branch_function(L: float, rho: float, phi: float, m: int) -> tuple[object, 
     return f_sin, f_cell
 
 
-def _box(b: list[list[float]]) -> object:
+def _box(b: list[list[float]]) -> Any:
     return cd.IntervalVector([[lo, hi] for lo, hi in b])
 
 
-def _out(b: object) -> list[list[float]] | None:
+def _out(b: Any) -> list[list[float]] | None:
     if b.is_empty():
         return None
     return [[b[i].lb().hex(), b[i].ub().hex()] for i in range(6)]
 
 
-def _fixpoint(ctc: object, b: object, limit: int = 200) -> object:
+def _fixpoint(ctc: Any, b: Any, limit: int = 200) -> Any:
     prev = None
     for _ in range(limit):
         b = ctc.contract(b)
@@ -102,10 +118,10 @@ def _fixpoint(ctc: object, b: object, limit: int = 200) -> object:
 
 
 def contract(jobs: list[dict]) -> dict:
-    funcs: dict[tuple, tuple[object, object]] = {}
-    ctcs: dict[tuple, object] = {}
+    funcs: dict[tuple, tuple[Any, Any]] = {}
+    ctcs: dict[tuple, Any] = {}
     results = []
-    unions: dict[tuple, object] = {}
+    unions: dict[tuple, Any] = {}
     for job in jobs:
         if job["m"] == "union":
             ukey = (job["L"], job["rho"], job["phi"])

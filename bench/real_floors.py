@@ -1,0 +1,408 @@
+"""The extractor and the localizer on photographs of real tiled floors.
+
+    python bench/real_floors.py [--floors DIR] [--stills 40] [--frames 400] [--only ID,...]
+                                [--scale 1.0] [--camera clean|plain] [--split tuning|heldout]
+                                [--declare none|floor] [--csv out.csv] [--keep DIR]
+
+The floors are photographs and textures of real floors that this repository does not ship (their
+licences do not all allow it): ``--floors`` is a folder holding them and a ``floors.json`` that
+says, per floor, the image, the map from floor coordinates in tiles to its pixels
+(``tile_to_photo_affine``: the ideal lattice fitted to the floor's grout, grout line centres at
+integer tile coordinates), the tile size to declare, the view's pixels per tile
+(``view_period_px``), whether the image wraps around (a seamless texture) or which of its pixels
+are floor (``valid_mask``), and how far its lines depart from the ideal lattice
+(``lattice_residual_max_px``, in the image's pixels). The default is ``../shared/real_floors``.
+
+For each floor: ``--stills`` views (320 x 240 at ``view_period_px`` pixels a tile, times
+``--scale``, the image size times ``--scale`` too: a sharper camera seeing the same floor) cut at
+random poses, each extracted by the robust extractor: how many are accepted, and how many of those
+lie outside their own declared bound of the ideal lattice; then a drive of ``--frames`` frames
+(a smooth path at 0.25 m/s, odometry and compass within their declared bounds) written as a
+tileviz dataset and replayed by ``tileviz.pipeline.replay``: frames with the truth inside,
+``lost``, ``contracted``, and the median width of the set (the larger of x and y, cm).
+``--camera plain`` sees the floor through a plain camera (blur 0.7 px, vignetting, noise of 3
+levels). ``--declare floor`` declares the floor in the dataset's ``meta.json`` (``floor`` block:
+``kind`` checker for a checkerboard, ``lattice_tolerance`` from ``lattice_residual_max_px``) and
+passes the same to the stills' extractor; ``none`` declares nothing (a perfect grout lattice).
+
+Views are sampled from the image at 3 x 3 points a pixel (bilinear), so the photograph's own
+pixels are filtered as a camera's would be. Seeds: ``--split tuning`` uses seeds 0..; ``heldout``
+seeds from 10**6 (kept unseen while the extractor is tuned).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import math
+import statistics
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from tileviz.config import CameraConfig, VisionConfig
+from tileviz.pipeline.replay import replay
+from tileviz.types import Pose
+from tileviz.vision import extract, observation_error, set_opencv_threads
+
+WIDTH, HEIGHT = 320, 240
+SS = 3
+"""Samples per pixel side."""
+SPLITS = {"tuning": 0, "heldout": 10**6}
+SPEED = 0.25
+"""Metres per second along the drive."""
+DT = 0.05
+BOUNDS = {"speed_error": 0.02, "yaw_rate_error": 0.02, "compass_error": 0.03}
+
+
+@dataclass(frozen=True)
+class Floor:
+    """One floor of ``floors.json``: its image (RGB float32 0..255), the tile-to-pixel affine
+    (2 x 3), the tile size L (m), the view's pixels per tile, wrap, the valid mask (or None)."""
+
+    id: str
+    image: np.ndarray
+    affine: np.ndarray
+    tile_size: float
+    view_period_px: float
+    wrap: bool
+    valid: np.ndarray | None
+    grout: str
+    departure_px: float
+    """The largest departure of a line from the ideal lattice, in the image's pixels."""
+
+    @property
+    def image_period_px(self) -> float:
+        return float(math.hypot(self.affine[0, 0], self.affine[1, 0]))
+
+    @property
+    def tolerance_m(self) -> float:
+        """The lattice tolerance to declare, metres (the largest departure)."""
+        return self.departure_px / self.image_period_px * self.tile_size
+
+
+def load_floors(folder: Path, only: set[str] | None = None) -> list[Floor]:
+    """The floors of ``folder/floors.json`` (``only``: these ids, all of them there)."""
+    index = folder / "floors.json"
+    if not index.is_file():
+        raise SystemExit(f"real_floors: {index} not found: pass --floors DIR (the folder of the "
+                         "real-floor photographs and their floors.json)")
+    doc = json.loads(index.read_text(encoding="utf-8"))
+    out = []
+    for f in doc["floors"]:
+        if only and f["id"] not in only:
+            continue
+        bgr = cv2.imread(str(folder / f["file"]), cv2.IMREAD_COLOR)
+        if bgr is None:
+            raise SystemExit(f"real_floors: cannot read {folder / f['file']}")
+        rgb = cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB).astype(np.float32)
+        valid = None
+        if f.get("valid_mask"):
+            m = cv2.imread(str(folder / f["valid_mask"]), cv2.IMREAD_GRAYSCALE)
+            valid = m > 127
+        out.append(Floor(f["id"], rgb, np.array(f["tile_to_photo_affine"], np.float64),
+                         float(f["tile_size_m"]), float(f["view_period_px"]), bool(f["wrap"]),
+                         valid, str(f["grout"]), float(f["lattice_residual_max_px"])))
+    if only and len(out) != len(only):
+        missing = only - {f.id for f in out}
+        raise SystemExit(f"real_floors: no floor {', '.join(sorted(missing))} in {index}")
+    return out
+
+
+def view_coords(floor: Floor, ppm: float, width: int, height: int, cx: float, cy: float,
+                theta: float) -> tuple[np.ndarray, np.ndarray]:
+    """The image pixel (col, row) each sub-sample of the view sees (H*SS x W*SS float32 maps):
+    the view pixel (col, row) sees the floor point c + R(theta) a, a_forward = (cy_ - row)/ppm,
+    a_left = (cx_ - col)/ppm (docs/dataset-format.md), in tiles u = x / L, v = y / L."""
+    sub = (np.arange(SS) + 0.5) / SS - 0.5
+    cols = (np.arange(width)[:, None] + sub[None, :]).reshape(-1) - (width - 1) / 2.0
+    rows = (np.arange(height)[:, None] + sub[None, :]).reshape(-1) - (height - 1) / 2.0
+    a_l = -cols[None, :] / ppm
+    a_f = -rows[:, None] / ppm
+    ct, st = math.cos(theta), math.sin(theta)
+    x = cx + a_f * ct - a_l * st
+    y = cy + a_f * st + a_l * ct
+    u, v = x / floor.tile_size, y / floor.tile_size
+    a = floor.affine
+    mx = a[0, 0] * u + a[0, 1] * v + a[0, 2]
+    my = a[1, 0] * u + a[1, 1] * v + a[1, 2]
+    return mx.astype(np.float32), my.astype(np.float32)
+
+
+def render(floor: Floor, ppm: float, width: int, height: int, cx: float, cy: float,
+           theta: float, camera: str, rng: np.random.Generator) -> np.ndarray | None:
+    """The view (HxWx3 uint8 RGB) of the camera centred on floor point (cx, cy), heading theta,
+    or None when it sees pixels that are not floor (``valid_mask``) or beyond a non-wrapping
+    image."""
+    mx, my = view_coords(floor, ppm, width, height, cx, cy, theta)
+    h, w = floor.image.shape[:2]
+    if not floor.wrap:
+        inside = (mx >= 0) & (mx <= w - 1) & (my >= 0) & (my <= h - 1)
+        if not inside.all():
+            return None
+        if floor.valid is not None:
+            ok = floor.valid[np.rint(my).astype(int), np.rint(mx).astype(int)]
+            if not ok.all():
+                return None
+    border = cv2.BORDER_WRAP if floor.wrap else cv2.BORDER_REPLICATE
+    samples = cv2.remap(floor.image, mx, my, cv2.INTER_LINEAR, borderMode=border)
+    img = samples.reshape(height, SS, width, SS, 3).mean(axis=(1, 3))
+    if camera == "plain":
+        uu = (np.arange(width) - (width - 1) / 2.0)[None, :] / (0.5 * width)
+        vv = (np.arange(height) - (height - 1) / 2.0)[:, None] / (0.5 * height)
+        img = img * (1.0 - 0.15 * (uu * uu + vv * vv))[..., None]
+        img = cv2.GaussianBlur(img, (0, 0), 0.7)
+        img = img + rng.normal(0.0, 3.0, img.shape)
+    return np.clip(np.rint(img), 0, 255).astype(np.uint8)
+
+
+def random_pose(floor: Floor, rng: np.random.Generator) -> tuple[float, float, float]:
+    """A camera centre (m) and heading (rad): anywhere for a wrapping image, else within its
+    valid pixels (the view is then checked whole by :func:`render`)."""
+    theta = float(rng.uniform(-math.pi, math.pi))
+    if floor.wrap:
+        span = 4 * floor.tile_size
+        return float(rng.uniform(0, span)), float(rng.uniform(0, span)), theta
+    ys, xs = np.nonzero(floor.valid if floor.valid is not None
+                        else np.ones(floor.image.shape[:2], bool))
+    k = int(rng.integers(len(xs)))
+    inv = np.linalg.inv(np.vstack([floor.affine, [0, 0, 1]]))
+    u, v, _ = inv @ np.array([xs[k], ys[k], 1.0])
+    return float(u * floor.tile_size), float(v * floor.tile_size), theta
+
+
+def stills(floor: Floor, n: int, scale: float, camera: str, seed0: int,
+           vision: VisionConfig) -> dict:
+    """``n`` random views extracted: counts accepted, outside their bound, refusal reasons."""
+    ppm = floor.view_period_px * scale / floor.tile_size
+    width, height = round(WIDTH * scale), round(HEIGHT * scale)
+    cam = CameraConfig(ppm=ppm, width=width, height=height, offset=(0.0, 0.0))
+    accepted = outside = made = 0
+    reasons: dict[str, int] = {}
+    errors: list[float] = []
+    bounds: list[float] = []
+    ms: list[float] = []
+    tries = 0
+    while made < n and tries < 50 * n:
+        rng = np.random.default_rng([seed0 + tries, 7])
+        tries += 1
+        cx, cy, th = random_pose(floor, rng)
+        img = render(floor, ppm, width, height, cx, cy, th, camera, rng)
+        if img is None:
+            continue
+        made += 1
+        t0 = time.process_time()
+        res = extract(img, camera=cam, tile_size=floor.tile_size, vision=vision)
+        ms.append((time.process_time() - t0) * 1e3)
+        if not res.accepted:
+            reasons[res.reason] = reasons.get(res.reason, 0) + 1
+            continue
+        accepted += 1
+        obs = res.observation
+        assert obs is not None
+        e1, e2, e3 = observation_error(obs, Pose(cx, cy, th), floor.tile_size, (0.0, 0.0))
+        ep = max(abs(e1), abs(e2))
+        errors.append(ep * ppm)
+        bounds.append(obs.position_error * ppm)
+        if ep > obs.position_error or abs(e3) > obs.heading_error:
+            outside += 1
+    return {"views": made, "accepted": accepted, "outside": outside, "reasons": reasons,
+            "err_px": statistics.median(errors) if errors else math.nan,
+            "bound_px": statistics.median(bounds) if bounds else math.nan,
+            "ms": statistics.median(ms) if ms else math.nan}
+
+
+def drive_path(floor: Floor, frames: int, rng: np.random.Generator
+               ) -> list[tuple[float, float, float, float]] | None:
+    """A smooth drive: (x, y, theta, yaw rate) of the robot at every frame (camera on the robot
+    point), at :data:`SPEED`, turning at a slowly varying rate; None when the floor's valid
+    pixels cannot hold it (a non-wrapping image: a few tries)."""
+    for _ in range(200):
+        x, y, th = random_pose(floor, rng)
+        if floor.wrap:
+            w0, w1 = float(rng.uniform(-0.4, 0.4)), float(rng.uniform(0.2, 0.6))
+        else:  # loops of 0.3 to 0.6 m radius, to stay on the photograph's floor
+            w0, w1 = SPEED / float(rng.uniform(0.3, 0.6)) * float(rng.choice([-1, 1])), 0.1
+        ph = float(rng.uniform(0, 2 * math.pi))
+        poses = []
+        for k in range(frames):
+            w = w0 + w1 * math.sin(0.15 * k * DT * 2 * math.pi + ph)
+            poses.append((x, y, th, w))
+            x, y, th = arc(x, y, th, SPEED, w, DT)
+        ppm = floor.view_period_px / floor.tile_size
+        if floor.wrap or all(_inside(floor, ppm, p) for p in poses[:: max(1, frames // 40)]):
+            return poses
+    return None
+
+
+def _inside(floor: Floor, ppm: float, pose: tuple[float, float, float, float]) -> bool:
+    mx, my = view_coords(floor, ppm, WIDTH, HEIGHT, pose[0], pose[1], pose[2])
+    h, w = floor.image.shape[:2]
+    if not ((mx >= 0) & (mx <= w - 1) & (my >= 0) & (my <= h - 1)).all():
+        return False
+    return floor.valid is None or bool(
+        floor.valid[np.rint(my).astype(int), np.rint(mx).astype(int)].all())
+
+
+def arc(x: float, y: float, th: float, v: float, w: float, dt: float
+        ) -> tuple[float, float, float]:
+    """The unicycle's exact motion at speed v (m/s) and yaw rate w (rad/s) over dt (s)."""
+    if abs(w) < 1e-12:
+        return x + v * dt * math.cos(th), y + v * dt * math.sin(th), th
+    r = v / w
+    return (x + r * (math.sin(th + w * dt) - math.sin(th)),
+            y - r * (math.cos(th + w * dt) - math.cos(th)), th + w * dt)
+
+
+def drive(floor: Floor, frames: int, scale: float, camera: str, seed: int, declare: str,
+          keep: Path | None) -> dict:
+    """Write a drive over ``floor`` as a dataset, replay it, and measure the sets."""
+    rng = np.random.default_rng([seed, 11])
+    poses = drive_path(floor, frames, rng)
+    if poses is None:
+        return {"frames": 0}
+    ppm = floor.view_period_px * scale / floor.tile_size
+    width, height = round(WIDTH * scale), round(HEIGHT * scale)
+    meta = {
+        "format": "tileviz-dataset/1", "name": f"real floor {floor.id}",
+        "tile_size": floor.tile_size, "ppm": ppm, "image_width": width, "image_height": height,
+        "camera_offset": [0.0, 0.0], "dt": DT, "initial_pose": list(poses[0][:3]),
+        "initial_pose_error": [0.02, 0.02, 0.02], **BOUNDS,
+    }
+    if declare == "floor":
+        meta["floor"] = {"kind": "checker" if floor.grout == "edge" else "grout",
+                         "lattice_tolerance": floor.tolerance_m}
+    tmp = tempfile.TemporaryDirectory() if keep is None else None
+    folder = (Path(tmp.name) if tmp is not None else keep or Path(".")) / f"{floor.id}-{seed}"
+    try:
+        # written as another program would write it (docs/dataset-format.md)
+        (folder / "images").mkdir(parents=True, exist_ok=True)
+        (folder / "meta.json").write_text(json.dumps(meta, indent=1), encoding="utf-8")
+        with open(folder / "frames.csv", "w", newline="") as f:
+            wr = csv.writer(f)
+            wr.writerow(["index", "t", "image", "speed", "yaw_rate", "compass", "x", "y",
+                         "theta"])
+            for k, (x, y, th, w) in enumerate(poses):
+                img = render(floor, ppm, width, height, x, y, th, camera, rng)
+                assert img is not None
+                name = f"images/{k:06d}.png"
+                cv2.imwrite(str(folder / name), img[:, :, ::-1],
+                            [cv2.IMWRITE_PNG_COMPRESSION, 1])
+                u = [float(v) for v in rng.uniform(-0.9, 0.9, 3)]
+                compass = math.remainder(th + u[2] * BOUNDS["compass_error"], 2 * math.pi)
+                wr.writerow([k, repr(k * DT), name, repr(SPEED + u[0] * BOUNDS["speed_error"]),
+                             repr(w + u[1] * BOUNDS["yaw_rate_error"]), repr(compass),
+                             repr(x), repr(y), repr(th)])
+        out = folder.parent / f"{folder.name}-out.csv"
+        replay(folder, out=out, jobs=1)
+        with open(out, newline="") as f:
+            rows = list(csv.DictReader(f))
+    finally:
+        if tmp is not None:
+            tmp.cleanup()
+    inside = lost = contracted = 0
+    widths = []
+    for r, (x, y, th, _) in zip(rows, poses, strict=True):
+        status = r["status"]
+        if status == "lost":
+            lost += 1
+            continue
+        contracted += status == "contracted"
+        x_lo, x_hi, y_lo, y_hi, t_lo, t_hi = (float(r[c]) for c in (
+            "x_lo", "x_hi", "y_lo", "y_hi", "theta_lo", "theta_hi"))
+        k = math.floor((t_hi - th) / (2 * math.pi))
+        t = th + 2 * math.pi * k
+        inside += (x_lo <= x <= x_hi and y_lo <= y <= y_hi and t_lo <= t <= t_hi)
+        widths.append(max(x_hi - x_lo, y_hi - y_lo))
+    n = len(rows)
+    return {"frames": n, "inside": inside, "vouched": n - lost, "lost": lost,
+            "contracted": contracted,
+            "box_cm": 100 * statistics.median(widths) if widths else math.nan}
+
+
+def _pct(a: int, b: int) -> str:
+    return f"{100 * a / b:.0f} %" if b else "—"
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--floors", type=Path, action="append", default=None,
+                   help="a folder of floors and their floors.json (repeat for several; "
+                        "default ../shared/real_floors)")
+    p.add_argument("--stills", type=int, default=40)
+    p.add_argument("--frames", type=int, default=400, help="frames of the drive (0: none)")
+    p.add_argument("--only", default="", help="comma-separated floor ids")
+    p.add_argument("--scale", type=float, default=1.0)
+    p.add_argument("--camera", choices=("clean", "plain"), default="clean")
+    p.add_argument("--split", choices=tuple(SPLITS), default="tuning")
+    p.add_argument("--declare", choices=("none", "floor"), default="none")
+    p.add_argument("--csv", type=Path, default=None, help="also write the table's rows here")
+    p.add_argument("--keep", type=Path, default=None, help="keep the drives' datasets here")
+    args = p.parse_args(argv)
+    set_opencv_threads()
+    only = {s for s in args.only.split(",") if s} or None
+    folders = args.floors or [Path("../shared/real_floors")]
+    floors = [f for folder in folders for f in load_floors(folder, None)]
+    if only:
+        missing = only - {f.id for f in floors}
+        if missing:
+            raise SystemExit(f"real_floors: no floor {', '.join(sorted(missing))} in "
+                             f"{', '.join(map(str, folders))}")
+        floors = [f for f in floors if f.id in only]
+    seed0 = SPLITS[args.split]
+    print(f"real floors: {len(floors)} floors, {args.stills} stills and a {args.frames}-frame "
+          f"drive each; scale {args.scale:g}, camera {args.camera}, split {args.split}, "
+          f"declared {args.declare}")
+    print("| floor | stills accepted | outside bound | median err / bound px | refusals | "
+          "drive inside | contracted | lost | median box cm |")
+    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- |")
+    rows = []
+    for floor in floors:
+        tol = floor.tolerance_m if args.declare == "floor" else 0.0
+        kind = "checker" if (args.declare == "floor" and floor.grout == "edge") else "grout"
+        vision = VisionConfig(extractor="robust")
+        vision = _declared(vision, kind, tol)
+        s = stills(floor, args.stills, args.scale, args.camera, seed0, vision)
+        d = (drive(floor, args.frames, args.scale, args.camera, seed0, args.declare, args.keep)
+             if args.frames > 0 else {"frames": 0})
+        top = ", ".join(f"{k} {v}" for k, v in sorted(s["reasons"].items(),
+                                                       key=lambda kv: -kv[1])[:3])
+        n = d["frames"]
+        row = {"floor": floor.id, **{f"s_{k}": v for k, v in s.items() if k != "reasons"},
+               "refusals": top, **{f"d_{k}": v for k, v in d.items()}}
+        rows.append(row)
+        print(f"| {floor.id} | {s['accepted']} of {s['views']} | {s['outside']} | "
+              f"{s['err_px']:.2f} / {s['bound_px']:.2f} | {top or '—'} | "
+              f"{_pct(d.get('inside', 0), d.get('vouched', 0)) if n else '—'} | "
+              f"{_pct(d.get('contracted', 0), n) if n else '—'} | "
+              f"{d.get('lost', 0) if n else '—'} | "
+              f"{d.get('box_cm', math.nan):.2f} |", flush=True)
+    if args.csv is not None:
+        with open(args.csv, "w", newline="") as f:
+            wr = csv.DictWriter(f, fieldnames=list(rows[0]))
+            wr.writeheader()
+            wr.writerows(rows)
+    return 0
+
+
+def _declared(vision: VisionConfig, kind: str, tolerance: float) -> VisionConfig:
+    """``vision`` with the floor declared (kind, lattice tolerance in m), where the extractor
+    takes a declared floor; unchanged otherwise."""
+    if kind == "grout" and tolerance == 0.0:
+        return vision
+    from dataclasses import fields, replace
+
+    names = {f.name for f in fields(vision)}
+    if "floor_kind" in names and "lattice_tolerance" in names:
+        return replace(vision, floor_kind=kind, lattice_tolerance=tolerance)
+    return vision
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,279 @@
+"""The robust extractor's checks: each a named predicate on one measured value, with its limit
+computed here, in one place, from the settings (:mod:`.settings`) and the view's context
+(:class:`Context`: the check scale, the view's size, the declared bounds).
+
+A check passes or fails; a failed check refuses the view with its ``reason`` (one of
+:data:`tileviz.vision.REASONS`), except where the next check can still accept it (``constant.range``
+fails, then ``constant.thin_range`` decides; ``glare.saturated``, then ``glare.patches``;
+``foreign_line.contrast`` of lighter grout, then the crossings). Every check run is recorded
+(:class:`~tileviz.vision.decision.CheckResult`: id, value, limit, passed) so that a decision can be
+followed: the refusal carries its check's result (:class:`Refusal`).
+
+The checks, in the order they run (value; passes when; limit from settings):
+
+- ``constant.range``: gray range between ``statistics.range_quantiles``; >=
+  ``statistics.min_range``; when it fails, ``constant.thin_range`` decides (``constant image``).
+- ``constant.thin_range``: gray range between ``statistics.thin_quantiles``; >=
+  ``statistics.min_thin_range`` (``constant image``).
+- ``glare.saturated``: share of pixels >= ``statistics.saturated_level``; <=
+  ``statistics.glare_fraction``; when it fails, ``glare.patches`` decides (``glare``).
+- ``glare.patches``: share of pixels in saturated patches ``statistics.glare_patch`` px
+  across; <= ``statistics.glare_fraction`` (``glare``).
+- ``heading.gradients``: squared Scharr magnitude of the weakest voting gradient (the top
+  ``heading.share``); > 0 (``no lines``).
+
+Per reading (:mod:`.readings`), on its lines:
+
+- ``lines.found``: lines found (both families); >= 1 (``no lines``).
+- ``contrast.depth``: the deepest dip, gray levels; >= ``lines.min_depth`` (``low contrast``).
+- ``lines.families``: lines of the family with fewer; >= 1 (``one family``).
+- ``blur.rise``: median 20-80 % edge rise, px; <= ``lines.max_rise`` (``blurred``; not
+  measured fails).
+- ``step_edge.levels``: largest step between a line's two sides over the brighter;
+  <= ``lines.max_step`` (``step edge``).
+- ``angle.straight``: the worst part off the common fit, px; <= ``lines.straight_fraction`` x
+  the position check scale (``inconsistent angle``).
+- ``angle.perpendicular``: the two families' own tilts apart, standard errors;
+  <= ``fit.sigmas`` (``inconsistent angle``).
+- ``foreign_line.width``: widest line's half-depth width, px; <= ``lines.width_ratio`` x the
+  narrowest's + ``lines.width_slack`` (``foreign line``; no width fails).
+- ``foreign_line.contrast``: largest / smallest line contrast (lighter grout: or of the depth
+  over the grout's own level); <= ``lines.contrast_ratio`` (``foreign line``); lighter grout
+  that fails is one grout when the three crossing checks pass:
+- ``foreign_line.crossings_read``: lines read beside a crossing of the two families; >= 1.
+- ``foreign_line.crossings``: largest ratio of two crossing lines' depths beside their crossing;
+  <= ``lines.crossing_ratio``.
+- ``foreign_line.unread``: lines not read at a crossing that agree in contrast (within
+  ``lines.contrast_ratio``) with none read there; <= 0.
+- ``foreign_line.beside``: a second dip beside the one line of a family, over its depth;
+  < ``lines.beside_share`` (``foreign line``).
+- ``foreign_line.shoulder``: the smallest spread of a line's 25 / 75 % midpoints over its
+  parts, px; <= ``lines.shoulder_px`` (``foreign line``).
+
+On the reading whose lines passed, the lattice and the bound:
+
+- ``spacing.missing`` (per family): a well-visible line the lattice predicts and the view does
+  not show (1) or not (0); <= 0 (``inconsistent spacing``; ``lattice.min_chord``,
+  ``lattice.found_share``).
+- ``spacing``: the worst line off the lattice, px; <= ``lattice.spacing_fraction`` x the
+  position check scale (``inconsistent spacing``).
+- ``evidence`` (per family): line length in view, px; >= ``lattice.min_evidence`` x the smaller
+  side (``too few segments``).
+- ``bound.position``: the view's own position bound, px; <= the larger of
+  ``VisionConfig.position_error_px`` and ``bound.max_px`` (``imprecise``).
+- ``bound.heading``: the view's own heading bound, rad; <= the larger of
+  ``VisionConfig.heading_error`` and ``bound.max_rad`` (``imprecise``).
+- ``foreign_edge``: long straight edges (``foreign.length`` x the smaller side, at least
+  ``foreign.min_length`` px) off the lattice that no texture explains; <= 0 (``step edge`` when
+  the longest separates two levels, else ``foreign line``).
+
+The position check scale is the smaller of ``VisionConfig.position_error_px`` and
+``scale.position_px``.
+
+Adding a check: a :class:`Check` below (id, reason, relation, limit from the context, the
+settings it reads), added to :data:`CHECKS` and to this list, and one ``record.require(CHECK,
+context, value)`` where its value is measured.
+"""
+
+from __future__ import annotations
+
+import operator
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Protocol
+
+from tileviz.config import VisionConfig
+from tileviz.vision.decision import CheckResult
+from tileviz.vision.robust.settings import RobustSettings
+
+__all__ = ["CHECKS", "Check", "Context", "Record", "Refusal", "Relation"]
+
+
+class Context(Protocol):
+    """What a limit is computed from: the settings (``st``) and the view's context: the
+    position check scale (``bound_px``, px), the smaller side of the view (``side``, px), the
+    declared bounds (``vision``) and the view's noise std (``noise``, gray levels).
+    :class:`~tileviz.vision.robust.state.View` and
+    :class:`~tileviz.vision.robust.state.ReadingState` are contexts."""
+
+    @property
+    def st(self) -> RobustSettings: ...
+    @property
+    def bound_px(self) -> float: ...
+    @property
+    def side(self) -> float: ...
+    @property
+    def vision(self) -> VisionConfig: ...
+    @property
+    def noise(self) -> float: ...
+
+
+@dataclass(frozen=True)
+class Relation:
+    """How a value must compare with its limit to pass: ``symbol`` (shown); the value passes
+    when ``test(value, limit)`` (an ``operator`` comparison) differs from ``negate``."""
+
+    symbol: str
+    test: Callable[[float, float], bool]
+    negate: bool
+
+    def passes(self, value: float, limit: float) -> bool:
+        """Whether ``value`` passes against ``limit``."""
+        return self.test(value, limit) != self.negate
+
+
+AT_LEAST = Relation(">=", operator.lt, True)
+"""Passes unless below the limit (NaN passes)."""
+AT_MOST = Relation("<=", operator.gt, True)
+"""Passes unless above the limit (NaN passes)."""
+WITHIN = Relation("<=", operator.le, False)
+"""Passes when at most the limit (NaN fails: not measured)."""
+BELOW = Relation("<", operator.ge, True)
+"""Passes unless at or above the limit (NaN passes)."""
+ABOVE = Relation(">", operator.le, True)
+"""Passes unless at or below the limit (NaN passes)."""
+
+
+@dataclass(frozen=True)
+class Check:
+    """One named check: ``id`` (dotted), the ``reason`` it refuses with, how the value must
+    compare with the limit, ``limit(context, *extra)`` (the limit from the settings and the
+    view's context; ``extra``: what the limit scales with in this view), the ``setting`` names
+    it reads, and ``what`` the value is."""
+
+    id: str
+    reason: str
+    relation: Relation
+    limit: Callable[..., float]
+    setting: str
+    what: str
+
+
+class Refusal(Exception):
+    """A refusal: ``reason`` (one of ``tileviz.vision.REASONS``) and the ``result`` of the
+    check that refused."""
+
+    def __init__(self, result: CheckResult, reason: str) -> None:
+        super().__init__(reason)
+        self.reason = reason
+        self.result = result
+
+
+CONSTANT_RANGE = Check("constant.range", "constant image", AT_LEAST,
+                       lambda c: c.st.statistics.min_range, "statistics.min_range",
+                       "gray range (2-98 %)")
+CONSTANT_THIN = Check("constant.thin_range", "constant image", AT_LEAST,
+                      lambda c: c.st.statistics.min_thin_range, "statistics.min_thin_range",
+                      "gray range of thin structure (0.2-99.8 %)")
+GLARE_SATURATED = Check("glare.saturated", "glare", AT_MOST,
+                        lambda c: c.st.statistics.glare_fraction, "statistics.glare_fraction",
+                        "share of saturated pixels")
+GLARE_PATCHES = Check("glare.patches", "glare", AT_MOST,
+                      lambda c: c.st.statistics.glare_fraction,
+                      "statistics.glare_fraction, glare_patch",
+                      "share of pixels in saturated patches")
+HEADING_GRADIENTS = Check("heading.gradients", "no lines", ABOVE, lambda c: 0.0,
+                          "heading.share", "weakest voting gradient (squared magnitude)")
+LINES_FOUND = Check("lines.found", "no lines", AT_LEAST, lambda c: 1.0, "",
+                    "lines found")
+CONTRAST_DEPTH = Check("contrast.depth", "low contrast", AT_LEAST,
+                       lambda c: c.st.lines.min_depth, "lines.min_depth",
+                       "deepest dip (gray levels)")
+LINES_FAMILIES = Check("lines.families", "one family", AT_LEAST, lambda c: 1.0, "",
+                       "lines of the sparser family")
+BLUR_RISE = Check("blur.rise", "blurred", WITHIN, lambda c: c.st.lines.max_rise,
+                  "lines.max_rise", "median edge rise (px)")
+STEP_LEVELS = Check("step_edge.levels", "step edge", AT_MOST, lambda c: c.st.lines.max_step,
+                    "lines.max_step", "largest step between a line's sides")
+ANGLE_STRAIGHT = Check("angle.straight", "inconsistent angle", AT_MOST,
+                       lambda c: c.st.lines.straight_fraction * c.bound_px,
+                       "lines.straight_fraction, scale.position_px",
+                       "worst part off the common fit (px)")
+ANGLE_PERPENDICULAR = Check("angle.perpendicular", "inconsistent angle", AT_MOST,
+                            lambda c: c.st.fit.sigmas, "fit.sigmas",
+                            "families' tilts apart (standard errors)")
+FOREIGN_WIDTH = Check("foreign_line.width", "foreign line", WITHIN,
+                      lambda c, narrowest: c.st.lines.width_ratio * narrowest
+                      + c.st.lines.width_slack, "lines.width_ratio, width_slack",
+                      "widest line's width (px)")
+FOREIGN_CONTRAST = Check("foreign_line.contrast", "foreign line", AT_MOST,
+                         lambda c: c.st.lines.contrast_ratio, "lines.contrast_ratio",
+                         "largest / smallest contrast")
+CROSSINGS_READ = Check("foreign_line.crossings_read", "foreign line", AT_LEAST,
+                       lambda c: 1.0, "lines.crossing_reach, crossing_min_reach",
+                       "lines read beside a crossing")
+CROSSINGS = Check("foreign_line.crossings", "foreign line", AT_MOST,
+                  lambda c: c.st.lines.crossing_ratio, "lines.crossing_ratio",
+                  "largest depth ratio at a crossing")
+CROSSINGS_UNREAD = Check("foreign_line.unread", "foreign line", AT_MOST, lambda c: 0.0,
+                         "lines.contrast_ratio", "unread lines unlike the read ones")
+FOREIGN_BESIDE = Check("foreign_line.beside", "foreign line", BELOW,
+                       lambda c: c.st.lines.beside_share, "lines.beside_share",
+                       "second dip beside a lone line / its depth")
+FOREIGN_SHOULDER = Check("foreign_line.shoulder", "foreign line", AT_MOST,
+                         lambda c: c.st.lines.shoulder_px, "lines.shoulder_px",
+                         "a line's 25/75 % midpoints off its 50 % (px)")
+SPACING_MISSING = Check("spacing.missing", "inconsistent spacing", AT_MOST, lambda c: 0.0,
+                        "lattice.min_chord, found_share", "a predicted line missing")
+SPACING = Check("spacing", "inconsistent spacing", AT_MOST,
+                lambda c: c.st.lattice.spacing_fraction * c.bound_px,
+                "lattice.spacing_fraction, scale.position_px", "worst line off the lattice (px)")
+EVIDENCE = Check("evidence", "too few segments", AT_LEAST,
+                 lambda c: c.st.lattice.min_evidence * c.side, "lattice.min_evidence",
+                 "line length in view (px)")
+BOUND_POSITION = Check("bound.position", "imprecise", AT_MOST,
+                       lambda c: max(c.vision.position_error_px, c.st.bound.max_px),
+                       "bound.max_px, VisionConfig.position_error_px",
+                       "the view's position bound (px)")
+BOUND_HEADING = Check("bound.heading", "imprecise", AT_MOST,
+                      lambda c: max(c.vision.heading_error, c.st.bound.max_rad),
+                      "bound.max_rad, VisionConfig.heading_error",
+                      "the view's heading bound (rad)")
+FOREIGN_EDGE = Check("foreign_edge", "foreign line", AT_MOST, lambda c: 0.0,
+                     "foreign.length, min_length, contrast",
+                     "long straight edges off the lattice")
+
+CHECKS: dict[str, Check] = {c.id: c for c in (
+    CONSTANT_RANGE, CONSTANT_THIN, GLARE_SATURATED, GLARE_PATCHES, HEADING_GRADIENTS,
+    LINES_FOUND, CONTRAST_DEPTH, LINES_FAMILIES, BLUR_RISE, STEP_LEVELS, ANGLE_STRAIGHT,
+    ANGLE_PERPENDICULAR, FOREIGN_WIDTH, FOREIGN_CONTRAST, CROSSINGS_READ, CROSSINGS,
+    CROSSINGS_UNREAD, FOREIGN_BESIDE, FOREIGN_SHOULDER, SPACING_MISSING, SPACING, EVIDENCE,
+    BOUND_POSITION, BOUND_HEADING, FOREIGN_EDGE)}
+"""Every check by id, in the order they run."""
+
+
+_new_result = tuple.__new__
+"""Makes a CheckResult from its fields' tuple without a Python-level call (a view runs a few
+dozen checks)."""
+
+
+class Record:
+    """The checks run so far on one view or one reading, in order (``results``)."""
+
+    __slots__ = ("results",)
+
+    def __init__(self) -> None:
+        self.results: list[CheckResult] = []
+
+    def check(self, check: Check, context: Context, value: float, *extra: float,
+              subject: str = "") -> bool:
+        """Run ``check`` on ``value`` (its limit from ``context`` and ``extra``), record the
+        result and return whether it passed."""
+        v, lim = float(value), float(check.limit(context, *extra))
+        rel = check.relation
+        ok = rel.test(v, lim) != rel.negate
+        self.results.append(_new_result(CheckResult, (check.id, v, lim, rel.symbol, ok,
+                                                      subject)))
+        return ok
+
+    def require(self, check: Check, context: Context, value: float, *extra: float,
+                subject: str = "", reason: str | None = None) -> None:
+        """:meth:`check`, raising :class:`Refusal` (``reason``, default the check's) when it
+        fails."""
+        v, lim = float(value), float(check.limit(context, *extra))
+        rel = check.relation
+        ok = rel.test(v, lim) != rel.negate
+        result = _new_result(CheckResult, (check.id, v, lim, rel.symbol, ok, subject))
+        self.results.append(result)
+        if not ok:
+            raise Refusal(result, reason or check.reason)

@@ -1,0 +1,291 @@
+"""The candidate readings of a view, tried in order by one loop (:func:`decide`), and the pure
+function that reads a view for one reading (:func:`read`).
+
+A reading (:class:`~tileviz.vision.decision.Reading`, an immutable value) is a heading to
+measure the lines at, a polarity of the grout (decided from the profiles, or imposed), and
+whether the one part that alone keeps the lines from straight is left out. :func:`read` builds
+its own working state (:class:`~tileviz.vision.robust.state.ReadingState`) from the view's
+immutable data (:class:`~tileviz.vision.robust.state.View`), measures the lines, runs the line
+checks and, when they pass, the lattice, the bound and the foreign-edge checks, and returns
+an immutable :class:`Outcome`. Nothing is shared between readings but the view.
+
+The plan (:func:`plan`), in two passes: the first without leaving out a stray part, the second
+(only when the first refused the view after some reading found its lines not straight) the
+same with it left out (:func:`~tileviz.vision.robust.fit.drop_stray_part`: a texture's dip
+measured beside the grout in one part). In each pass:
+
+1. the first heading (the gradient votes, :func:`~tileviz.vision.robust.heading.first_heading`);
+2. when its lines fail a line check of :data:`RETRY_REASONS` (the gradient directions can be
+   outvoted by texture: a heading a few degrees off smears every line's profile), the
+   headings at which the view repeats with the tile period
+   (:func:`~tileviz.vision.robust.heading.lattice_headings`), then the gradient votes on the
+   smoothed view (:func:`~tileviz.vision.robust.heading.smoothed_headings`), each skipped when
+   within ``heading.same_heading`` of one read;
+3. when every heading failed and the first failed with a reason of :data:`POLARITY_REASONS`
+   (a bright tile cut by the border of a view of strongly shaded tiles is a narrow peak: the
+   polarity can be misjudged), each heading read again with the other polarity.
+
+A pass stops at the first reading whose lines pass the line checks: its lattice, bound and
+foreign-edge checks decide the pass. The result is the first pass's unless the second
+accepts the view. When no reading of a pass passes, the pass refuses with its first
+reading's reason and shows the lines of its last heading read (:func:`conclude`).
+
+Adding a reading: a field of :class:`~tileviz.vision.decision.Reading` that
+:class:`~tileviz.vision.robust.state.ReadingState` (or a step) acts on, and one line in
+:data:`STAGES` (a stage: its kind, the refusals of the first reading it answers, the
+function that yields its readings), e.g. ``Stage("checker", RETRY_REASONS,
+checker_readings)``.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from dataclasses import dataclass, replace
+from types import MappingProxyType
+
+import numpy as np
+
+from tileviz.vision.decision import CheckResult, Reading
+from tileviz.vision.geometry import QUARTER
+from tileviz.vision.robust.checks import ANGLE_STRAIGHT, Refusal
+from tileviz.vision.robust.fit import check_lines, drop_stray_part, fit_tilt
+from tileviz.vision.robust.foreign import foreign_edges
+from tileviz.vision.robust.heading import lattice_headings, smoothed_headings
+from tileviz.vision.robust.lattice import lattice_offsets
+from tileviz.vision.robust.periodic import on_lattice
+from tileviz.vision.robust.profiles import measure, select_lines
+from tileviz.vision.robust.state import Line, ReadingState, View
+
+__all__ = ["POLARITY_REASONS", "RETRY_REASONS", "STAGES", "Outcome", "Stage", "decide",
+           "plan", "read", "read_lines"]
+
+RETRY_REASONS = frozenset(
+    {"no lines", "low contrast", "one family", "blurred", "step edge", "inconsistent angle",
+     "foreign line"}
+)
+"""Refusals of the first heading's line checks after which other headings are read."""
+
+POLARITY_REASONS = frozenset({"no lines", "low contrast", "one family"})
+"""Refusals of the first heading's line checks after which, every heading having failed, the
+headings are read again with the grout's other polarity: reading dark grout as lighter (or the
+reverse) finds no line, or only shallow ones."""
+
+
+@dataclass(frozen=True, eq=False)
+class Outcome:
+    """What reading a view for one :class:`~tileviz.vision.decision.Reading` gave: the
+    ``checks`` run in order, the ``refusal`` (the failed check's result, None when every check
+    passed) and its ``reason`` (``ok`` when none failed); whether the lines passed the line
+    checks (``lines_passed``: the pass stops at this reading), whether some fit found them not
+    straight (``not_straight``), the polarity read (``inverted``: lighter grout), its
+    ``details`` and stage ``timings`` (ms). For the result and the stage images: the heading
+    after the fit ``y3`` (rad; None when no line was measured), the warp ``centre``, each
+    family's line positions on the warp (``positions``, px), the observation ``y`` (when the
+    lattice was read), the ``warped`` view, the Canny ``edges``, the ``free_edges`` off the
+    lattice and the ``foreign`` straight edges among them (rows x1, y1, x2, y2, px)."""
+
+    reading: Reading
+    checks: tuple[CheckResult, ...]
+    refusal: CheckResult | None
+    reason: str
+    lines_passed: bool
+    not_straight: bool
+    inverted: bool
+    details: Mapping[str, float]
+    timings: Mapping[str, float]
+    y3: float | None
+    centre: tuple[float, float]
+    positions: tuple[tuple[float, ...], tuple[float, ...]]
+    y: tuple[float, float, float] | None
+    warped: np.ndarray | None
+    edges: np.ndarray | None
+    free_edges: np.ndarray | None
+    foreign: np.ndarray
+
+
+def read(view: View, reading: Reading) -> Outcome:
+    """Read ``view`` for ``reading``: measure the lines (:func:`read_lines`), run the line
+    checks and, when they pass, the lattice and bound checks and the foreign-edge check; the
+    outcome. Reads nothing but the view and the reading; changes neither."""
+    run = ReadingState(view, reading)
+    refusal: Refusal | None = None
+    lines_passed = False
+    t = time.perf_counter()
+    try:
+        lines, y3, t = read_lines(run, reading.heading, t)
+        check_lines(run, lines)
+        lines_passed = True
+        t = run.lap("checks", t)
+        lattice_offsets(run, lines, y3)
+        t = run.lap("lattice", t)
+        foreign_edges(run)
+        run.lap("foreign", t)
+    except Refusal as r:
+        refusal = r
+    return Outcome(
+        reading=reading, checks=tuple(run.record.results),
+        refusal=None if refusal is None else refusal.result,
+        reason="ok" if refusal is None else refusal.reason, lines_passed=lines_passed,
+        not_straight=run.not_straight, inverted=run.inverted,
+        details=MappingProxyType(run.details), timings=MappingProxyType(run.tm), y3=run.y3,
+        centre=run.centre,
+        positions=(tuple(ln.pos for ln in run.lines[0]), tuple(ln.pos for ln in run.lines[1])),
+        y=run.y, warped=run.warped, edges=run.edges, free_edges=run.free_edges,
+        foreign=run.foreign)
+
+
+def read_lines(run: ReadingState, y3: float, t: float) -> tuple[list[list[Line]], float, float]:
+    """Measure and select the lines at heading ``y3``, fit the residual tilt, and measure again
+    (up to ``heading.max_warps`` warps) while the correction exceeds ``heading.refine_tilt``;
+    the lines, the corrected heading and the time (perf_counter) after the "profiles" lap. A
+    band wider than the measurement window is measured again with a wider one. Sets
+    ``run.lines``, ``run.y3`` and ``run.not_straight``."""
+    pst = run.st.profiles
+    last = run.st.heading.max_warps - 1
+    for attempt in range(last + 1):
+        lines = on_lattice(run, select_lines(run, measure(run, y3, attempt)))
+        # a window too narrow for the grout (a wide band): measure again with a wider one
+        width = run.details.get("width", math.nan) if lines[0] or lines[1] else math.nan
+        if math.isfinite(run.unmeasured_width):
+            # the deepest dip was too wide for the window: the lines kept are shallower
+            # ones (a texture's), the grout band is measured with a window fitting it
+            width = max(width, run.unmeasured_width) if math.isfinite(width) else width
+        need = run.widest
+        if math.isfinite(width):
+            need = min(int(math.ceil(pst.window_per_width * width + pst.window_margin)), need)
+        if need > run.window:
+            run.window = need
+            lines = on_lattice(run, select_lines(run, measure(run, y3, attempt + 1)))
+        tilt = fit_tilt(run, lines)
+        if run.details["straightness_px"] > ANGLE_STRAIGHT.limit(run):
+            run.not_straight = True
+            if run.drop_stray and drop_stray_part(run, lines, tilt):
+                tilt = fit_tilt(run, lines)  # without the part that kept them from straight
+        t = run.lap("profiles", t)
+        y3 += tilt
+        if abs(tilt) <= run.st.heading.refine_tilt or attempt == last:
+            break
+    run.lines = lines
+    run.y3 = y3
+    return lines, y3, t
+
+
+class Headings:
+    """The view's other headings, each computed once when first asked for (both passes read
+    them): :func:`~tileviz.vision.robust.heading.lattice_headings` and
+    :func:`~tileviz.vision.robust.heading.smoothed_headings`; their time is added to
+    ``timings["heading"]`` (ms)."""
+
+    def __init__(self, view: View, timings: dict[str, float]) -> None:
+        self.view = view
+        self.tm = timings
+        self._lattice: list[float] | None = None
+        self._smoothed: list[tuple[float, float]] | None = None
+
+    def _timed(self, fn: Callable[[View], list]) -> list:
+        t = time.perf_counter()
+        out = fn(self.view)
+        self.tm["heading"] = self.tm.get("heading", 0.0) + (time.perf_counter() - t) * 1e3
+        return out
+
+    def lattice(self) -> list[float]:
+        if self._lattice is None:
+            self._lattice = self._timed(lattice_headings)
+        return self._lattice
+
+    def smoothed(self) -> list[tuple[float, float]]:
+        if self._smoothed is None:
+            self._smoothed = self._timed(smoothed_headings)
+        return self._smoothed
+
+
+def lattice_readings(first: Reading, tried: Sequence[Outcome], headings: Headings
+                     ) -> Iterator[Reading]:
+    """The headings at which the view repeats with the tile period (trend-blind first)."""
+    for y, source in zip(headings.lattice(), ("lattice heading (trend-blind)",
+                                              "lattice heading"), strict=True):
+        yield replace(first, heading=y, source=source, kind="heading")
+
+
+def smoothed_readings(first: Reading, tried: Sequence[Outcome], headings: Headings
+                      ) -> Iterator[Reading]:
+    """The gradient votes on the view smoothed by each ``heading.smoothing`` std."""
+    for sigma, y in headings.smoothed():
+        yield replace(first, heading=y, source=f"smoothed heading ({sigma:g} px)",
+                      kind="heading")
+
+
+def polarity_readings(first: Reading, tried: Sequence[Outcome], headings: Headings
+                      ) -> Iterator[Reading]:
+    """Each heading read so far in this pass, again with the other polarity of the grout."""
+    for o in tried:
+        yield replace(o.reading, polarity="dark" if o.inverted else "light",
+                      kind="polarity")
+
+
+@dataclass(frozen=True)
+class Stage:
+    """One stage of the plan after the first heading: ``kind`` (of its readings), the refusals
+    of the first reading it answers (``after``) and ``readings(first, tried, headings)``: its
+    readings, given the first reading, the outcomes of this pass so far and the view's other
+    headings."""
+
+    kind: str
+    after: frozenset[str]
+    readings: Callable[[Reading, Sequence[Outcome], Headings], Iterator[Reading]]
+
+
+STAGES: tuple[Stage, ...] = (
+    Stage("heading", RETRY_REASONS, lattice_readings),
+    Stage("heading", RETRY_REASONS, smoothed_readings),
+    Stage("polarity", POLARITY_REASONS, polarity_readings),
+)
+"""The stages of a pass after the first heading, in order (module docstring)."""
+
+
+def same(a: Reading, b: Reading, tolerance: float) -> bool:
+    """Whether two readings read alike: the same polarity and stray part, headings within
+    ``tolerance`` (rad, modulo pi/2)."""
+    return (a.polarity == b.polarity and a.stray == b.stray
+            and abs(math.remainder(a.heading - b.heading, QUARTER)) < tolerance)
+
+
+def plan(view: View, done: Sequence[Outcome], timings: dict[str, float]) -> Iterator[Reading]:
+    """The readings to try, one after the other (module docstring); ``done`` holds the
+    outcome of every reading yielded so far (the caller appends each before asking for the
+    next)."""
+    headings = Headings(view, timings)
+    tolerance = view.st.heading.same_heading
+    for stray in (False, True):
+        if stray and not (done[-1].reason != "ok" and any(o.not_straight for o in done)):
+            return
+        start = len(done)
+        first = Reading(view.heading, "first heading", stray=stray)
+        yield first
+        if done[start].lines_passed:
+            continue
+        for stage in STAGES:
+            if done[start].reason not in stage.after:
+                continue
+            for reading in stage.readings(first, done[start:], headings):
+                if any(same(reading, o.reading, tolerance) for o in done[start:]):
+                    continue
+                yield reading
+                if done[-1].lines_passed:
+                    break
+            if done[-1].lines_passed:
+                break
+
+
+def decide(view: View, timings: dict[str, float]) -> list[Outcome]:
+    """Every reading of :func:`plan` read in turn (:func:`read`): their outcomes, in order.
+    The readings' stage times are added to ``timings`` (ms)."""
+    done: list[Outcome] = []
+    for reading in plan(view, done, timings):
+        out = read(view, reading)
+        done.append(out)
+        for k, v in out.timings.items():
+            timings[k] = timings.get(k, 0.0) + v
+    return done
