@@ -6,12 +6,13 @@ faults.csv, dataset images, extract's images, ROS bags (import-bag), evaluate --
     python bench/fuzz.py --cases 5000 --reader frames --engine atheris
 
 Each case is one damaged or odd input file run through the command that reads it, in worker
-processes (``tests/fuzzing.py`` describes the readers, the cases and the outcomes). Engines:
-``hypothesis`` (structured cases from strategies), ``mutate`` (valid files mutated at random) and,
-when ``pip install atheris`` works, ``atheris`` (coverage-guided mutation by libFuzzer, in-process,
-one process per reader). Prints a table per reader: cases, outcomes, the peak resident set of
-the workers and the slowest case; then every finding (traceback, hang, memory) with the start of
-its input, saved whole under ``--save DIR``. The exit status is 1 when there was a finding.
+processes (``tileviz/testing/fuzzing.py`` describes the readers, the cases and the outcomes).
+Engines: ``hypothesis`` (structured cases from strategies), ``mutate`` (valid files mutated at
+random) and, when ``pip install atheris`` works, ``atheris`` (coverage-guided mutation by
+libFuzzer, in-process, one process per reader). Prints a table per reader: cases, outcomes, the
+peak resident set of the workers and the slowest case; then every finding (traceback, hang,
+memory) with the start of its input, saved whole under ``--save DIR``. The exit status is 1 when
+there was a finding.
 """
 
 from __future__ import annotations
@@ -24,10 +25,7 @@ import tempfile
 import time
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
-
-from tests.fuzzing import (  # noqa: E402
+from tileviz.testing.fuzzing import (
     OUTCOMES,
     READERS,
     Finding,
@@ -43,7 +41,7 @@ def _atheris_worker(reader: str, runs: int, seed: int, timeout: float, log: str)
     lines), the inputs of the bad ones too."""
     import atheris
 
-    from tests.fuzzing import Templates, _captured, run_case
+    from tileviz.testing.fuzzing import Templates, _captured, run_case
 
     tmp = Path(tempfile.mkdtemp(prefix="fuzz-atheris-"))
     with _captured(tmp):

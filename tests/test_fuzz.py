@@ -1,7 +1,7 @@
 """Fuzzed inputs (issue 33): a short deterministic run of every reader's fuzzing
-(``tests/fuzzing.py``; the campaign is ``bench/fuzz.py``), and one regression test for each
-defect a campaign found. Every case ends in success or one line naming the file and the problem:
-never a traceback, a decoder's own message, a hang or gigabytes of memory."""
+(``tileviz/testing/fuzzing.py``; the campaign is ``bench/fuzz.py``), and one regression test for
+each defect a campaign found. Every case ends in success or one line naming the file and the
+problem: never a traceback, a decoder's own message, a hang or gigabytes of memory."""
 
 from __future__ import annotations
 
@@ -16,8 +16,8 @@ import cv2
 import numpy as np
 import pytest
 
-from tests.fuzzing import READERS, Templates, campaign, describe, fix_png_crcs, png_bytes
 from tileviz.__main__ import main as tileviz_main
+from tileviz.testing.fuzzing import READERS, Templates, campaign, describe, fix_png_crcs, png_bytes
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -237,7 +237,7 @@ def test_a_results_file_of_another_kind_is_refused_unpickled(templates: Template
 
 def test_a_campaign_json_key_with_line_breaks_stays_one_line(
         templates: Templates, tmp_path: Path, capfd: pytest.CaptureFixture[str]) -> None:
-    from tests.fuzzing import _store_command
+    from tileviz.testing.fuzzing import _store_command
 
     store = tmp_path / "store"
     shutil.copytree(templates.store, store)

@@ -50,9 +50,10 @@ import zlib
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
-REPO = Path(__file__).resolve().parents[1]
+from tileviz.testing import REPO
+
 MEMORY_LIMIT_MB = 1024
 """Peak resident set a worker may reach (the issue's bound)."""
 HEADROOM_MB = 1536
@@ -409,7 +410,7 @@ def strategy(reader: str, templates: Templates) -> Any:
         return table()
     if reader in ("image", "extract"):
         @st.composite
-        def image(draw: Any) -> tuple[str, bytes]:
+        def image_case(draw: Any) -> tuple[str, bytes]:
             kind = draw(st.integers(0, 3))
             if kind == 0:  # a PNG header of any size and kind, little data
                 ct = draw(st.sampled_from([0, 2, 3, 4, 6, 1, 5, 7]))
@@ -442,12 +443,13 @@ def strategy(reader: str, templates: Templates) -> Any:
                 return name, data[:cut]
             flips = draw(st.lists(st.tuples(st.integers(0, len(data) - 1), st.integers(0, 7)),
                                   min_size=1, max_size=8))
-            buf = bytearray(data)
+            flipped = bytearray(data)
             for i, b in flips:
-                buf[i] ^= 1 << b
-            return name, fix_png_crcs(bytes(buf)) if draw(st.booleans()) else bytes(buf)
+                flipped[i] ^= 1 << b
+            return name, (fix_png_crcs(bytes(flipped)) if draw(st.booleans())
+                          else bytes(flipped))
 
-        return image()
+        return image_case()
     if reader == "bag":
         @st.composite
         def bag(draw: Any) -> tuple[str, bytes]:
@@ -738,9 +740,9 @@ class Worker:
 
     def __init__(self) -> None:
         self.proc = subprocess.Popen(
-            [sys.executable, "-c", "from tests.fuzzing import worker_main; worker_main()"],
-            cwd=REPO, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
-            env={**os.environ, "PYTHONPATH": str(REPO)})
+            [sys.executable, "-c", "from tileviz.testing.fuzzing import worker_main; "
+             "worker_main()"],
+            cwd=REPO, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
         self.ready = False
 
     def start_wait(self, timeout: float) -> None:
@@ -846,7 +848,11 @@ def campaign(readers: list[str], n: int, *, engines: tuple[str, ...] = ("hypothe
                     reader, _, _, v, d = jobs[j]
                     w.send((reader, v, d))
                     busy[slot] = (j, time.monotonic())
-            streams = {pool[s].proc.stdout: s for s in busy}
+            streams: dict[IO[bytes], int] = {}
+            for busy_slot in busy:
+                stream_of = pool[busy_slot].proc.stdout
+                assert stream_of is not None
+                streams[stream_of] = busy_slot
             ready, _, _ = select.select(list(streams), [], [], 1.0)
             for stream in ready:
                 slot = streams[stream]
