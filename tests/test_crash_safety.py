@@ -2,12 +2,12 @@
 moments and at the worst ones (between an image and its row, between two files of the set-up),
 and a disk that fills up, leave folders and files that read back up to their last whole frame.
 
-The writers are real processes forked from ``tests/crash_child.py`` (tileviz loaded once, so a
-kill costs milliseconds, not an interpreter start). Every folder a kill leaves is replayed: no
-error, every frame the writer said it wrote is there with its very image, and the reader says in
-one line that the dataset ended early. The same for ``replay --out/--mcap`` (the CSV whole up to
-its last row, the MCAP file read without its summary) and ``evaluate``'s run store (``--resume``
-after kills gives the campaign an uninterrupted run gives).
+The kills and their checks are :mod:`tileviz.testing.crash` (``bench/crash_kills.py`` makes as
+many as asked): every folder a kill leaves replays without an error, every frame the writer said
+it wrote is there with its very image, and the reader says in one line that the dataset ended
+early. The same for ``replay --out/--mcap`` (the CSV whole up to its last row, the MCAP file read
+without its summary) and ``evaluate``'s run store (``--resume`` after kills gives the campaign an
+uninterrupted run gives).
 """
 
 from __future__ import annotations
@@ -15,192 +15,59 @@ from __future__ import annotations
 import csv
 import json
 import os
-import queue
 import random
 import shutil
-import signal
 import subprocess
 import sys
-import threading
 import time
-from dataclasses import dataclass
+from collections.abc import Iterator
 from pathlib import Path
 
-import numpy as np
 import pytest
 
-from tests.crash_child import frame
 from tileviz.datasets import DatasetSource
+from tileviz.testing import REPO
+from tileviz.testing.crash import (
+    EVALUATE,
+    Rig,
+    check_folder,
+    data_rows,
+    kill_evaluate,
+    kill_record,
+    kill_replay,
+    kill_session,
+    kill_write,
+    replay_reference,
+    runs_table,
+)
+from tileviz.testing.crash_child import frame, meta
 
-REPO = Path(__file__).resolve().parents[1]
 KILLS = 60
 """Kills of the dataset writer (the issue asks for at least 50)."""
 
 
-@dataclass
-class Outcome:
-    wrote: int
-    """Frames the writer said it wrote before it died."""
-    finished: bool
-    """The job ran to its end (the kill came too late)."""
-    failed: str | None
-
-
-class Rig:
-    """The fork server of ``tests/crash_child.py`` and the line protocol to it."""
-
-    def __init__(self, warm: bool = False) -> None:
-        self.proc = subprocess.Popen(
-            [sys.executable, "-m", "tests.crash_child", *(["--warm"] if warm else [])],
-            cwd=REPO, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, bufsize=1,
-            env={**os.environ, "PYTHONPATH": str(REPO)})
-        self.lines: queue.Queue[str] = queue.Queue()
-        threading.Thread(target=self._read, daemon=True).start()
-        assert self._next(900) == "ready"
-
-    def _read(self) -> None:
-        assert self.proc.stdout is not None
-        for line in self.proc.stdout:
-            if line.startswith("@@ "):  # a protocol line, not what a job printed
-                self.lines.put(line[3:].rstrip("\n"))
-        self.lines.put("eof")
-
-    def _next(self, timeout: float) -> str:
-        line = self.lines.get(timeout=timeout)
-        assert line != "eof", "the fork server died"
-        return line
-
-    def run(self, *, kill_after: float | None = None, on_hook: bool = False,
-            kill_at: tuple[int, float] | None = None, timeout: float = 600,
-            **job: object) -> Outcome:
-        """Run one job; SIGKILL it ``kill_after`` seconds after it started, when it reaches its
-        pause point (``on_hook``), ``kill_at[1]`` seconds after it said it wrote ``kill_at[0]``
-        frames, or never; wait for it to end."""
-        assert self.proc.stdin is not None
-        self.proc.stdin.write(json.dumps(job) + "\n")
-        first = self._next(timeout)
-        assert first.startswith("pid "), first
-        pid = int(first.split()[1])
-        start = time.monotonic()
-        wrote, finished, failed = 0, False, None
-
-        def take(line: str) -> None:
-            nonlocal wrote, finished, failed
-            if line.startswith("wrote "):
-                wrote = int(line.split()[1])
-            elif line == "done":
-                finished = True
-            elif line.startswith("failed "):
-                failed = line
-
-        killing = kill_after is not None or on_hook or kill_at is not None
-        while killing:
-            left = (start + kill_after - time.monotonic()) if kill_after is not None else timeout
-            if left <= 0:
-                break
-            try:
-                line = self._next(left)
-            except queue.Empty:
-                break
-            if line == "hook" and on_hook:
-                break
-            take(line)
-            if finished or failed:
-                break
-            if kill_at is not None and wrote >= kill_at[0]:
-                time.sleep(kill_at[1])
-                break
-        if killing:
-            try:
-                os.kill(pid, signal.SIGKILL)
-            except ProcessLookupError:
-                pass
-        self.proc.stdin.write("reap\n")
-        while True:
-            line = self._next(timeout)
-            if line.startswith("status "):
-                break
-            take(line)
-        return Outcome(wrote, finished, failed)
-
-    def close(self) -> None:
-        if self.proc.stdin is not None:
-            self.proc.stdin.close()
-        self.proc.wait(timeout=60)
-
-
 @pytest.fixture(scope="module")
-def rig() -> Rig:
+def rig() -> Iterator[Rig]:
     r = Rig()
     yield r
     r.close()
 
 
 @pytest.fixture(scope="module")
-def warm_rig() -> Rig:
+def warm_rig() -> Iterator[Rig]:
     r = Rig(warm=True)
     yield r
     r.close()
 
 
-def _data_rows(path: Path) -> int:
-    if not path.is_file():
-        return 0
-    with open(path, newline="") as f:
-        return max(0, sum(1 for _ in csv.reader(f)) - 1)
-
-
-def _check_folder(folder: Path, out: Outcome, w: int, h: int) -> int:
-    """Replay a folder a killed write job left: returns its frame count (-1: killed before its
-    meta.json existed, which a folder without frames is allowed to be)."""
-    assert out.failed is None, out.failed
-    if not (folder / "meta.json").exists():
-        assert out.wrote == 0 and _data_rows(folder / "frames.csv") == 0
-        return -1
-    src = DatasetSource(folder)
-    frames = list(src)  # a bad row or image would raise here
-    n = len(frames)
-    # every frame the writer vouched for, and at most the one in flight beyond them
-    assert out.wrote <= n <= out.wrote + 1, (out, n)
-    for f in frames:
-        want = frame(f.index, w, h)
-        assert np.array_equal(f.image, want.image), f"frame {f.index}: not its image"
-        assert (f.t, f.compass, f.truth, f.faults) == (want.t, want.compass, want.truth,
-                                                      want.faults)
-    leftovers = [p.name for p in (folder / "images").iterdir() if p.name.endswith(".tmp")]
-    assert len(leftovers) <= 1  # at most the image being written when it died: never read
-    if out.finished:
-        assert src.ended_early is None
-    else:
-        assert src.ended_early is not None and f"it has {n} whole frame(s)" in src.ended_early
-    return n
-
-
 @pytest.mark.slow
 def test_a_writer_killed_anywhere_leaves_a_dataset_that_replays(rig: Rig, tmp_path: Path) -> None:
-    frames, w, h = 40, 48, 32
-    clean = rig.run(job="write", folder=str(tmp_path / "clean"), frames=frames, w=w, h=h)
-    assert clean.finished and _check_folder(tmp_path / "clean", clean, w, h) == frames
+    clean = rig.run(job="write", folder=str(tmp_path / "clean"), frames=40, w=48, h=32)
+    assert clean.finished and check_folder(tmp_path / "clean", clean, 48, 32) == 40
     rng = random.Random(33)
     hooks = ["image"] * 14 + ["row"] * 8 + ["setup"] * 4 + ["none"] * (KILLS - 26)
     for i, hook in enumerate(hooks):
-        folder = tmp_path / f"k{i}"
-        at = rng.randrange(frames)
-        if hook == "none":  # anywhere in the frame after frame `at` (a frame takes ~ms)
-            out = rig.run(job="write", folder=str(folder), frames=frames, w=w, h=h,
-                          kill_at=(at, rng.uniform(0.0, 0.004)))
-        else:
-            out = rig.run(job="write", folder=str(folder), frames=frames, w=w, h=h, hook=hook,
-                          at=at, on_hook=True)
-        n = _check_folder(folder, out, w, h)
-        if hook == "image":  # its image in place, its row not written: the frames before it
-            assert n == at
-        elif hook == "row":
-            assert n == at + 1
-        elif hook == "setup":
-            assert n == -1
-        else:
-            assert n >= at
+        kill_write(rig, tmp_path / f"k{i}", hook, rng)
 
 
 @pytest.mark.slow
@@ -208,24 +75,9 @@ def test_record_and_the_demos_record_button_killed_leave_datasets_that_replay(
         rig: Rig, tmp_path: Path) -> None:
     rng = random.Random(7)
     for i in range(3):
-        folder = tmp_path / f"rec{i}"
-        out = rig.run(job="cli", argv=["record", str(folder), "--duration", "20", "--quiet",
-                                       "--width", "64", "--height", "48"],
-                      kill_at=(rng.randrange(1, 60), rng.uniform(0.0, 0.01)))
-        assert not out.finished and out.failed is None
-        src = DatasetSource(folder)
-        n = len(list(src))
-        assert out.wrote <= n <= out.wrote + 1 and src.ended_early is not None
-        assert f"it has {n} whole frame(s)" in src.ended_early
+        assert kill_record(rig, tmp_path / f"rec{i}", rng) >= 1
     for i in range(3):
-        out_dir = tmp_path / f"live{i}"
-        out = rig.run(job="session", out_dir=str(out_dir), frames=400,
-                      kill_at=(rng.randrange(1, 40), rng.uniform(0.0, 0.02)))
-        assert not out.finished and out.failed is None
-        (folder,) = [p for p in out_dir.iterdir() if p.is_dir()]
-        src = DatasetSource(folder)
-        n = len(list(src))
-        assert out.wrote <= n <= out.wrote + 1 and src.ended_early is not None
+        assert kill_session(rig, tmp_path / f"live{i}", rng) >= 1
 
 
 # --- a full disk --------------------------------------------------------------------------------
@@ -315,8 +167,7 @@ cp -r {mnt}/ds {tmp_path}/ds
 echo $? > {tmp_path}/rep.code
 """
     subprocess.run(["unshare", "--user", "--map-root-user", "--mount", "sh", "-c", script],
-                   check=True, timeout=600, cwd=REPO,
-                   env={**os.environ, "PYTHONPATH": str(REPO)})
+                   check=True, timeout=600, cwd=REPO)
     rec_err = (tmp_path / "rec.err").read_text().strip().splitlines()
     assert (tmp_path / "rec.code").read_text().strip() == "2" and len(rec_err) == 1, rec_err
     assert "No space left on device" in rec_err[0]
@@ -325,40 +176,10 @@ echo $? > {tmp_path}/rep.code
     (line,) = (tmp_path / "rep.err").read_text().strip().splitlines()
     assert f"ended early: it has {kept} whole frame(s)" in line
     src = DatasetSource(tmp_path / "ds")
-    assert len(list(src)) == kept == _data_rows(tmp_path / "r.csv")
+    assert len(list(src)) == kept == data_rows(tmp_path / "r.csv")
 
 
 # --- replay --out / --mcap ----------------------------------------------------------------------
-
-
-def _mcap_frames(path: Path) -> list[dict]:
-    """The /status messages of an MCAP file read record by record, without its summary, up to
-    where it breaks (a killed writer's file); every frame read must have all its topics."""
-    from mcap.stream_reader import StreamReader
-
-    topics: dict[int, str] = {}
-    per_frame: dict[int, set[str]] = {}
-    status: list[dict] = []
-    with open(path, "rb") as f:
-        records = iter(StreamReader(f).records)
-        while True:
-            try:
-                rec = next(records)
-            except StopIteration:
-                break
-            except Exception:  # noqa: BLE001 - the cut
-                break
-            kind = type(rec).__name__
-            if kind == "Channel":
-                topics[rec.id] = rec.topic
-            elif kind == "Message":
-                per_frame.setdefault(rec.sequence, set()).add(topics[rec.channel_id])
-                if topics[rec.channel_id] == "/status":
-                    status.append(json.loads(rec.data))
-    whole = {"/camera/image", "/truth", "/set/prediction", "/set/contraction", "/status"}
-    assert all(per_frame[k] == whole for k in range(len(status))), per_frame
-    assert sorted(per_frame) == list(range(len(status)))  # no frame with only some topics
-    return status
 
 
 @pytest.fixture(scope="module")
@@ -374,44 +195,15 @@ def replay_dataset(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def test_a_killed_replay_leaves_its_csv_and_mcap_readable_to_the_last_row(
         warm_rig: Rig, replay_dataset: Path, tmp_path: Path) -> None:
     pytest.importorskip("mcap_protobuf", reason="the [ros] extra (pip install -e '.[ros]')")
-    clean = warm_rig.run(job="replay", dataset=str(replay_dataset), out=str(tmp_path / "c.csv"),
-                         mcap=str(tmp_path / "c.mcap"))
-    assert clean.finished, clean
-    with open(tmp_path / "c.csv", newline="") as f:
-        want = list(csv.reader(f))
-    want_status = _mcap_frames(tmp_path / "c.mcap")
-    assert len(want) == 42 and len(want_status) == 41
+    want = replay_reference(warm_rig, replay_dataset, tmp_path)
+    assert len(want[0]) == 42 and len(want[1]) == 41
     rng = random.Random(5)
     for i in range(12):
-        at = rng.randrange(41)
-        out = warm_rig.run(job="replay", dataset=str(replay_dataset),
-                           out=str(tmp_path / f"{i}.csv"), mcap=str(tmp_path / f"{i}.mcap"),
-                           kill_at=(at, rng.uniform(0.0, 0.03)))
-        assert out.failed is None
-        text = (tmp_path / f"{i}.csv").read_text() if (tmp_path / f"{i}.csv").exists() else ""
-        whole = text[: text.rfind("\n") + 1]  # a last line without its end: cut by the kill
-        rows = list(csv.reader(whole.splitlines()))
-        assert rows == want[: len(rows)]  # each whole row as the uninterrupted replay's
-        status = _mcap_frames(tmp_path / f"{i}.mcap") if (tmp_path / f"{i}.mcap").exists() else []
-        assert status == want_status[: len(status)]
-        # every frame the replay finished is in both; the MCAP file is at most one frame behind
-        # the CSV (its messages are written right after the row)
-        assert out.wrote <= len(status) <= len(rows) - 1 <= out.wrote + 1
+        kill_replay(warm_rig, replay_dataset, tmp_path / f"{i}.csv", tmp_path / f"{i}.mcap",
+                    want, rng)
 
 
 # --- evaluate's run store -----------------------------------------------------------------------
-
-
-EVALUATE = ["evaluate", "--runs", "4", "--duration", "1", "--scenarios", "clean", "--jobs", "1",
-            "--quiet"]
-
-
-def _runs_table(out: Path) -> list[list[str]]:
-    """runs.csv without the CPU time column (a time, not a result)."""
-    with open(out / "runs.csv", newline="") as f:
-        rows = list(csv.reader(f))
-    cpu = rows[0].index("cpu_us_per_frame")
-    return [r[:cpu] + r[cpu + 1:] for r in rows]
 
 
 @pytest.mark.slow
@@ -423,23 +215,21 @@ def test_evaluate_killed_again_and_again_resumes_to_the_uninterrupted_campaign(
     clean = warm_rig.run(job="cli", argv=[*EVALUATE, "--out", str(tmp_path / "clean")])
     span = time.monotonic() - start
     assert clean.finished, clean
-    want = _runs_table(tmp_path / "clean")
+    want = runs_table(tmp_path / "clean")
     rng = random.Random(11)
     out = tmp_path / "killed"
     for _ in range(6):
-        args = ["--resume", str(out)] if (out / "runs.csv").exists() else ["--out", str(out)]
-        warm_rig.run(job="cli", argv=[*EVALUATE, *args], kill_after=rng.uniform(0.1, 0.7) * span)
+        kill_evaluate(warm_rig, out, span, rng)
     args = ["--resume", str(out)] if (out / "runs.csv").exists() else ["--out", str(out)]
     last = warm_rig.run(job="cli", argv=[*EVALUATE, *args])
     assert last.finished, last
-    assert _runs_table(out) == want
+    assert runs_table(out) == want
 
 
 # --- what a reader makes of a dataset that ended early ------------------------------------------
 
 
 def _written(tmp_path: Path, frames: int = 5, close: bool = True) -> Path:
-    from tests.crash_child import meta
     from tileviz.datasets import DatasetWriter
 
     folder = tmp_path / "ds"
@@ -488,7 +278,7 @@ def test_a_last_row_cut_mid_row_is_left_out_and_said(tmp_path: Path, cut: int,
                          "--jobs", "1"])
     out, err = capsys.readouterr()
     assert code == 0 and err.splitlines() == [f"tileviz replay: {src.ended_early}"]
-    assert _data_rows(tmp_path / "r.csv") == 4
+    assert data_rows(tmp_path / "r.csv") == 4
 
 
 def test_another_programs_last_row_without_a_line_end_is_a_row(tmp_path: Path) -> None:
@@ -528,7 +318,6 @@ def test_a_cut_fault_label_line_is_not_read(tmp_path: Path) -> None:
 def test_a_writer_on_a_full_disk_takes_no_more_frames_and_leaves_complete_false(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     import tileviz.safefile
-    from tests.crash_child import meta
     from tileviz.datasets import DatasetWriter
 
     w = DatasetWriter(tmp_path / "ds", meta(48, 32))

@@ -1,7 +1,7 @@
-"""A fork server of writers to kill (``tests/test_crash_safety.py``): loads tileviz once, then
-forks one writer per job so that a test can SIGKILL dozens of real writer processes in seconds.
-
-Run as ``python -m tests.crash_child [--warm]`` (``--warm``: also load the vision kernels, for
+"""A fork server of writers to kill (:mod:`tileviz.testing.crash`, for
+``tests/test_crash_safety.py`` and ``bench/crash_kills.py``): loads tileviz once, then forks one
+writer per job so that a test can SIGKILL dozens of real writer processes in seconds. Run as
+``python -m tileviz.testing.crash_child [--warm]`` (``--warm``: also load the vision kernels, for
 replay jobs). Protocol, one line each way (the server's and the children's lines start with
 ``@@ ``; anything else on stdout is what a job printed):
 
@@ -23,6 +23,7 @@ import os
 import sys
 import time
 import traceback
+from collections.abc import Callable
 from dataclasses import replace
 from typing import Any
 
@@ -81,7 +82,7 @@ def job_write(folder: str, frames: int, w: int = 48, h: int = 32, hook: str = "n
         if hook == "row" and self.path.name == "frames.csv" and data.startswith(f"{at},".encode()):
             pause()
 
-    writer_module.write_atomic = atomic  # type: ignore[assignment]
+    writer_module.write_atomic = atomic
     LineLog.append = append  # type: ignore[method-assign]
     w_ = DatasetWriter(folder, meta(w, h))
     for k in range(frames):
@@ -140,7 +141,8 @@ def say_progress() -> None:
     DatasetWriter.write = write  # type: ignore[method-assign]
 
 
-JOBS = {"write": job_write, "cli": job_cli, "replay": job_replay, "session": job_session}
+JOBS: dict[str, Callable[..., None]] = {
+    "write": job_write, "cli": job_cli, "replay": job_replay, "session": job_session}
 
 
 def main() -> None:
