@@ -4,6 +4,7 @@ faults.csv, dataset images, extract's images, ROS bags (import-bag), evaluate --
     python bench/fuzz.py --cases 10000                       # every reader, 10 000 cases each
     python bench/fuzz.py --cases 2000 --reader image --reader extract
     python bench/fuzz.py --cases 5000 --reader frames --engine atheris
+    python bench/fuzz.py --cases 10000 --minutes 50   # what fits in 50 minutes
 
 Each case is one damaged or odd input file run through the command that reads it, in worker
 processes (``tileviz/testing/fuzzing.py`` describes the readers, the cases and the outcomes).
@@ -126,6 +127,9 @@ def main() -> int:
     ap.add_argument("--workers", type=int, default=2, help="worker processes (default 2)")
     ap.add_argument("--timeout", type=float, default=60.0,
                     help="seconds a case may take before it counts as a hang (default 60)")
+    ap.add_argument("--minutes", type=float, default=None,
+                    help="time budget: no case starts after it (the readers' cases run "
+                    "interleaved, so each stops at about the same count); default none")
     ap.add_argument("--save", default=None, metavar="DIR", help="write each finding's input here")
     ap.add_argument("--atheris-worker", default=None, help=argparse.SUPPRESS)
     ap.add_argument("--log", default=None, help=argparse.SUPPRESS)
@@ -149,14 +153,16 @@ def main() -> int:
         report = _atheris(readers, args.cases, args.seed, args.timeout)
     else:
         report = campaign(readers, args.cases, engines=engines, seed=args.seed,
-                          workers=args.workers, timeout=args.timeout,
+                          workers=args.workers, timeout=args.timeout, minutes=args.minutes,
                           progress=lambda s: print(s, file=sys.stderr, flush=True))
     print(f"command: {command}")
     print(f"{'reader':<13}" + "".join(f"{o:>10}" for o in ("cases", *OUTCOMES)))
     for reader, c in report.counts.items():
         print(f"{reader:<13}{sum(c.values()):>10}" + "".join(f"{c[o]:>10}" for o in OUTCOMES))
+    ran = sum(sum(c.values()) for c in report.counts.values())
     print(f"peak resident set of a worker: {report.peak_rss_mb:.0f} MB; slowest case "
-          f"{report.slowest_s:.1f} s; {report.seconds / 60:.1f} min in all")
+          f"{report.slowest_s:.1f} s; {report.seconds / 60:.1f} min in all ({ran} cases, "
+          f"{ran / report.seconds:.1f} cases/s, case making included)")
     for f in report.findings:
         print(describe(f))
     if args.save and report.findings:

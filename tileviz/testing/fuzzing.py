@@ -36,7 +36,9 @@ Each case runs in a worker process, its stdout and stderr captured at the file-d
 from __future__ import annotations
 
 import contextlib
+import itertools
 import json
+import math
 import os
 import pickle
 import random
@@ -339,8 +341,9 @@ def strategy(reader: str, templates: Templates) -> Any:
             if reader == "camera_model":
                 cm = d.get("camera_model")
                 if isinstance(cm, dict):
+                    # (a block the draws above made empty has no key to change)
                     for key in draw(st.lists(st.sampled_from(sorted(cm)), max_size=3,
-                                             unique=True)):
+                                             unique=True)) if cm else ():
                         cm[key] = draw(st.one_of(json_any, st.lists(
                             st.lists(json_leaf, min_size=3, max_size=3), min_size=3,
                             max_size=3)))
@@ -797,17 +800,24 @@ class Report:
 
 def campaign(readers: list[str], n: int, *, engines: tuple[str, ...] = ("hypothesis", "mutate"),
              seed: int = 0, workers: int = 2, timeout: float = 60.0,
-             progress: Callable[[str], None] | None = None) -> Report:
+             progress: Callable[[str], None] | None = None,
+             minutes: float | None = None) -> Report:
     """``n`` cases per reader (split between ``engines``), in ``workers`` processes, each case
-    given ``timeout`` seconds (then a hang: the worker is replaced)."""
+    given ``timeout`` seconds (then a hang: the worker is replaced). The readers' cases run
+    interleaved (each reader's k-th case before any reader's k+1-th), so that ``minutes`` (a
+    budget from the start, case making included: no case starts after it) stops every reader
+    at about the same count; the report counts the cases that ran. ``progress`` gets a line
+    every 200 cases and each finding as it is found."""
     import select
 
     start = time.monotonic()
     gen_root = Path(tempfile.mkdtemp(prefix="fuzz-gen-"))
     with _captured(gen_root):
         templates = Templates(gen_root)
-    jobs: list[tuple[str, str, int, str, bytes]] = []
+    deadline = start + 60.0 * minutes if minutes is not None else math.inf
+    per_reader: list[list[tuple[str, str, int, str, bytes]]] = []
     for reader in readers:
+        mine: list[tuple[str, str, int, str, bytes]] = []
         per = [n // len(engines) + (1 if i < n % len(engines) else 0)
                for i in range(len(engines))]
         for engine, k in zip(engines, per, strict=True):
@@ -815,7 +825,12 @@ def campaign(readers: list[str], n: int, *, engines: tuple[str, ...] = ("hypothe
                 reader, templates, k, seed)
             if engine == "hypothesis" and len(made) < k:  # the strategy ran dry: mutate more
                 made += mutation_cases(reader, templates, k - len(made), seed + 1)
-            jobs += [(reader, engine, i, v, d) for i, (v, d) in enumerate(made)]
+            mine += [(reader, engine, i, v, d) for i, (v, d) in enumerate(made)]
+        # the engines' cases alternate too
+        by_engine = [[j for j in mine if j[1] == e] for e in engines]
+        per_reader.append([j for group in itertools.zip_longest(*by_engine) for j in group
+                           if j is not None])
+    jobs = [j for group in itertools.zip_longest(*per_reader) for j in group if j is not None]
     counts = {r: dict.fromkeys(OUTCOMES, 0) for r in readers}
     findings: list[Finding] = []
     peak = 0.0
@@ -835,6 +850,8 @@ def campaign(readers: list[str], n: int, *, engines: tuple[str, ...] = ("hypothe
         slowest = max(slowest, res.seconds)
         if res.outcome in ("traceback", "hang", "memory"):
             findings.append(Finding(reader, engine, i, v, d, res))
+            if progress is not None:
+                progress(describe(findings[-1]))
         done += 1
         if progress is not None and (done % 200 == 0 or done == len(jobs)):
             progress(f"{done}/{len(jobs)} cases, {len(findings)} findings, "
@@ -842,6 +859,10 @@ def campaign(readers: list[str], n: int, *, engines: tuple[str, ...] = ("hypothe
 
     try:
         while todo or busy:
+            if todo and time.monotonic() > deadline:
+                todo.clear()  # out of time: the cases under way end, no new one starts
+                if progress is not None:
+                    progress(f"{done + len(busy)}/{len(jobs)} cases: the time budget is over")
             for slot, w in enumerate(pool):
                 if slot not in busy and todo:
                     j = todo.pop()
