@@ -4,15 +4,15 @@ errors.
     python bench/soak.py --minutes 60
     python bench/soak.py --minutes 5 --clients 4 --no-browser
 
-The server (:class:`tileviz.app.server.App`, the default preset at real time: 20 frames/s
-nominal, every stage image streamed) runs in this process. In another process ``--clients``
-websocket clients (``tests/wsclient.py``) each connect, wait for the whole scene, press buttons
-at random (Play/Pause, Step, Step back, Go live, Reset the run, Kidnap, Start/Stop recording,
-Export MCAP, Relocalize) and disconnect, again and again. In a third, one real headless chromium
-(Playwright, ``/usr/bin/chromium``) keeps the page open, clicks Step, Play/Pause and Go live and
-reloads the page now and then. The bench itself presses Play when the run has stayed paused for
-20 s (a client's Pause otherwise stops the loop for the rest of the soak) and deletes recordings
-older than 3 minutes (the disk would fill).
+The server (:class:`tileviz.app.server.App`, the default preset at real time: 20 frames/s nominal,
+every stage image streamed) runs in this process. In another process ``--clients`` websocket clients
+(``tileviz.testing.wsclient``) each connect, wait for the whole scene, press buttons at random
+(Play/Pause, Step, Step back, Go live, Reset the run, Kidnap, Start/Stop recording, Export MCAP,
+Relocalize) and disconnect, again and again. In a third, one real headless chromium (Playwright,
+``/usr/bin/chromium``) keeps the page open, clicks Step, Play/Pause and Go live and reloads the page
+now and then. The bench itself presses Play when the run has stayed paused for 20 s (a client's
+Pause otherwise stops the loop for the rest of the soak) and deletes recordings older than 3 minutes
+(the disk would fill).
 
 Every 10 s it samples the process's resident set size (VmRSS), the frames the loop advanced while
 playing and the seconds it played (to 0.1 s), the loop thread's CPU time and what went wrong;
@@ -24,7 +24,11 @@ second fifth and the last fifth of the run), and the errors:
 frames that failed, loop exceptions, failed recordings or exports, tracebacks printed by any
 thread, commands dropped, client and browser failures. Refusals of a button pressed at the wrong
 moment (Export MCAP with nothing recorded) are counted apart: they are the answer a user gets.
-``--json FILE`` writes the samples and the summary.
+``--json FILE`` writes the samples and the summary. ``--tracemalloc``: Python's allocations are
+traced from the end of the settling span (minute 5) on; the summary then lists the source lines
+whose live allocations grew most from half a span later (minute 7.5) to the end (a leak in Python
+code shows there; a resident set that grows while they do not is the C heaps'). Tracing slows the
+loop: its rate is then no figure.
 """
 
 from __future__ import annotations
@@ -43,16 +47,13 @@ import sys
 import tempfile
 import threading
 import time
+import tracemalloc
 from pathlib import Path
 from typing import Any
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
+from tileviz.testing.browser import ARGS as CHROMIUM_ARGS
+from tileviz.testing.browser import CHROMIUM
 
-CHROMIUM = "/usr/bin/chromium"
-CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--use-angle=swiftshader",
-                 "--enable-unsafe-swiftshader", "--disable-background-networking",
-                 "--disable-component-update", "--no-first-run"]
 BUTTONS = {  # label -> weight of a random press
     "Play|Pause": 6, "Step": 4, "Step back": 2, "Go live": 2, "Reset the run": 1,
     "Kidnap (teleport the robot)": 2, "Start recording|Stop recording": 2, "Export MCAP": 1,
@@ -65,7 +66,7 @@ REFUSALS = ("nothing to export", "already running", "already recording", "nothin
 
 # --------------------------------------------------------------------------- the clients' process
 async def _client(url: str, until: float, rng: random.Random, stats: dict[str, Any]) -> None:
-    from tests.wsclient import ViserClient
+    from tileviz.testing.wsclient import ViserClient
 
     while time.monotonic() < until:
         try:
@@ -265,7 +266,23 @@ def _clean_recordings(out_dir: Path, keep: set[Path], older_than: float) -> None
             continue
 
 
-def soak(minutes: float, clients: int, browser: bool, seed: int, json_out: str | None) -> int:
+def _traced_growth(before: tracemalloc.Snapshot, after: tracemalloc.Snapshot,
+                   top: int = 12) -> list[str]:
+    """The source lines whose live traced allocations grew most between the two snapshots."""
+    keep = [tracemalloc.Filter(False, tracemalloc.__file__)]
+    diff = after.filter_traces(keep).compare_to(before.filter_traces(keep), "lineno")
+    total = sum(d.size_diff for d in diff)
+    lines = [f"traced Python allocations: {total / 2**20:+.2f} MB from the first snapshot to "
+             f"the end over {len(diff)} source lines; the largest changes:"]
+    for d in sorted(diff, key=lambda d: -abs(d.size_diff))[:top]:
+        frame = d.traceback[0]
+        lines.append(f"  {d.size_diff / 2**10:+9.1f} kB {d.count_diff:+7d} blocks "
+                     f"(now {d.size / 2**10:9.1f} kB) {frame.filename}:{frame.lineno}")
+    return lines
+
+
+def soak(minutes: float, clients: int, browser: bool, seed: int, json_out: str | None,
+         trace: bool = False) -> int:
     from tileviz.app import commands as C
     from tileviz.app.server import App
     from tileviz.app.session import Session, SessionOptions
@@ -302,17 +319,16 @@ def soak(minutes: float, clients: int, browser: bool, seed: int, json_out: str |
     assert s is not None and app._thread is not None
     tid = app._thread.native_id
     assert tid is not None
-    env = dict(os.environ, PYTHONPATH=str(REPO))
     me = str(Path(__file__).resolve())
     procs = [_Lines(subprocess.Popen(
         [sys.executable, me, "--role", "clients", "--url", app.url, "--seconds", str(seconds),
          "--clients", str(clients), "--seed", str(seed)],
-        stdout=subprocess.PIPE, text=True, env=env))]
+        stdout=subprocess.PIPE, text=True))]
     if browser:
         procs.append(_Lines(subprocess.Popen(
             [sys.executable, me, "--role", "browser", "--url", app.url, "--seconds",
              str(seconds), "--seed", str(seed + 1000)],
-            stdout=subprocess.PIPE, text=True, env=env)))
+            stdout=subprocess.PIPE, text=True)))
     samples: list[dict[str, Any]] = []
     start = time.monotonic()
     playing_s = [0.0]
@@ -330,6 +346,9 @@ def soak(minutes: float, clients: int, browser: bool, seed: int, json_out: str |
     paused_since: float | None = None
     next_print = 60.0
     objects = len(gc.get_objects())
+    settle = 300.0 if seconds >= 900 else seconds / 5
+    snapshot: tracemalloc.Snapshot | None = None
+    traced: list[str] = []
     try:
         while (now := time.monotonic() - start) < seconds:
             time.sleep(10.0)
@@ -350,7 +369,12 @@ def soak(minutes: float, clients: int, browser: bool, seed: int, json_out: str |
             if len(samples) % 6 == 0:  # once a minute: the objects Python holds
                 objects = len(gc.get_objects())
             in_use, kept = _heap_mb()
-            sample = {
+            if trace and not tracemalloc.is_tracing() and snapshot is None and now >= settle:
+                tracemalloc.start(1)
+            if trace and snapshot is None and now >= settle + settle / 2:
+                # what lives from here on (what tracing saw allocated and still held is in it)
+                snapshot = tracemalloc.take_snapshot()
+            sample: dict[str, Any] = {
                 "t": now, "rss_mb": _rss_mb(), "advanced": advanced[0],
                 "playing_s": playing_s[0],
                 "loop_cpu_s": _thread_cpu_s(tid), "frames_failed": s.errors,
@@ -359,6 +383,8 @@ def soak(minutes: float, clients: int, browser: bool, seed: int, json_out: str |
                 "loop_alive": app.running, "heap_in_use_mb": in_use, "heap_free_mb": kept,
                 "python_objects": objects, "viser_messages": _viser_messages(app),
                 "threads": threading.active_count(),
+                "traced_mb": (tracemalloc.get_traced_memory()[0] / 2**20
+                              if tracemalloc.is_tracing() else None),
                 "clients": procs[0].last, "browser": procs[1].last if browser else {},
             }
             samples.append(sample)
@@ -380,6 +406,9 @@ def soak(minutes: float, clients: int, browser: bool, seed: int, json_out: str |
             if not app.running:
                 print("the loop thread stopped", flush=True)
                 break
+        if snapshot is not None:
+            traced = _traced_growth(snapshot, tracemalloc.take_snapshot())
+            tracemalloc.stop()
     finally:
         done.set()
         for p in procs:
@@ -387,11 +416,12 @@ def soak(minutes: float, clients: int, browser: bool, seed: int, json_out: str |
         app.stop()
         sys.stderr = tee.real
         shutil.rmtree(tmp, ignore_errors=True)
-    return _summary(samples, seconds, seen_notes, tee, procs, json_out)
+    return _summary(samples, seconds, seen_notes, tee, procs, json_out, traced)
 
 
 def _summary(samples: list[dict[str, Any]], seconds: float, seen_notes: dict[str, int],
-             tee: _Tee, procs: list[_Lines], json_out: str | None) -> int:
+             tee: _Tee, procs: list[_Lines], json_out: str | None,
+             traced: list[str]) -> int:
     if not samples:
         print("no samples")
         return 1
@@ -431,6 +461,7 @@ def _summary(samples: list[dict[str, Any]], seconds: float, seen_notes: dict[str
         lines.append(f"browser: {json.dumps(procs[1].last)}")
     for text, n in sorted(seen_notes.items(), key=lambda kv: -kv[1])[:12]:
         lines.append(f"  note x{n}: {text}")
+    lines += traced
     if tee.tracebacks:
         lines.append("last traceback: " + "".join(tee.last)[:2000])
     print("\n".join(lines), flush=True)
@@ -446,6 +477,9 @@ def main() -> int:
     ap.add_argument("--no-browser", action="store_true", help="no chromium")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--json", default=None, help="write the samples and the summary here")
+    ap.add_argument("--tracemalloc", action="store_true",
+                    help="trace Python's allocations after the settling span and list the "
+                    "source lines that grew (slows the loop)")
     ap.add_argument("--role", choices=("server", "clients", "browser"), default="server",
                     help=argparse.SUPPRESS)
     ap.add_argument("--url", help=argparse.SUPPRESS)
@@ -460,7 +494,8 @@ def main() -> int:
     if not args.no_browser and not Path(CHROMIUM).exists():
         print(f"soak: no chromium at {CHROMIUM} (apt-get install chromium, or --no-browser)")
         return 2
-    return soak(args.minutes, args.clients, not args.no_browser, args.seed, args.json)
+    return soak(args.minutes, args.clients, not args.no_browser, args.seed, args.json,
+                args.tracemalloc)
 
 
 if __name__ == "__main__":
