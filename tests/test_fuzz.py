@@ -172,7 +172,7 @@ def test_a_meta_json_nested_beyond_the_parsers_depth_is_one_line(
 
 
 @pytest.mark.parametrize(("key", "value", "needle"), [
-    ("image_width", 2**31, "image width must be an integer in [16, 8192]"),
+    ("image_width", 10_000, "image width must be an integer in [16, 8192], got 10000"),
     ("tile_size", 1e5, "a tile must span at most 100000 pixels (tile_size * ppm), got 10000000.0"),
 ])
 def test_a_meta_the_configuration_refuses_names_meta_json(
@@ -185,6 +185,32 @@ def test_a_meta_the_configuration_refuses_names_meta_json(
     assert code == 2 and len(err) == 1
     assert err[0].startswith(f"tileviz replay: error: {dataset / 'meta.json'}: ")
     assert needle in err[0]
+
+
+@pytest.mark.parametrize("size", [(1 << 31, 2), (40_000, 40_000)])
+def test_a_meta_json_view_too_large_to_rectify_is_one_line_before_any_table(
+        size: tuple[int, int], templates: Templates, tmp_path: Path,
+        capfd: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> None:
+    """A dataset with a camera_model whose meta.json claims a 2^31-pixel-wide view: refused in
+    one line naming meta.json and the size, and no rectification table is made (a campaign
+    found it allocating 16 GiB for one)."""
+    import tileviz.datasets.camera_model as camera_model
+
+    def refuse(*args: object, **kw: object) -> None:
+        raise AssertionError("a rectification table was made")
+
+    monkeypatch.setattr(camera_model, "rectified_floor_points", refuse)
+    ds = tmp_path / "ds"
+    shutil.copytree(templates.lens_dataset, ds)
+    meta = json.loads((ds / "meta.json").read_text())
+    assert meta["camera_model"] is not None
+    meta["image_width"], meta["image_height"] = size
+    (ds / "meta.json").write_text(json.dumps(meta))
+    code, err = _replay(ds, capfd)
+    assert code == 2 and len(err) == 1
+    assert err[0] == (f"tileviz replay: error: {ds / 'meta.json'}: image_width x image_height is "
+                      f"{size[0]}x{size[1]}, more than tileviz reads (at most 32768 a side and "
+                      "67108864 pixels in all)")
 
 
 def test_a_results_file_whose_length_field_is_huge_allocates_nothing(templates: Templates,

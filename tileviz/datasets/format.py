@@ -26,6 +26,7 @@ from typing import Any
 from tileviz.config import Config, Extractor, Mode
 from tileviz.core.constants import LIMIT, MAX_PPM, MAX_TILE_PX, MIN_TILE_PX
 from tileviz.datasets.camera_model import CameraModel, CameraModelError, Rectifier, view_margin
+from tileviz.datasets.images import MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE
 
 __all__ = [
     "FAULTS_FILE", "FORMAT", "FRAME_COLUMNS", "MAX_MAGNITUDE", "REQUIRED_COLUMNS",
@@ -193,6 +194,12 @@ class DatasetMeta:
         if frames is not None and (isinstance(frames, bool) or not isinstance(frames, int)
                                    or frames < 0):
             raise DatasetError(f"{where}: frames must be an integer >= 0, got {frames!r}")
+        width, height = integer("image_width"), integer("image_height")
+        if max(width, height) > MAX_IMAGE_SIDE or width * height > MAX_IMAGE_PIXELS:
+            # before anything is sized by them (the rectification's tables, the views)
+            raise DatasetError(f"{where}: image_width x image_height is {width}x{height}, more "
+                               f"than tileviz reads (at most {MAX_IMAGE_SIDE} a side and "
+                               f"{MAX_IMAGE_PIXELS} pixels in all)")
         try:
             camera_model = (CameraModel.from_json(d["camera_model"], where)
                             if d.get("camera_model") is not None else None)
@@ -202,8 +209,8 @@ class DatasetMeta:
             name=str(name),
             tile_size=number("tile_size", positive=True),
             ppm=number("ppm", positive=True),
-            image_width=integer("image_width"),
-            image_height=integer("image_height"),
+            image_width=width,
+            image_height=height,
             camera_offset=vector("camera_offset", 2),  # type: ignore[arg-type]
             dt=number("dt", positive=True),
             initial_pose=vector("initial_pose", 3),  # type: ignore[arg-type]
