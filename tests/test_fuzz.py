@@ -88,6 +88,13 @@ def _bad_idat_png() -> bytes:
     return fix_png_crcs(bad)
 
 
+def _idat_first_png() -> bytes:
+    """A PNG (every CRC right) whose first chunk is not IHDR: OpenCV's own log line says so."""
+    good = bytearray(png_bytes(64, 48))
+    good[12:16] = b"IDAT"
+    return fix_png_crcs(bytes(good))
+
+
 def _corrupt_jpeg() -> bytes:
     img = np.random.default_rng(0).integers(0, 255, (48, 64, 3), dtype=np.uint8)
     buf = bytearray(cv2.imencode(".jpg", img)[1].tobytes())
@@ -101,13 +108,14 @@ def _corrupt_jpeg() -> bytes:
     (png_bytes(64, 48, color_type=1), "libpng error: Invalid IHDR data"),
     (_bad_idat_png(), "libpng error"),
     (_corrupt_jpeg(), "Corrupt JPEG data"),
-], ids=["empty", "bad-header", "bad-data", "corrupt-jpeg"])
+    (_idat_first_png(), "(IHDR chunk shall be first. This data may be broken or malformed.)"),
+], ids=["empty", "bad-header", "bad-data", "corrupt-jpeg", "ihdr-not-first"])
 @pytest.mark.parametrize("reader", ["replay", "extract"])
 def test_what_the_image_decoders_say_is_the_reason_in_one_line(
         data: bytes, why: str, reader: str, dataset: Path,
         capfd: pytest.CaptureFixture[str]) -> None:
-    """libpng and libjpeg print their complaints on stderr (and libjpeg returns the damaged
-    pixels): tileviz refuses the image, the complaint inside its own one line."""
+    """libpng, libjpeg and OpenCV's codecs print their complaints on stderr (and libjpeg returns
+    the damaged pixels): tileviz refuses the image, the complaint inside its own one line."""
     if reader == "replay":
         (dataset / "images/000001.png").write_bytes(data)
         code, err = _replay(dataset, capfd)

@@ -97,8 +97,12 @@ _sink_fd: int | None = None
 _DECODER = re.compile(r"^(libpng (warning|error)|Corrupt JPEG|Premature end of JPEG|"
                       r"Invalid JPEG|Unsupported JPEG|Not a JPEG|Bogus |Huffman|Quantization|"
                       r"Invalid SOS|Unsupported marker|Warning: |JPEG|Inconsistent|"
-                      r"Improper call|Unknown APP|Sampling factors)")
-"""The lines libpng and libjpeg print (OpenCV's decoders let them reach stderr)."""
+                      r"Improper call|Unknown APP|Sampling factors|"
+                      r"\[\s*(ERROR|WARN)[^\]]*\]\s+global\s+grfmt_)")
+"""The lines libpng and libjpeg print (OpenCV's decoders let them reach stderr), and OpenCV's
+own log lines from its image codecs (``[ERROR:0@1.2] global grfmt_png.cpp:296 readHeader ...``)."""
+_CV_ERROR = re.compile(r"^\[\s*ERROR[^\]]*\]\s+global\s+grfmt_\S+\s+(\w+\s+)?")
+"""An OpenCV codec's error line, up to its message (the data is damaged)."""
 _DAMAGE = re.compile(r"^(libpng error|Corrupt JPEG|Premature end of JPEG|Invalid JPEG|"
                      r"Bogus |Huffman|Quantization|Invalid SOS|Unsupported marker)")
 """Those of them that mean the data is damaged (the others are warnings about harmless
@@ -144,7 +148,8 @@ def _imdecode(raw: bytes, flags: int, complaints: list[str] | None) -> np.ndarra
     say the data is damaged, their first such line then added to ``complaints``."""
     with decoder_messages() as said:
         image = cv2.imdecode(np.frombuffer(raw, np.uint8), flags)
-    damage = [line for line in said if _DAMAGE.match(line)]
+    damage = [_CV_ERROR.sub("", line) for line in said
+              if _DAMAGE.match(line) or _CV_ERROR.match(line)]
     if damage:
         if complaints is not None:
             complaints.append(damage[0])
