@@ -283,6 +283,50 @@ def test_a_campaign_json_key_with_line_breaks_stays_one_line(
     assert len(err) == 1 and "'a\\nb\\u2028c' was 1 there, now None" in err[0]
 
 
+def _drop_truth(res: object) -> None:
+    del res.truth  # type: ignore[attr-defined]
+
+
+def _rename_method(res: object) -> None:
+    res.methods["mcl-untuned2"] = res.methods.pop("mcl-untuned")  # type: ignore[attr-defined]
+
+
+def _short_status(res: object) -> None:
+    res.methods["mcl"].status = res.methods["mcl"].status[:-1]  # type: ignore[attr-defined]
+
+
+def _other_run(res: object) -> None:
+    res.run = 7  # type: ignore[attr-defined]
+
+
+@pytest.mark.parametrize(("damage", "said"), [
+    (_drop_truth, "truth is not an array of numbers"),
+    (_rename_method, "it has no results of the method(s) mcl-untuned"),
+    (_short_status, "method mcl: status has shape"),
+    (_other_run, "it holds the run ('clean', 7, 0), not ('clean', 0, 0)"),
+], ids=["missing-field", "missing-method", "wrong-shape", "other-run"])
+def test_a_results_file_that_unpickles_to_a_damaged_run_is_one_line(
+        damage: object, said: str, templates: Templates, tmp_path: Path,
+        capfd: pytest.CaptureFixture[str]) -> None:
+    """A results file damaged so that it still unpickles as a run (a field gone, a method
+    renamed, an array cut, another run's numbers): --resume refuses it in one line naming the
+    file, not with a traceback from the report's tables (found by bench/fuzz.py's store
+    reader)."""
+    import pickle
+
+    from tileviz.testing.fuzzing import _store_command
+
+    store = tmp_path / "store"
+    shutil.copytree(templates.store, store)
+    file = store / "runs/clean-r0-s0.pkl"
+    res = pickle.loads(file.read_bytes())
+    damage(res)  # type: ignore[operator]
+    file.write_bytes(pickle.dumps(res))
+    assert _store_command(store) == 2
+    err = capfd.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and str(file) in err[0] and said in err[0], err
+
+
 def test_a_faults_csv_that_is_not_csv_is_one_line(dataset: Path,
                                                   capfd: pytest.CaptureFixture[str]) -> None:
     (dataset / "faults.csv").write_text("index,faults\n1," + "s" * 200_000 + "\n")

@@ -30,10 +30,12 @@ from collections.abc import Collection, Mapping
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from tileviz import __version__
 from tileviz.datasets.format import csv_line
 from tileviz.evaluation.metrics import COLUMNS, metrics
-from tileviz.evaluation.simulate import METHODS, RunResult
+from tileviz.evaluation.simulate import METHODS, MethodTrace, RunResult
 from tileviz.safefile import LineLog, write_atomic
 
 __all__ = ["RUN_COLUMNS", "RunKey", "RunStore", "load_run", "run_key", "run_rows"]
@@ -239,7 +241,63 @@ def load_run(file: Path, key: RunKey) -> RunResult:
         raise ValueError(f"{where}: {_cut(f'{type(e).__name__}: {e}')}") from None
     if not isinstance(res, RunResult):
         raise ValueError(f"{where}: it holds a {type(res).__name__}, not a run's results")
+    problem = _run_problem(res, key)
+    if problem is not None:
+        raise ValueError(f"{where}: {problem}")
     return res
+
+
+_RUN_ARRAYS = {"t": 1, "truth": 3, "fault": 1, "in_bounds": 1, "accepted": 1}
+"""The per-frame arrays of a :class:`RunResult` and their columns (1: a vector)."""
+_TRACE_ARRAYS = {"lo": 3, "hi": 3, "centre": 3, "inside": 1, "status": 1, "boxes": 1,
+                 "alarm": 1, "d2": 1}
+"""The per-frame arrays of a :class:`MethodTrace` and their columns (1: a vector)."""
+
+
+def _array_problem(obj: object, name: str, columns: int, n: int | None) -> str | None:
+    v = getattr(obj, name, None)
+    if not isinstance(v, np.ndarray) or v.dtype.kind not in "biuf":
+        return f"{name} is not an array of numbers"
+    want = (n,) if columns == 1 else (n, columns)
+    if v.ndim != len(want) or (n is not None and v.shape != want) or (
+            columns != 1 and v.shape[1] != columns):
+        return f"{name} has shape {v.shape}, not (frames{'' if columns == 1 else f', {columns}'})"
+    return None
+
+
+def _run_problem(res: RunResult, key: RunKey) -> str | None:
+    """What makes an unpickled :class:`RunResult` unfit for the tables (a damaged or edited
+    file: a missing field, another run, arrays of another shape, a missing method), or None."""
+    ident = tuple(getattr(res, k, None) for k in ("scenario", "run", "seed"))
+    if ident != key:
+        return f"it holds the run {_short(ident)}, not {_short(key)}"
+    t = getattr(res, "t", None)
+    n = t.shape[0] if isinstance(t, np.ndarray) and t.ndim == 1 else None
+    for name, columns in _RUN_ARRAYS.items():
+        problem = _array_problem(res, name, columns, n)
+        if problem is not None:
+            return problem
+    vision_s = getattr(res, "vision_s", None)
+    if isinstance(vision_s, bool) or not isinstance(vision_s, int | float):
+        return "vision_s is not a number"
+    methods = getattr(res, "methods", None)
+    if not isinstance(methods, dict):
+        return "it has no methods"
+    missing = [m for m in METHODS if m not in methods]
+    if missing:
+        return f"it has no results of the method(s) {', '.join(missing)}"
+    for m in METHODS:
+        trace = methods[m]
+        if not isinstance(trace, MethodTrace):
+            return f"method {m}: not a method's results"
+        for name, columns in _TRACE_ARRAYS.items():
+            problem = _array_problem(trace, name, columns, n)
+            if problem is not None:
+                return f"method {m}: {problem}"
+        cpu = getattr(trace, "cpu_s", None)
+        if isinstance(cpu, bool) or not isinstance(cpu, int | float):
+            return f"method {m}: cpu_s is not a number"
+    return None
 
 
 def _file_name(key: RunKey) -> str:
