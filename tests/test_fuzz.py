@@ -221,6 +221,18 @@ def test_a_meta_json_view_too_large_to_rectify_is_one_line_before_any_table(
                       "67108864 pixels in all)")
 
 
+def test_a_stored_config_with_two_truth_inflations_is_not_a_traceback(
+        dataset: Path, capfd: pytest.CaptureFixture[str]) -> None:
+    """meta.json's tileviz_config with a truth_inflation of 2 values: the stored configuration is
+    refused like any other it cannot read (the replay takes the defaults), not a localizer error
+    that names no file (found by bench/fuzz.py's meta reader)."""
+    meta = json.loads((dataset / "meta.json").read_text())
+    meta["tileviz_config"]["localizer"]["truth_inflation"] = [0.3, 0.2]
+    (dataset / "meta.json").write_text(json.dumps(meta))
+    code, err = _replay(dataset, capfd)
+    assert code == 0 and err == [], err
+
+
 def test_a_results_file_whose_length_field_is_huge_allocates_nothing(templates: Templates,
                                                                       tmp_path: Path) -> None:
     """A results file of 16 bytes that says a 2 GiB bytearray follows: read in a process whose
@@ -299,12 +311,17 @@ def _other_run(res: object) -> None:
     res.run = 7  # type: ignore[attr-defined]
 
 
+def _huge_truth(res: object) -> None:
+    res.truth[0, 0] = 1e300  # type: ignore[attr-defined]
+
+
 @pytest.mark.parametrize(("damage", "said"), [
     (_drop_truth, "truth is not an array of numbers"),
     (_rename_method, "it has no results of the method(s) mcl-untuned"),
     (_short_status, "method mcl: status has shape"),
     (_other_run, "it holds the run ('clean', 7, 0), not ('clean', 0, 0)"),
-], ids=["missing-field", "missing-method", "wrong-shape", "other-run"])
+    (_huge_truth, "truth holds numbers beyond +-1e+09"),
+], ids=["missing-field", "missing-method", "wrong-shape", "other-run", "huge-number"])
 def test_a_results_file_that_unpickles_to_a_damaged_run_is_one_line(
         damage: object, said: str, templates: Templates, tmp_path: Path,
         capfd: pytest.CaptureFixture[str]) -> None:

@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 
 from tileviz import __version__
+from tileviz.core.constants import LIMIT
 from tileviz.datasets.format import csv_line
 from tileviz.evaluation.metrics import COLUMNS, metrics
 from tileviz.evaluation.simulate import METHODS, MethodTrace, RunResult
@@ -258,6 +259,8 @@ def _array_problem(obj: object, name: str, columns: int, n: int | None) -> str |
     v = getattr(obj, name, None)
     if not isinstance(v, np.ndarray) or v.dtype.kind not in "biuf":
         return f"{name} is not an array of numbers"
+    if v.dtype.kind == "f" and v.size and np.nanmax(np.abs(v), initial=0.0) > LIMIT:
+        return f"{name} holds numbers beyond +-{LIMIT:g}"
     want = (n,) if columns == 1 else (n, columns)
     if v.ndim != len(want) or (n is not None and v.shape != want) or (
             columns != 1 and v.shape[1] != columns):
