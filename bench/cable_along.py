@@ -58,7 +58,7 @@ def report(rows: list[dict], motion: bool = False) -> str:
         out.append(_row(f"{lo:g} .. {hi:g}", sel))
     out += ["", "| family | views | accepted | outside own bound | largest error / bound |",
             "|---|---|---|---|---|"]
-    for fam in floorgen.FAMILIES:
+    for fam in floorgen.ALL_FAMILIES:
         out.append(_row(fam, [r for r in rows if r["family"] == fam]))
     out.append(_row("all", rows))
     bad = [r for r in rows if r["accepted"] and not r["inside"]]
@@ -105,7 +105,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     machine = Machine()
     tasks = [(args.first_seed + i, fam) for i in range(args.views_per_family)
-             for fam in floorgen.FAMILIES]
+             for fam in floorgen.ALL_FAMILIES]
     task = _motion_task if args.motion else _task
     try:
         with ProcessPoolExecutor(args.jobs) if args.jobs > 1 else nullcontext() as pool:

@@ -45,8 +45,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from tileviz.config import CameraConfig, VisionConfig
+from tileviz.config import PERFECT_FLOOR, CameraConfig, FloorModel, VisionConfig
 from tileviz.pipeline.replay import replay
+from tileviz.testing.figures import Machine, write_block
 from tileviz.types import Pose
 from tileviz.vision import extract, observation_error, set_opencv_threads
 
@@ -177,8 +178,9 @@ def random_pose(floor: Floor, rng: np.random.Generator) -> tuple[float, float, f
 
 
 def stills(floor: Floor, n: int, scale: float, camera: str, seed0: int,
-           vision: VisionConfig) -> dict:
-    """``n`` random views extracted: counts accepted, outside their bound, refusal reasons."""
+           vision: VisionConfig, model: FloorModel = PERFECT_FLOOR) -> dict:
+    """``n`` random views extracted (the floor declared as ``model``): counts accepted,
+    outside their bound, refusal reasons."""
     ppm = floor.view_period_px * scale / floor.tile_size
     width, height = round(WIDTH * scale), round(HEIGHT * scale)
     cam = CameraConfig(ppm=ppm, width=width, height=height, offset=(0.0, 0.0))
@@ -197,10 +199,12 @@ def stills(floor: Floor, n: int, scale: float, camera: str, seed0: int,
             continue
         made += 1
         t0 = time.process_time()
-        res = extract(img, camera=cam, tile_size=floor.tile_size, vision=vision)
+        res = extract(img, camera=cam, tile_size=floor.tile_size, vision=vision, floor=model)
         ms.append((time.process_time() - t0) * 1e3)
         if not res.accepted:
-            reasons[res.reason] = reasons.get(res.reason, 0) + 1
+            ref = res.decision.refusal if res.decision is not None else None
+            key = ref.check if ref is not None else res.reason  # the check that refused it
+            reasons[key] = reasons.get(key, 0) + 1
             continue
         accepted += 1
         obs = res.observation
@@ -343,6 +347,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--split", choices=tuple(SPLITS), default="tuning")
     p.add_argument("--declare", choices=("none", "floor"), default="none")
     p.add_argument("--csv", type=Path, default=None, help="also write the table's rows here")
+    p.add_argument("--write-figures", action="store_true",
+                   help="write the table into docs/figures.md (block real_floors_CAMERA_xSCALE)")
     p.add_argument("--keep", type=Path, default=None, help="keep the drives' datasets here")
     args = p.parse_args(argv)
     set_opencv_threads()
@@ -363,12 +369,14 @@ def main(argv: list[str] | None = None) -> int:
           "drive inside | contracted | lost | median box cm |")
     print("| --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     rows = []
+    table: list[list[str]] = []
+    machine = Machine()
     for floor in floors:
         tol = floor.tolerance_m if args.declare == "floor" else 0.0
         kind = "checker" if (args.declare == "floor" and floor.grout == "edge") else "grout"
         vision = VisionConfig(extractor="robust")
-        vision = _declared(vision, kind, tol)
-        s = stills(floor, args.stills, args.scale, args.camera, seed0, vision)
+        s = stills(floor, args.stills, args.scale, args.camera, seed0, vision,
+                   FloorModel(kind, tol))
         d = (drive(floor, args.frames, args.scale, args.camera, seed0, args.declare, args.keep)
              if args.frames > 0 else {"frames": 0})
         top = ", ".join(f"{k} {v}" for k, v in sorted(s["reasons"].items(),
@@ -383,25 +391,26 @@ def main(argv: list[str] | None = None) -> int:
               f"{_pct(d.get('contracted', 0), n) if n else '—'} | "
               f"{d.get('lost', 0) if n else '—'} | "
               f"{d.get('box_cm', math.nan):.2f} |", flush=True)
+        table.append([floor.id, f"{s['accepted']} of {s['views']}", str(s["outside"]),
+                      _pct(d.get("inside", 0), d.get("vouched", 0)) if n else "-",
+                      _pct(d.get("contracted", 0), n) if n else "-",
+                      str(d.get("lost", 0)) if n else "-",
+                      f"{d['box_cm']:.2f}" if n and "box_cm" in d else "-"])
+    if args.write_figures:
+        write_block(f"real_floors_{args.camera}_x{args.scale:g}",
+                    f"Real floors ({args.camera} camera, x{args.scale:g} resolution)", table,
+                    machine=machine,
+                    header=("floor", "stills accepted", "accepted outside own bound",
+                            "drive: truth inside", "contracted", "lost", "median box (cm)"),
+                    note=f"Split {args.split}; floor declared: {args.declare} (kind, "
+                    "lattice_tolerance from floors.json's measured departure). The photographs "
+                    "are not in the repository (their sources: the floors' SOURCES.md).")
     if args.csv is not None:
         with open(args.csv, "w", newline="") as f:
             wr = csv.DictWriter(f, fieldnames=list(rows[0]))
             wr.writeheader()
             wr.writerows(rows)
     return 0
-
-
-def _declared(vision: VisionConfig, kind: str, tolerance: float) -> VisionConfig:
-    """``vision`` with the floor declared (kind, lattice tolerance in m), where the extractor
-    takes a declared floor; unchanged otherwise."""
-    if kind == "grout" and tolerance == 0.0:
-        return vision
-    from dataclasses import fields, replace
-
-    names = {f.name for f in fields(vision)}
-    if "floor_kind" in names and "lattice_tolerance" in names:
-        return replace(vision, floor_kind=kind, lattice_tolerance=tolerance)
-    return vision
 
 
 if __name__ == "__main__":

@@ -6,11 +6,11 @@
 ``save`` renders the views (the simulator's frames on the default and seed presets and on every
 floor style, and ``tileviz/testing/floorgen.py`` views of every family, clean and corrupted),
 extracts each with the robust extractor and writes the images and every output field to FILE (a
-pickle).
-``compare`` extracts the same images again and reports every view whose outputs differ in any
-field (observation, reason, segments, angles, bags, disambiguation, offsets, median, details,
-and the stage images of every tenth view), bit for bit. A refactor or a speed change that
-should not change decisions must report ``0 differ``.
+pickle). ``compare`` extracts the same images again and reports every view whose outputs differ in
+any field (``--decisions``: in the decision only, with the views newly accepted and refused)
+(observation, reason, segments, angles, bags, disambiguation, offsets, median, details, and the
+stage images of every tenth view), bit for bit. A refactor or a speed change that should not change
+decisions must report ``0 differ``.
 """
 
 from __future__ import annotations
@@ -99,6 +99,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("mode", choices=("save", "compare"))
     ap.add_argument("file", type=Path)
     ap.add_argument("--per-family", type=int, default=40)
+    ap.add_argument("--decisions", action="store_true",
+                    help="compare: only the decision (accepted, reason, observation), and count "
+                    "the views newly accepted and newly refused")
     args = ap.parse_args(argv)
     set_opencv_threads(1)
     if args.mode == "save":
@@ -110,16 +113,20 @@ def main(argv: list[str] | None = None) -> int:
         print(f"saved {len(vs)} views ({acc} accepted) to {args.file}")
         return 0
     vs = pickle.loads(args.file.read_bytes())
-    bad = 0
+    bad = gained = lost = 0
     for i, v in enumerate(vs):
-        now = outputs(v, i % 10 == 0)
-        diff = [k for k in v["out"] if not same(v["out"][k], now[k])]
+        now = outputs(v, not args.decisions and i % 10 == 0)
+        keys = ("accepted", "reason", "observation") if args.decisions else v["out"]
+        diff = [k for k in keys if not same(v["out"][k], now[k])]
+        gained += bool(now["accepted"] and not v["out"]["accepted"])
+        lost += bool(v["out"]["accepted"] and not now["accepted"])
         if diff:
             bad += 1
             if bad <= 20:
                 print(f"view {i} ({v['name']}): differs in {', '.join(diff)}"
                       f" (was {v['out']['reason']}, now {now['reason']})")
-    print(f"{len(vs)} views, {bad} differ")
+    print(f"{len(vs)} views, {bad} differ" + (f" ({gained} newly accepted, {lost} newly "
+                                               "refused)" if args.decisions else ""))
     return 1 if bad else 0
 
 

@@ -7,7 +7,9 @@
 
 Floors come from ``tileviz/testing/floorgen.py`` (its own renderer, no code shared with
 ``tileviz.sim.camera``): nine families (plain, light grout, wide grout, strong shade steps, real
-photographs on the tiles, terrazzo, wood grain, degraded optics, thin grout at a coarse ppm), a
+photographs on the tiles, terrazzo, wood grain, degraded optics, thin grout at a coarse ppm) and
+four declared floors (checkerboard, hand-laid tiles, mosaic panels, faint coloured grout: each
+view extracted with its floor declared, ``floorgen.FloorSpec.model``), a
 new random floor and camera for every view, the camera centre and heading uniform. Corrupted
 views add one of a cable, a box edge, a shadow edge, glare or motion blur.
 
@@ -22,8 +24,9 @@ once, then its refusals were read: no longer held out); ``--split fresh4`` seeds
 7 * 10**6 (reported once, then its refusals were read: no longer held out); ``--split fresh6``
 seeds from 8 * 10**6 (reported once, then its refusals were read: no longer held out);
 ``--split fresh7`` seeds from 9 * 10**6 (reported once, then its false accept was read: no
-longer held out); ``--split fresh8`` seeds from 10**7, kept unseen while tuning, for the study
-that reports them.
+longer held out); ``--split fresh8`` seeds from 10**7 (reported once); ``--split fresh9`` seeds
+from 11 * 10**6, kept unseen while the declared floors (checker, hand-laid, mosaic, faint colour)
+were built, for the study that reports them.
 
 For each family: the share of readable clean views accepted (``readable``: each line family
 crosses the view over at least 0.75 x its smaller side, ``floorgen.readable``), the error of the
@@ -50,7 +53,7 @@ from tileviz.testing.views import study_view
 
 SPLITS = {"tuning": 0, "heldout": 10**6, "fresh": 3 * 10**6, "fresh2": 4 * 10**6,
           "fresh3": 5 * 10**6, "fresh4": 6 * 10**6, "fresh5": 7 * 10**6,
-          "fresh6": 8 * 10**6, "fresh7": 9 * 10**6, "fresh8": 10**7}
+          "fresh6": 8 * 10**6, "fresh7": 9 * 10**6, "fresh8": 10**7, "fresh9": 11 * 10**6}
 """First seed of each split."""
 
 
@@ -64,7 +67,7 @@ def tasks(split: str, per_family: int, corrupted: int) -> list[tuple[int, str, s
     base = SPLITS[split]
     out: list[tuple[int, str, str | None]] = []
     for i in range(max(per_family, corrupted)):
-        for fam in floorgen.FAMILIES:
+        for fam in floorgen.ALL_FAMILIES:
             if i < per_family:
                 out.append((base + i, fam, None))
             if i < corrupted:
@@ -186,7 +189,7 @@ def main(argv: list[str] | None = None) -> int:
                          "box, shadow, glare, motion blur): 5 or more to see each")
     ap.add_argument("--split", choices=tuple(SPLITS), default="fresh2")
     ap.add_argument("--jobs", type=int, default=1)
-    ap.add_argument("--families", default=",".join(floorgen.FAMILIES))
+    ap.add_argument("--families", default=",".join(floorgen.ALL_FAMILIES))
     ap.add_argument("--csv", default=None,
                     help="write every view's outcome here, as it comes (an interrupted study "
                          "keeps what it measured)")

@@ -37,7 +37,7 @@ def test_the_stages_panel_shows_why_the_frame_on_screen_was_refused(gui, tmp_pat
     panel's table names the check that refused the frame on screen, with the value measured
     and the limit, in bold; a sharp camera's frame shows every check passed."""
     panels = ImagePanels(gui)
-    s = _session(tmp_path / "blurred", 4.0)
+    s = _session(tmp_path / "blurred", 9.0)
     try:
         s.apply(C.Step())
         entry = s.shown_entry()

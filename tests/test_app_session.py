@@ -430,15 +430,16 @@ class _FakeImage:
 
 
 class _FakeMarkdown:
-    content = ""
+    def __init__(self, visible: bool = True) -> None:
+        self.content, self.visible = "", visible
 
 
 class _FakeGui:
     def add_image(self, blank, *, label="", format="jpeg", jpeg_quality=90, visible=True):
         return _FakeImage(label, visible)
 
-    def add_markdown(self, text):
-        return _FakeMarkdown()
+    def add_markdown(self, text, *, visible=True):
+        return _FakeMarkdown(visible)
 
 
 def test_a_stage_that_found_nothing_is_captioned_none_found(cfg, tmp_path):

@@ -127,6 +127,9 @@ def test_replay_options_out_of_range(args: list[str], needle: str, recorded: Pat
         (["--dataset", "{bad_meta}"], "meta.json: format must be 'tileviz-dataset/1'"),
         (["--dataset", "{recorded}", "--tile-size", "0.5"],
          "--tile-size cannot be used with --dataset"),
+        (["--dataset", "{recorded}", "--lattice-tolerance", "0.002"],
+         "--lattice-tolerance cannot be used with --dataset"),
+        (["--lattice-tolerance", "-0.002"], "--lattice-tolerance must be a finite number >= 0"),
         (["--dataset", "{recorded}", "--mode", "psychic"], "invalid choice: 'psychic'"),
     ],
 )

@@ -12,27 +12,54 @@ import pytest
 from tileviz.app import commands as C
 from tileviz.app.session import Session
 from tileviz.cli import main
-from tileviz.config import FLOOR_STYLES, floor_style, preset, with_floor_style
+from tileviz.config import FLOOR_STYLES, PERFECT_FLOOR, floor_style, preset, with_floor_style
 from tileviz.sim.camera import FloorRenderer
 from tileviz.types import Pose
 from tileviz.vision import extract, observation_error
 
 
-@pytest.mark.parametrize("name", list(FLOOR_STYLES))
+@pytest.mark.parametrize("name", [n for n in FLOOR_STYLES if n != "mosaic"])
 def test_every_floor_style_is_read_within_the_declared_bound(name: str) -> None:
+    """Each style, its floor declared as the style makes it (kind, lattice tolerance); the
+    mosaic (read in a minority of its views: its seams are wider than its grout) is in
+    tests/test_floor_model.py."""
     cfg = with_floor_style(preset("default"), name)
     r = FloorRenderer(cfg.floor, cfg.camera)
     rng = np.random.default_rng(11)
     accepted = 0
     for _ in range(6):
         pose = Pose(*rng.uniform(-9, 9, 2), rng.uniform(-4, 4))
-        res = extract(r.render(pose, rng), camera=cfg.camera, tile_size=1.0, vision=cfg.vision)
+        res = extract(r.render(pose, rng), camera=cfg.camera, tile_size=1.0, vision=cfg.vision,
+                      floor=cfg.floor.model)
         if res.accepted:
             accepted += 1
             e = observation_error(res.observation, pose, 1.0, cfg.camera.offset)
             assert max(abs(e[0]), abs(e[1])) <= res.observation.position_error
             assert abs(e[2]) <= res.observation.heading_error
     assert accepted >= 3, name
+
+
+def test_a_checkerboard_is_read_when_declared() -> None:
+    """Light and dark tiles edge to edge, no grout: declared ``checker``, read from the edge
+    image within the bound; undeclared, refused (never read off its bound)."""
+    cfg = with_floor_style(preset("default"), "checker")
+    r = FloorRenderer(cfg.floor, cfg.camera)
+    rng = np.random.default_rng(5)
+    for model in (cfg.floor.model, PERFECT_FLOOR):
+        accepted = 0
+        for _ in range(6):
+            pose = Pose(*rng.uniform(-9, 9, 2), rng.uniform(-4, 4))
+            res = extract(r.render(pose, rng), camera=cfg.camera, tile_size=1.0,
+                          vision=cfg.vision, floor=model)
+            if res.accepted:
+                accepted += 1
+                e = observation_error(res.observation, pose, 1.0, cfg.camera.offset)
+                assert max(abs(e[0]), abs(e[1])) <= res.observation.position_error
+                assert abs(e[2]) <= res.observation.heading_error
+        if model.kind == "checker":
+            assert accepted >= 5
+        else:
+            assert accepted <= 1
 
 
 def test_styles_change_what_the_camera_sees() -> None:

@@ -30,6 +30,36 @@ def test_each_floor_family_is_read_within_its_declared_bound(family: str) -> Non
     assert len(accepted) == len(readable), rows
 
 
+def test_a_channel_that_is_the_luma_again_is_not_read_a_second_time() -> None:
+    """``bench/cable_along.py``'s seed 22 terrazzo view: a dark cable 7.8 px off a grout line;
+    the luma is refused (one family), and its red channel, the same gray pixels under the
+    floor's tint, was read with the cable as the line (7.8 px off a bound of 0.96 px). A
+    projection as correlated with the luma as that is not read."""
+    r = cable_view(22, "terrazzo")
+    assert r["inside"], r
+
+
+def test_a_motion_blurred_grout_floor_is_not_read_from_its_edge_image() -> None:
+    """Tuning seed 4's corrupted degraded view (motion blur): its luma is refused (one
+    family); its edge image, where the blur moved each grout band's ridge toward one edge, was
+    read 6.6 px off against a bound of 1.9 px. The edge image is read on a declared
+    checkerboard only."""
+    r = study_view(4, "degraded", "motion_blur")
+    assert r["inside"], r
+
+
+@pytest.mark.parametrize("family", floorgen.DECLARED_FAMILIES)
+def test_each_declared_floor_family_is_read_within_its_bound(family: str) -> None:
+    """Checkerboards, hand-laid tiles, mosaic panels and faint coloured grout, each declared as
+    its meta.json would (kind, lattice tolerance): no accepted view outside its bound of the
+    ideal lattice, and most readable views accepted."""
+    rows = [study_view(seed, family, None) for seed in SEEDS]
+    for r in rows:
+        assert r["inside"], r
+    readable = [r for r in rows if r["readable"]]
+    assert sum(r["accepted"] for r in readable) >= len(readable) - 1 >= 3, rows
+
+
 @pytest.mark.parametrize(
     ("family", "seed", "why"),
     [
@@ -434,14 +464,15 @@ def test_a_cable_along_the_grout_off_the_tile_period_is_refused(seed: int, bag: 
         (2063, "wood", True, "a dark cable touching the grout, which is a shoulder below half "
                              "the cable's depth in every part"),
         (2091, "degraded", True, "the same under blur and noise"),
-        (7, "wide_grout", False, "a cable overlapping an 18 px band widens it by 5 px on one "
-                                 "side"),
+        (7, "wide_grout", None, "a cable overlapping an 18 px band widens it by 5 px on one "
+                                "side (read within the bound, or refused: the noise-relative "
+                                "depth lets the cable's shallower edge through as a dip)"),
         (33, "terrazzo", False, "a 3 px cable touching a 6 px grout line widens it to 10 px"),
         (37, "plain", False, "a 6 px cable 1 px off a 6 px grout line widens it by 1 px"),
     ],
 )
 def test_a_cable_along_a_grout_line_is_refused_or_read_within_its_bound(
-        seed: int, family: str, refused: bool, why: str) -> None:
+        seed: int, family: str, refused: bool | None, why: str) -> None:
     """``bench/cable_along.py``'s views that were accepted outside their bound: a cable
     beside the grout (a second band in the window of its family's one line, a line off the
     lattice spacing, or a shoulder on one side of it) is refused; a cable lying on the grout
@@ -451,7 +482,7 @@ def test_a_cable_along_a_grout_line_is_refused_or_read_within_its_bound(
     assert r["inside"], (why, r)
     if refused:
         assert not r["accepted"], (why, r)
-    else:
+    elif refused is not None:
         assert r["accepted"], (why, r)
 
 

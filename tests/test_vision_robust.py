@@ -198,11 +198,14 @@ def test_a_wrong_tile_size_is_refused() -> None:
 
 
 def test_low_contrast_and_single_family_views_are_refused() -> None:
+    """Grout 8 levels off the tiles under noise of 3 levels: its dips pass the noise-relative
+    depth, but not as one lattice's grout (refused); one family of lines: refused."""
     cam = CFG.camera
     faint = replace(CFG.floor, grout_rgb=(205, 198, 184))
     res = extract(FloorRenderer(faint, cam).render(VIEW, np.random.default_rng(0)),
                   camera=cam, tile_size=1.0, vision=ROBUST)
-    assert not res.accepted and res.reason in {"low contrast", "no lines"}
+    assert not res.accepted
+    assert res.reason in {"low contrast", "no lines", "one family", "foreign line"}
     img = np.full((cam.height, cam.width, 3), 200, np.uint8)
     for r in (40, 140):
         cv2.line(img, (0, r), (cam.width - 1, r), (70, 70, 70), 3, cv2.LINE_AA)

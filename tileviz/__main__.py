@@ -1,5 +1,5 @@
-"""``python -m tileviz COMMAND ...``: serve, record, replay, extract, evaluate, calibrate,
-import-bag, sample-data."""
+"""``python -m tileviz COMMAND ...``: serve, record, replay, extract, survey, evaluate,
+calibrate, import-bag, export-html, figure, ros, ros-sim, ros-controller, sample-data."""
 
 from __future__ import annotations
 
@@ -11,10 +11,20 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "record": ("tileviz.cli", "simulate a run and write a tileviz-dataset/1 folder"),
     "replay": ("tileviz.cli", "replay a dataset through vision and the localizer"),
     "extract": ("tileviz.vision.cli", "extract tile parameters from images"),
+    "survey": ("tileviz.vision.survey", "measure how far a floor's lines depart from the ideal "
+               "lattice (the floor block's lattice_tolerance)"),
     "evaluate": ("tileviz.evaluation.cli", "evaluate the localizer and baselines over many runs"),
     "calibrate": ("tileviz.datasets.calibrate", "calibrate a real camera from checkerboard "
                   "images (meta.json's camera_model)"),
     "import-bag": ("tileviz.datasets.bag_import", "import a ROS 1 or ROS 2 bag as a dataset"),
+    "export-html": ("tileviz.share.cli", "a run as one web page that plays offline (or a folder "
+                    "for static hosting)"),
+    "figure": ("tileviz.share.cli", "a run's top-down figure (png, pdf, svg) or movie (mp4, "
+               "gif)"),
+    "ros": ("tileviz.ros.node", "the live localizer as a ROS 1 node (docs/ros.md)"),
+    "ros-sim": ("tileviz.ros.sim_node", "the simulator as a ROS 1 robot (camera, odometry, IMU, "
+                "/truth)"),
+    "ros-controller": ("tileviz.ros.sim_node", "the demo's PD controller as a ROS 1 node"),
     "sample-data": ("tileviz.datasets.sample", "write sample checkerboard images and a small "
                     "ROS bag to try calibrate and import-bag on"),
 }

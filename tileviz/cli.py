@@ -15,6 +15,7 @@ from tileviz.cliutil import (
     CliError,
     Parser,
     add_fault_options,
+    add_floor_options,
     config_from_args,
     float_in,
     int_in,
@@ -89,6 +90,7 @@ def record_parser() -> Parser:
     p.add_argument("--floor-style", choices=tuple(FLOOR_STYLES), default="default",
                    help="the floor's look: light grout, wide grout, a photograph on the tiles, "
                    "uneven lighting (default: the preset's floor)")
+    add_floor_options(p)
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     return p
 

@@ -105,6 +105,22 @@ def add_fault_options(p: argparse.ArgumentParser, *, relocalize: bool = True,
                        "write --relocalize-region=-1,-1,2,2 when X0 is negative")
 
 
+def add_floor_options(p: argparse.ArgumentParser) -> None:
+    """Add ``--floor-kind grout|checker`` and ``--lattice-tolerance METRES`` to ``p``: what is
+    declared of the floor (``docs/dataset-format.md``, "floor"; applied by
+    :func:`config_from_args` after the floor style)."""
+    from tileviz.config import FLOOR_KINDS
+
+    p.add_argument("--floor-kind", choices=FLOOR_KINDS, default=None,
+                   help="grout: tiles separated by grout lines; checker: tiles of alternating "
+                   "shades edge to edge, no grout (default: the floor style's, else grout)")
+    p.add_argument("--lattice-tolerance", type=nonneg_float("--lattice-tolerance"), default=None,
+                   metavar="METRES",
+                   help="how far the floor's grout lines (tile edges) may lie off the ideal "
+                   "lattice (hand-laid tiles, wandering grout): the view bound includes it; "
+                   "python -m tileviz survey measures it (default: the floor style's, else 0)")
+
+
 def region(name: str) -> Callable[[str], tuple[float, float, float, float]]:
     """argparse type: ``X0,Y0,X1,Y1`` (metres), four finite floats with x0 <= x1 and y0 <= y1:
     a re-localization region (``Localizer.relocalize``)."""
@@ -258,7 +274,8 @@ def config_from_args(args: argparse.Namespace, *, floor_seed: bool = True) -> Co
     ``ppm``, ``width``, ``height`` (pixels), ``speed_error``, ``yaw_rate_error``,
     ``compass_error``, ``dt``, ``setpoint``, ``seed`` (the simulator's; with ``floor_seed`` the
     floor's appearance seed becomes ``seed + 1``, as ``record`` does), ``floor_style``
-    (:func:`tileviz.config.with_floor_style`), ``extractor`` and ``mode``. The
+    (:func:`tileviz.config.with_floor_style`), then ``floor_kind`` and ``lattice_tolerance``
+    (metres, :func:`add_floor_options`), ``extractor`` and ``mode``. The
     configuration validates itself: a bad value raises ValueError naming it."""
     from tileviz.config import preset, with_floor_style
 
@@ -276,6 +293,10 @@ def config_from_args(args: argparse.Namespace, *, floor_seed: bool = True) -> Co
     out = replace(cfg, floor=floor, camera=camera, noise=noise, sim=sim)
     if a.get("floor_style", "default") != "default":
         out = with_floor_style(out, a["floor_style"])
+    declared = {k: a[k] for k in ("floor_kind", "lattice_tolerance") if k in a}
+    if declared:
+        out = replace(out, floor=replace(out.floor, **{
+            "kind" if k == "floor_kind" else k: v for k, v in declared.items()}))
     if "extractor" in a:
         out = replace(out, vision=replace(out.vision, extractor=a["extractor"]))
     if "mode" in a:

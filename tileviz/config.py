@@ -23,6 +23,10 @@ Setpoint = Literal["lissajous", "manual", "waypoints"]
 EXTRACTORS: tuple[Extractor, ...] = get_args(Extractor)
 MODES: tuple[Mode, ...] = get_args(Mode)
 SETPOINTS: tuple[Setpoint, ...] = get_args(Setpoint)
+FloorKind = Literal["grout", "checker"]
+"""What draws a floor's lattice (``docs/dataset-format.md``, "floor"): ``grout`` lines between the
+tiles, or the edges between tiles of alternating shades (``checker``, no grout)."""
+FLOOR_KINDS: tuple[FloorKind, ...] = get_args(FloorKind)
 SURFACES = ("procedural", "photo")
 """Tile surfaces of a simulated floor (:attr:`FloorConfig.surface`)."""
 TILE_SIZE_RANGE = (0.05, 5.0)
@@ -60,6 +64,31 @@ def _check_nonneg(name: str, value: float) -> None:
         raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
 
 
+@dataclass(frozen=True)
+class FloorModel:
+    """What is declared of a real floor's regularity (``docs/dataset-format.md``, "floor"):
+    ``kind`` (:data:`FLOOR_KINDS`) and ``lattice_tolerance``, metres (>= 0): every grout line
+    centre, or tile edge for ``checker``, lies within it of the ideal lattice. The default is a
+    perfect grout lattice. ValueError naming the field on a bad value."""
+
+    kind: FloorKind = "grout"
+    lattice_tolerance: float = 0.0
+
+    def __post_init__(self) -> None:
+        if self.kind not in FLOOR_KINDS:
+            raise ValueError(f"floor kind must be one of {', '.join(FLOOR_KINDS)}, got "
+                             f"{self.kind!r}")
+        if (isinstance(self.lattice_tolerance, bool)
+                or not isinstance(self.lattice_tolerance, int | float)
+                or not math.isfinite(self.lattice_tolerance) or self.lattice_tolerance < 0):
+            raise ValueError(f"lattice_tolerance must be a finite number >= 0 (metres), got "
+                             f"{self.lattice_tolerance!r}")
+
+
+PERFECT_FLOOR = FloorModel()
+"""A perfect grout lattice (what a dataset without a ``floor`` block declares)."""
+
+
 MAX_GROUT_FRACTION = 1.0 / 8.0
 """When a floor is given another tile size, its grout is at most this fraction of the tile."""
 
@@ -88,6 +117,29 @@ class FloorConfig:
     light_gradient: float = 0.0
     """Uneven lighting: relative brightness change from one side of the camera view to the
     other (a lamp off to one side of the camera), 0 = even."""
+    kind: FloorKind = "grout"
+    """``grout``: tiles separated by grout lines; ``checker``: tiles of ``tile_rgb`` and
+    ``tile2_rgb`` alternating edge to edge, no grout (the lattice is the edges between them)."""
+    lattice_tolerance: float = 0.0
+    """Metres: every grout line centre (tile edge, for ``checker``) lies within this of the
+    ideal lattice x = kL, y = kL (``docs/dataset-format.md``, "floor"): what a dataset declares,
+    and how far the simulator lays its tiles (or panels) off the lattice: each is offset by a
+    random amount up to this in x and in y (a hand-laid floor). 0: a perfect lattice."""
+    tile2_rgb: tuple[int, int, int] = (60, 58, 56)
+    """``checker`` only: the colour of every other tile."""
+    panel_tiles: int = 0
+    """A mosaic: tiles of ``tile_size`` grouped in panels of this many by this many, the panels
+    separated by seams (``seam_width``, ``seam_rgb``) and laid off the lattice by up to
+    ``lattice_tolerance`` as whole panels; 0: no panels."""
+    seam_width: float = 0.0
+    """Width of the seams between panels, metres (``panel_tiles`` > 0)."""
+    seam_rgb: tuple[int, int, int] = (60, 56, 52)
+    """Colour of the seams between panels."""
+
+    @property
+    def model(self) -> FloorModel:
+        """What a dataset declares of this floor (kind, lattice tolerance)."""
+        return FloorModel(self.kind, self.lattice_tolerance)
 
     def with_tile_size(self, tile_size: float) -> FloorConfig:
         """This floor with tiles of side ``tile_size`` metres; the grout keeps its width, at most
@@ -107,6 +159,16 @@ class FloorConfig:
             raise ValueError(
                 f"grout_width must be < tile_size/2, got {self.grout_width} for L={self.tile_size}"
             )
+        FloorModel(self.kind, self.lattice_tolerance)  # validates both
+        if self.lattice_tolerance >= self.tile_size / 4:
+            raise ValueError(f"lattice_tolerance must be < tile_size/4, got "
+                             f"{self.lattice_tolerance} for L={self.tile_size}")
+        if not _whole(self.panel_tiles) or self.panel_tiles not in (0, 2, 4, 8, 16):
+            raise ValueError(f"panel_tiles must be 0, 2, 4, 8 or 16, got {self.panel_tiles!r}")
+        _check_nonneg("seam_width", self.seam_width)
+        if self.seam_width >= self.tile_size / 2:
+            raise ValueError(f"seam_width must be < tile_size/2, got {self.seam_width} for "
+                             f"L={self.tile_size}")
 
 
 @dataclass(frozen=True)
@@ -387,11 +449,22 @@ FLOOR_STYLES: dict[str, dict[str, Any]] = {
     "photo": {"surface": "photo", "texture_strength": 0.15, "stains_per_tile": 0.0,
               "grout_rgb": (40, 38, 36)},
     "gradient": {"light_gradient": 0.5},
+    "checker": {"kind": "checker", "grout_width": 0.0, "tile_rgb": (222, 216, 204),
+                "tile2_rgb": (52, 50, 48), "stains_per_tile": 0.1},
+    "hand_laid": {"grout_width": 0.014, "lattice_tolerance": 0.005},
+    "mosaic": {"grout_width": 0.008, "panel_tiles": 4, "seam_width": 0.03,
+               "lattice_tolerance": 0.008},
+    "faint_colour": {"tile_rgb": (150, 110, 80), "grout_rgb": (172, 92, 72),
+                     "grout_width": 0.006, "texture_strength": 0.03},
 }
 """Floor styles (``record --floor-style``, the demo's floor settings): changes to a FloorConfig.
 ``light_grout``: grout lighter than the tiles; ``wide_grout``: 5 cm grout bands (at most an
 eighth of the tile, see :func:`floor_style`); ``photo``: a photograph of gravel on the tiles;
-``gradient``: uneven lighting across the camera view."""
+``gradient``: uneven lighting across the camera view; ``checker``: light and dark tiles edge to
+edge, no grout; ``hand_laid``: every tile laid up to 5 mm off the lattice; ``mosaic``: the tiles
+in panels of 4 x 4 with 3 cm seams, each panel laid up to 8 mm off the lattice; ``faint_colour``:
+reddish grout on brown tiles, nearly as light (it differs more in hue than in gray). Lengths
+scale with the tile as :func:`floor_style` says."""
 
 
 def floor_style(floor: FloorConfig, name: str) -> FloorConfig:
@@ -402,8 +475,10 @@ def floor_style(floor: FloorConfig, name: str) -> FloorConfig:
     base = FloorConfig(tile_size=floor.tile_size, seed=floor.seed,
                        grout_width=min(FloorConfig().grout_width, floor.tile_size / 8))
     values = dict(FLOOR_STYLES[name])
-    if "grout_width" in values:
-        values["grout_width"] = min(values["grout_width"], floor.tile_size / 8)
+    for key, most in (("grout_width", 1 / 8), ("seam_width", 1 / 8),
+                      ("lattice_tolerance", 1 / 40)):
+        if key in values:
+            values[key] = min(values[key], floor.tile_size * most)
     return replace(base, **values)
 
 

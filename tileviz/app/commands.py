@@ -28,7 +28,8 @@ from tileviz.config import (
 __all__ = [
     "LABELS", "LAYERS", "MAX_TEXT", "MAX_WAYPOINTS", "PANEL_VIEWS", "SIMULATOR_ONLY", "Command",
     "Inject", "Kidnap", "Live", "Pause",
-    "ExportMcap", "Play", "Relocalize", "RelocalizeRegion", "Report", "SetFollow", "ShowPanel",
+    "ExportMcap", "ExportPage", "Play", "Relocalize", "RelocalizeRegion", "Report", "SetFollow",
+    "ShowPanel",
     "Reset", "Restart", "Seek", "SetDisplay", "SetExtractor", "SetInflation", "SetLayer",
     "SetFaultModel", "SetManualTarget", "SetMaxSpeed", "SetMcl", "SetMode", "SetNoise",
     "SetSetpoint", "SetSpeed",
@@ -418,6 +419,13 @@ class ExportMcap:
 
 
 @dataclass(frozen=True)
+class ExportPage:
+    """Export the last finished recording as a web page that plays offline, written beside its
+    dataset folder (``NAME.html``): the page ``python -m tileviz export-html NAME NAME.html``
+    writes."""
+
+
+@dataclass(frozen=True)
 class Report:
     """A one-line message for the GUI's notes (``level`` info or error; errors also go to
     stderr), e.g. a GUI input that was refused."""
@@ -435,7 +443,7 @@ Command = (
     | Reset | Restart
     | SetMode | SetExtractor | SetNoise | SetInflation | SetFaultModel | SetDisplay | SetMcl
     | SetLayer | Inject
-    | StartRecording | StopRecording | ExportMcap | Report | SetFollow | ShowPanel
+    | StartRecording | StopRecording | ExportMcap | ExportPage | Report | SetFollow | ShowPanel
 )
 """Any command the loop understands."""
 
@@ -449,7 +457,8 @@ LABELS: dict[type[Command], str] = {
     SetNoise: "Noise bounds", SetInflation: "Truth inflation", SetFaultModel: "Fault model",
     SetDisplay: "Stage images", SetMcl: "Monte Carlo Localization", SetLayer: "Layers",
     Inject: "Inject a fault", StartRecording: "Start recording",
-    StopRecording: "Stop recording", ExportMcap: "Export MCAP", Report: "Note",
+    StopRecording: "Stop recording", ExportMcap: "Export MCAP",
+    ExportPage: "Export page", Report: "Note",
     SetFollow: "Follow the robot", ShowPanel: "Panel",
 }
 """What the page calls the control that sends each command (a refused command's note names

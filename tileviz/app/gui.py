@@ -258,10 +258,15 @@ class Controls:
                 "for Foxglove (as `python -m tileviz replay NAME --mcap` does)")
             if missing is not None:
                 gui.add_markdown(f"*{missing}*")
+            self.export_page = gui.add_button(
+                "Export page", hint="Write the last recording as NAME.html beside its folder: "
+                "one web page that plays the run offline (as `python -m tileviz export-html "
+                "NAME NAME.html` does)")
         self._recording = False
         self._on_click(self.record, lambda: (C.StopRecording() if self._recording
                                              else C.StartRecording(self.record_name.value)))
         self._on_click(self.export, C.ExportMcap)
+        self._on_click(self.export_page, C.ExportPage)
 
         tx, ty = cfg.sim.manual_target
         self.gizmo = server.scene.add_transform_controls(

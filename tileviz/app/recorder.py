@@ -1,11 +1,12 @@
-"""Recording the live run as a dataset, and exporting the last recording to MCAP.
+"""Recording the live run as a dataset, and exporting the last recording to MCAP or as a web page.
 
 :class:`Recorder` belongs to one :class:`tileviz.app.session.Session` and, like it, is only
 called from the app's loop thread. A recording asked for starts at the next *new* frame (a frame
 computed, not one stepped back to), so its first row and its meta's initial pose agree; every
 row is written after its image is whole (``tileviz.datasets.DatasetWriter``), so a recording
-stopped by an error, a full disk or a killed server keeps every frame it had. The MCAP export
-runs on its own thread (:class:`McapJob`) and :meth:`Recorder.poll` notes its end.
+stopped by an error, a full disk or a killed server keeps every frame it had. An export
+(:class:`McapJob`, :class:`PageJob`) runs on its own thread and :meth:`Recorder.poll` notes its
+end; one export runs at a time.
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ if TYPE_CHECKING:
     from tileviz.datasets import DatasetWriter
     from tileviz.vision.rectify import Rectifier
 
-__all__ = ["McapJob", "Recorder"]
+__all__ = ["ExportJob", "McapJob", "PageJob", "Recorder"]
 
 Note = Callable[[str, str], None]
 """``note(text, level)``: a one-line message for the GUI (level ``info`` or ``error``)."""
@@ -50,7 +51,7 @@ def _gib(n: float) -> str:
 
 class Recorder:
     """The dataset being recorded (if any), the one asked for, the last finished one and the
-    MCAP export in progress. ``note`` reports every change in one line."""
+    export in progress. ``note`` reports every change in one line."""
 
     def __init__(self, note: Note) -> None:
         self._note = note
@@ -61,9 +62,10 @@ class Recorder:
         self.pending: Path | None = None
         """The folder of a recording asked for and not started yet (no new frame since)."""
         self.last: Path | None = None
-        """The last finished recording with at least one frame (what Export MCAP exports)."""
-        self.export: McapJob | None = None
-        """The MCAP export running in the background, if any."""
+        """The last finished recording with at least one frame (what Export MCAP and Export
+        page export)."""
+        self.export: ExportJob | None = None
+        """The export running in the background, if any."""
 
     @property
     def active(self) -> bool:
@@ -157,10 +159,19 @@ class Recorder:
         self.stop()
 
     def export_mcap(self) -> None:
-        """Start exporting :attr:`last` on a background thread (a long recording must not freeze
-        the loop); ValueError naming why when there is nothing to export or an export runs."""
+        """Start exporting :attr:`last` to MCAP on a background thread (a long recording must
+        not freeze the loop); ValueError naming why when there is nothing to export or an export
+        runs."""
+        self._start(McapJob)
+
+    def export_page(self) -> None:
+        """Start exporting :attr:`last` as a web page (:class:`PageJob`), as
+        :meth:`export_mcap` does."""
+        self._start(PageJob)
+
+    def _start(self, kind: Callable[[Path], ExportJob]) -> None:
         if self.export is not None:
-            raise ValueError(f"an MCAP export is already running ({self.export.out})")
+            raise ValueError(f"an export is already running ({self.export.out})")
         if self.last is None:
             what = ("stop the recording first" if self.active
                     else "record a run first (Start recording, then Stop recording)")
@@ -173,46 +184,52 @@ class Recorder:
             raise ValueError(f"no room to export {self.last}: {_gib(free)} free on its disk, "
                              f"the file needs about {_gib(size)} and {_gib(MIN_FREE_BYTES)} are "
                              "kept free")
-        self.export = McapJob(self.last)
+        self.export = kind(self.last)
         self._note(f"exporting {self.last} to {self.export.out} ...", "info")
 
     def poll(self) -> None:
-        """Note an MCAP export that finished since the last call."""
+        """Note an export that finished since the last call."""
         job = self.export
         if job is None or job.running:
             return
         self.export = None
         if job.error is not None:
-            self._note(f"MCAP export of {job.dataset} failed: {job.error}", "error")
+            self._note(f"{job.kind} export of {job.dataset} failed: {job.error}", "error")
         else:
-            self._note(f"exported {job.frames} frames to {job.out} (open it in Foxglove)", "info")
+            self._note(f"exported {job.frames} frames to {job.out} ({job.hint})", "info")
 
     def close(self) -> None:
-        """Wait for an MCAP export in progress, then close the recording (idempotent)."""
+        """Wait for an export in progress, then close the recording (idempotent)."""
         if self.export is not None:
             self.export.join()
         self.cancel("the server stopped")
 
 
-class McapJob:
-    """The MCAP export of a recorded dataset folder on a background thread: ``dataset`` replayed
-    as ``python -m tileviz replay DATASET --mcap`` does, written to ``DATASET.mcap`` beside it.
-    ``frames``: frames written; ``error``: one line when it failed (the file may be partial)."""
+class ExportJob:
+    """An export of a recorded dataset folder on a background thread, written beside it
+    (``out``). ``frames``: frames written; ``error``: one line when it failed. Subclasses say
+    what is written (:meth:`work`), its ``kind`` and what to do with it (``hint``)."""
+
+    kind = "an"
+    hint = ""
+    suffix = ""
 
     def __init__(self, dataset: Path) -> None:
         self.dataset = dataset
-        self.out = dataset.with_name(dataset.name + ".mcap")
+        self.out = dataset.with_name(dataset.name + self.suffix)
         self.frames = 0
         self.error: str | None = None
-        self._thread = threading.Thread(target=self._run, name="tileviz-mcap", daemon=True)
+        self._thread = threading.Thread(target=self._run, name=f"tileviz-{self.kind}",
+                                        daemon=True)
         self._thread.start()
 
-    def _run(self) -> None:
-        from tileviz.pipeline.replay import replay
+    def work(self) -> int:
+        """Write :attr:`out` from :attr:`dataset`; the frames written."""
+        raise NotImplementedError
 
+    def _run(self) -> None:
         try:
-            # the replay table is not kept: the MCAP file is what was asked for
-            self.frames = replay(self.dataset, mcap=self.out, jobs=1)
+            self.frames = self.work()
         except Exception as e:  # noqa: BLE001 - reported as one line by Recorder.poll
             self.error = f"{type(e).__name__}: {e}" if not isinstance(e, (OSError, ValueError)) \
                 else str(e)
@@ -225,3 +242,36 @@ class McapJob:
     def join(self, timeout: float | None = None) -> None:
         """Wait for the export (at most ``timeout`` seconds; None: until it ends)."""
         self._thread.join(timeout)
+
+
+class McapJob(ExportJob):
+    """``dataset`` replayed as ``python -m tileviz replay DATASET --mcap`` does, written to
+    ``DATASET.mcap`` beside it (the file may be partial when it failed)."""
+
+    kind = "MCAP"
+    hint = "open it in Foxglove"
+    suffix = ".mcap"
+
+    def work(self) -> int:
+        from tileviz.pipeline.replay import replay
+
+        # the replay table is not kept: the MCAP file is what was asked for
+        return replay(self.dataset, mcap=self.out, jobs=1)
+
+
+class PageJob(ExportJob):
+    """``dataset`` as the web page ``python -m tileviz export-html DATASET DATASET.html``
+    writes, beside it (written whole or not at all)."""
+
+    kind = "page"
+    hint = "open it in a browser: it plays offline"
+    suffix = ".html"
+
+    def work(self) -> int:
+        from tileviz.share.page import PageOptions, export_html, page_views
+        from tileviz.share.run import load_run
+
+        opts = PageOptions()
+        run = load_run(self.dataset, views=page_views(opts), jobs=1)
+        export_html(run, self.out, opts)
+        return len(run.records)

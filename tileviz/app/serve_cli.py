@@ -95,6 +95,7 @@ def parser() -> Parser:
                    help="pixels per metre")
     p.add_argument("--tile-size", type=float_in("--tile-size", *TILE_SIZE_RANGE, lo_open=False),
                    help="L, metres")
+    cliutil.add_floor_options(p)
     p.add_argument("--output-file", help="CSV of the six equivalence residuals per frame "
                    "(written under --out-dir, name sanitized)")
     p.add_argument("--out-dir", default="runs", help="the only folder the server writes to "
@@ -162,7 +163,9 @@ def serve_config(args: argparse.Namespace) -> Config:
         from tileviz.datasets import DatasetSource
 
         clash = [name for name, v in (("--preset", args.preset), ("--tile-size", args.tile_size),
-                                      ("--ppm", args.ppm), ("--lens", args.lens))
+                                      ("--ppm", args.ppm), ("--lens", args.lens),
+                                      ("--floor-kind", args.floor_kind),
+                                      ("--lattice-tolerance", args.lattice_tolerance))
                  if v is not None]
         if clash:
             raise CliError(f"{', '.join(clash)} cannot be used with --dataset (the dataset's "

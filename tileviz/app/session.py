@@ -30,7 +30,7 @@ import numpy as np
 from tileviz.app import commands as C
 from tileviz.app.history import Encoder, Entry, History, ParticleView
 from tileviz.app.outputs import output_path, sanitize_name
-from tileviz.app.recorder import McapJob, Recorder
+from tileviz.app.recorder import ExportJob, Recorder
 from tileviz.cliutil import one_line
 from tileviz.config import Config, LocalizerConfig, NoiseConfig, with_floor_style
 from tileviz.pipeline import FrameLoop, FrameRecord, initial_box
@@ -137,7 +137,7 @@ class Session:
         self.shown = -1
         """History position of the frame shown (-1: none yet)."""
         self.recorder = Recorder(self.note)
-        """The dataset being recorded, the last one recorded and its MCAP export."""
+        """The dataset being recorded, the last one recorded and its export (MCAP or page)."""
         self.csv: Any = None
         self.csv_path: Path | None = None
         self._kidnap_rng = np.random.default_rng(np.random.SeedSequence([cfg.sim.seed, 0xC1D]))
@@ -207,7 +207,7 @@ class Session:
 
     def close(self) -> None:
         """Close every file being written and stop the encoder thread (idempotent); waits for an
-        MCAP export in progress."""
+        export in progress."""
         self.encoder.close()
         self.recorder.close()
         if self.csv is not None:
@@ -445,12 +445,13 @@ class Session:
 
     @property
     def last_recording(self) -> Path | None:
-        """The last finished recording with at least one frame (what Export MCAP exports)."""
+        """The last finished recording with at least one frame (what Export MCAP and Export
+        page export)."""
         return self.recorder.last
 
     @property
-    def export(self) -> McapJob | None:
-        """The MCAP export running in the background, if any."""
+    def export(self) -> ExportJob | None:
+        """The export (MCAP or page) running in the background, if any."""
         return self.recorder.export
 
     def poll(self) -> None:
@@ -536,6 +537,8 @@ class Session:
                 self.recorder.stop_asked()
             case C.ExportMcap():
                 self.recorder.export_mcap()
+            case C.ExportPage():
+                self.recorder.export_page()
             case C.Report(text=text, level=level):
                 self.note(text, level)
             case C.SetFollow(on=on):

@@ -36,8 +36,15 @@ import cv2
 import numpy as np
 
 from tileviz.cliutil import CliError, Parser, nonneg_float, positive_float, read_json, run_cli
+from tileviz.datasets.timeline import (
+    SensorTimeline,
+    combine_compass,
+    combine_odometry,
+    seconds_since,
+)
 
-__all__ = ["IMAGE_TYPES", "combine_compass", "combine_odometry", "import_bag", "main"]
+__all__ = ["IMAGE_TYPES", "combine_compass", "combine_odometry", "decode_image_message",
+           "import_bag", "main", "yaw_of"]
 
 IMAGE_TYPES = ("sensor_msgs/msg/Image", "sensor_msgs/msg/CompressedImage")
 ODOM_TYPE = "nav_msgs/msg/Odometry"
@@ -72,43 +79,16 @@ def _stamp(msg: Any, bag_ns: int) -> int:
     return int(bag_ns)
 
 
-def _yaw(q: Any) -> float:
+def yaw_of(q: Any) -> float:
     """Yaw (rad, counter-clockwise about z) of a quaternion, wrapped to (-pi, pi]."""
     yaw = math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
     return math.pi if yaw <= -math.pi else yaw
 
 
-def combine_odometry(times: np.ndarray, values: np.ndarray, t0: float,
-                     t1: float) -> tuple[float, float] | None:
-    """The middle and half-range of the values an odometry series (held from each stamp to the
-    next) takes during [t0, t1); None when no message precedes t1."""
-    i0 = int(np.searchsorted(times, t0, side="right")) - 1  # the one held at t0
-    i1 = int(np.searchsorted(times, t1, side="left"))  # messages before t1
-    i0 = max(i0, 0)
-    if i1 <= i0:
-        return None
-    seg = values[i0:i1]
-    lo, hi = float(seg.min()), float(seg.max())
-    return 0.5 * (lo + hi), 0.5 * (hi - lo)
-
-
-def combine_compass(times: np.ndarray, yaws: np.ndarray, t: float) -> tuple[float, float] | None:
-    """The middle (wrapped to (-pi, pi]) and half-length of the shorter arc between the IMU
-    yaws just before and just after ``t`` (one yaw stamped at ``t`` exactly: it, 0); None when
-    ``t`` is not between two messages."""
-    i = int(np.searchsorted(times, t, side="left"))
-    if i < len(times) and times[i] == t:
-        return float(yaws[i]), 0.0
-    if i == 0 or i >= len(times):
-        return None
-    a, b = float(yaws[i - 1]), float(yaws[i])
-    d = math.remainder(b - a, 2 * math.pi)
-    mid = math.remainder(a + 0.5 * d, 2 * math.pi)
-    return (math.pi if mid <= -math.pi else mid), 0.5 * abs(d)
-
-
-def _decode(msg: Any, msgtype: str, where: str) -> np.ndarray:
-    """An image message as HxWx3 RGB uint8; CliError naming the message."""
+def decode_image_message(msg: Any, msgtype: str, where: str) -> np.ndarray:
+    """An image message (ROS 1 or ROS 2, as rosbags or rospy give it: ``encoding``, ``height``,
+    ``width``, ``step``, ``data``; or ``format``, ``data``) as HxWx3 RGB uint8; CliError naming
+    the message."""
     if msgtype.endswith("CompressedImage"):
         from tileviz.datasets.images import decode_image, size_problem
 
@@ -334,7 +314,7 @@ def import_bag(bag: str, out: str, opt: BagImportOptions) -> tuple[int, dict[str
         # pass 1: motion, heading and the image stamps (stopping at a topic's first problem)
         odom, odom_err = _series(reader, opt.odom_topic, bag, lambda m: (
             float(m.twist.twist.linear.x), float(m.twist.twist.angular.z)))
-        imu, imu_err = (_series(reader, opt.imu_topic, bag, lambda m: (_yaw(m.orientation),))
+        imu, imu_err = (_series(reader, opt.imu_topic, bag, lambda m: (yaw_of(m.orientation),))
                         if opt.imu_topic is not None else (_Series([], []), None))
         stamps: list[int] = []
         img_err = None
@@ -353,25 +333,25 @@ def import_bag(bag: str, out: str, opt: BagImportOptions) -> tuple[int, dict[str
             stamps = [t for t in stamps if t <= limit]
         if not stamps:
             raise CliError(problem or f"{bag}: no images")
-        ot = np.array(odom.t)
-        ov = np.array(odom.v).reshape(-1, 2)
-        it_ = np.array(imu.t)
-        iv = np.array([v[0] for v in imu.v])
+        timeline = SensorTimeline()
+        for t, (speed, yaw_rate) in zip(odom.t, odom.v, strict=True):
+            timeline.add_odometry(t, speed, yaw_rate)
+        for t, (yaw,) in zip(imu.t, imu.v, strict=True):
+            timeline.add_imu(t, yaw)
         rows: list[tuple[int, float, float, float, float, float | None]] = []
         widen = {"speed": 0.0, "yaw_rate": 0.0, "compass": 0.0}
         for k, t in enumerate(stamps):
             speed = yaw_rate = ds = dw = 0.0
             if k + 1 < len(stamps):
-                sp = combine_odometry(ot, ov[:, 0], t, stamps[k + 1]) if len(ot) else None
-                if sp is None:
+                motion = timeline.motion(t, stamps[k + 1])
+                if motion is None:
                     problem = problem or (f"{bag}: no odometry on {opt.odom_topic!r} before "
                                           f"image {k + 1}")
                     stamps = stamps[: k + 1]
                 else:
-                    yr = combine_odometry(ot, ov[:, 1], t, stamps[k + 1])
-                    assert yr is not None
-                    (speed, ds), (yaw_rate, dw) = sp, yr
-            comp = combine_compass(it_, iv, t) if len(it_) else None
+                    speed, ds = motion.speed, motion.speed_half
+                    yaw_rate, dw = motion.yaw_rate, motion.yaw_rate_half
+            comp = timeline.compass(t)
             widen["speed"] = max(widen["speed"], ds)
             widen["yaw_rate"] = max(widen["yaw_rate"], dw)
             if comp is not None:
@@ -388,7 +368,7 @@ def import_bag(bag: str, out: str, opt: BagImportOptions) -> tuple[int, dict[str
                 if n >= len(rows):
                     break
                 where = f"{bag}: {opt.image_topic!r} message {n}"
-                image = _decode(msg, msgtype, where)
+                image = decode_image_message(msg, msgtype, where)
                 h, w = image.shape[:2]
                 if writer is None:
                     first_raw = (w, h)
@@ -418,8 +398,8 @@ def import_bag(bag: str, out: str, opt: BagImportOptions) -> tuple[int, dict[str
                     raise CliError(f"{where}: image is {w}x{h}, the first was "
                                    f"{first_raw[0]}x{first_raw[1]}")  # type: ignore[index]
                 t, speed, _, yaw_rate, _, compass = rows[n]
-                t_s = (t - rows[0][0]) * 1e-9  # from the first image
-                odo = (Odometry(speed, yaw_rate, (rows[n + 1][0] - rows[0][0]) * 1e-9 - t_s)
+                t_s = seconds_since(t, rows[0][0])  # from the first image
+                odo = (Odometry(speed, yaw_rate, seconds_since(rows[n + 1][0], rows[0][0]) - t_s)
                        if n + 1 < len(rows) else None)
                 writer.write(FrameInput(index=n, t=t_s, image=image, odometry=odo,
                                         compass=compass, truth=None))

@@ -23,15 +23,15 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from tileviz.config import Config, Extractor, Mode
+from tileviz.config import FLOOR_KINDS, PERFECT_FLOOR, Config, Extractor, FloorModel, Mode
 from tileviz.core.constants import LIMIT, MAX_PPM, MAX_TILE_PX, MIN_TILE_PX
 from tileviz.datasets.camera_model import CameraModel, CameraModelError, Rectifier, view_margin
 from tileviz.datasets.images import MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE
 
 __all__ = [
     "FAULTS_FILE", "FORMAT", "FRAME_COLUMNS", "MAX_MAGNITUDE", "REQUIRED_COLUMNS",
-    "DatasetError", "DatasetMeta", "csv_line", "json_file", "num_text", "parse_float",
-    "read_meta", "replay_config",
+    "DatasetError", "DatasetMeta", "csv_line", "floor_block", "json_file", "num_text",
+    "parse_float", "read_meta", "replay_config",
 ]
 
 FORMAT = "tileviz-dataset/1"
@@ -86,6 +86,9 @@ class DatasetMeta:
     this key: taken as whole)."""
     frames: int | None = None
     """The number of rows the writer wrote to frames.csv, once ``complete``; None when not said."""
+    floor: FloorModel | None = None
+    """The ``floor`` block: the floor's kind and lattice tolerance; None: no block (a perfect
+    grout lattice)."""
 
     @classmethod
     def from_config(cls, cfg: Config, name: str = "tileviz run") -> DatasetMeta:
@@ -103,6 +106,7 @@ class DatasetMeta:
             yaw_rate_error=cfg.noise.yaw_rate_error,
             compass_error=cfg.noise.compass_error,
             extra={"tileviz_config": cfg.to_dict()},
+            floor=cfg.floor.model if cfg.floor.model != PERFECT_FLOOR else None,
         )
 
     def to_json(self) -> dict[str, Any]:
@@ -128,6 +132,9 @@ class DatasetMeta:
             d["complete"] = self.complete
         if self.frames is not None:
             d["frames"] = self.frames
+        if self.floor is not None:
+            d["floor"] = {"kind": self.floor.kind,
+                          "lattice_tolerance": self.floor.lattice_tolerance}
         return d
 
     @classmethod
@@ -142,9 +149,9 @@ class DatasetMeta:
         known = {
             "format", "name", "tile_size", "ppm", "image_width", "image_height", "camera_offset",
             "dt", "initial_pose", "initial_pose_error", "speed_error", "yaw_rate_error",
-            "compass_error", "camera_model", "complete", "frames",
+            "compass_error", "camera_model", "complete", "frames", "floor",
         }
-        missing = sorted(k for k in known - {"name", "camera_model", "complete", "frames"}
+        missing = sorted(k for k in known - {"name", "camera_model", "complete", "frames", "floor"}
                          if k not in d)
         if missing:
             raise DatasetError(f"{where}: missing key(s) {', '.join(missing)}")
@@ -205,6 +212,8 @@ class DatasetMeta:
                             if d.get("camera_model") is not None else None)
         except CameraModelError as e:
             raise DatasetError(str(e)) from None
+        floor = (floor_block(d["floor"], number("tile_size", positive=True), where)
+                 if d.get("floor") is not None else None)
         return cls(
             name=str(name),
             tile_size=number("tile_size", positive=True),
@@ -222,6 +231,7 @@ class DatasetMeta:
             camera_model=camera_model,
             complete=complete,
             frames=frames,
+            floor=floor,
         )
 
     def rectifier(self) -> Rectifier | None:
@@ -249,11 +259,15 @@ class DatasetMeta:
             px, rad = view_margin(rectifier.model, rectifier)
             vision = replace(vision, position_error_px=vision.position_error_px + px,
                              heading_error=vision.heading_error + rad)
+        floor = (base.floor.with_tile_size(self.tile_size)
+                 if base.floor.tile_size != self.tile_size else base.floor)
+        model = self.floor or PERFECT_FLOOR  # no block: a perfect grout lattice
+        if (floor.kind, floor.lattice_tolerance) != (model.kind, model.lattice_tolerance):
+            floor = replace(floor, kind=model.kind, lattice_tolerance=model.lattice_tolerance)
         return replace(
             base,
             vision=vision,
-            floor=base.floor.with_tile_size(self.tile_size)
-            if base.floor.tile_size != self.tile_size else base.floor,
+            floor=floor,
             camera=replace(
                 base.camera, ppm=self.ppm, width=self.image_width, height=self.image_height,
                 offset=self.camera_offset,
@@ -267,6 +281,27 @@ class DatasetMeta:
                 initial_pose_error=self.initial_pose_error,
             ),
         )
+
+
+def floor_block(block: Any, tile_size: float, where: str) -> FloorModel:
+    """The ``floor`` block of a meta.json (``docs/dataset-format.md``): ``kind`` (default
+    ``grout``) and ``lattice_tolerance`` (metres, default 0, below a quarter of ``tile_size``);
+    other keys are ignored. DatasetError naming the key otherwise."""
+    if not isinstance(block, dict):
+        raise DatasetError(f"{where}: floor must be a JSON object, got {block!r}")
+    kind = block.get("kind", "grout")
+    if kind not in FLOOR_KINDS:
+        raise DatasetError(f"{where}: floor.kind must be one of {', '.join(FLOOR_KINDS)}, got "
+                           f"{kind!r}")
+    tol = block.get("lattice_tolerance", 0.0)
+    if (isinstance(tol, bool) or not isinstance(tol, int | float) or not math.isfinite(tol)
+            or tol < 0):
+        raise DatasetError(f"{where}: floor.lattice_tolerance must be a finite number >= 0 "
+                           f"(metres), got {tol!r}")
+    if tol >= tile_size / 4:
+        raise DatasetError(f"{where}: floor.lattice_tolerance must be below a quarter of the "
+                           f"tile ({tile_size / 4:g} m), got {tol!r}")
+    return FloorModel(kind, float(tol))
 
 
 def read_meta(folder: str | os.PathLike[str]) -> DatasetMeta:

@@ -34,7 +34,8 @@ from tileviz.types import BoxSet
 if TYPE_CHECKING:
     from tileviz.pipeline import FrameRecord
 
-__all__ = ["CONTRACTION_RGB", "PREDICTION_RGB", "STATUS_CODES", "McapExport"]
+__all__ = ["CONTRACTION_RGB", "PREDICTION_RGB", "STATUS_CODES", "TOPICS", "FrameEncoder",
+           "McapExport", "status_fields"]
 
 PREDICTION_RGB = (40, 190, 70)
 """The demo's colour of the predicted set (green, ``tileviz.app.scene.COLOURS``)."""
@@ -81,50 +82,35 @@ def _modules() -> tuple[Any, ...]:
     return Writer, register_schema, CompressedImage, PoseInFrame, SceneUpdate, CubePrimitive, Color
 
 
-class McapExport:
-    """Writes one frame's messages at a time (:meth:`write`), each frame in the file as a whole
-    chunk when :meth:`write` returns; :meth:`close` finishes the file (its summary and index: a
-    file not closed, e.g. a replay killed, is readable by a streaming reader up to its last
-    frame)."""
+TOPICS = {"image": "/camera/image", "truth": "/truth", "prediction": "/set/prediction",
+          "contraction": "/set/contraction", "status": "/status"}
+"""The topics of a run (key -> topic), in the MCAP file and on the live Foxglove server."""
 
-    def __init__(self, path: str | os.PathLike[str], dataset: str | os.PathLike[str]) -> None:
-        (self._writer_cls, register, self._image, self._pose, self._scene, self._cube,
+
+class FrameEncoder:
+    """A frame's messages as (key of :data:`TOPICS`, serialized bytes), with Foxglove's
+    protobuf schemas (``/status``: JSON); :meth:`schemas` gives each key's schema
+    (name, encoding, data) as an MCAP file or a live server registers it."""
+
+    def __init__(self) -> None:
+        (self.writer_cls, _, self._image, self._pose, self._scene, self._cube,
          self._color) = _modules()
-        p = Path(path)
-        if not p.parent.is_dir():
-            raise OSError(f"{p.parent}: output directory does not exist")
-        self.dataset = Path(dataset)
-        self._file: IO[bytes] = open(p, "wb")  # noqa: SIM115 - closed in close()
-        # each frame's messages end their chunk (Writer.flush), so a replay killed before close()
-        # leaves a file a streaming reader reads up to its last frame; a writer without flush()
-        # (mcap < 1.6) writes the messages unchunked
-        self._chunked = hasattr(self._writer_cls, "flush")
-        self._w = self._writer_cls(self._file, **({} if self._chunked else
-                                                   {"use_chunking": False}))
-        self._w.start(profile="", library="tileviz")
-        ch = self._w.register_channel
 
-        def proto(topic: str, cls: type) -> int:
-            return ch(topic=topic, message_encoding="protobuf", schema_id=register(self._w, cls))
+    def schemas(self) -> dict[str, tuple[str, str, bytes]]:
+        """key -> (schema name, schema encoding, schema data); the message encoding is
+        ``protobuf`` for every key but ``status`` (``json``)."""
+        from mcap_protobuf.schema import build_file_descriptor_set
 
-        self._ch = {
-            "image": proto("/camera/image", self._image),
-            "truth": proto("/truth", self._pose),
-            "prediction": proto("/set/prediction", self._scene),
-            "contraction": proto("/set/contraction", self._scene),
-        }
-        status_schema = self._w.register_schema(
-            name="tileviz.Status", encoding="jsonschema",
-            data=json.dumps(STATUS_SCHEMA).encode())
-        self._ch["status"] = ch(topic="/status", message_encoding="json",
-                                schema_id=status_schema)
-        self.count = 0
+        def proto(cls: Any) -> tuple[str, str, bytes]:
+            return (cls.DESCRIPTOR.full_name, "protobuf",
+                    build_file_descriptor_set(message_class=cls).SerializeToString())
 
-    def _add(self, key: str, ns: int, data: bytes, seq: int) -> None:
-        self._w.add_message(channel_id=self._ch[key], log_time=ns, publish_time=ns, data=data,
-                            sequence=seq)
+        return {"image": proto(self._image), "truth": proto(self._pose),
+                "prediction": proto(self._scene), "contraction": proto(self._scene),
+                "status": ("tileviz.Status", "jsonschema", json.dumps(STATUS_SCHEMA).encode())}
 
-    def _stamp(self, msg: Any, ns: int) -> None:
+    @staticmethod
+    def _stamp(msg: Any, ns: int) -> None:
         msg.timestamp.seconds, msg.timestamp.nanos = divmod(ns, 1_000_000_000)
 
     def _set(self, boxes: BoxSet, rgb: tuple[int, int, int], name: str, ns: int) -> bytes:
@@ -145,18 +131,18 @@ class McapExport:
             cube.color.a = ALPHA
         return update.SerializeToString()
 
-    def write(self, rec: FrameRecord, image_name: str | None) -> None:
-        """The messages of one replayed frame (``image_name``: its stored image file, relative
-        to the dataset folder, or None)."""
-        ns = round(rec.t * 1e9)
-        seq = self.count
-        if image_name:
+    def messages(self, rec: FrameRecord, ns: int, image: tuple[bytes, str] | None,
+                 status: str | None = None) -> list[tuple[str, bytes]]:
+        """The messages of one frame stamped ``ns`` (nanoseconds): ``image`` (PNG or JPEG
+        bytes, ``png``/``jpeg``) when given, the truth when known, both sets and the status
+        (``status`` overrides the record's)."""
+        out: list[tuple[str, bytes]] = []
+        if image is not None:
             img = self._image()
             self._stamp(img, ns)
             img.frame_id = "camera"
-            img.data = (self.dataset / image_name).read_bytes()
-            img.format = "jpeg" if Path(image_name).suffix.lower() in (".jpg", ".jpeg") else "png"
-            self._add("image", ns, img.SerializeToString(), seq)
+            img.data, img.format = image
+            out.append(("image", img.SerializeToString()))
         if rec.truth is not None:
             pose = self._pose()
             self._stamp(pose, ns)
@@ -164,22 +150,68 @@ class McapExport:
             pose.pose.position.x, pose.pose.position.y = rec.truth.x, rec.truth.y
             pose.pose.orientation.w = math.cos(rec.truth.theta / 2)
             pose.pose.orientation.z = math.sin(rec.truth.theta / 2)
-            self._add("truth", ns, pose.SerializeToString(), seq)
-        self._add("prediction", ns, self._set(rec.predicted, PREDICTION_RGB, "prediction", ns),
-                  seq)
-        self._add("contraction", ns, self._set(rec.updated, CONTRACTION_RGB, "contraction", ns),
-                  seq)
-        hull = rec.updated.hull()
-        widths = list(hull.widths) if hull is not None else [None, None, None]
-        status = {"status": rec.status, "code": STATUS_CODES.get(rec.status, -1),
-                  "boxes": len(rec.updated), "x_width": widths[0], "y_width": widths[1],
-                  "theta_width": widths[2]}
-        self._add("status", ns, json.dumps(status).encode(), seq)
+            out.append(("truth", pose.SerializeToString()))
+        out.append(("prediction", self._set(rec.predicted, PREDICTION_RGB, "prediction", ns)))
+        out.append(("contraction", self._set(rec.updated, CONTRACTION_RGB, "contraction", ns)))
+        out.append(("status", json.dumps(status_fields(rec, status)).encode()))
+        return out
+
+
+def status_fields(rec: FrameRecord, status: str | None = None) -> dict[str, Any]:
+    """The ``/status`` message of a frame: status, code, box count, the hull's widths."""
+    st = status if status is not None else rec.status
+    hull = rec.updated.hull()
+    widths = list(hull.widths) if hull is not None else [None, None, None]
+    return {"status": st, "code": STATUS_CODES.get(st, -1), "boxes": len(rec.updated),
+            "x_width": widths[0], "y_width": widths[1], "theta_width": widths[2]}
+
+
+class McapExport:
+    """Writes one frame's messages at a time (:meth:`write`), each frame in the file as a whole
+    chunk when :meth:`write` returns; :meth:`close` finishes the file (its summary and index: a
+    file not closed, e.g. a replay killed, is readable by a streaming reader up to its last
+    frame)."""
+
+    def __init__(self, path: str | os.PathLike[str], dataset: str | os.PathLike[str]) -> None:
+        self._enc = FrameEncoder()
+        p = Path(path)
+        if not p.parent.is_dir():
+            raise OSError(f"{p.parent}: output directory does not exist")
+        self.dataset = Path(dataset)
+        self._file: IO[bytes] = open(p, "wb")  # noqa: SIM115 - closed in close()
+        # each frame's messages end their chunk (Writer.flush), so a replay killed before close()
+        # leaves a file a streaming reader reads up to its last frame; a writer without flush()
+        # (mcap < 1.6) writes the messages unchunked
+        self._chunked = hasattr(self._enc.writer_cls, "flush")
+        self._w = self._enc.writer_cls(self._file, **({} if self._chunked else
+                                                       {"use_chunking": False}))
+        self._w.start(profile="", library="tileviz")
+        self._ch: dict[str, int] = {}
+        ids: dict[str, int] = {}
+        for key, (name, encoding, data) in self._enc.schemas().items():
+            if name not in ids:
+                ids[name] = self._w.register_schema(name=name, encoding=encoding, data=data)
+            self._ch[key] = self._w.register_channel(
+                topic=TOPICS[key], message_encoding="json" if key == "status" else "protobuf",
+                schema_id=ids[name])
+        self.count = 0
+
+    def write(self, rec: FrameRecord, image_name: str | None) -> None:
+        """The messages of one replayed frame (``image_name``: its stored image file, relative
+        to the dataset folder, or None)."""
+        ns = round(rec.t * 1e9)
+        image = None
+        if image_name:
+            fmt = "jpeg" if Path(image_name).suffix.lower() in (".jpg", ".jpeg") else "png"
+            image = ((self.dataset / image_name).read_bytes(), fmt)
+        for key, data in self._enc.messages(rec, ns, image):
+            self._w.add_message(channel_id=self._ch[key], log_time=ns, publish_time=ns,
+                                data=data, sequence=self.count)
+        self.count += 1
         if self._chunked:
             self._w.flush()
         else:
             self._file.flush()
-        self.count += 1
 
     def close(self) -> None:
         if not self._file.closed:

@@ -227,6 +227,16 @@ class FrameLoop:
             self.estimators[PRIMARY] = self._interval(hull if hull is not None
                                                       else initial_box(cfg))
 
+    def set_motion(self, odometry: Odometry | None) -> None:
+        """The odometry the estimators use at the next frame (the motion since the previous
+        one), for a live source that learns a frame's motion only when the next frame arrives
+        (:mod:`tileviz.ros.live`); it then hands frames with ``odometry=None``. Checked as
+        :meth:`process` checks a frame's odometry."""
+        if odometry is not None and not (_finite(odometry.speed) and _finite(odometry.yaw_rate)
+                                         and _finite(odometry.dt) and odometry.dt >= 0):
+            raise ValueError(f"odometry must hold finite numbers (dt >= 0), got {odometry}")
+        self._pending_odometry = odometry
+
     def process(self, frame: FrameInput, vision: VisionResult | None = None) -> FrameRecord:
         """Run one frame: every estimator predicts with the previous frame's odometry and updates
         with this frame's compass and view. ``vision``: this frame's vision result when it was
@@ -247,6 +257,7 @@ class FrameLoop:
                 tile_size=self.cfg.floor.tile_size,
                 vision=self.cfg.vision,
                 keep_stages=self.keep_stages,
+                floor=self.cfg.floor.model,
             )
             vision_ms = (clock() - t0) * 1e3
         else:

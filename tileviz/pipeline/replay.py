@@ -42,6 +42,8 @@ def replay(
     on_total: Callable[[int | None], None] | None = None,
     on_frame: Callable[[FrameRecord], None] | None = None,
     on_notice: Callable[[str], None] | None = None,
+    until: int | None = None,
+    keep_stages: bool = False,
 ) -> int:
     """Replay ``dataset`` and write the replay CSV ``out`` (one row per frame; None: no CSV)
     and, when given, the equivalence-residual CSV ``output_file``; returns the number of frames
@@ -56,13 +58,15 @@ def replay(
     (``Localizer.relocalize``: candidate boxes, heading from the compass).
     ``on_total`` gets the frame count when known (None otherwise) before
     the first frame, ``on_frame`` every record (its ``residuals`` computed only with
-    ``output_file``). ``on_notice`` gets, before the first frame, the one line saying that the
-    dataset ended early (:attr:`tileviz.datasets.DatasetSource.ended_early`), if it did. A bad
-    row or image raises DatasetError (a ValueError) after every frame before it was written.
-    Every output row is written whole as its frame ends, so a replay that is stopped (killed)
-    leaves files readable up to their last row (the MCAP file then has no summary: a streaming
-    reader reads it)."""
-    jobs = jobs if jobs is not None else default_jobs()
+    ``output_file``). ``until``: stop after the frame with that index (None: at the dataset's
+    end). ``keep_stages``: the records handed to ``on_frame`` carry every vision stage image
+    (vision then runs in this process: ``jobs`` is 1). ``on_notice`` gets, before the first
+    frame, the one line saying that the dataset ended early
+    (:attr:`tileviz.datasets.DatasetSource.ended_early`), if it did. A bad row or image raises
+    DatasetError (a ValueError) after every frame before it was written. Every output row is
+    written whole as its frame ends, so a replay that is stopped (killed) leaves files readable
+    up to their last row (the MCAP file then has no summary: a streaming reader reads it)."""
+    jobs = 1 if keep_stages else jobs if jobs is not None else default_jobs()
     if jobs > 1:  # the workers' server loads the vision code while this process reads the rows
         start_worker_server()
     # images decode on a background thread while the previous frame's vision runs
@@ -74,7 +78,8 @@ def replay(
     if fault_model is not None:
         cfg = replace(cfg, localizer=replace(cfg.localizer, fault_speed=fault_model[0],
                                              fault_yaw_rate=fault_model[1]))
-    loop = FrameLoop(cfg, residuals=bool(output_file))  # residuals: for output_file only
+    # residuals: for output_file only
+    loop = FrameLoop(cfg, residuals=bool(output_file), keep_stages=keep_stages)
     if relocalize_region is not None and loop.primary is not None:
         # too large even with a compass reading to cut the heading: refused now (a lost frame
         # without a compass reading whose region needs one stays lost until a reading comes)
@@ -112,6 +117,8 @@ def replay(
                 relocalize_after(loop, relocalize_region, rec)
             if on_frame is not None:
                 on_frame(rec)
+            if until is not None and rec.index >= until:
+                break
     finally:
         if csv_out is not None:
             csv_out.close()

@@ -63,7 +63,8 @@ def _vision(name: str, where: str) -> VisionResult:
     assert _worker is not None, "worker not initialised"
     source, cfg = _worker
     image = source.load_image(name, where)
-    return extract(image, camera=cfg.camera, tile_size=cfg.floor.tile_size, vision=cfg.vision)
+    return extract(image, camera=cfg.camera, tile_size=cfg.floor.tile_size, vision=cfg.vision,
+                   floor=cfg.floor.model)
 
 
 def _vision_chunk(jobs: list[tuple[str, str]]) -> list[VisionResult | Exception]:

@@ -210,6 +210,26 @@ def _appearance(floor: FloorConfig) -> np.ndarray:
     return out.astype(np.float32)
 
 
+def _layout(floor: FloorConfig) -> tuple[np.ndarray, np.ndarray] | None:
+    """The offsets (tiles) of every tile, or every panel of ``panel_tiles`` x ``panel_tiles``
+    tiles, off the lattice, over the 16 x 16 tile period: (x offsets, y offsets), each a
+    (rows = y, columns = x) table uniform in +-``lattice_tolerance`` (at most 0.8 of the grout's
+    half width, so that no tile reaches past its cell), or None for a perfect lattice. A grout
+    line's centre, midway between its two tiles' edges, is then within the tolerance."""
+    if floor.lattice_tolerance <= 0:
+        return None
+    half = 0.5 * (floor.seam_width if floor.panel_tiles else floor.grout_width)
+    reach = min(floor.lattice_tolerance, 0.8 * max(half, 0.0)) / floor.tile_size
+    rng = np.random.default_rng(np.random.SeedSequence([int(floor.seed), 0x1A1D]))
+    k = _PERIOD_TILES
+    n = floor.panel_tiles or 1
+    out = []
+    for _ in range(2):
+        table = rng.uniform(-reach, reach, (k // n, k // n))
+        out.append(np.repeat(np.repeat(table, n, axis=0), n, axis=1).astype(np.float32))
+    return out[0], out[1]
+
+
 class FloorRenderer:
     """Renders the downward camera's view of the tiled floor (HxWx3 uint8 RGB).
 
@@ -234,6 +254,12 @@ class FloorRenderer:
         lp = floor.tile_size * camera.ppm
         self._tile_px = lp
         self._grout_half_px = 0.5 * floor.grout_width * camera.ppm
+        self._seam_half_px = 0.5 * floor.seam_width * camera.ppm
+        self._layout = _layout(floor)
+        """Offsets of each tile (or panel) off the lattice, in tiles: (x, y) tables over the
+        appearance's 16 x 16 tile period, or None for a perfect lattice."""
+        self._tile2_minus_tile = np.array(floor.tile2_rgb, np.float32) - self._tile_rgb
+        self._seam_minus_tile = np.array(floor.seam_rgb, np.float32) - self._tile_rgb
         r2 = self._u * self._u + self._v * self._v
         r2max = float((w - 1) ** 2 + (h - 1) ** 2) / 4.0
         self._vignette = (1.0 - camera.vignetting * r2 / max(r2max, 1.0)).astype(np.float32)
@@ -275,6 +301,9 @@ class FloorRenderer:
         ay, by = np.float32(-ct * k), np.float32(-st * k)
         gx = fx0 + ax * self._u + bx * self._v
         gy = fy0 + ay * self._u + by * self._v
+        if self.floor.kind == "checker" or self._layout is not None or self.floor.panel_tiles:
+            return self._laid_floor(gx, gy, ix0, iy0, float(ax), float(bx), float(ay),
+                                    float(by))
         # Grout coverage: the overlap of each pixel's footprint [d - 1/2, d + 1/2] (along the
         # axis normal to the line) with the grout band [-w/2, w/2]; the union of both families.
         cov = self._coverage(gx)
@@ -292,6 +321,79 @@ class FloorRenderer:
                 for t, d in zip(self._tile_rgb, self._grout_minus_tile, strict=True)
             ]
         )
+
+    def _laid_floor(self, gx: np.ndarray, gy: np.ndarray, ix0: int, iy0: int, ax: float,
+                    bx: float, ay: float, by: float) -> np.ndarray:
+        """:meth:`floor_image` for a checkerboard, a floor laid off the lattice (tiles or panels
+        offset by up to ``lattice_tolerance``) or a mosaic of panels: ``gx``, ``gy`` the tile
+        coordinates of the pixels relative to the tile (``ix0``, ``iy0``)."""
+        floor = self.floor
+        mx = self._texture_map(gx, ix0, ax, bx)
+        my = self._texture_map(gy, iy0, ay, by)
+        shade = cv2.remap(self._appearance, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_WRAP)
+        ti = np.floor(gx).astype(np.int64) + ix0  # the cell of each pixel, in tiles
+        tj = np.floor(gy).astype(np.int64) + iy0
+        if floor.kind == "checker":
+            # each family: +-1 on alternate tiles, a linear ramp across the pixel at an edge
+            sx = self._square_wave(gx, ix0)
+            sy = self._square_wave(gy, iy0)
+            half = 0.5 * (1.0 - sx * sy)  # 0 on the tiles of tile_rgb, 1 on those of tile2_rgb
+            weight = (half * shade).astype(np.float32)
+            return cv2.merge([cv2.addWeighted(shade, float(t), weight, float(d), 0.0) for t, d in
+                              zip(self._tile_rgb, self._tile2_minus_tile, strict=True)])
+        cov_x, seam_x = self._laid_coverage(gx, ix0, tj, 0)
+        cov_y, seam_y = self._laid_coverage(gy, iy0, ti, 1)
+        cov = np.maximum(cov_x, cov_y)
+        seam = np.maximum(seam_x, seam_y)
+        cov = np.minimum(cov, 1.0 - seam)
+        cov *= shade
+        seam *= shade
+        return cv2.merge([
+            cv2.addWeighted(cv2.addWeighted(shade, float(t), cov, float(d), 0.0), 1.0,
+                            seam, float(e), 0.0)
+            for t, d, e in zip(self._tile_rgb, self._grout_minus_tile, self._seam_minus_tile,
+                               strict=True)])
+
+    def _square_wave(self, g: np.ndarray, i0: int) -> np.ndarray:
+        """+1 on the tiles of even index along one family's normal (``i0 + g``, tiles), -1 on
+        the odd ones, ramping linearly across the one pixel that straddles an edge."""
+        n = np.rint(g)
+        d = (g - n) * np.float32(self._tile_px)  # signed px from the nearest edge
+        parity = ((n.astype(np.int64) + i0) & 1).astype(np.float32)
+        right = 1.0 - 2.0 * parity  # the sign of the tile on the positive side of that edge
+        return (right * np.clip(2.0 * d, -1.0, 1.0)).astype(np.float32)
+
+    def _laid_coverage(self, g: np.ndarray, i0: int, across: np.ndarray,
+                       axis: int) -> tuple[np.ndarray, np.ndarray]:
+        """Coverage of each pixel by the nearest line of one family (``g``: tiles along the
+        family's normal, relative to tile ``i0``; ``across``: each pixel's cell index along the
+        line): (grout, seam). The band between the two tiles
+        beside that line spans from the first tile's far edge to the second's near edge, each
+        tile shifted by its layout offset (``axis`` 0: x offsets, 1: y)."""
+        n = np.rint(g)
+        edge = n.astype(np.int64) + i0  # the line's index: between cells edge - 1 and edge
+        p = _PERIOD_TILES
+        panel = self.floor.panel_tiles
+        if self._layout is None:
+            lo_off = hi_off = np.zeros_like(g)
+        else:
+            table = self._layout[axis]
+            row = across % p
+            lo_off = table[row, (edge - 1) % p] if axis == 0 else table[(edge - 1) % p, row]
+            hi_off = table[row, edge % p] if axis == 0 else table[edge % p, row]
+        seam_line = (edge % panel == 0) if panel else np.zeros(g.shape, bool)
+        half = np.where(seam_line, np.float32(self._seam_half_px),
+                        np.float32(self._grout_half_px))
+        tile_px = np.float32(self._tile_px)
+        # the band [edge + lo_off - half, edge + hi_off + half] in px from the pixel's centre
+        d = (g - n) * tile_px
+        b_lo = lo_off * tile_px - half
+        b_hi = hi_off * tile_px + half
+        hi = np.minimum(d + np.float32(0.5), b_hi)
+        lo = np.maximum(d - np.float32(0.5), b_lo)
+        cov = np.clip(hi - lo, 0.0, 1.0).astype(np.float32)
+        seam = np.where(seam_line, cov, np.float32(0.0)).astype(np.float32)
+        return np.where(seam_line, np.float32(0.0), cov).astype(np.float32), seam
 
     def _texture_map(self, g: np.ndarray, i0: int, a: float, b: float) -> np.ndarray:
         """Texel coordinates of the appearance texture for tile coordinates ``i0 + g`` (g affine

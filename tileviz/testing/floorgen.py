@@ -18,7 +18,17 @@ Floor families (:data:`FAMILIES`), each drawn at random by :func:`draw_floor`:
 - ``terrazzo``: speckled stone (chips of random size and shade);
 - ``wood``: wavy grain along one tile axis, the axis alternating from tile to tile;
 - ``degraded``: any surface above with heavy noise, blur, vignetting, a lighting gradient, JPEG;
-- ``coarse``: thin grout (about 1 px) at 100..140 px/m.
+- ``coarse``: thin grout (about 1 px) at 100..140 px/m;
+
+and the floors a user declares (:data:`DECLARED_FAMILIES`: their ``FloorSpec.kind`` and
+``lattice_tolerance`` are what such a floor's meta.json declares, :attr:`FloorSpec.model`):
+
+- ``checker``: tiles of two shades (60..180 levels apart) alternating edge to edge, no grout;
+- ``hand_laid``: every tile laid up to 0.3..2.5 % of the tile off the lattice (its edges and the
+  grout between them move; the grout 2..8 px);
+- ``mosaic``: panels of 3..5 x 3..5 small tiles with seams 2..3 x the grout's width, each panel
+  laid up to 1..3 % of a tile off the lattice;
+- ``faint_colour``: grout of nearly the tiles' luma (within 2..6 levels) but of another hue.
 
 Corruptions (:data:`CORRUPTIONS`): a cable, the edge of a box, a shadow edge, glare, motion blur.
 """
@@ -33,10 +43,13 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
+from tileviz.config import FloorModel
 from tileviz.testing import missing
 
 FAMILIES = ("plain", "light_grout", "wide_grout", "shade_steps", "photo", "terrazzo", "wood",
             "degraded", "coarse")
+DECLARED_FAMILIES = ("checker", "hand_laid", "mosaic", "faint_colour")
+ALL_FAMILIES = FAMILIES + DECLARED_FAMILIES
 CORRUPTIONS = ("cable", "box", "shadow", "glare", "motion_blur")
 PHOTOS = ("brick", "grass", "gravel")
 SS = 3
@@ -79,6 +92,17 @@ class FloorSpec:
     jpeg: int = 0
     seed: int = 0
     extra: dict = field(default_factory=dict)
+    kind: str = "grout"  # grout, or checker (tile_shade and grout_shade alternate, no grout)
+    lattice_tolerance: float = 0.0  # metres: each tile (panel) laid within this off the lattice
+    panel: int = 0  # tiles per panel side (0: no panels); seams seam_px wide
+    seam_px: float = 0.0
+    tint: tuple[tuple[float, float, float], tuple[float, float, float]] | None = None
+    """RGB of the tiles and of the grout (0..255) when they differ in hue, else None."""
+
+    @property
+    def model(self) -> FloorModel:
+        """What a meta.json declares of this floor."""
+        return FloorModel(self.kind, self.lattice_tolerance)  # type: ignore[arg-type]
 
 
 def draw_floor(family: str, rng: np.random.Generator) -> FloorSpec:
@@ -145,9 +169,44 @@ def draw_floor(family: str, rng: np.random.Generator) -> FloorSpec:
         spec.tile_size = float(rng.uniform(0.8, 1.6))
         spec.grout_px = float(rng.uniform(0.8, 1.5))
         spec.grout_shade = float(rng.uniform(20, 80))
+    elif family == "checker":
+        spec.kind = "checker"
+        spec.grout_px = 0.0
+        spec.tile_shade = float(rng.uniform(20, 90))
+        spec.grout_shade = float(rng.uniform(spec.tile_shade + 60,
+                                             min(245.0, spec.tile_shade + 180)))
+        spec.shade_spread = float(rng.uniform(0, 8))
+        if rng.uniform() < 0.5:  # marble-like
+            spec.surface, spec.surface_amp = "terrazzo", float(rng.uniform(0.05, 0.15))
+    elif family == "hand_laid":
+        spec.grout_px = float(rng.uniform(2.0, 8.0))
+        spec.lattice_tolerance = float(rng.uniform(0.003, 0.025)) * tile
+        # the grout is never closed: a tile moves at most 0.4 grout widths toward its neighbour
+        spec.lattice_tolerance = min(spec.lattice_tolerance, 0.4 * spec.grout_px / ppm)
+    elif family == "mosaic":
+        spec.grout_px = float(rng.uniform(1.5, 4.0))
+        spec.panel = int(rng.integers(3, 6))
+        spec.seam_px = spec.grout_px * float(rng.uniform(2.0, 3.0))
+        spec.lattice_tolerance = min(float(rng.uniform(0.01, 0.03)) * tile,
+                                     0.4 * spec.seam_px / ppm)
+    elif family == "faint_colour":
+        spec.grout_px = float(rng.uniform(2.0, 6.0))
+        grey = np.array([float(rng.uniform(120, 180))] * 3)
+        hue = rng.normal(0.0, 1.0, 3)
+        hue -= np.dot(hue, _LUMA) / np.dot(_LUMA, _LUMA) * _LUMA  # no luma change
+        hue *= float(rng.uniform(25, 45)) / float(np.abs(hue).max())
+        grout = np.clip(grey + hue - float(rng.uniform(2, 6)) * float(rng.choice([-1, 1])),
+                        0, 255)
+        spec.tint = (tuple(grey.tolist()), tuple(grout.tolist()))
+        spec.tile_shade = float(np.dot(_LUMA, grey))
+        spec.grout_shade = float(np.dot(_LUMA, grout))
     elif family != "plain":
         raise ValueError(f"unknown floor family {family!r}")
     return spec
+
+
+_LUMA = np.array([0.299, 0.587, 0.114])
+"""The luma's weights of R, G, B."""
 
 
 def _hash(i: np.ndarray, j: np.ndarray, seed: int, salt: int) -> np.ndarray:
@@ -237,11 +296,26 @@ def render(spec: FloorSpec, cx: float, cy: float, theta: float,
     fy = Y - j
     i, j, fx, fy = np.broadcast_arrays(i, j, fx, fy)
     half = 0.5 * spec.grout_px / ppm / L
-    grout = (np.minimum(fx, 1 - fx) < half) | (np.minimum(fy, 1 - fy) < half)
-    shade = spec.tile_shade + spec.shade_spread * (2.0 * _hash(i, j, spec.seed, 1) - 1.0)
+    if spec.lattice_tolerance > 0 or spec.panel:
+        X, Y = _laid(spec, X, Y, i, j)
+        i, j = np.floor(X), np.floor(Y)
+        fx, fy = X - i, Y - j
+        kx, ky = np.rint(X), np.rint(Y)
+        seam = 0.5 * spec.seam_px / ppm / L
+        hx = np.where((kx % spec.panel == 0) if spec.panel else False, seam, half)
+        hy = np.where((ky % spec.panel == 0) if spec.panel else False, seam, half)
+        grout = (np.abs(X - kx) < hx) | (np.abs(Y - ky) < hy)
+    else:
+        grout = (np.minimum(fx, 1 - fx) < half) | (np.minimum(fy, 1 - fy) < half)
+    shade0: float | np.ndarray = spec.tile_shade
+    if spec.kind == "checker":  # two shades alternate, no grout
+        shade0 = np.where((i + j) % 2 == 0, spec.tile_shade, spec.grout_shade)
+        grout = np.zeros_like(grout)
+    shade = shade0 + spec.shade_spread * (2.0 * _hash(i, j, spec.seed, 1) - 1.0)
     tile = shade * (1.0 + _surface(spec, i, j, fx, fy))
     val = np.where(grout, spec.grout_shade, tile)
     img = val.mean(axis=(2, 3)).astype(np.float32)
+    cover = grout.mean(axis=(2, 3)).astype(np.float32) if spec.tint is not None else None
     if corruption is not None:
         img = _corrupt(img, corruption, rng, spec)
     if overlay is not None:
@@ -266,12 +340,33 @@ def render(spec: FloorSpec, cx: float, cy: float, theta: float,
     # channel, as a real camera's highlights do, instead of being tinted below saturation
     tint = np.array([1.0, 0.97, 0.92]) if spec.seed % 2 else np.array([0.95, 1.0, 1.0])
     level = np.where(img > 255.0, img, out)
+    if cover is not None and spec.tint is not None:  # the tiles' and the grout's hues
+        if spec.blur > 0:
+            cover = cv2.GaussianBlur(cover, (0, 0), spec.blur)
+        t_rgb, g_rgb = np.array(spec.tint[0]), np.array(spec.tint[1])
+        c = cover[..., None]
+        mix = t_rgb * (1 - c) + g_rgb * c
+        tint = tint * mix / np.maximum(np.dot(mix, _LUMA), 1.0)[..., None]
     rgb = np.clip(np.rint(level[..., None] * tint), 0, 255).astype(np.uint8)
     if spec.jpeg:
         ok, buf = cv2.imencode(".jpg", rgb, [cv2.IMWRITE_JPEG_QUALITY, spec.jpeg])
         if ok:
             rgb = cv2.imdecode(buf, cv2.IMREAD_COLOR)
     return rgb
+
+
+def _laid(spec: FloorSpec, X: np.ndarray, Y: np.ndarray, i: np.ndarray, j: np.ndarray
+          ) -> tuple[np.ndarray, np.ndarray]:
+    """Floor coordinates (tiles) in the frame of the tile (or panel of ``spec.panel`` tiles)
+    that holds the point on the ideal lattice, laid off it by up to ``lattice_tolerance``: a
+    point near an edge falls into its own tile's grout, so the grout between two tiles lies
+    between their two displaced edges (its centre within the tolerance of the lattice)."""
+    n = spec.panel or 1
+    pi, pj = np.floor(i / n), np.floor(j / n)
+    reach = spec.lattice_tolerance / spec.tile_size
+    ox = (2.0 * _hash(pi, pj, spec.seed, 41) - 1.0) * reach
+    oy = (2.0 * _hash(pi, pj, spec.seed, 43) - 1.0) * reach
+    return X - ox, Y - oy
 
 
 def _corrupt(img: np.ndarray, kind: str, rng: np.random.Generator, spec: FloorSpec

@@ -22,7 +22,7 @@ from tileviz.vision import VisionResult, extract, observation_error
 
 __all__ = ["DETAILS", "FAMILY_SALT", "cable_view", "motion_view", "study_view"]
 
-FAMILY_SALT = {f: i + 1 for i, f in enumerate(floorgen.FAMILIES)}
+FAMILY_SALT = {f: i + 1 for i, f in enumerate(floorgen.ALL_FAMILIES)}
 """The second word of every view's seed, by family."""
 
 DETAILS = ("position_se_px", "heading_se", "straightness_px", "spacing_residual_px", "rise",
@@ -42,7 +42,7 @@ def study_view(seed: int, family: str, corruption: str | None,
     img = floorgen.render(spec, cx, cy, th, rng, corruption)
     cam = CameraConfig(ppm=spec.ppm, width=spec.width, height=spec.height, offset=(0.0, 0.0))
     res = extract(img, camera=cam, tile_size=spec.tile_size,
-                  vision=vision or VisionConfig(extractor="robust"))
+                  vision=vision or VisionConfig(extractor="robust"), floor=spec.model)
     out: dict[str, Any] = {
         "seed": seed, "family": family, "corruption": corruption or "",
         "readable": floorgen.readable(spec, cx, cy, th), "accepted": res.accepted,
@@ -99,7 +99,7 @@ def _outcome(out: dict[str, Any], img: np.ndarray, spec: floorgen.FloorSpec,
     """``out`` with the robust extractor's outcome on ``img`` (camera at ``pose``)."""
     cam = CameraConfig(ppm=spec.ppm, width=spec.width, height=spec.height, offset=(0.0, 0.0))
     res = extract(img, camera=cam, tile_size=spec.tile_size,
-                  vision=VisionConfig(extractor="robust"))
+                  vision=VisionConfig(extractor="robust"), floor=spec.model)
     out.update(accepted=res.accepted, reason=res.reason, err_px=math.nan, bound_px=math.nan,
                inside=True)
     if res.accepted:

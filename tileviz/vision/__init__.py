@@ -28,12 +28,20 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
+from dataclasses import replace
 
 import cv2
 import numpy as np
 
-from tileviz.config import CameraConfig, VisionConfig
+from tileviz.config import PERFECT_FLOOR, CameraConfig, FloorModel, VisionConfig
 from tileviz.core.constants import MAX_TILE_PX, MIN_TILE_PX
+from tileviz.vision.colour import (
+    PROJECTIONS,
+    RETRY_REASONS,
+    SAME_AS_LUMA,
+    correlation,
+    edge_image,
+)
 from tileviz.vision.faithful import extract_faithful
 from tileviz.vision.geometry import observation_error
 from tileviz.vision.result import REASONS, VisionResult
@@ -64,6 +72,46 @@ def _robust() -> Callable[..., VisionResult]:
     return extract_robust
 
 
+def _read_robust(gray: np.ndarray, image: np.ndarray, camera: CameraConfig, tile_size: float,
+                 vision: VisionConfig, keep_stages: bool, timings: dict[str, float],
+                 floor: FloorModel) -> VisionResult:
+    """The robust extractor on the luma ``gray``, then, while it shows no grout
+    (:data:`~tileviz.vision.colour.RETRY_REASONS`), on the colour projections of ``image``
+    (RGB only); a floor declared ``checker`` has its edge image read first (docs/vision.md,
+    "Colour"). The first accepted reading is the result (its
+    ``details["projection"]``: 0 the luma, 1.. the colour projections in order, -1 the edge
+    image); otherwise the first reading's refusal."""
+    robust = _robust()
+    candidates: list[tuple[float, Callable[[], np.ndarray]]] = [(0.0, lambda: gray)]
+    if image.ndim == 3:
+        candidates += [(float(k), lambda p=proj: p(image))  # type: ignore[misc]
+                       for k, proj in enumerate(PROJECTIONS.values(), start=1)]
+    checker = floor.kind == "checker"
+    if checker:  # a checkerboard: its edge image first
+        candidates.insert(0, (-1.0, lambda: edge_image(gray)))
+    first: VisionResult | None = None
+    for number, make in candidates:
+        t1 = time.perf_counter()
+        view = make()
+        if number > 0 and abs(correlation(view, gray)) >= SAME_AS_LUMA:
+            continue  # the luma again: nothing new to read
+        tm = dict(timings)
+        if number != 0.0:
+            tm["projection"] = (time.perf_counter() - t1) * 1e3
+        got = robust(view, camera=camera, tile_size=tile_size, vision=vision,
+                     keep_stages=keep_stages, image=image, timings=tm, floor=floor)
+        if got.accepted:
+            return got if number == 0.0 else replace(
+                got, details={**got.details, "projection": number})
+        if first is None:
+            first = got
+            timings.update(tm)
+        if got.reason not in RETRY_REASONS:
+            break
+    assert first is not None
+    return first
+
+
 def to_gray(image: np.ndarray) -> np.ndarray:
     """An HxW uint8 gray image from HxW, HxWx1, HxWx3 (RGB) or HxWx4 (RGBA) uint8.
 
@@ -91,18 +139,24 @@ def extract(
     tile_size: float,
     vision: VisionConfig,
     keep_stages: bool = False,
+    floor: FloorModel = PERFECT_FLOOR,
 ) -> VisionResult:
     """Extract the tile parameters seen in ``image`` (HxWx3 uint8 RGB, or HxW gray).
 
     ``camera``: ppm and the image size, which the image must match. ``tile_size``: L, metres.
-    ``vision``: the extractor and its constants. ``keep_stages``: also return every stage image
-    (HxWx3 uint8 RGB) for display. Bad arguments raise ValueError naming the quantity; a frame
-    that gives no trustworthy observation is returned with ``accepted=False`` and a ``reason``.
+    ``vision``: the extractor and its constants. ``floor``: what is declared of the floor (its kind
+    and lattice tolerance, ``docs/dataset-format.md``: the robust extractor's view bound includes
+    the tolerance; the faithful extractor reads every floor as a perfect lattice). ``keep_stages``:
+    also return every stage image (HxWx3 uint8 RGB) for display. Bad arguments raise ValueError
+    naming the quantity; a frame that gives no trustworthy observation is returned with
+    ``accepted=False`` and a ``reason``.
     """
     if not isinstance(camera, CameraConfig):
         raise ValueError(f"camera must be a CameraConfig, got {type(camera).__name__}")
     if not isinstance(vision, VisionConfig):
         raise ValueError(f"vision must be a VisionConfig, got {type(vision).__name__}")
+    if not isinstance(floor, FloorModel):
+        raise ValueError(f"floor must be a FloorModel, got {type(floor).__name__}")
     if (
         not isinstance(tile_size, (int, float))
         or not math.isfinite(tile_size)
@@ -123,13 +177,8 @@ def extract(
             f"{camera.width}x{camera.height} (width x height)"
         )
     timings = {"gray": (time.perf_counter() - t0) * 1e3}
-    run = _robust() if vision.extractor == "robust" else extract_faithful
-    return run(
-        gray,
-        camera=camera,
-        tile_size=float(tile_size),
-        vision=vision,
-        keep_stages=keep_stages,
-        image=image,
-        timings=timings,
-    )
+    if vision.extractor == "robust":
+        return _read_robust(gray, image, camera, float(tile_size), vision, keep_stages,
+                            timings, floor)
+    return extract_faithful(gray, camera=camera, tile_size=float(tile_size), vision=vision,
+                            keep_stages=keep_stages, image=image, timings=timings)

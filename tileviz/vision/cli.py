@@ -43,6 +43,7 @@ from tileviz.cliutil import (
     FIRST_RUN_NOTICE,
     CliError,
     Parser,
+    add_floor_options,
     notice_if_slow,
     positive_float,
     read_json,
@@ -74,6 +75,7 @@ def _parser(prog: str) -> Parser:
                    help="pixels per metre on the floor")
     p.add_argument("--tile-size", type=positive_float("--tile-size"), default=None,
                    help="tile size L, metres")
+    add_floor_options(p)
     p.add_argument("--extractor", choices=EXTRACTORS, default=None,
                    help=f"{EXTRACTOR_HELP} (default: the preset's)")
     p.add_argument("--json", action="store_true",
@@ -137,6 +139,10 @@ def _config(args: argparse.Namespace, image: np.ndarray, base: Config | None = N
     floor = cfg.floor
     if args.tile_size is not None:
         floor = floor.with_tile_size(args.tile_size)
+    if args.floor_kind is not None:
+        floor = replace(floor, kind=args.floor_kind)
+    if args.lattice_tolerance is not None:
+        floor = replace(floor, lattice_tolerance=args.lattice_tolerance)
     vision = cfg.vision
     if args.extractor is not None:
         vision = replace(vision, extractor=args.extractor)
@@ -192,7 +198,7 @@ def _extract_one(args: argparse.Namespace, path: str, base: Config | None,
         raise CliError(f"{path}: image is {w}x{h} but {wants} expects "
                        f"{cfg.camera.width}x{cfg.camera.height}")
     return extract(image, camera=cfg.camera, tile_size=cfg.floor.tile_size, vision=cfg.vision,
-                   keep_stages=keep_stages)
+                   keep_stages=keep_stages, floor=cfg.floor.model)
 
 
 def main(command: str, argv: list[str]) -> int:

@@ -17,7 +17,11 @@ def frame_bound(run: ReadingState, se: float) -> tuple[float, float]:
     light, blur)."""
     st = run.st.bound
     d = run.details
-    pos = (run.st.fit.sigmas * se + d["spacing_residual_px"] + 0.5 * d["straightness_px"]
+    # a floor's lattice tolerance is in every part's own bound (position_parts): of the
+    # spacing and straightness residuals, only what it does not explain is added again
+    tol2 = 2.0 * run.tol_px
+    pos = (run.st.fit.sigmas * se + max(d["spacing_residual_px"] - tol2, 0.0)
+           + 0.5 * max(d["straightness_px"] - tol2, 0.0)
            + d["position_parts"] + d["width_excess_px"]
            + st.floor_px + st.floor_width * d["width"] + st.floor_rise * d["rise"])
     head = st.heading_sigmas * d["heading_se"] + d["heading_parts"] + st.floor_rad

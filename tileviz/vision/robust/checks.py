@@ -25,20 +25,27 @@ The checks, in the order they run (value; passes when; limit from settings):
 Per reading (:mod:`.readings`), on its lines:
 
 - ``lines.found``: lines found (both families); >= 1 (``no lines``).
-- ``contrast.depth``: the deepest dip, gray levels; >= ``lines.min_depth`` (``low contrast``).
+- ``contrast.depth``: the deepest dip, gray levels; >= ``lines.depth_noise`` x the noise std of
+  a part's profile (the view's noise over the square root of ``profiles.min_part``, the fewest
+  pixels a part averages along its line), within ``lines.min_depth_floor`` ..
+  ``lines.min_depth`` (``low contrast``).
 - ``lines.families``: lines of the family with fewer; >= 1 (``one family``).
 - ``blur.rise``: median 20-80 % edge rise, px; <= ``lines.max_rise`` (``blurred``; not
   measured fails).
 - ``step_edge.levels``: largest step between a line's two sides over the brighter;
   <= ``lines.max_step`` (``step edge``).
 - ``angle.straight``: the worst part off the common fit, px; <= ``lines.straight_fraction`` x
-  the position check scale (``inconsistent angle``).
-- ``angle.perpendicular``: the two families' own tilts apart, standard errors;
-  <= ``fit.sigmas`` (``inconsistent angle``).
+  the position check scale + twice the lattice tolerance (``inconsistent angle``).
+- ``angle.perpendicular``: the two families' own tilts apart beyond what the lattice tolerance
+  allows, standard errors; <= ``fit.sigmas`` (``inconsistent angle``).
 - ``foreign_line.width``: widest line's half-depth width, px; <= ``lines.width_ratio`` x the
-  narrowest's + ``lines.width_slack`` (``foreign line``; no width fails).
+  narrowest's + ``lines.width_slack`` + twice the lattice tolerance (``foreign line``; no width
+  fails).
 - ``foreign_line.contrast``: largest / smallest line contrast (lighter grout: or of the depth
-  over the grout's own level); <= ``lines.contrast_ratio`` (``foreign line``); lighter grout
+  over the grout's own level); <= ``lines.contrast_ratio`` x how much the lines' contrast
+  varies along themselves (the median over the lines of max / min over a line's parts, at
+  least 1: a floor whose grout varies along each line varies between lines as much) (``foreign
+  line``); lighter grout
   that fails is one grout when the three crossing checks pass:
 - ``foreign_line.crossings_read``: lines read beside a crossing of the two families; >= 1.
 - ``foreign_line.crossings``: largest ratio of two crossing lines' depths beside their crossing;
@@ -56,19 +63,25 @@ On the reading whose lines passed, the lattice and the bound:
   not show (1) or not (0); <= 0 (``inconsistent spacing``; ``lattice.min_chord``,
   ``lattice.found_share``).
 - ``spacing``: the worst line off the lattice, px; <= ``lattice.spacing_fraction`` x the
-  position check scale (``inconsistent spacing``).
+  position check scale + twice the lattice tolerance (``inconsistent spacing``).
 - ``evidence`` (per family): line length in view, px; >= ``lattice.min_evidence`` x the smaller
   side (``too few segments``).
 - ``bound.position``: the view's own position bound, px; <= the larger of
-  ``VisionConfig.position_error_px`` and ``bound.max_px`` (``imprecise``).
+  ``VisionConfig.position_error_px`` and ``bound.max_px``, plus what the lattice tolerance adds
+  to the bound (its part of the parts' term, and ``fit.sigmas`` + 1 times it for the scatter and
+  a width's excess: ``imprecise``; a declared tolerance alone is never a reason to refuse).
 - ``bound.heading``: the view's own heading bound, rad; <= the larger of
-  ``VisionConfig.heading_error`` and ``bound.max_rad`` (``imprecise``).
+  ``VisionConfig.heading_error`` and ``bound.max_rad``, plus the tolerance's part (as
+  ``bound.position``).
 - ``foreign_edge``: long straight edges (``foreign.length`` x the smaller side, at least
   ``foreign.min_length`` px) off the lattice that no texture explains; <= 0 (``step edge`` when
   the longest separates two levels, else ``foreign line``).
 
 The position check scale is the smaller of ``VisionConfig.position_error_px`` and
-``scale.position_px``.
+``scale.position_px``. The lattice tolerance is the declared floor's (``FloorModel``,
+``docs/dataset-format.md``) in the view's pixels: a line may lie that far off the ideal lattice at
+any point, so two lines, two parts of a line, or a line and the lattice fitted to the others may
+differ by twice it.
 
 Adding a check: a :class:`Check` below (id, reason, relation, limit from the context, the
 settings it reads), added to :data:`CHECKS` and to this list, and one ``record.require(CHECK,
@@ -77,6 +90,7 @@ context, value)`` where its value is measured.
 
 from __future__ import annotations
 
+import math
 import operator
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -92,7 +106,8 @@ __all__ = ["CHECKS", "Check", "Context", "Record", "Refusal", "Relation"]
 class Context(Protocol):
     """What a limit is computed from: the settings (``st``) and the view's context: the
     position check scale (``bound_px``, px), the smaller side of the view (``side``, px), the
-    declared bounds (``vision``) and the view's noise std (``noise``, gray levels).
+    declared bounds (``vision``), the view's noise std (``noise``, gray levels) and the floor's
+    lattice tolerance in the view (``tol_px``, px: 0 for a perfect lattice).
     :class:`~tileviz.vision.robust.state.View` and
     :class:`~tileviz.vision.robust.state.ReadingState` are contexts."""
 
@@ -106,6 +121,8 @@ class Context(Protocol):
     def vision(self) -> VisionConfig: ...
     @property
     def noise(self) -> float: ...
+    @property
+    def tol_px(self) -> float: ...
 
 
 @dataclass(frozen=True)
@@ -177,7 +194,11 @@ HEADING_GRADIENTS = Check("heading.gradients", "no lines", ABOVE, lambda c: 0.0,
 LINES_FOUND = Check("lines.found", "no lines", AT_LEAST, lambda c: 1.0, "",
                     "lines found")
 CONTRAST_DEPTH = Check("contrast.depth", "low contrast", AT_LEAST,
-                       lambda c: c.st.lines.min_depth, "lines.min_depth",
+                       lambda c: c.st.lines.min_depth if not c.noise <= c.st.lines.min_depth
+                       else min(c.st.lines.min_depth, max(
+                           c.st.lines.min_depth_floor, c.st.lines.depth_noise * c.noise
+                           / math.sqrt(c.st.profiles.min_part))),
+                       "lines.min_depth, depth_noise, min_depth_floor, profiles.min_part",
                        "deepest dip (gray levels)")
 LINES_FAMILIES = Check("lines.families", "one family", AT_LEAST, lambda c: 1.0, "",
                        "lines of the sparser family")
@@ -186,7 +207,7 @@ BLUR_RISE = Check("blur.rise", "blurred", WITHIN, lambda c: c.st.lines.max_rise,
 STEP_LEVELS = Check("step_edge.levels", "step edge", AT_MOST, lambda c: c.st.lines.max_step,
                     "lines.max_step", "largest step between a line's sides")
 ANGLE_STRAIGHT = Check("angle.straight", "inconsistent angle", AT_MOST,
-                       lambda c: c.st.lines.straight_fraction * c.bound_px,
+                       lambda c: c.st.lines.straight_fraction * c.bound_px + 2.0 * c.tol_px,
                        "lines.straight_fraction, scale.position_px",
                        "worst part off the common fit (px)")
 ANGLE_PERPENDICULAR = Check("angle.perpendicular", "inconsistent angle", AT_MOST,
@@ -194,10 +215,12 @@ ANGLE_PERPENDICULAR = Check("angle.perpendicular", "inconsistent angle", AT_MOST
                             "families' tilts apart (standard errors)")
 FOREIGN_WIDTH = Check("foreign_line.width", "foreign line", WITHIN,
                       lambda c, narrowest: c.st.lines.width_ratio * narrowest
-                      + c.st.lines.width_slack, "lines.width_ratio, width_slack",
+                      + c.st.lines.width_slack + 2.0 * c.tol_px, "lines.width_ratio, width_slack",
+
                       "widest line's width (px)")
 FOREIGN_CONTRAST = Check("foreign_line.contrast", "foreign line", AT_MOST,
-                         lambda c: c.st.lines.contrast_ratio, "lines.contrast_ratio",
+                         lambda c, along: c.st.lines.contrast_ratio * max(1.0, along),
+                         "lines.contrast_ratio",
                          "largest / smallest contrast")
 CROSSINGS_READ = Check("foreign_line.crossings_read", "foreign line", AT_LEAST,
                        lambda c: 1.0, "lines.crossing_reach, crossing_min_reach",
@@ -216,17 +239,19 @@ FOREIGN_SHOULDER = Check("foreign_line.shoulder", "foreign line", AT_MOST,
 SPACING_MISSING = Check("spacing.missing", "inconsistent spacing", AT_MOST, lambda c: 0.0,
                         "lattice.min_chord, found_share", "a predicted line missing")
 SPACING = Check("spacing", "inconsistent spacing", AT_MOST,
-                lambda c: c.st.lattice.spacing_fraction * c.bound_px,
+                lambda c: c.st.lattice.spacing_fraction * c.bound_px + 2.0 * c.tol_px,
                 "lattice.spacing_fraction, scale.position_px", "worst line off the lattice (px)")
 EVIDENCE = Check("evidence", "too few segments", AT_LEAST,
                  lambda c: c.st.lattice.min_evidence * c.side, "lattice.min_evidence",
                  "line length in view (px)")
 BOUND_POSITION = Check("bound.position", "imprecise", AT_MOST,
-                       lambda c: max(c.vision.position_error_px, c.st.bound.max_px),
+                       lambda c, tolerance: max(c.vision.position_error_px, c.st.bound.max_px)
+                       + tolerance,
                        "bound.max_px, VisionConfig.position_error_px",
                        "the view's position bound (px)")
 BOUND_HEADING = Check("bound.heading", "imprecise", AT_MOST,
-                      lambda c: max(c.vision.heading_error, c.st.bound.max_rad),
+                      lambda c, tolerance: max(c.vision.heading_error, c.st.bound.max_rad)
+                      + tolerance,
                       "bound.max_rad, VisionConfig.heading_error",
                       "the view's heading bound (rad)")
 FOREIGN_EDGE = Check("foreign_edge", "foreign line", AT_MOST, lambda c: 0.0,

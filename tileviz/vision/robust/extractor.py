@@ -15,7 +15,7 @@ from types import MappingProxyType
 import cv2
 import numpy as np
 
-from tileviz.config import CameraConfig, VisionConfig
+from tileviz.config import PERFECT_FLOOR, CameraConfig, FloorModel, VisionConfig
 from tileviz.types import Observation
 from tileviz.vision import draw
 from tileviz.vision.decision import Decision, Tried
@@ -43,16 +43,20 @@ def extract_robust(
     image: np.ndarray | None = None,
     timings: dict[str, float] | None = None,
     settings: RobustSettings = DEFAULT_SETTINGS,
+    floor: FloorModel = PERFECT_FLOOR,
 ) -> VisionResult:
     """Run the robust extractor on ``gray`` (HxW uint8); see the package docstring.
 
-    ``image`` (the RGB input) is only used for the overlays when ``keep_stages``; ``timings``
-    (ms) may already hold the gray conversion's time."""
+    ``floor``: what is declared of the floor (its lattice tolerance widens the checks that compare
+    lines with the lattice and is part of the view's bound: docs/vision.md). ``image`` (the RGB
+    input) is only used for the overlays when ``keep_stages``; ``timings`` (ms) may already hold
+    the gray conversion's time."""
     tm = {} if timings is None else timings
     # missing data is NaN throughout (profiles beyond the view, unmeasured parts): arithmetic
     # on it is expected and its warnings are noise
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        view, refusal = prepare(gray, camera, tile_size, vision, settings, tm)
+        view, refusal = prepare(gray, camera, tile_size, vision, settings, tm,
+                                tol_px=floor.lattice_tolerance * float(camera.ppm))
         done = [] if refusal is not None else decide(view, tm)
     t0 = time.perf_counter()
     end = conclude(view, refusal, done)
@@ -67,13 +71,15 @@ def extract_robust(
 
 
 def prepare(gray: np.ndarray, camera: CameraConfig, tile_size: float, vision: VisionConfig,
-            settings: RobustSettings, tm: dict[str, float]) -> tuple[View, Refusal | None]:
+            settings: RobustSettings, tm: dict[str, float], tol_px: float = 0.0
+            ) -> tuple[View, Refusal | None]:
     """The view, measured once for every reading: the gray statistics (refusing a
     ``constant image`` or ``glare``), the Scharr gradients, the noise level and the first
     heading (refusing ``no lines`` when no gradient votes); the refusal, if any. Stage times
-    are added to ``tm`` (ms)."""
+    are added to ``tm`` (ms); ``tol_px``: the floor's lattice tolerance in the view, px."""
     h, w = gray.shape
-    ctx = Scale(settings, check_scale(vision, settings)[0], float(min(h, w)), vision, math.nan)
+    ctx = Scale(settings, check_scale(vision, settings)[0], float(min(h, w)), vision, math.nan,
+                tol_px)
     rec = Record()
     details: dict[str, float] = {}
     mean, noise, dxy, heading = 0.0, math.nan, None, math.nan
@@ -92,8 +98,8 @@ def prepare(gray: np.ndarray, camera: CameraConfig, tile_size: float, vision: Vi
         _lap(tm, "heading", t)
     except Refusal as r:
         refusal = r
-    view = View.of(gray, camera, tile_size, vision, settings, mean=mean, noise=noise, dxy=dxy,
-                   heading=heading, details=MappingProxyType(details),
+    view = View.of(gray, camera, tile_size, vision, settings, tol_px, mean=mean, noise=noise,
+                   dxy=dxy, heading=heading, details=MappingProxyType(details),
                    checks=tuple(rec.results))
     return view, refusal
 

@@ -40,6 +40,13 @@ def fit_tilt(run: ReadingState, lines: list[list[Line]]) -> float:
         np.array([ln.spread for ln in every]), len(lines[0]), st.part_sigmas,
         st.prior_dof * st.prior_sigma**2, st.prior_dof, run.st.lines.straight_part_share)
     run.details["straightness_px"] = straight
+    tol = run.tol_px
+    if tol > 0.0:
+        # a line may lie up to tol off the ideal lattice at any point: each part's position is
+        # within its own bound plus tol of its ideal line (the fit is linear in them)
+        part_bound = part_bound + tol
+        run.details["heading_tolerance"] = tol * float(np.abs(d_eps).sum())
+        tilt_gap = _tolerated_gap(lines, tilt_gap, tol)
     run.part_bound = part_bound
     run.details["heading_parts"] = float(np.dot(np.abs(d_eps), part_bound))
     for i, ln in enumerate(every):
@@ -49,6 +56,37 @@ def fit_tilt(run: ReadingState, lines: list[list[Line]]) -> float:
     run.details["heading_se"] = heading_se
     run.details["tilt_gap"] = tilt_gap
     return eps
+
+
+def _family_tilt(fam: list[Line], sign: float) -> tuple[float, float]:
+    """The tilt of one family's lines on their own (rad, each line its own intercept, weighted
+    by part lengths as :func:`fit_tilt`) and how far parts each moved by 1 px can move it
+    (rad per px: the sum of the magnitudes of its derivatives); (nan, 0) without a baseline."""
+    num = den = sens = 0.0
+    for ln in fam:
+        ok = ln.wpart > 0
+        if not ok.any():
+            continue
+        w, t, p = ln.wpart[ok], ln.tpart[ok], ln.parts[ok]
+        dt = t - float(np.dot(w, t) / w.sum())
+        num += sign * float(np.dot(w * dt, p - float(np.dot(w, p) / w.sum())))
+        den += float(np.dot(w, dt * dt))
+        sens += float(np.abs(w * dt).sum())
+    if den <= 1e-9:
+        return math.nan, 0.0
+    return num / den, sens / den
+
+
+def _tolerated_gap(lines: list[list[Line]], gap_se: float, tol: float) -> float:
+    """The two families' tilts apart (``gap_se``: in standard errors) less what parts within
+    ``tol`` px of their ideal lines can make of it, in the same standard errors (0 when the
+    tolerance explains it all)."""
+    t0, s0 = _family_tilt(lines[0], 1.0)
+    t1, s1 = _family_tilt(lines[1], -1.0)
+    gap = abs(t0 - t1)
+    if not (math.isfinite(gap) and gap > 0.0 and gap_se > 0.0):
+        return gap_se
+    return max(0.0, gap - tol * (s0 + s1)) * gap_se / gap
 
 
 def drop_stray_part(run: ReadingState, lines: list[list[Line]], eps: float) -> bool:
@@ -132,7 +170,14 @@ def check_lines(run: ReadingState, lines: list[list[Line]]) -> None:
             run.details["contrast_spread"], spread([ln.contrast_grout for ln in every]))
     rec.require(checks.FOREIGN_WIDTH, run, max(widths) if widths else math.nan,
                 min(widths) if widths else math.nan)
-    if not rec.check(checks.FOREIGN_CONTRAST, run, run.details["contrast_spread"]) and not (
+    # the floor's own variation: lines differ in contrast as much as each varies along itself
+    # (measured only when the lines differ more than the setting alone allows)
+    along = 1.0
+    if run.details["contrast_spread"] > run.st.lines.contrast_ratio:
+        along = contrast_along(every)
+        run.details["contrast_along"] = along
+    if not rec.check(checks.FOREIGN_CONTRAST, run, run.details["contrast_spread"],
+                     along) and not (
             run.inverted and crossings_agree(run, lines)):
         raise Refusal(rec.results[-1], "foreign line")
     # one grout line is one band: a second band just beside it (a cable along the grout)
@@ -147,6 +192,19 @@ def check_lines(run: ReadingState, lines: list[list[Line]]) -> None:
     shoulder = max(shoulder_px(ln) for ln in every)
     run.details["shoulder_px"] = shoulder
     rec.require(checks.FOREIGN_SHOULDER, run, shoulder)
+
+
+def contrast_along(lines: list[Line]) -> float:
+    """How much the lines' contrast varies along themselves: the median over the lines with two
+    measured parts or more (length > 0, contrast positive and finite) of max / min over their
+    parts, at least 1 (1 when no line has two)."""
+    ratios = []
+    for ln in lines:
+        c = ln.part_contrast[(ln.wpart > 0) & (ln.part_contrast > 0)
+                             & np.isfinite(ln.part_contrast)]
+        if c.size >= 2:
+            ratios.append(float(c.max() / c.min()))
+    return max(1.0, list_median(ratios)) if ratios else 1.0
 
 
 def shoulder_px(line: Line) -> float:

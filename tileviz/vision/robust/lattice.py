@@ -90,6 +90,10 @@ def lattice_offsets(run: ReadingState, lines: list[list[Line]], y3: float) -> No
         parts_k = float(np.dot(np.abs(g), run.part_bound))
         run.details["position_parts"] = max(run.details.get("position_parts", 0.0),
                                              parts_k)
+        if run.tol_px > 0.0:  # the part of it that the floor's lattice tolerance makes
+            run.details["position_tolerance"] = max(
+                run.details.get("position_tolerance", 0.0),
+                run.tol_px * float(np.abs(g).sum()))
         excess = np.array([max(ln.width - narrowest, 0.0) if math.isfinite(ln.width) else 0.0
                            for ln in fam])
         run.details["width_excess_px"] = max(run.details["width_excess_px"],
@@ -108,8 +112,12 @@ def lattice_offsets(run: ReadingState, lines: list[list[Line]], y3: float) -> No
     pos_px, head = frame_bound(run, se)
     run.details["bound_px"] = pos_px
     run.details["bound_rad"] = head
-    rec.require(checks.BOUND_POSITION, run, pos_px)
-    rec.require(checks.BOUND_HEADING, run, head)
+    # what the tolerance adds to the bound: its part of the parts' term, and at most tol to
+    # the scatter's standard error (fit.sigmas of them) and to half a width's excess
+    rec.require(checks.BOUND_POSITION, run, pos_px,
+                run.details.get("position_tolerance", 0.0)
+                + (run.st.fit.sigmas + 1.0) * run.tol_px)
+    rec.require(checks.BOUND_HEADING, run, head, run.details.get("heading_tolerance", 0.0))
     run.y = normalise(ys[0], ys[1], y3, run.tile_size)
 
 
@@ -152,7 +160,8 @@ def missing_lines(run: ReadingState, k: int, ref: float, found: np.ndarray, y3: 
     else:
         peak, fam, pad = proj.peak, proj.fam, proj.pad
     centre = run.centre[1] if k == 0 else run.centre[0]
-    near = 0.5 * run.details["width"] + 1.5
+    # a line may lie up to twice the lattice tolerance from where the others put it
+    near = 0.5 * run.details["width"] + 1.5 + 2.0 * run.tol_px
     missing = lattice_kernel.missing_line(
         n[0], n[1], math.hypot(-n[1], n[0]), ref, run.lp, reach, margin, run.w, run.h,
         run.st.lattice.min_chord, found, peak, fam, k, pad, centre, near,

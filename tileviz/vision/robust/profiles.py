@@ -123,6 +123,7 @@ def measure_parts(
     fam_l, depth_l, chord_l = fam.tolist(), depth.tolist(), proj.total[fam, pk].tolist()
     wmed_l, rmed_l, stepr_l = wmed.tolist(), rmed.tolist(), stepr.tolist()
     cmed_l, gmed_l = cmed.tolist(), gmed.tolist()
+    part_contrast = contrast.reshape(rows.size, PARTS)
     for i in np.flatnonzero(np.isfinite(parts).any(axis=1)).tolist():
         out[fam_l[i]].append(
             Line(
@@ -132,6 +133,7 @@ def measure_parts(
                 step=stepr_l[i],
                 contrast=cmed_l[i],
                 contrast_grout=gmed_l[i],
+                part_contrast=part_contrast[i],
                 chord=chord_l[i],
                 parts=parts[i],
                 tpart=tpart[i],

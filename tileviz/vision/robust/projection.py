@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from tileviz.vision.robust import projection_kernel
+from tileviz.vision.robust import checks, projection_kernel
 from tileviz.vision.robust.state import ReadingState
 
 __all__ = ["Projection", "light_grout", "profiles", "project"]
@@ -122,7 +122,7 @@ def profiles(
         sums[0], sums[1], spans[0][0], spans[0][1], spans[1][0], spans[1][1], r, mean,
         st.min_row, st.min_row_share)
     dark, noise, fam, peak = projection_kernel.profile_dips(
-        prof, mean, run.closing, run.st.lines.min_depth, st.min_rows, st.dip_noise)
+        prof, mean, run.closing, checks.CONTRAST_DEPTH.limit(run), st.min_rows, st.dip_noise)
     for sig in noise.tolist():
         if math.isfinite(sig):
             run.details["profile_noise"] = max(run.details.get("profile_noise", 0.0), sig)

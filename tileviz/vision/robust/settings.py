@@ -106,7 +106,7 @@ class ProfileSettings:
     in the grout's polarity."""
     dip_noise: float = 5.0
     """A dip is a run of profile samples darker than this many profile noise stds below the
-    profile's grey closing (and at least half of ``lines.min_depth``)."""
+    profile's grey closing (and at least half of the ``contrast.depth`` limit)."""
     closing_share: float = 0.17
     """The grey closing spans 2 x this share of the tile period + 1 samples, ..."""
     closing_min: float = 8.0
@@ -164,8 +164,14 @@ class LineSettings:
     """Step 6, the checks on the measured lines (``no lines`` .. ``foreign line``)."""
 
     min_depth: float = 15.0
-    """Weakest grout dip trusted, gray levels (``contrast.depth``: ``low contrast`` when the
-    deepest is weaker)."""
+    """Weakest grout dip trusted in a noisy view, gray levels (``contrast.depth``: ``low
+    contrast`` when the deepest is weaker) ..."""
+    depth_noise: float = 5.0
+    """... in a quieter view the deepest dip must reach this many times the noise std of a
+    part's profile (the camera's noise measured on the view, over the square root of
+    ``profiles.min_part``: a part averages at least that many pixels along its line), ..."""
+    min_depth_floor: float = 6.0
+    """... and at least this many gray levels."""
     max_rise: float = 6.0
     """Median 20-80 % edge rise of the lines above which the view is ``blurred``, px (a blur
     costs bound, not soundness: a softer edge widens each part's own bound and the floor term

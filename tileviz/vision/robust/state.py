@@ -51,6 +51,8 @@ class Line:
     # lighter grout (an inverted view) only: depth / the grout's own level in the gray image
     # (light falling off across the view cancels), median over the parts; NaN otherwise
     contrast_grout: float = math.nan
+    # (PARTS,) the contrast of each part (depth / brighter plateau level; NaN not measured)
+    part_contrast: np.ndarray = field(default_factory=lambda: np.zeros(0))
     pos: float = math.nan  # at tangent coordinate 0, after the common tilt fit
     var: float = math.inf  # variance of pos from the fit's scatter, px^2
 
@@ -58,14 +60,15 @@ class Line:
 @dataclass(frozen=True, eq=False)
 class View:
     """One frame's data, the same for every reading of it (read only: no step writes into its
-    arrays). Geometry: ``gray`` (HxW uint8), ``h``, ``w``, ``side`` (the smaller, px),
-    ``ppm``, ``tile_size`` (m) and ``lp`` (the tile period, px); ``vision`` and ``st`` (the
-    settings); the check scale ``bound_px`` / ``bound_rad`` (the smaller of the declared
-    bounds and ``st.scale``); the profiles' grey ``closing`` (samples), the first measurement
-    ``window`` and the ``widest`` (half-sizes, samples). Measured on the whole view
-    (:func:`~tileviz.vision.robust.extractor.prepare`): the gray ``mean``, the ``noise`` std
-    (gray levels), the Scharr gradients ``dxy`` (CV_16S), the first ``heading`` (rad, modulo
-    pi/2), their ``details`` and the ``checks`` run on the view."""
+    arrays). Geometry: ``gray`` (HxW uint8), ``h``, ``w``, ``side`` (the smaller, px), ``ppm``,
+    ``tile_size`` (m) and ``lp`` (the tile period, px); ``vision`` and ``st`` (the settings);
+    ``tol_px``, the declared floor's lattice tolerance in this view (px:
+    ``FloorModel.lattice_tolerance`` x ppm; 0 for a perfect lattice); the check scale ``bound_px``
+    / ``bound_rad`` (the smaller of the declared bounds and ``st.scale``); the profiles' grey
+    ``closing`` (samples), the first measurement ``window`` and the ``widest`` (half-sizes,
+    samples). Measured on the whole view (:func:`~tileviz.vision.robust.extractor.prepare`): the
+    gray ``mean``, the ``noise`` std (gray levels), the Scharr gradients ``dxy`` (CV_16S), the
+    first ``heading`` (rad, modulo pi/2), their ``details`` and the ``checks`` run on the view."""
 
     gray: np.ndarray
     h: int
@@ -76,6 +79,7 @@ class View:
     lp: float
     vision: VisionConfig
     st: RobustSettings
+    tol_px: float
     bound_px: float
     bound_rad: float
     closing: int
@@ -90,9 +94,9 @@ class View:
 
     @classmethod
     def of(cls, gray: np.ndarray, camera: CameraConfig, tile_size: float, vision: VisionConfig,
-           settings: RobustSettings, **measured: Any) -> View:
-        """The view's geometry, settings and check scale (:func:`check_scale`), with the
-        ``measured`` fields (``mean``, ``noise``, ...)."""
+           settings: RobustSettings, tol_px: float = 0.0, **measured: Any) -> View:
+        """The view's geometry, settings, lattice tolerance (px) and check scale
+        (:func:`check_scale`), with the ``measured`` fields (``mean``, ``noise``, ...)."""
         h, w = gray.shape
         ppm = float(camera.ppm)
         lp = float(tile_size) * ppm
@@ -105,8 +109,9 @@ class View:
         bound_px, bound_rad = check_scale(vision, settings)
         return cls(
             gray=gray, h=h, w=w, side=float(min(h, w)), ppm=ppm, tile_size=float(tile_size),
-            lp=lp, vision=vision, st=settings, bound_px=bound_px, bound_rad=bound_rad,
-            closing=closing, window=min(pst.window, widest), widest=widest, **measured)
+            lp=lp, vision=vision, st=settings, tol_px=float(tol_px), bound_px=bound_px,
+            bound_rad=bound_rad, closing=closing, window=min(pst.window, widest), widest=widest,
+            **measured)
 
 
 def check_scale(vision: VisionConfig, settings: RobustSettings) -> tuple[float, float]:
@@ -120,13 +125,14 @@ def check_scale(vision: VisionConfig, settings: RobustSettings) -> tuple[float, 
 class Scale(NamedTuple):
     """The view-level checks' context (:class:`~tileviz.vision.robust.checks.Context`) before
     the :class:`View` is made: settings, check scale (px), smaller side (px), declared bounds,
-    noise std (gray levels; NaN until measured)."""
+    noise std (gray levels; NaN until measured), lattice tolerance (px)."""
 
     st: RobustSettings
     bound_px: float
     side: float
     vision: VisionConfig
     noise: float
+    tol_px: float
 
 
 class ReadingState:
@@ -143,6 +149,7 @@ class ReadingState:
         self.ppm, self.tile_size, self.lp = view.ppm, view.tile_size, view.lp
         self.vision, self.st = view.vision, view.st
         self.bound_px, self.bound_rad = view.bound_px, view.bound_rad
+        self.tol_px = view.tol_px
         self.closing, self.widest = view.closing, view.widest
         self.dxy = view.dxy
         self.noise = view.noise

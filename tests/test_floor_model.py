@@ -1,0 +1,196 @@
+"""The floor a user declares (``floor`` block: kind and lattice tolerance): the robust
+extractor's checks and bound take the tolerance, a sharper camera reads at least as many views,
+faint coloured grout is read through a colour projection, ``survey`` measures the tolerance, and
+a bad block or option is one line."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tileviz.__main__ import main as tileviz
+from tileviz.config import PERFECT_FLOOR, Config, FloorModel, preset, with_floor_style
+from tileviz.datasets import DatasetError, DatasetMeta
+from tileviz.sim.camera import FloorRenderer
+from tileviz.types import Pose
+from tileviz.vision import extract, observation_error, to_gray
+from tileviz.vision.robust import extract_robust
+
+
+def _read(style: str, n: int, *, scale: float = 1.0, declare: bool = True,
+          seed: int = 11) -> tuple[int, int]:
+    """(accepted, accepted outside their own bound of the ideal lattice) over ``n`` views of
+    the floor style ``style`` through the default camera scaled by ``scale`` (ppm and size)."""
+    cfg = with_floor_style(preset("default"), style)
+    cam = replace(cfg.camera, ppm=cfg.camera.ppm * scale, width=round(320 * scale),
+                  height=round(240 * scale))
+    r = FloorRenderer(cfg.floor, cam)
+    rng = np.random.default_rng(seed)
+    model = cfg.floor.model if declare else PERFECT_FLOOR
+    accepted = outside = 0
+    for _ in range(n):
+        pose = Pose(*rng.uniform(-9, 9, 2), rng.uniform(-4, 4))
+        res = extract(r.render(pose, rng), camera=cam, tile_size=1.0, vision=cfg.vision,
+                      floor=model)
+        if res.accepted:
+            accepted += 1
+            e = observation_error(res.observation, pose, 1.0, cam.offset)
+            outside += (max(abs(e[0]), abs(e[1])) > res.observation.position_error
+                        or abs(e[2]) > res.observation.heading_error)
+    return accepted, outside
+
+
+def test_panels_laid_off_the_lattice_break_an_undeclared_bound_and_keep_a_declared_one() -> None:
+    """A mosaic whose panels lie up to 8 mm off the lattice: read as a perfect lattice, views
+    are accepted outside their bound; declared with its tolerance, none is."""
+    acc0, out0 = _read("mosaic", 14)
+    assert acc0 >= 3 and out0 == 0
+    _, out_undeclared = _read("mosaic", 14, declare=False)
+    assert out_undeclared >= 1
+
+
+def test_a_sharper_camera_reads_at_least_as_many_views_of_a_hand_laid_floor() -> None:
+    acc1, out1 = _read("hand_laid", 10)
+    acc16, out16 = _read("hand_laid", 10, scale=1.6)
+    assert out1 == out16 == 0
+    assert acc16 >= acc1 >= 8
+
+
+def test_the_declared_tolerance_is_in_the_view_bound() -> None:
+    """The same view declared with a tolerance of 2 mm: a bound at least 2 mm larger
+    (every part of it may lie that far off), and a tolerance of 0 is the perfect lattice."""
+    cfg = preset("default")
+    img = FloorRenderer(cfg.floor, cfg.camera).render(Pose(0.3, 0.2, 0.25))
+    base = extract(img, camera=cfg.camera, tile_size=1.0, vision=cfg.vision)
+    zero = extract(img, camera=cfg.camera, tile_size=1.0, vision=cfg.vision,
+                   floor=FloorModel("grout", 0.0))
+    wide = extract(img, camera=cfg.camera, tile_size=1.0, vision=cfg.vision,
+                   floor=FloorModel("grout", 0.002))
+    assert base.observation == zero.observation
+    assert wide.observation is not None and base.observation is not None
+    assert wide.observation.position_error >= base.observation.position_error + 0.002 - 1e-12
+    assert wide.observation.heading_error > base.observation.heading_error
+
+
+def test_faint_coloured_grout_is_read_through_a_colour_projection() -> None:
+    """Reddish grout on brown tiles, nearly as light: the luma shows no grout, one colour
+    projection does, and the views it gives are within their bound."""
+    cfg = with_floor_style(preset("default"), "faint_colour")
+    r = FloorRenderer(cfg.floor, cfg.camera)
+    rng = np.random.default_rng(3)
+    projected = 0
+    for _ in range(8):
+        pose = Pose(*rng.uniform(-9, 9, 2), rng.uniform(-4, 4))
+        img = r.render(pose, rng)
+        res = extract(img, camera=cfg.camera, tile_size=1.0, vision=cfg.vision)
+        luma = extract_robust(to_gray(img), camera=cfg.camera, tile_size=1.0, vision=cfg.vision)
+        assert not luma.accepted  # the luma alone
+        if res.accepted:
+            assert res.details["projection"] >= 1  # a colour projection
+            projected += 1
+            e = observation_error(res.observation, pose, 1.0, cfg.camera.offset)
+            assert max(abs(e[0]), abs(e[1])) <= res.observation.position_error
+    assert projected >= 3
+
+
+def _meta(**floor: object) -> dict:
+    d = DatasetMeta.from_config(Config()).to_json()
+    d["floor"] = floor
+    return d
+
+
+def test_the_floor_block_round_trips_and_reaches_the_replay_config() -> None:
+    m = DatasetMeta.from_json(_meta(kind="grout", lattice_tolerance=0.004))
+    assert m.floor == FloorModel("grout", 0.004)
+    again = DatasetMeta.from_json(m.to_json())
+    assert again.floor == m.floor
+    assert again.to_config().floor.model == FloorModel("grout", 0.004)
+    plain = _meta()
+    del plain["floor"]
+    assert DatasetMeta.from_json(plain).to_config().floor.model == PERFECT_FLOOR
+
+
+@pytest.mark.parametrize("floor, says", [
+    ({"kind": "parquet"}, "floor.kind must be one of grout, checker"),
+    ({"lattice_tolerance": -0.001}, "floor.lattice_tolerance must be a finite number >= 0"),
+    ({"lattice_tolerance": "2mm"}, "floor.lattice_tolerance must be a finite number >= 0"),
+    ({"lattice_tolerance": 0.3}, "below a quarter of the tile"),
+])
+def test_a_bad_floor_block_is_one_line_and_nothing_is_written(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], floor: dict, says: str) -> None:
+    with pytest.raises(DatasetError, match=says):
+        DatasetMeta.from_json(_meta(**floor))
+    ds = tmp_path / "ds"
+    assert tileviz(["record", str(ds), "--duration", "0.2", "--quiet"]) == 0
+    meta = json.loads((ds / "meta.json").read_text())
+    meta["floor"] = floor
+    (ds / "meta.json").write_text(json.dumps(meta))
+    capsys.readouterr()
+    out = tmp_path / "boxes.csv"
+    assert tileviz(["replay", str(ds), "--out", str(out), "--jobs", "1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and says in err[0] and "meta.json" in err[0]
+    assert not out.exists()
+
+
+def test_record_and_extract_take_the_floor_options(tmp_path: Path,
+                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    ds = tmp_path / "ds"
+    assert tileviz(["record", str(ds), "--duration", "0.2", "--quiet", "--floor-style",
+                    "hand_laid", "--lattice-tolerance", "0.007"]) == 0
+    meta = json.loads((ds / "meta.json").read_text())
+    assert meta["floor"] == {"kind": "grout", "lattice_tolerance": 0.007}
+    plain = tmp_path / "plain"
+    assert tileviz(["record", str(plain), "--duration", "0.2", "--quiet"]) == 0
+    img = str(sorted((plain / "images").iterdir())[0])
+    capsys.readouterr()
+    with pytest.raises(SystemExit) as stop:  # an option's error: argparse's exit
+        tileviz(["extract", img, "--lattice-tolerance", "-1"])
+    assert stop.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--lattice-tolerance" in err[0]
+    assert tileviz(["extract", img, "--json", "--lattice-tolerance", "0.007"]) == 0
+    wide = json.loads(capsys.readouterr().out)
+    assert tileviz(["extract", img, "--json"]) == 0
+    plain = json.loads(capsys.readouterr().out)
+    assert wide["position_error"] > plain["position_error"]
+
+
+def test_survey_measures_a_hand_laid_floor_and_writes_the_floor_block(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    ds = tmp_path / "ds"
+    assert tileviz(["record", str(ds), "--duration", "3", "--quiet", "--floor-style",
+                    "hand_laid"]) == 0
+    perfect = tmp_path / "perfect"
+    assert tileviz(["record", str(perfect), "--duration", "3", "--quiet"]) == 0
+    meta = tmp_path / "meta.json"
+    capsys.readouterr()
+    assert tileviz(["survey", str(ds), "--every", "4", "--meta", str(meta)]) == 0
+    out = capsys.readouterr().out
+    tol = json.loads(meta.read_text())["floor"]["lattice_tolerance"]
+    assert f"lattice_tolerance to declare: {tol:.4f} m" in out
+    assert tileviz(["survey", str(perfect), "--every", "4"]) == 0
+    line = capsys.readouterr().out.strip().splitlines()[-2]
+    assert 0.0 <= float(line.split(": ")[1].split()[0]) < tol <= 0.005 + 1e-9
+
+
+def test_survey_of_unusable_views_is_one_line_and_writes_nothing(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    import cv2
+
+    blank = tmp_path / "blank.png"
+    cv2.imwrite(str(blank), np.full((240, 320, 3), 128, np.uint8))
+    meta = tmp_path / "meta.json"
+    assert tileviz(["survey", str(blank), "--tile-size", "1", "--ppm", "200",
+                    "--meta", str(meta)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "too few usable views: 0 of 1" in err[0]
+    assert not meta.exists()
+    (tmp_path / "bad.png").write_bytes(b"not a png")
+    assert tileviz(["survey", str(tmp_path / "bad.png"), "--tile-size", "1", "--ppm",
+                    "200"]) == 2
+    assert "not a readable image" in capsys.readouterr().err

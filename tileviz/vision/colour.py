@@ -1,0 +1,108 @@
+"""Other gray images of a view for the robust extractor to read when the luma (OpenCV's RGB to
+gray) shows no grout: colour projections and the edge image (docs/vision.md, "Colour").
+
+Grout may differ from its tiles more in hue than in brightness (reddish grout on brown tiles):
+the luma then shows dips of a few gray levels, under the camera's noise, while one channel or
+the difference of two shows them clearly. Each projection is a fixed integer combination of the
+channels, computed in integer arithmetic (the same pixels on every machine):
+
+- ``red``, ``green``, ``blue``: one channel;
+- ``red-green``, ``green-blue``, ``red-blue``: ``(a - b + 256) // 2``, 0..255 (half the
+  difference, centred on 128).
+
+The edge image (``edges``, :func:`edge_image`) shows a checkerboard's lattice: tiles of two
+shades meet edge to edge, no grout, and the lattice is the edges between them, which the
+gradient's magnitude draws as thin light lines on dark tiles, read as lighter grout. It is read
+on a floor declared ``checker`` only, first: on a grout floor the edge image's ridge is the
+grout's centre only while its two edges are alike (a motion blur that smears one edge more than
+the other moves it off the centre, beyond what the reading's bound can see), so a checkerboard
+is not recognised from the view.
+
+The projections are tried in that order, after the luma, each only when it differs from the
+luma (:data:`SAME_AS_LUMA`: a projection that is nearly the luma again, a channel of a gray
+floor under a tinted light, shows nothing new); the first whose reading the extractor accepts is
+the view's (:func:`tileviz.vision.extract`; its ``details["projection"]`` is then the
+projection's number in that order, from 1). Each is read by the same checks and
+declares its own bound from its own evidence, as the luma's reading does: a projection changes
+which pixels are darker, not what the checks require of them.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import cv2
+import numpy as np
+
+__all__ = ["EDGE_BLUR", "EDGE_QUANTILE", "PROJECTIONS", "RETRY_REASONS", "SAME_AS_LUMA",
+           "correlation", "edge_image", "project"]
+
+EDGE_BLUR = 1.0
+"""Gaussian std (px) of the blur before the edge image's gradient."""
+EDGE_QUANTILE = 0.995
+"""The edge image maps this quantile of the gradient magnitude to 255."""
+
+
+def _channel(k: int) -> Callable[[np.ndarray], np.ndarray]:
+    return lambda rgb: np.ascontiguousarray(rgb[..., k])
+
+
+def _difference(a: int, b: int) -> Callable[[np.ndarray], np.ndarray]:
+    def f(rgb: np.ndarray) -> np.ndarray:
+        d = rgb[..., a].astype(np.int16) - rgb[..., b].astype(np.int16) + 256
+        return (d // 2).astype(np.uint8)
+
+    return f
+
+
+def edge_image(gray: np.ndarray) -> np.ndarray:
+    """The edge image of ``gray`` (HxW uint8): the L1 magnitude of the Scharr gradient after a
+    Gaussian blur of :data:`EDGE_BLUR` px, scaled so that its :data:`EDGE_QUANTILE` quantile is
+    255 (integer arithmetic after the blur), HxW uint8."""
+    g = cv2.GaussianBlur(gray, (0, 0), EDGE_BLUR)
+    m = (np.abs(cv2.Scharr(g, cv2.CV_16S, 1, 0).astype(np.int32))
+         + np.abs(cv2.Scharr(g, cv2.CV_16S, 0, 1).astype(np.int32)))
+    flat = np.sort(m, axis=None)
+    hi = max(1, int(flat[min(flat.size - 1, int(EDGE_QUANTILE * flat.size))]))
+    return np.minimum(255, m * 255 // hi).astype(np.uint8)
+
+
+PROJECTIONS: dict[str, Callable[[np.ndarray], np.ndarray]] = {
+    "red": _channel(0), "green": _channel(1), "blue": _channel(2),
+    "red-green": _difference(0, 1), "green-blue": _difference(1, 2),
+    "red-blue": _difference(0, 2),
+}
+"""The projections after the luma, in the order they are tried: name -> HxWx3 (or x4) uint8
+RGB(A) to HxW uint8."""
+
+RETRY_REASONS = frozenset({"constant image", "no lines", "low contrast", "one family",
+                           "too few segments", "inconsistent spacing"})
+"""Refusals of the luma's reading after which the projections are tried: the grout did not
+show, or not all of it (a predicted line missing); a refusal for what the view shows, a foreign
+line, blur or glare, is final."""
+
+
+SAME_AS_LUMA = 0.95
+"""A projection whose correlation with the luma is at least this (in magnitude) shows nothing
+the luma did not: it is not read (a second reading of the same pixels would only be a second
+chance for a view the luma refused)."""
+
+
+def correlation(a: np.ndarray, b: np.ndarray, step: int = 2) -> float:
+    """The correlation of two HxW uint8 images over every ``step``-th row and column, from
+    exact integer sums (the same value on every machine); 1.0 when either is constant."""
+    x = a[::step, ::step].astype(np.int64).ravel()
+    y = b[::step, ::step].astype(np.int64).ravel()
+    n = x.size
+    sx, sy = int(x.sum()), int(y.sum())
+    sxx, syy, sxy = int(np.dot(x, x)), int(np.dot(y, y)), int(np.dot(x, y))
+    vx, vy = n * sxx - sx * sx, n * syy - sy * sy
+    if vx <= 0 or vy <= 0:
+        return 1.0
+    return float(n * sxy - sx * sy) / float(np.sqrt(float(vx)) * np.sqrt(float(vy)))
+
+
+def project(rgb: np.ndarray, name: str) -> np.ndarray:
+    """The projection ``name`` (:data:`PROJECTIONS`) of ``rgb`` (HxWx3 or HxWx4 uint8),
+    HxW uint8; KeyError on an unknown name."""
+    return PROJECTIONS[name](rgb)
