@@ -161,14 +161,14 @@ def test_a_header_claiming_100000_pixels_is_refused_before_anything_is_decoded(
                                      "100000x48 pixels, more than tileviz reads (at most 32768 "
                                      "a side and 67108864 in all)"]
         return
-    from tileviz.datasets.bag_import import _decode
+    from tileviz.datasets.bag_import import decode_image_message
 
     class Msg:
         format = "png"
         data = wide
 
     with pytest.raises(Exception, match="its header declares 100000x48 pixels"):
-        _decode(Msg(), "sensor_msgs/msg/CompressedImage", "bag: '/camera/image' message 0")
+        decode_image_message(Msg(), "sensor_msgs/msg/CompressedImage", "bag: '/camera/image' message 0")
 
 
 def test_a_meta_json_nested_beyond_the_parsers_depth_is_one_line(
