@@ -168,7 +168,8 @@ def test_a_header_claiming_100000_pixels_is_refused_before_anything_is_decoded(
         data = wide
 
     with pytest.raises(Exception, match="its header declares 100000x48 pixels"):
-        decode_image_message(Msg(), "sensor_msgs/msg/CompressedImage", "bag: '/camera/image' message 0")
+        decode_image_message(Msg(), "sensor_msgs/msg/CompressedImage",
+                             "bag: '/camera/image' message 0")
 
 
 def test_a_meta_json_nested_beyond_the_parsers_depth_is_one_line(
