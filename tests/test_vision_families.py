@@ -30,6 +30,15 @@ def test_each_floor_family_is_read_within_its_declared_bound(family: str) -> Non
     assert len(accepted) == len(readable), rows
 
 
+def test_a_channel_that_is_the_luma_again_is_not_read_a_second_time() -> None:
+    """``bench/cable_along.py``'s seed 22 terrazzo view: a dark cable 7.8 px off a grout line;
+    the luma is refused (one family), and its red channel, the same gray pixels under the
+    floor's tint, was read with the cable as the line (7.8 px off a bound of 0.96 px). A
+    projection as correlated with the luma as that is not read."""
+    r = cable_view(22, "terrazzo")
+    assert r["inside"], r
+
+
 def test_a_motion_blurred_grout_floor_is_not_read_from_its_edge_image() -> None:
     """Tuning seed 4's corrupted degraded view (motion blur): its luma is refused (one
     family); its edge image, where the blur moved each grout band's ridge toward one edge, was

@@ -120,6 +120,7 @@ def record(argv: list[str]) -> int:
         writer = DatasetWriter(out, meta, image_format="jpg" if args.jpg else "png",
                                png_level=args.png_level)
         bar = _progress(frames, "record", not args.quiet)
+        finished = False
         try:
             for i, frame in enumerate(SimSource(cfg, renderer=renderer)):
                 if i >= frames:
@@ -128,9 +129,11 @@ def record(argv: list[str]) -> int:
                     frame = replace(frame, compass=None)
                 writer.write(frame)
                 bar.update(1)  # type: ignore[attr-defined]
+            finished = True
         finally:
             bar.close()  # type: ignore[attr-defined]
-            writer.close()
+            # stopped before the end (an error, Ctrl-C): meta.json says the dataset ended early
+            writer.close(complete=finished)
         print(f"wrote {writer.count} frames ({dataset_mb(out):.1f} MB) to {out}")
         return 0
 
@@ -187,6 +190,7 @@ def replay(argv: list[str]) -> int:
             bar = _progress(total, "replay", not args.quiet)
 
         slow: threading.Timer | None = None
+        notices: list[str] = []
 
         def on_frame(rec: FrameRecord) -> None:
             nonlocal slow
@@ -203,10 +207,12 @@ def replay(argv: list[str]) -> int:
                                max_boxes=args.max_boxes, jobs=args.jobs, mcap=args.mcap,
                                fault_model=args.fault_model,
                                relocalize_region=args.relocalize_region,
-                               on_total=on_total, on_frame=on_frame)
+                               on_total=on_total, on_frame=on_frame, on_notice=notices.append)
         finally:
             if bar is not None:
                 bar.close()  # type: ignore[attr-defined]
+        for text in notices:  # after a replay that went through (an error is the one line)
+            print(f"tileviz replay: {text}", file=sys.stderr, flush=True)
         into = f" into {args.out}" if args.out is not None else ""
         print("; ".join([f"replayed {n} frames{into}", *tally.parts()]))
         return 0

@@ -225,16 +225,14 @@ FIRST_RUN_NOTICE = ("still starting: the first run after an install compiles the
 
 def read_json(path: str, option: str) -> Any:
     """The JSON document of the file ``path`` given to ``option``; CliError naming both when the
-    file cannot be read or is not JSON text."""
-    import json
-    from pathlib import Path
+    file cannot be read, is not UTF-8 text or not JSON (the dataset reader's
+    :func:`tileviz.datasets.format.json_file`)."""
+    from tileviz.datasets.format import DatasetError, json_file
 
     try:
-        return json.loads(Path(path).read_text(encoding="utf-8"))
-    except OSError as e:
-        raise CliError(f"{option}: cannot read {path} ({e.strerror or e})") from None
-    except (json.JSONDecodeError, UnicodeDecodeError):
-        raise CliError(f"{option}: {path} is not valid JSON") from None
+        return json_file(path, f"{option}: ")
+    except DatasetError as e:
+        raise CliError(str(e)) from None
 
 
 def run_cli(prog: str, body: Callable[[], int]) -> int:
@@ -256,8 +254,17 @@ def run_cli(prog: str, body: Callable[[], int]) -> int:
         sys.stderr.write(f"{prog}: interrupted\n")
         return 130
     except (CliError, ValueError, OSError) as e:
-        sys.stderr.write(f"{prog}: error: {e}\n")
+        sys.stderr.write(f"{prog}: error: {one_line(str(e))}\n")
         return 2
+
+
+def one_line(text: str) -> str:
+    """``text`` on one line: its line breaks (every character ``str.splitlines`` breaks at)
+    become spaces and other control characters ``\\xNN`` escapes (an error quoting a file's
+    content must not break the line or drive the terminal)."""
+    text = " ".join(text.splitlines())
+    return "".join(c if c.isprintable() or c == " " else c.encode("unicode_escape").decode()
+                   for c in text)
 
 
 def config_from_args(args: argparse.Namespace, *, floor_seed: bool = True) -> Config:

@@ -327,6 +327,8 @@ class LocalizerConfig:
         if (isinstance(self.max_rejections, bool) or not isinstance(self.max_rejections, int)
                 or self.max_rejections < 1):
             raise ValueError(f"max_rejections must be an integer >= 1, got {self.max_rejections!r}")
+        if not isinstance(self.truth_inflation, tuple | list) or len(self.truth_inflation) != 3:
+            raise ValueError(f"truth_inflation must be (x, y, theta), got {self.truth_inflation!r}")
         for i, v in enumerate(self.truth_inflation):
             _check_nonneg(f"truth_inflation[{i}]", v)
 

@@ -26,9 +26,8 @@ from tileviz.config import (
 )
 
 __all__ = [
-    "LABELS", "LAYERS", "NOT_LIVE", "PANEL_VIEWS", "SIMULATOR_ONLY", "Command", "Inject",
-    "Kidnap", "Live",
-    "Pause",
+    "LABELS", "LAYERS", "MAX_TEXT", "MAX_WAYPOINTS", "NOT_LIVE", "PANEL_VIEWS", "SIMULATOR_ONLY",
+    "Command", "Inject", "Kidnap", "Live", "Pause",
     "ExportMcap", "ExportPage", "Play", "Relocalize", "RelocalizeRegion", "Report", "SetFollow",
     "ShowPanel",
     "Reset", "Restart", "Seek", "SetDisplay", "SetExtractor", "SetInflation", "SetLayer",
@@ -46,6 +45,23 @@ LAYERS = (
 
 MAX_SPEED_FACTOR = 50.0
 """Upper bound of the playback speed, a multiple of real time."""
+MAX_WAYPOINTS = 1000
+"""Most waypoints a setpoint takes (each is drawn for every client)."""
+MAX_TEXT = 20_000
+"""Longest text (characters) a text box's command parses."""
+
+
+def _text(name: str, text: object) -> str:
+    if not isinstance(text, str):
+        raise ValueError(f"{name} must be text, got {type(text).__name__}")
+    if len(text) > MAX_TEXT:
+        raise ValueError(f"{name} is {len(text)} characters long, at most {MAX_TEXT} are read")
+    return text
+
+
+def _short(text: str, n: int = 60) -> str:
+    """``repr`` of a piece of typed text, cut to about ``n`` characters."""
+    return repr(text if len(text) <= n else text[:n] + "...")
 
 
 def _in_range(name: str, value: object, lo: float, hi: float) -> float:
@@ -151,18 +167,24 @@ class SetWaypoints:
     def __post_init__(self) -> None:
         if not self.points:
             raise ValueError("waypoints must hold at least one point")
+        if len(self.points) > MAX_WAYPOINTS:
+            raise ValueError(f"at most {MAX_WAYPOINTS} waypoints, got {len(self.points)}")
         for i, (x, y) in enumerate(self.points):
             _in_range(f"waypoint {i} x", x, -1e4, 1e4)
             _in_range(f"waypoint {i} y", y, -1e4, 1e4)
 
 
 def parse_waypoints(text: str) -> tuple[tuple[float, float], ...]:
-    """``"x1, y1; x2, y2; ..."`` (metres) as points; ValueError naming the bad piece."""
+    """``"x1, y1; x2, y2; ..."`` (metres) as points; ValueError naming the bad piece (at most
+    :data:`MAX_TEXT` characters and :data:`MAX_WAYPOINTS` points are read)."""
     points: list[tuple[float, float]] = []
-    for i, piece in enumerate(p for p in text.replace("\n", ";").split(";") if p.strip()):
+    for i, piece in enumerate(p for p in _text("waypoints", text).replace("\n", ";").split(";")
+                              if p.strip()):
+        if i >= MAX_WAYPOINTS:
+            raise ValueError(f"at most {MAX_WAYPOINTS} waypoints are read")
         parts = [s for s in piece.replace(",", " ").split() if s]
         if len(parts) != 2:
-            raise ValueError(f"waypoint {i}: expected 'x, y', got {piece.strip()!r}")
+            raise ValueError(f"waypoint {i}: expected 'x, y', got {_short(piece.strip())}")
         x = finite_number(f"waypoint {i} x", parts[0])
         y = finite_number(f"waypoint {i} y", parts[1])
         points.append((x, y))
@@ -211,9 +233,9 @@ class RelocalizeRegion:
 
 def parse_region(text: str) -> tuple[float, float, float, float]:
     """``"x0, y0, x1, y1"`` (metres) as a region; ValueError naming the problem."""
-    parts = [p for p in text.replace(",", " ").split() if p]
+    parts = [p for p in _text("region", text).replace(",", " ").split() if p]
     if len(parts) != 4:
-        raise ValueError(f"region: expected 'x0, y0, x1, y1', got {text.strip()!r}")
+        raise ValueError(f"region: expected 'x0, y0, x1, y1', got {_short(text.strip())}")
     x0, y0, x1, y1 = (finite_number(f"region {n}", p)
                       for n, p in zip(("x0", "y0", "x1", "y1"), parts, strict=True))
     return (x0, y0, x1, y1)
@@ -380,6 +402,9 @@ class StartRecording:
     """Write every new frame to a dataset folder ``name`` (sanitized) under the output folder."""
 
     name: str
+
+    def __post_init__(self) -> None:
+        _text("dataset name", self.name)
 
 
 @dataclass(frozen=True)

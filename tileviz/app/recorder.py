@@ -3,13 +3,15 @@
 :class:`Recorder` belongs to one :class:`tileviz.app.session.Session` and, like it, is only
 called from the app's loop thread. A recording asked for starts at the next *new* frame (a frame
 computed, not one stepped back to), so its first row and its meta's initial pose agree; every
-row is flushed as it is written (``tileviz.datasets.DatasetWriter``), so a recording stopped by
-an error keeps what it had. An export (:class:`McapJob`, :class:`PageJob`) runs on its own
-thread and :meth:`Recorder.poll` notes its end; one export runs at a time.
+row is written after its image is whole (``tileviz.datasets.DatasetWriter``), so a recording
+stopped by an error, a full disk or a killed server keeps every frame it had. An export
+(:class:`McapJob`, :class:`PageJob`) runs on its own thread and :meth:`Recorder.poll` notes its
+end; one export runs at a time.
 """
 
 from __future__ import annotations
 
+import shutil
 import threading
 from collections.abc import Callable
 from dataclasses import replace
@@ -27,6 +29,24 @@ __all__ = ["ExportJob", "McapJob", "PageJob", "Recorder"]
 
 Note = Callable[[str, str], None]
 """``note(text, level)``: a one-line message for the GUI (level ``info`` or ``error``)."""
+MIN_FREE_BYTES = 1 << 30
+"""A recording stops (and neither a recording nor an MCAP export starts) when the disk it
+writes to has less free space than this: a page visitor recording for hours must not fill the
+machine's disk."""
+CHECK_EVERY = 20
+"""Frames between two looks at the free space while recording."""
+
+
+def free_bytes(path: Path) -> int:
+    """Free bytes on the disk of ``path`` (of its nearest existing folder)."""
+    p = path
+    while not p.exists() and p != p.parent:
+        p = p.parent
+    return shutil.disk_usage(p).free
+
+
+def _gib(n: float) -> str:
+    return f"{n / (1 << 30):.1f} GiB"
 
 
 class Recorder:
@@ -72,6 +92,12 @@ class Recorder:
             self.writer.write(frame)
         except (OSError, ValueError) as e:
             self.stop(f"write failed: {e}", level="error")
+            return
+        if self.writer.count % CHECK_EVERY == 0 and self.path is not None:
+            free = free_bytes(self.path)
+            if free < MIN_FREE_BYTES:
+                self.stop(f"only {_gib(free)} left free on its disk, less than the "
+                          f"{_gib(MIN_FREE_BYTES)} kept free", level="error")
 
     def _open(self, frame: FrameInput, cfg: Config, rectifier: Rectifier | None) -> None:
         from tileviz.datasets import DatasetMeta, DatasetWriter
@@ -87,6 +113,11 @@ class Recorder:
             # the configured initial error (docs/dataset-format.md: initial_pose +-
             # initial_pose_error)
             meta = replace(meta, initial_pose=frame.truth.as_tuple())
+        free = free_bytes(folder)
+        if free < MIN_FREE_BYTES:
+            self._note(f"cannot record to {folder}: only {_gib(free)} free on its disk, less "
+                       f"than the {_gib(MIN_FREE_BYTES)} kept free", "error")
+            return
         try:
             self.writer = DatasetWriter(folder, meta)
         except (OSError, ValueError) as e:
@@ -101,7 +132,10 @@ class Recorder:
         w, self.writer = self.writer, None
         if w is None:
             return
-        w.close()
+        try:
+            w.close()
+        except OSError as e:  # the frames are there; meta.json still says it ended early
+            why, level = (f"{why}; {e}" if why else str(e)), "error"
         if w.count > 0:
             self.last = self.path
         from tileviz.datasets import dataset_mb
@@ -142,6 +176,14 @@ class Recorder:
             what = ("stop the recording first" if self.active
                     else "record a run first (Start recording, then Stop recording)")
             raise ValueError(f"nothing to export: {what}")
+        from tileviz.datasets import dataset_mb
+
+        size = dataset_mb(self.last) * 1e6
+        free = free_bytes(self.last)
+        if free < size + MIN_FREE_BYTES:
+            raise ValueError(f"no room to export {self.last}: {_gib(free)} free on its disk, "
+                             f"the file needs about {_gib(size)} and {_gib(MIN_FREE_BYTES)} are "
+                             "kept free")
         self.export = kind(self.last)
         self._note(f"exporting {self.last} to {self.export.out} ...", "info")
 

@@ -30,6 +30,7 @@ from typing import Any
 
 from tileviz import cliutil
 from tileviz.app import commands as C
+from tileviz.app.guard import is_loopback
 from tileviz.app.server import DEFAULT_PORT, App
 from tileviz.app.session import Session, SessionOptions
 from tileviz.cliutil import (
@@ -212,7 +213,8 @@ def serve_config(args: argparse.Namespace, feed: Any = None) -> Config:
             raise CliError(f"{', '.join(clash)} cannot be used with --dataset (the dataset's "
                            "meta.json sets the floor and the camera)")
         meta = DatasetSource(args.dataset).meta  # checks meta.json and the frames.csv header
-        cfg = replay_config(meta, mode=args.mode, extractor=args.extractor)
+        cfg = replay_config(meta, mode=args.mode, extractor=args.extractor,
+                            where=str(Path(args.dataset) / "meta.json"))
         return _with_fault_model(_with_seed(cfg, args.seed), args.fault_model)
     _with_seed(preset("default"), args.seed)  # the seed's range, named
     # the run's seed leaves the floor's appearance as the preset has it
@@ -320,6 +322,10 @@ def _serve(args: argparse.Namespace, port: int, feed: Any) -> int:
             print(f"tileviz serve: port {port} is busy; serving on port {app.port} instead",
                   flush=True)
         print(f"tileviz serve: open {app.url}  (Ctrl-C stops)", flush=True)
+        if not is_loopback(args.host):
+            print(f"tileviz serve: listening on {args.host} port {app.port}, beyond this "
+                  "machine: anyone who can reach it can drive the run and record into "
+                  f"{args.out_dir} (there is no password; SECURITY.md)", flush=True)
         started = time.perf_counter()
         done = 0  # frames of the run, frame 0 (made on start) included
         while app.running and not stopping.is_set():

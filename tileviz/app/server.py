@@ -64,6 +64,8 @@ DEFAULT_PORT = 8080
 """Where ``serve`` listens unless ``--port`` says otherwise (the next free port if it is busy)."""
 QUEUE_SIZE = 1000
 """Commands waiting at most; a flood beyond it is dropped (and counted)."""
+HEAP_TRIM_PERIOD = 60.0
+"""Seconds between two returns of the heaps' free pages to the system (App._return_freed_memory)."""
 
 
 class App:
@@ -113,6 +115,8 @@ class App:
         self._thread: threading.Thread | None = None
         self._started = threading.Event()
         self._failure: BaseException | None = None
+        self._push_failed = False
+        """The last push raised (it is made again at the next push, said only if that fails)."""
 
     # ------------------------------------------------------------------ lifecycle
     def start(self, timeout: float = 120.0) -> None:
@@ -147,6 +151,7 @@ class App:
             self.stop()
             raise CliError(f"port {self.requested_port} on {self.host} is busy (another tileviz "
                            "serve?): stop it or choose another --port")
+        self._guard(server)
         server.gui.configure_theme(control_width="medium", show_share_button=False,
                                    titlebar_content=None)
         server.scene.set_up_direction("+z")
@@ -199,6 +204,8 @@ class App:
         self._pushed_version = -1
         self._thread = threading.Thread(target=self._run, name="tileviz-loop", daemon=True)
         self._thread.start()
+        threading.Thread(target=self._return_freed_memory, name="tileviz-heap",
+                         daemon=True).start()
         if not self._started.wait(timeout):
             self.stop()
             raise RuntimeError("the loop thread did not start in time")
@@ -206,6 +213,29 @@ class App:
             failure = self._failure
             self.stop()
             raise failure
+
+    def _return_freed_memory(self) -> None:
+        """Every :data:`HEAP_TRIM_PERIOD` seconds until the server stops, hand the heaps' free
+        pages back to the system (:func:`tileviz.pipeline.heap.return_freed_memory`): over hours
+        of clients coming and going they fragment, and the resident set would creep up although
+        the memory in use does not."""
+        from tileviz.pipeline.heap import return_freed_memory
+
+        while not self._stop.wait(HEAP_TRIM_PERIOD):
+            if not return_freed_memory():
+                return
+
+    def _guard(self, server: ViserServer) -> None:
+        """Pages of other sites the user has open must not drive the demo: their websocket
+        connections are closed unserved (:mod:`tileviz.app.guard`, SECURITY.md)."""
+        from tileviz.app.guard import refuse_foreign_pages
+
+        assert self.session is not None
+        if not refuse_foreign_pages(server, self.host,
+                                    lambda text: self.submit(C.Report(text, "error"))):
+            self.session.note("this viser version does not let tileviz check which pages "
+                              "connect: any page the browser has open may drive the demo",
+                              "error")
 
     @property
     def port(self) -> int:
@@ -312,7 +342,13 @@ class App:
             with self.server.atomic():
                 self._push_inner(plots or force)
         except Exception as e:  # noqa: BLE001 - drawing must not stop the loop
+            if not self._push_failed:
+                # viser's push can race its own event loop (it sets an asyncio.Event from this
+                # thread: "deque mutated during iteration"); the next push redraws the frame
+                self._push_failed = True
+                return
             s.note(f"display: {e}", "error")
+        self._push_failed = False
         self._pushed_version = s.version
         self.pushes += 1
 

@@ -35,6 +35,7 @@ from tileviz.app import commands as C
 from tileviz.app.history import Encoder, Entry, History, ParticleView
 from tileviz.app.outputs import output_path, sanitize_name
 from tileviz.app.recorder import ExportJob, Recorder
+from tileviz.cliutil import one_line
 from tileviz.config import Config, LocalizerConfig, NoiseConfig, with_floor_style
 from tileviz.pipeline import FrameLoop, FrameRecord, initial_box
 from tileviz.pipeline.replay import relocalize_after
@@ -99,6 +100,10 @@ class SessionOptions:
     """The simulator's camera is this real camera (:data:`tileviz.sim.lens.LENSES`): raw images
     through a tilted, distorting lens, rectified to the configured camera's view before vision;
     the view bound grows as ``docs/dataset-format.md`` says for a ``camera_model``."""
+
+
+MAX_NOTE = 400
+"""Longest note, characters."""
 
 
 @dataclass
@@ -247,7 +252,11 @@ class Session:
 
     # ------------------------------------------------------------------ notes
     def note(self, text: str, level: str = "info") -> None:
-        """A message for the GUI; errors also go to stderr as one line."""
+        """A message for the GUI; errors also go to stderr as one line. The text is made one
+        line and cut to :data:`MAX_NOTE` characters (it may quote what a visitor typed)."""
+        text = one_line(text)
+        if len(text) > MAX_NOTE:
+            text = text[: MAX_NOTE - 3] + "..."
         self.notes.append(Note(text, level))
         if level == "error":
             sys.stderr.write(f"tileviz serve: {text}\n")

@@ -168,7 +168,9 @@ class DatasetReplay:
         try:
             return next(self._frames)
         except StopIteration:
-            self._end = SourceEnded(f"end of dataset, {self.frames} frames")
+            early = self.dataset.ended_early
+            self._end = SourceEnded(f"end of dataset, {self.frames} frames"
+                                    + (f" ({early})" if early else ""))
         except Exception as e:  # noqa: BLE001 - DatasetError names file and row; anything else
             self._end = SourceEnded(f"dataset stopped after {self.frames} frames: {e}", "error")
         raise self._end

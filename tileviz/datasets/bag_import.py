@@ -90,10 +90,18 @@ def decode_image_message(msg: Any, msgtype: str, where: str) -> np.ndarray:
     ``width``, ``step``, ``data``; or ``format``, ``data``) as HxWx3 RGB uint8; CliError naming
     the message."""
     if msgtype.endswith("CompressedImage"):
-        img = cv2.imdecode(np.frombuffer(bytes(msg.data), np.uint8), cv2.IMREAD_COLOR)
+        from tileviz.datasets.images import decode_image, size_problem
+
+        raw = bytes(msg.data)
+        problem = size_problem(raw)
+        if problem is not None:
+            raise CliError(f"{where}: compressed image ({msg.format!r}): {problem}")
+        complaints: list[str] = []
+        img = decode_image(raw, complaints=complaints)
         if img is None:
-            raise CliError(f"{where}: compressed image ({msg.format!r}) cannot be decoded")
-        return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
+            why = f" ({complaints[0]})" if complaints else ""
+            raise CliError(f"{where}: compressed image ({msg.format!r}) cannot be decoded{why}")
+        return img
     enc = str(msg.encoding).lower()
     if enc not in ENCODINGS:
         raise CliError(f"{where}: image encoding {msg.encoding!r} is not supported "

@@ -194,11 +194,14 @@ def _read_meta(path: str) -> tuple[dict[str, object], CameraModel | None]:
 
 
 def _write(path: str, doc: dict[str, object]) -> None:
-    """Write ``doc`` as ``path`` (its folder made when missing); CliError when it cannot."""
+    """Write ``doc`` as ``path`` (its folder made when missing) as a whole: a write that fails
+    or is killed leaves the previous file; CliError when it cannot."""
+    from tileviz.safefile import write_atomic
+
     target = Path(path)
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
-        target.write_text(json.dumps(doc, indent=2) + "\n", encoding="utf-8")
+        write_atomic(target, (json.dumps(doc, indent=2) + "\n").encode("utf-8"))
     except OSError as e:
         raise CliError(f"--meta: cannot write {path} ({e.strerror or e})") from None
 

@@ -14,6 +14,8 @@ line of the file (1-based, the header is line 1) and the frame (its ``index``) o
 
 from __future__ import annotations
 
+import csv
+import io
 import json
 import math
 import os
@@ -22,13 +24,14 @@ from pathlib import Path
 from typing import Any
 
 from tileviz.config import FLOOR_KINDS, PERFECT_FLOOR, Config, Extractor, FloorModel, Mode
-from tileviz.core.constants import LIMIT, MAX_PPM, MIN_TILE_PX
+from tileviz.core.constants import LIMIT, MAX_PPM, MAX_TILE_PX, MIN_TILE_PX
 from tileviz.datasets.camera_model import CameraModel, CameraModelError, Rectifier, view_margin
+from tileviz.datasets.images import MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE
 
 __all__ = [
     "FAULTS_FILE", "FORMAT", "FRAME_COLUMNS", "MAX_MAGNITUDE", "REQUIRED_COLUMNS",
-    "DatasetError", "DatasetMeta", "floor_block", "num_text", "parse_float", "read_meta",
-    "replay_config",
+    "DatasetError", "DatasetMeta", "csv_line", "floor_block", "json_file", "num_text",
+    "parse_float", "read_meta", "replay_config",
 ]
 
 FORMAT = "tileviz-dataset/1"
@@ -47,6 +50,13 @@ class DatasetError(ValueError):
 def num_text(x: float) -> str:
     """A float written so that it round-trips exactly (``repr``)."""
     return repr(float(x))
+
+
+def csv_line(cells: list[Any] | tuple[Any, ...]) -> bytes:
+    """One CSV line (the ``csv`` module's quoting, ``\r\n`` line end) as UTF-8 bytes."""
+    buf = io.StringIO()
+    csv.writer(buf).writerow(cells)
+    return buf.getvalue().encode("utf-8")
 
 
 @dataclass(frozen=True)
@@ -69,6 +79,13 @@ class DatasetMeta:
     """Unknown keys, kept and ignored."""
     camera_model: CameraModel | None = None
     """A real camera whose stored images are rectified to the orthographic view, or None."""
+    complete: bool | None = None
+    """The writer's own word on the dataset (``docs/dataset-format.md``, "A dataset being
+    written"): False while it is written (or when its writer stopped before closing it), True once
+    closed; None when meta.json does not say (a dataset written by a program that does not keep
+    this key: taken as whole)."""
+    frames: int | None = None
+    """The number of rows the writer wrote to frames.csv, once ``complete``; None when not said."""
     floor: FloorModel | None = None
     """The ``floor`` block: the floor's kind and lattice tolerance; None: no block (a perfect
     grout lattice)."""
@@ -111,6 +128,10 @@ class DatasetMeta:
         )
         if self.camera_model is not None:
             d["camera_model"] = self.camera_model.to_json()
+        if self.complete is not None:
+            d["complete"] = self.complete
+        if self.frames is not None:
+            d["frames"] = self.frames
         if self.floor is not None:
             d["floor"] = {"kind": self.floor.kind,
                           "lattice_tolerance": self.floor.lattice_tolerance}
@@ -128,9 +149,10 @@ class DatasetMeta:
         known = {
             "format", "name", "tile_size", "ppm", "image_width", "image_height", "camera_offset",
             "dt", "initial_pose", "initial_pose_error", "speed_error", "yaw_rate_error",
-            "compass_error", "camera_model", "floor",
+            "compass_error", "camera_model", "complete", "frames", "floor",
         }
-        missing = sorted(k for k in known - {"name", "camera_model", "floor"} if k not in d)
+        missing = sorted(k for k in known - {"name", "camera_model", "complete", "frames", "floor"}
+                         if k not in d)
         if missing:
             raise DatasetError(f"{where}: missing key(s) {', '.join(missing)}")
 
@@ -166,10 +188,25 @@ class DatasetMeta:
         if number("ppm", positive=True) > MAX_PPM:
             raise DatasetError(f"{where}: ppm must be <= {MAX_PPM:g}, got {d['ppm']!r}")
         tile_px = number("tile_size", positive=True) * number("ppm", positive=True)
-        if tile_px < MIN_TILE_PX:
-            raise DatasetError(f"{where}: a tile must span at least {MIN_TILE_PX:g} pixels "
-                               f"(tile_size * ppm), got {tile_px!r}")
+        if not MIN_TILE_PX <= tile_px <= MAX_TILE_PX:
+            most = (f"at least {MIN_TILE_PX:g}" if tile_px < MIN_TILE_PX
+                    else f"at most {MAX_TILE_PX:g}")
+            raise DatasetError(f"{where}: a tile must span {most} pixels (tile_size * ppm), "
+                               f"got {tile_px!r}")
         name = d.get("name", "")
+        complete = d.get("complete")
+        if complete is not None and not isinstance(complete, bool):
+            raise DatasetError(f"{where}: complete must be true or false, got {complete!r}")
+        frames = d.get("frames")
+        if frames is not None and (isinstance(frames, bool) or not isinstance(frames, int)
+                                   or frames < 0):
+            raise DatasetError(f"{where}: frames must be an integer >= 0, got {frames!r}")
+        width, height = integer("image_width"), integer("image_height")
+        if max(width, height) > MAX_IMAGE_SIDE or width * height > MAX_IMAGE_PIXELS:
+            # before anything is sized by them (the rectification's tables, the views)
+            raise DatasetError(f"{where}: image_width x image_height is {width}x{height}, more "
+                               f"than tileviz reads (at most {MAX_IMAGE_SIDE} a side and "
+                               f"{MAX_IMAGE_PIXELS} pixels in all)")
         try:
             camera_model = (CameraModel.from_json(d["camera_model"], where)
                             if d.get("camera_model") is not None else None)
@@ -181,8 +218,8 @@ class DatasetMeta:
             name=str(name),
             tile_size=number("tile_size", positive=True),
             ppm=number("ppm", positive=True),
-            image_width=integer("image_width"),
-            image_height=integer("image_height"),
+            image_width=width,
+            image_height=height,
             camera_offset=vector("camera_offset", 2),  # type: ignore[arg-type]
             dt=number("dt", positive=True),
             initial_pose=vector("initial_pose", 3),  # type: ignore[arg-type]
@@ -192,6 +229,8 @@ class DatasetMeta:
             compass_error=number("compass_error", positive=False),
             extra={k: v for k, v in d.items() if k not in known},
             camera_model=camera_model,
+            complete=complete,
+            frames=frames,
             floor=floor,
         )
 
@@ -272,17 +311,26 @@ def read_meta(folder: str | os.PathLike[str]) -> DatasetMeta:
         what = "not a directory" if Path(folder).exists() else "no such directory"
         raise DatasetError(f"{folder}: {what} (a dataset is a folder with meta.json, frames.csv "
                            "and images)")
+    return DatasetMeta.from_json(json_file(path), where=str(path))
+
+
+def json_file(path: str | os.PathLike[str], label: str = "") -> Any:
+    """The JSON value in the file ``path``; DatasetError naming it (after ``label``, e.g.
+    ``"--camera-model: "``) when it cannot be read, is not UTF-8 text or not JSON (nested
+    too deeply included)."""
+    where = f"{label}{path}"
     try:
-        text = path.read_text(encoding="utf-8")
+        text = Path(path).read_text(encoding="utf-8")
     except OSError as e:
-        raise DatasetError(f"{path}: cannot read ({e.strerror or e})") from None
+        raise DatasetError(f"{where}: cannot read ({e.strerror or e})") from None
     except UnicodeDecodeError:
-        raise DatasetError(f"{path}: not UTF-8 text") from None
+        raise DatasetError(f"{where}: not UTF-8 text") from None
     try:
-        d = json.loads(text)
+        return json.loads(text)
     except json.JSONDecodeError as e:
-        raise DatasetError(f"{path}: not valid JSON ({e.msg} at line {e.lineno})") from None
-    return DatasetMeta.from_json(d, where=str(path))
+        raise DatasetError(f"{where}: not valid JSON ({e.msg} at line {e.lineno})") from None
+    except RecursionError:
+        raise DatasetError(f"{where}: not valid JSON (nested too deeply)") from None
 
 
 def parse_float(text: str, column: str, where: str) -> float:
@@ -299,11 +347,18 @@ def parse_float(text: str, column: str, where: str) -> float:
 
 
 def replay_config(meta: DatasetMeta, *, mode: Mode | None = None,
-                  extractor: Extractor | None = None, base: Config | None = None) -> Config:
+                  extractor: Extractor | None = None, base: Config | None = None,
+                  where: str = "meta.json") -> Config:
     """The configuration ``python -m tileviz replay`` uses for a dataset: the meta's floor,
     camera, bounds and start (over ``base``, or the stored tileviz config), then ``mode`` and
-    ``extractor`` when given."""
-    cfg = meta.to_config(base)
+    ``extractor`` when given. A meta the configuration refuses (a view or a tile tileviz
+    cannot work with) raises DatasetError naming ``where`` (the meta.json)."""
+    try:
+        cfg = meta.to_config(base)
+    except DatasetError:
+        raise
+    except ValueError as e:
+        raise DatasetError(f"{where}: {e}") from None
     if mode is not None:
         cfg = replace(cfg, localizer=replace(cfg.localizer, mode=mode))
     if extractor is not None:

@@ -167,8 +167,10 @@ def status_fields(rec: FrameRecord, status: str | None = None) -> dict[str, Any]
 
 
 class McapExport:
-    """Writes one frame's messages at a time (:meth:`write`); :meth:`close` finishes the file
-    (its summary and index: a file not closed is readable only by a streaming reader)."""
+    """Writes one frame's messages at a time (:meth:`write`), each frame in the file as a whole
+    chunk when :meth:`write` returns; :meth:`close` finishes the file (its summary and index: a
+    file not closed, e.g. a replay killed, is readable by a streaming reader up to its last
+    frame)."""
 
     def __init__(self, path: str | os.PathLike[str], dataset: str | os.PathLike[str]) -> None:
         self._enc = FrameEncoder()
@@ -177,7 +179,12 @@ class McapExport:
             raise OSError(f"{p.parent}: output directory does not exist")
         self.dataset = Path(dataset)
         self._file: IO[bytes] = open(p, "wb")  # noqa: SIM115 - closed in close()
-        self._w = self._enc.writer_cls(self._file)
+        # each frame's messages end their chunk (Writer.flush), so a replay killed before close()
+        # leaves a file a streaming reader reads up to its last frame; a writer without flush()
+        # (mcap < 1.6) writes the messages unchunked
+        self._chunked = hasattr(self._enc.writer_cls, "flush")
+        self._w = self._enc.writer_cls(self._file, **({} if self._chunked else
+                                                       {"use_chunking": False}))
         self._w.start(profile="", library="tileviz")
         self._ch: dict[str, int] = {}
         ids: dict[str, int] = {}
@@ -201,6 +208,10 @@ class McapExport:
             self._w.add_message(channel_id=self._ch[key], log_time=ns, publish_time=ns,
                                 data=data, sequence=self.count)
         self.count += 1
+        if self._chunked:
+            self._w.flush()
+        else:
+            self._file.flush()
 
     def close(self) -> None:
         if not self._file.closed:

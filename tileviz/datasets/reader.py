@@ -1,5 +1,7 @@
 """Reading a tileviz-dataset/1 folder as frames (:class:`DatasetSource`), every row validated as
-it is reached; images decoded ahead on a thread when asked."""
+it is reached; images decoded ahead on a thread when asked. A dataset that ended early (its writer
+stopped before closing it, a last row cut off) replays up to its last whole row and says so
+(:attr:`DatasetSource.ended_early`; ``docs/dataset-format.md``, "A dataset being written")."""
 
 from __future__ import annotations
 
@@ -21,13 +23,21 @@ from tileviz.datasets.format import (
     parse_float,
     read_meta,
 )
-from tileviz.datasets.images import decode_image, depth_problem, truncated
+from tileviz.datasets.images import (
+    decode_image,
+    depth_problem,
+    header_size,
+    size_problem,
+    truncated,
+)
 from tileviz.pipeline.parallel import results_in_order
 from tileviz.types import FrameInput, Odometry, Pose
 
 __all__ = ["DatasetSource"]
 
 _NO_IMAGE = np.zeros((0, 0, 3), np.uint8)
+_TAIL_BYTES = 1 << 16
+"""How much of the end of frames.csv is read to find its last line."""
 
 
 @dataclass(frozen=True)
@@ -71,6 +81,8 @@ class DatasetSource:
                 header = next(csv.reader(f), None)
         except UnicodeDecodeError:
             raise DatasetError(f"{self.frames_path}: not UTF-8 text") from None
+        except csv.Error as e:
+            raise DatasetError(f"{self.frames_path} line 1: not a CSV header ({e})") from None
         if header is None:
             raise DatasetError(f"{self.frames_path}: empty (no header row)")
         header = [h.strip() for h in header]
@@ -78,8 +90,62 @@ class DatasetSource:
         if missing:
             raise DatasetError(f"{self.frames_path}: missing column(s) {', '.join(missing)}")
         self.columns = header
+        self._line = 1
+        """The line of frames.csv the row parser is at (for an error the csv module raises)."""
+        self._cut_line = self._cut_last_line()
+        """The line of frames.csv (1-based) that is a cut-off last row, not read; or None."""
         self.faults = self._read_faults()
         self._rectifier: Rectifier | None = None
+        self.ended_early = self._ended_early()
+        """One line saying that the dataset ended early and how many whole frames it has (its
+        writer stopped before closing it, its last row is cut off, or it has fewer rows than
+        meta.json lists), or None for a whole dataset. The frames up to the last whole row
+        replay either way."""
+
+    def _cut_last_line(self) -> int | None:
+        """The line number of a last line of frames.csv without a line end that is not a whole
+        row: cut off by a writer that stopped mid-write. A dataset that says it was written by a
+        tileviz writer (meta.json's ``complete``) ends every row with a line end, so there any
+        such line is cut; another program's last row may lack the line end and still be whole
+        (all its columns)."""
+        with open(self.frames_path, "rb") as f:
+            size = f.seek(0, os.SEEK_END)
+            if size == 0:
+                return None
+            f.seek(max(0, size - _TAIL_BYTES))
+            window = f.read()
+            if window.endswith(b"\n"):
+                return None
+            start = window.rfind(b"\n")
+            if start < 0 and size > len(window):  # a last line longer than the window: cut
+                start = -1
+            tail = window[start + 1:]
+            f.seek(0)
+            lines = sum(chunk.count(b"\n") for chunk in iter(lambda: f.read(1 << 20), b""))
+        if lines == 0 or not tail.strip():  # the header itself, or a blank last line
+            return None
+        try:
+            cells = next(csv.reader([tail.decode("utf-8", "replace")]), [])
+        except csv.Error:
+            cells = []
+        if self.meta.complete is None and len(cells) >= len(self.columns):
+            return None
+        return lines + 1
+
+    def _ended_early(self) -> str | None:
+        reasons = []
+        if self.meta.complete is False:
+            reasons.append("its writer stopped before closing it")
+        if self._cut_line is not None:
+            reasons.append(f"its last row, line {self._cut_line} of frames.csv, is cut off")
+        rows = self._count_rows()
+        if self.meta.frames is not None and rows is not None and rows < self.meta.frames:
+            reasons.append(f"meta.json lists {self.meta.frames}")
+        if not reasons:
+            return None
+        count = (f"{rows} whole frame(s)" if rows is not None
+                 else "the frames up to its first bad row")
+        return f"{self.folder} ended early: it has {count} ({'; '.join(reasons)})"
 
     def _read_faults(self) -> dict[int, tuple[str, ...]]:
         path = self.folder / FAULTS_FILE
@@ -87,35 +153,55 @@ class DatasetSource:
             return {}
         out: dict[int, tuple[str, ...]] = {}
         try:
-            with open(path, newline="", encoding="utf-8") as f:
-                for lineno, cells in enumerate(csv.reader(f), start=1):
-                    if lineno == 1 or not cells:
-                        continue
-                    try:
-                        out[int(cells[0])] = tuple(x for x in cells[1].split(";") if x)
-                    except (ValueError, IndexError):
-                        raise DatasetError(
-                            f"{path} line {lineno}: expected 'index,labels'") from None
+            text = path.read_text(encoding="utf-8")
         except UnicodeDecodeError:
             raise DatasetError(f"{path}: not UTF-8 text") from None
+        # a last line without its line end was cut off mid-write: a writer writes a frame's
+        # labels before its row, so that frame has no row either
+        lines = text.split("\n")[:-1]  # the last piece: empty, or that cut line
+        rows = csv.reader(lines)
+        lineno = 1
+        try:
+            for cells in rows:
+                lineno = rows.line_num  # the line where the row ends (quotes may span lines)
+                if lineno == 1 or not cells:
+                    continue
+                try:
+                    out[int(cells[0])] = tuple(x for x in cells[1].split(";") if x)
+                except (ValueError, IndexError):
+                    raise DatasetError(f"{path} line {lineno}: expected 'index,labels'") from None
+        except csv.Error as e:
+            raise DatasetError(f"{path} line {lineno + 1}: not a CSV row ({e})") from None
         return out
 
     def row_count(self) -> int:
-        """How many non-blank data rows frames.csv has (for a progress bar: the rows are not
-        checked here; a bad one still stops the frames at its turn)."""
+        """How many non-blank data rows frames.csv has, a cut-off last row not counted (for a
+        progress bar: the rows are not checked here; a bad one still stops the frames at its
+        turn); 0 when frames.csv cannot be read through."""
+        return self._count_rows() or 0
+
+    def _count_rows(self) -> int | None:
         try:
             with open(self.frames_path, newline="", encoding="utf-8") as f:
                 rows = csv.reader(f)
                 next(rows, None)
-                return sum(1 for cells in rows if any(c.strip() for c in cells))
+                n = 0
+                for cells in rows:
+                    if self._cut_line is not None and rows.line_num >= self._cut_line:
+                        break
+                    n += any(c.strip() for c in cells)
+                return n
         except (UnicodeDecodeError, csv.Error, OSError):
-            return 0
+            return None
 
     def _rows(self) -> Iterator[_Row]:
         try:
             yield from self._parse_rows()
         except UnicodeDecodeError:
             raise DatasetError(f"{self.frames_path}: not UTF-8 text") from None
+        except csv.Error as e:  # e.g. a cell longer than the csv module takes
+            raise DatasetError(f"{self.frames_path} line {self._line + 1}: not a CSV row "
+                               f"({e})") from None
 
     def _parse_rows(self) -> Iterator[_Row]:
         with open(self.frames_path, newline="", encoding="utf-8") as f:
@@ -123,8 +209,12 @@ class DatasetSource:
             next(reader)
             expected_index = 0
             last_t = -math.inf
+            self._line = 1
             for cells in reader:
                 lineno = reader.line_num  # the line where the row ends (quotes may span lines)
+                self._line = lineno
+                if self._cut_line is not None and lineno >= self._cut_line:
+                    return  # a cut-off last row (ended_early says so)
                 where = self._where(lineno)
                 if not cells or all(not c.strip() for c in cells):
                     continue
@@ -178,23 +268,36 @@ class DatasetSource:
         path = (self.folder / name)
         if not path.is_file():
             raise DatasetError(f"{where}: image {name!r} is missing")
-        raw = path.read_bytes()
+        try:
+            raw = path.read_bytes()
+        except OSError as e:
+            raise DatasetError(f"{where}: image {name!r} cannot be read "
+                               f"({e.strerror or e})") from None
         if truncated(raw):
             raise DatasetError(f"{where}: image {name!r} is truncated (no end marker)")
-        problem = depth_problem(raw)
-        if problem is not None:
-            raise DatasetError(f"{where}: image {name!r}: {problem}")
-        # a prefetching source decodes on a thread: OpenCV's decoder lets the caller run
-        image = decode_image(raw, spng=self.prefetch == 0)
-        if image is None:
-            raise DatasetError(f"{where}: image {name!r} is not a readable PNG/JPEG")
-        h, w = image.shape[:2]
         cm = self.meta.camera_model
         size = (cm.raw_width, cm.raw_height) if cm else (self.meta.image_width,
                                                          self.meta.image_height)
+
+        def wrong_size(w: int, h: int) -> DatasetError:
+            return DatasetError(f"{where}: image {name!r} is {w}x{h}, meta.json says "
+                                f"{size[0]}x{size[1]}{' (camera_model raw size)' if cm else ''}")
+
+        declared = header_size(raw)  # before any pixel is decoded
+        if declared is not None and declared != size:
+            raise wrong_size(*declared)
+        problem = depth_problem(raw) or size_problem(raw)
+        if problem is not None:
+            raise DatasetError(f"{where}: image {name!r}: {problem}")
+        # a prefetching source decodes on a thread: OpenCV's decoder lets the caller run
+        complaints: list[str] = []
+        image = decode_image(raw, spng=self.prefetch == 0, complaints=complaints)
+        if image is None:
+            why = f" ({complaints[0]})" if complaints else ""
+            raise DatasetError(f"{where}: image {name!r} is not a readable PNG/JPEG{why}")
+        h, w = image.shape[:2]
         if (w, h) != size:
-            raise DatasetError(f"{where}: image {name!r} is {w}x{h}, meta.json says "
-                               f"{size[0]}x{size[1]}{' (camera_model raw size)' if cm else ''}")
+            raise wrong_size(w, h)
         if cm is not None and self.rectify:  # to the orthographic view; tables made once
             if self._rectifier is None:
                 self._rectifier = self.meta.rectifier()

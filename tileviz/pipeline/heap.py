@@ -8,6 +8,11 @@ glibc serve such blocks from the heap and keep what is freed for the next alloca
 results do not change (only where the arrays live does); the process keeps up to its peak
 working set instead of handing memory back between frames.
 
+A process that runs for hours (the demo server) has the opposite need: glibc keeps the free
+parts of its heaps, which fragment as threads come and go, so the resident set creeps up
+although the memory in use does not. :func:`return_freed_memory` hands the free pages back
+(``malloc_trim``).
+
 No viser, no pymunk here.
 """
 
@@ -16,7 +21,7 @@ from __future__ import annotations
 import ctypes
 import platform
 
-__all__ = ["MMAP_THRESHOLD", "TRIM_THRESHOLD", "keep_freed_memory"]
+__all__ = ["MMAP_THRESHOLD", "TRIM_THRESHOLD", "keep_freed_memory", "return_freed_memory"]
 
 MMAP_THRESHOLD = 32 << 20
 """Bytes: blocks smaller than this come from the heap (glibc's M_MMAP_THRESHOLD; its maximum on
@@ -45,3 +50,19 @@ def keep_freed_memory() -> bool:
     mallopt.restype = ctypes.c_int
     return bool(mallopt(_M_MMAP_THRESHOLD, MMAP_THRESHOLD)
                 and mallopt(_M_TRIM_THRESHOLD, TRIM_THRESHOLD))
+
+
+def return_freed_memory() -> bool:
+    """Give the free pages of every heap of this process back to the system (glibc's
+    ``malloc_trim(0)``; the memory in use is untouched). True when glibc did, False where the C
+    library is not glibc."""
+    if platform.system() != "Linux" or platform.libc_ver()[0] != "glibc":
+        return False
+    try:
+        trim = ctypes.CDLL(None).malloc_trim
+    except (OSError, AttributeError):
+        return False
+    trim.argtypes = (ctypes.c_size_t,)
+    trim.restype = ctypes.c_int
+    trim(0)
+    return True

@@ -3,12 +3,12 @@ the equivalence-residual CSV, written row by row from frame records."""
 
 from __future__ import annotations
 
-import csv
 import os
 from pathlib import Path
-from typing import IO, TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any
 
-from tileviz.datasets.format import num_text
+from tileviz.datasets.format import csv_line, num_text
+from tileviz.safefile import LineLog, write_atomic
 
 if TYPE_CHECKING:
     from tileviz.pipeline.frame_loop import FrameRecord
@@ -22,24 +22,24 @@ RESIDUAL_COLUMNS = ("index", "t", "r1", "r2", "r3", "r4", "r5", "r6")
 
 
 class CsvOut:
-    """A CSV file written row by row and flushed after every row (rows already written stay
-    valid if the run stops)."""
+    """A CSV file written row by row, each row whole as soon as it is written
+    (:class:`tileviz.safefile.LineLog`): a run that stops, is killed or meets a full disk leaves
+    the file readable up to its last row. The header is in place (whole) before the first row."""
 
     def __init__(self, path: str | os.PathLike[str], columns: tuple[str, ...]) -> None:
         p = Path(path)
         if p.parent and not p.parent.exists():
             raise OSError(f"{p.parent}: output directory does not exist")
-        self._file: IO[str] = open(p, "w", newline="", encoding="utf-8")  # noqa: SIM115
-        self._csv = csv.writer(self._file)
-        self._csv.writerow(columns)
-        self._file.flush()
+        if p.is_dir():
+            raise OSError(f"{p}: is a directory")
+        write_atomic(p, csv_line(columns), durable=False)
+        self._log = LineLog(p)
 
     def row(self, values: list[Any]) -> None:
-        self._csv.writerow(values)
-        self._file.flush()
+        self._log.append(csv_line(values))
 
     def close(self) -> None:
-        self._file.close()
+        self._log.close()
 
 
 def replay_row(rec: FrameRecord) -> list[Any]:

@@ -41,6 +41,7 @@ def replay(
     relocalize_region: tuple[float, float, float, float] | None = None,
     on_total: Callable[[int | None], None] | None = None,
     on_frame: Callable[[FrameRecord], None] | None = None,
+    on_notice: Callable[[str], None] | None = None,
     until: int | None = None,
     keep_stages: bool = False,
 ) -> int:
@@ -59,14 +60,19 @@ def replay(
     the first frame, ``on_frame`` every record (its ``residuals`` computed only with
     ``output_file``). ``until``: stop after the frame with that index (None: at the dataset's
     end). ``keep_stages``: the records handed to ``on_frame`` carry every vision stage image
-    (vision then runs in this process: ``jobs`` is 1). A bad row or image raises DatasetError
-    (a ValueError) after every frame before it was written."""
+    (vision then runs in this process: ``jobs`` is 1). ``on_notice`` gets, before the first
+    frame, the one line saying that the dataset ended early
+    (:attr:`tileviz.datasets.DatasetSource.ended_early`), if it did. A bad row or image raises
+    DatasetError (a ValueError) after every frame before it was written. Every output row is
+    written whole as its frame ends, so a replay that is stopped (killed) leaves files readable
+    up to their last row (the MCAP file then has no summary: a streaming reader reads it)."""
     jobs = 1 if keep_stages else jobs if jobs is not None else default_jobs()
     if jobs > 1:  # the workers' server loads the vision code while this process reads the rows
         start_worker_server()
     # images decode on a background thread while the previous frame's vision runs
     source = DatasetSource(dataset, prefetch=8)
-    cfg = replay_config(source.meta, mode=mode, extractor=extractor)
+    cfg = replay_config(source.meta, mode=mode, extractor=extractor,
+                        where=str(source.folder / "meta.json"))
     if max_boxes:
         cfg = replace(cfg, localizer=replace(cfg.localizer, max_boxes=max_boxes))
     if fault_model is not None:
@@ -80,6 +86,8 @@ def replay(
         loop.primary.localizer.candidates(relocalize_region, compass=0.0)
     csv_out = CsvOut(out, REPLAY_COLUMNS) if out is not None else None
     eq = CsvOut(output_file, RESIDUAL_COLUMNS) if output_file else None
+    if on_notice is not None and source.ended_early is not None:
+        on_notice(source.ended_early)
     if on_total is not None:
         on_total(source.row_count() or None)
     n = 0

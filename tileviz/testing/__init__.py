@@ -17,6 +17,8 @@ Nothing in the product imports this package. Its modules:
 - :mod:`~tileviz.testing.browser`: headless chromium's options and CPU accounting;
 - :mod:`~tileviz.testing.timing`: the benches' clock and shared options;
 - :mod:`~tileviz.testing.figures`: the blocks the benches write into ``docs/figures.md``;
+- :mod:`~tileviz.testing.fuzzing`: every reader a user's file reaches, fuzzed (hypothesis and
+  mutation cases run in worker processes, their outcomes classified);
 - :mod:`~tileviz.testing.extras`: the command line run as if the ``ros`` extra were missing;
 - :mod:`~tileviz.testing.codac_oracle_worker`: codac's side of the oracle (a subprocess only).
 

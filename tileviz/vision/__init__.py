@@ -35,7 +35,13 @@ import numpy as np
 
 from tileviz.config import PERFECT_FLOOR, CameraConfig, FloorModel, VisionConfig
 from tileviz.core.constants import MAX_TILE_PX, MIN_TILE_PX
-from tileviz.vision.colour import PROJECTIONS, RETRY_REASONS, edge_image
+from tileviz.vision.colour import (
+    PROJECTIONS,
+    RETRY_REASONS,
+    SAME_AS_LUMA,
+    correlation,
+    edge_image,
+)
 from tileviz.vision.faithful import extract_faithful
 from tileviz.vision.geometry import observation_error
 from tileviz.vision.result import REASONS, VisionResult
@@ -80,12 +86,15 @@ def _read_robust(gray: np.ndarray, image: np.ndarray, camera: CameraConfig, tile
     if image.ndim == 3:
         candidates += [(float(k), lambda p=proj: p(image))  # type: ignore[misc]
                        for k, proj in enumerate(PROJECTIONS.values(), start=1)]
-    if floor.kind == "checker":  # a checkerboard: its edge image first
+    checker = floor.kind == "checker"
+    if checker:  # a checkerboard: its edge image first
         candidates.insert(0, (-1.0, lambda: edge_image(gray)))
     first: VisionResult | None = None
     for number, make in candidates:
         t1 = time.perf_counter()
         view = make()
+        if number > 0 and abs(correlation(view, gray)) >= SAME_AS_LUMA:
+            continue  # the luma again: nothing new to read
         tm = dict(timings)
         if number != 0.0:
             tm["projection"] = (time.perf_counter() - t1) * 1e3

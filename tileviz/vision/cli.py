@@ -92,21 +92,20 @@ def _parser(prog: str) -> Parser:
 def _camera_model(path: str, base: Config) -> tuple[Config, Rectifier]:
     """The configuration (over ``base``) and the rectification of a meta.json's camera model;
     CliError naming the file when it has none or is not valid."""
-    from tileviz.datasets import DatasetMeta
-
+    from tileviz.datasets import DatasetMeta, replay_config
     meta = DatasetMeta.from_json(read_json(path, "--camera-model"), where=path)
     rectifier = meta.rectifier()
     if rectifier is None:
         raise CliError(f"--camera-model: {path} has no camera_model block")
-    return meta.to_config(base), rectifier
+    return replay_config(meta, base=base, where=path), rectifier
 
 
 def read_image(path: str) -> np.ndarray:
     """An image file as HxWx3 uint8 RGB, decoded as a dataset's images are
     (:func:`~tileviz.datasets.images.decode_image`); CliError naming the file and the problem
-    when it cannot be read (missing, a directory, cut off, damaged, 16-bit data in the low
-    bits, not an image)."""
-    from tileviz.datasets.images import decode_image, depth_problem, truncated
+    when it cannot be read (missing, a directory, cut off, damaged, a header declaring more
+    pixels than tileviz reads, 16-bit data in the low bits, not an image)."""
+    from tileviz.datasets.images import decode_image, depth_problem, size_problem, truncated
 
     if os.path.isdir(path):
         raise CliError(f"{path}: is a directory, not an image")
@@ -118,12 +117,14 @@ def read_image(path: str) -> np.ndarray:
         raise CliError(f"{path}: cannot read it ({e.strerror or e})") from None
     if truncated(raw):
         raise CliError(f"{path}: is truncated (no end marker)")
-    problem = depth_problem(raw)
+    problem = size_problem(raw) or depth_problem(raw)
     if problem is not None:
         raise CliError(f"{path}: {problem}")
-    img = decode_image(raw)
+    complaints: list[str] = []
+    img = decode_image(raw, complaints=complaints)
     if img is None or img.size == 0:
-        raise CliError(f"{path}: cannot read it as an image")
+        why = f" ({complaints[0]})" if complaints else ""
+        raise CliError(f"{path}: cannot read it as an image{why}")
     return img
 
 

@@ -18,8 +18,10 @@ grout's centre only while its two edges are alike (a motion blur that smears one
 the other moves it off the centre, beyond what the reading's bound can see), so a checkerboard
 is not recognised from the view.
 
-The projections are tried in that order, after the luma; the first whose reading the extractor
-accepts is the view's (:func:`tileviz.vision.extract`; its ``details["projection"]`` is then the
+The projections are tried in that order, after the luma, each only when it differs from the
+luma (:data:`SAME_AS_LUMA`: a projection that is nearly the luma again, a channel of a gray
+floor under a tinted light, shows nothing new); the first whose reading the extractor accepts is
+the view's (:func:`tileviz.vision.extract`; its ``details["projection"]`` is then the
 projection's number in that order, from 1). Each is read by the same checks and
 declares its own bound from its own evidence, as the luma's reading does: a projection changes
 which pixels are darker, not what the checks require of them.
@@ -32,8 +34,8 @@ from collections.abc import Callable
 import cv2
 import numpy as np
 
-__all__ = ["EDGE_BLUR", "EDGE_QUANTILE", "PROJECTIONS", "RETRY_REASONS", "edge_image",
-           "project"]
+__all__ = ["EDGE_BLUR", "EDGE_QUANTILE", "PROJECTIONS", "RETRY_REASONS", "SAME_AS_LUMA",
+           "correlation", "edge_image", "project"]
 
 EDGE_BLUR = 1.0
 """Gaussian std (px) of the blur before the edge image's gradient."""
@@ -78,6 +80,26 @@ RETRY_REASONS = frozenset({"constant image", "no lines", "low contrast", "one fa
 """Refusals of the luma's reading after which the projections are tried: the grout did not
 show, or not all of it (a predicted line missing); a refusal for what the view shows, a foreign
 line, blur or glare, is final."""
+
+
+SAME_AS_LUMA = 0.95
+"""A projection whose correlation with the luma is at least this (in magnitude) shows nothing
+the luma did not: it is not read (a second reading of the same pixels would only be a second
+chance for a view the luma refused)."""
+
+
+def correlation(a: np.ndarray, b: np.ndarray, step: int = 2) -> float:
+    """The correlation of two HxW uint8 images over every ``step``-th row and column, from
+    exact integer sums (the same value on every machine); 1.0 when either is constant."""
+    x = a[::step, ::step].astype(np.int64).ravel()
+    y = b[::step, ::step].astype(np.int64).ravel()
+    n = x.size
+    sx, sy = int(x.sum()), int(y.sum())
+    sxx, syy, sxy = int(np.dot(x, x)), int(np.dot(y, y)), int(np.dot(x, y))
+    vx, vy = n * sxx - sx * sx, n * syy - sy * sy
+    if vx <= 0 or vy <= 0:
+        return 1.0
+    return float(n * sxy - sx * sy) / float(np.sqrt(float(vx)) * np.sqrt(float(vy)))
 
 
 def project(rgb: np.ndarray, name: str) -> np.ndarray:
