@@ -178,6 +178,10 @@ def check_folder(folder: Path, out: Outcome, w: int, h: int, *, seeded: bool = T
     assert len(leftovers) <= 1  # at most the image being written when it died: never read
     if out.finished:
         assert src.ended_early is None
+    elif src.meta.complete:
+        # killed after the writer closed the dataset (meta.json says complete, every frame
+        # written) but before the job could say it had finished
+        assert src.ended_early is None and n == out.wrote, (out, n)
     else:
         assert src.ended_early is not None and f"it has {n} whole frame(s)" in src.ended_early
     return n
