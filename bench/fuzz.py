@@ -160,7 +160,7 @@ def main() -> int:
     for reader, c in report.counts.items():
         print(f"{reader:<13}{sum(c.values()):>10}" + "".join(f"{c[o]:>10}" for o in OUTCOMES))
     ran = sum(sum(c.values()) for c in report.counts.values())
-    print(f"peak resident set of a worker: {report.peak_rss_mb:.0f} MB; slowest case "
+    print(f"peak resident set a case raised a worker to: {report.peak_rss_mb:.0f} MB; slowest case "
           f"{report.slowest_s:.1f} s; {report.seconds / 60:.1f} min in all ({ran} cases, "
           f"{ran / report.seconds:.1f} cases/s, case making included)")
     for f in report.findings:

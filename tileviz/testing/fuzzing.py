@@ -540,6 +540,10 @@ def mutation_cases(reader: str, templates: Templates, n: int,
 # --------------------------------------------------------------------------------------- running
 @dataclass
 class Result:
+    """One case's outcome (:data:`OUTCOMES`), its message, its time (s) and the worker's peak
+    resident set when this case raised it (MB; 0 when the case stayed under the peak the worker
+    already had, e.g. its warm-up's)."""
+
     outcome: str
     message: str = ""
     seconds: float = 0.0
@@ -658,10 +662,11 @@ def run_case(reader: str, variant: str, data: bytes, t: Templates) -> Result:
         err = err_path.read_text(errors="replace").strip().splitlines()
         out = out_path.read_text(errors="replace").strip().splitlines()
     seconds = time.perf_counter() - start
-    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-    if isinstance(exc, MemoryError) or (rss > MEMORY_LIMIT_MB and rss > before):
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    rss = peak if peak > before else 0.0  # the peak this case raised the worker to
+    if isinstance(exc, MemoryError) or rss > MEMORY_LIMIT_MB:
         return Result("memory", f"{type(exc).__name__ if exc else 'peak RSS'} "
-                      f"({rss:.0f} MB)", seconds, rss)
+                      f"({peak:.0f} MB)", seconds, rss)
     if exc is not None:
         import traceback
 
@@ -795,6 +800,9 @@ class Finding:
 
 @dataclass
 class Report:
+    """A campaign: outcome counts per reader, the findings, the largest peak resident set a
+    case raised a worker to (MB), its time and the slowest case (s)."""
+
     counts: dict[str, dict[str, int]]
     findings: list[Finding]
     peak_rss_mb: float
