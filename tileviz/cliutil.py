@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any, NoReturn
 from tileviz.core.constants import LIMIT
 
 if TYPE_CHECKING:
-    from tileviz.config import Config
+    from tileviz.config import Config, FloorConfig
 
 
 class CliError(Exception):
@@ -119,6 +119,18 @@ def add_floor_options(p: argparse.ArgumentParser) -> None:
                    help="how far the floor's grout lines (tile edges) may lie off the ideal "
                    "lattice (hand-laid tiles, wandering grout): the view bound includes it; "
                    "python -m tileviz survey measures it (default: the floor style's, else 0)")
+
+
+def declared_floor(floor: FloorConfig, args: argparse.Namespace) -> FloorConfig:
+    """``floor`` with the ``--floor-kind`` and ``--lattice-tolerance`` (metres) that ``args``
+    gave (:func:`add_floor_options`; absent or None: unchanged); ValueError naming a bad one."""
+    kind = getattr(args, "floor_kind", None)
+    tol = getattr(args, "lattice_tolerance", None)
+    if kind is not None:
+        floor = replace(floor, kind=kind)
+    if tol is not None:
+        floor = replace(floor, lattice_tolerance=tol)
+    return floor
 
 
 def region(name: str) -> Callable[[str], tuple[float, float, float, float]]:
@@ -293,10 +305,7 @@ def config_from_args(args: argparse.Namespace, *, floor_seed: bool = True) -> Co
     out = replace(cfg, floor=floor, camera=camera, noise=noise, sim=sim)
     if a.get("floor_style", "default") != "default":
         out = with_floor_style(out, a["floor_style"])
-    declared = {k: a[k] for k in ("floor_kind", "lattice_tolerance") if k in a}
-    if declared:
-        out = replace(out, floor=replace(out.floor, **{
-            "kind" if k == "floor_kind" else k: v for k, v in declared.items()}))
+    out = replace(out, floor=declared_floor(out.floor, args))
     if "extractor" in a:
         out = replace(out, vision=replace(out.vision, extractor=a["extractor"]))
     if "mode" in a:

@@ -44,6 +44,7 @@ from tileviz.cliutil import (
     CliError,
     Parser,
     add_floor_options,
+    declared_floor,
     notice_if_slow,
     positive_float,
     read_json,
@@ -139,10 +140,7 @@ def _config(args: argparse.Namespace, image: np.ndarray, base: Config | None = N
     floor = cfg.floor
     if args.tile_size is not None:
         floor = floor.with_tile_size(args.tile_size)
-    if args.floor_kind is not None:
-        floor = replace(floor, kind=args.floor_kind)
-    if args.lattice_tolerance is not None:
-        floor = replace(floor, lattice_tolerance=args.lattice_tolerance)
+    floor = declared_floor(floor, args)
     vision = cfg.vision
     if args.extractor is not None:
         vision = replace(vision, extractor=args.extractor)

@@ -18,6 +18,7 @@ view looked).
 
 from __future__ import annotations
 
+import itertools
 import json
 import math
 from collections.abc import Iterable, Iterator
@@ -176,15 +177,12 @@ def main(command: str, argv: list[str]) -> int:
         else:
             if args.tile_size is None or args.ppm is None:
                 raise CliError("images need --tile-size and --ppm")
-            import cv2
-
-            probe = cv2.imread(args.inputs[0], cv2.IMREAD_UNCHANGED)
-            if probe is None:
-                raise CliError(f"{args.inputs[0]}: not a readable image")
+            images = _images(args.inputs)
+            view0 = next(images)  # its size is the camera's
             tile, ppm = args.tile_size, args.ppm
-            cam = CameraConfig(ppm=ppm, width=probe.shape[1], height=probe.shape[0],
+            cam = CameraConfig(ppm=ppm, width=view0[0].shape[1], height=view0[0].shape[0],
                                offset=(0.0, 0.0))
-            views = _images(args.inputs)
+            views = itertools.chain([view0], images)
         try:
             report = survey(views, camera=cam, tile_size=tile, kind=args.floor_kind)
         except ValueError as e:
