@@ -1,6 +1,7 @@
 """The extractor and the localizer on photographs of real tiled floors.
 
-    python bench/real_floors.py [--floors DIR] [--stills 40] [--frames 400] [--only ID,...]
+    python bench/real_floors.py [--floors DIR] [--stills 40] [--corrupted 0] [--frames 400]
+                                [--only ID,...]
                                 [--scale 1.0] [--camera clean|plain] [--split tuning|heldout]
                                 [--declare none|floor] [--csv out.csv] [--keep DIR]
 
@@ -20,8 +21,11 @@ lie outside their own declared bound of the ideal lattice; then a drive of ``--f
 (a smooth path at 0.25 m/s, odometry and compass within their declared bounds) written as a
 tileviz dataset and replayed by ``tileviz.pipeline.replay``: frames with the truth inside,
 ``lost``, ``contracted``, and the median width of the set (the larger of x and y, cm).
-``--camera plain`` sees the floor through a plain camera (blur 0.7 px, vignetting, noise of 3
-levels). ``--declare floor`` declares the floor in the dataset's ``meta.json`` (``floor`` block:
+``--corrupted N`` adds N views per floor with the study's corruptions in turn (a cable, the edge
+of a box, a shadow edge, glare, a motion blur: ``floorgen.corrupt``) drawn on the floor before the
+camera: how many are accepted and how many of those lie outside their bound. ``--camera plain``
+sees the floor through a plain camera (blur 0.7 px, vignetting, noise of 3 levels).
+``--declare floor`` declares the floor in the dataset's ``meta.json`` (``floor`` block:
 ``kind`` checker for a checkerboard, ``lattice_tolerance`` from ``lattice_residual_max_px``) and
 passes the same to the stills' extractor; ``none`` declares nothing (a perfect grout lattice).
 
@@ -47,6 +51,7 @@ import numpy as np
 
 from tileviz.config import PERFECT_FLOOR, CameraConfig, FloorModel, VisionConfig
 from tileviz.pipeline.replay import replay
+from tileviz.testing import floorgen
 from tileviz.testing.figures import Machine, write_block
 from tileviz.types import Pose
 from tileviz.vision import extract, observation_error, set_opencv_threads
@@ -136,10 +141,12 @@ def view_coords(floor: Floor, ppm: float, width: int, height: int, cx: float, cy
 
 
 def render(floor: Floor, ppm: float, width: int, height: int, cx: float, cy: float,
-           theta: float, camera: str, rng: np.random.Generator) -> np.ndarray | None:
+           theta: float, camera: str, rng: np.random.Generator,
+           corruption: str | None = None) -> np.ndarray | None:
     """The view (HxWx3 uint8 RGB) of the camera centred on floor point (cx, cy), heading theta,
     or None when it sees pixels that are not floor (``valid_mask``) or beyond a non-wrapping
-    image."""
+    image. ``corruption`` (one of ``floorgen.CORRUPTIONS``) is drawn on the floor as the
+    study's generator draws it (``floorgen.corrupt``; a motion blur after the sampling)."""
     mx, my = view_coords(floor, ppm, width, height, cx, cy, theta)
     h, w = floor.image.shape[:2]
     if not floor.wrap:
@@ -153,6 +160,10 @@ def render(floor: Floor, ppm: float, width: int, height: int, cx: float, cy: flo
     border = cv2.BORDER_WRAP if floor.wrap else cv2.BORDER_REPLICATE
     samples = cv2.remap(floor.image, mx, my, cv2.INTER_LINEAR, borderMode=border)
     img = samples.reshape(height, SS, width, SS, 3).mean(axis=(1, 3))
+    if corruption is not None:
+        img = floorgen.corrupt(img, corruption, rng)
+        if corruption == "motion_blur":
+            img = floorgen.random_motion_blur(img.astype(np.float32), rng)
     if camera == "plain":
         uu = (np.arange(width) - (width - 1) / 2.0)[None, :] / (0.5 * width)
         vv = (np.arange(height) - (height - 1) / 2.0)[:, None] / (0.5 * height)
@@ -178,9 +189,12 @@ def random_pose(floor: Floor, rng: np.random.Generator) -> tuple[float, float, f
 
 
 def stills(floor: Floor, n: int, scale: float, camera: str, seed0: int,
-           vision: VisionConfig, model: FloorModel = PERFECT_FLOOR) -> dict:
+           vision: VisionConfig, model: FloorModel = PERFECT_FLOOR,
+           corrupted: bool = False) -> dict:
     """``n`` random views extracted (the floor declared as ``model``): counts accepted,
-    outside their bound, refusal reasons."""
+    outside their bound, refusal reasons. ``corrupted``: the views carry the corruptions of
+    ``floorgen.CORRUPTIONS`` in turn (their own seeds); ``by_kind`` counts (views, accepted,
+    outside) per corruption."""
     ppm = floor.view_period_px * scale / floor.tile_size
     width, height = round(WIDTH * scale), round(HEIGHT * scale)
     cam = CameraConfig(ppm=ppm, width=width, height=height, offset=(0.0, 0.0))
@@ -189,15 +203,19 @@ def stills(floor: Floor, n: int, scale: float, camera: str, seed0: int,
     errors: list[float] = []
     bounds: list[float] = []
     ms: list[float] = []
+    by_kind: dict[str, list[int]] = {}
     tries = 0
     while made < n and tries < 50 * n:
-        rng = np.random.default_rng([seed0 + tries, 7])
+        rng = np.random.default_rng([seed0 + tries, 7, 1] if corrupted else [seed0 + tries, 7])
         tries += 1
         cx, cy, th = random_pose(floor, rng)
-        img = render(floor, ppm, width, height, cx, cy, th, camera, rng)
+        kind = floorgen.CORRUPTIONS[made % len(floorgen.CORRUPTIONS)] if corrupted else None
+        img = render(floor, ppm, width, height, cx, cy, th, camera, rng, kind)
         if img is None:
             continue
         made += 1
+        tally = by_kind.setdefault(kind or "clean", [0, 0, 0])
+        tally[0] += 1
         t0 = time.process_time()
         res = extract(img, camera=cam, tile_size=floor.tile_size, vision=vision, floor=model)
         ms.append((time.process_time() - t0) * 1e3)
@@ -207,6 +225,7 @@ def stills(floor: Floor, n: int, scale: float, camera: str, seed0: int,
             reasons[key] = reasons.get(key, 0) + 1
             continue
         accepted += 1
+        tally[1] += 1
         obs = res.observation
         assert obs is not None
         e1, e2, e3 = observation_error(obs, Pose(cx, cy, th), floor.tile_size, (0.0, 0.0))
@@ -215,7 +234,9 @@ def stills(floor: Floor, n: int, scale: float, camera: str, seed0: int,
         bounds.append(obs.position_error * ppm)
         if ep > obs.position_error or abs(e3) > obs.heading_error:
             outside += 1
+            tally[2] += 1
     return {"views": made, "accepted": accepted, "outside": outside, "reasons": reasons,
+            "by_kind": by_kind,
             "err_px": statistics.median(errors) if errors else math.nan,
             "bound_px": statistics.median(bounds) if bounds else math.nan,
             "ms": statistics.median(ms) if ms else math.nan}
@@ -341,6 +362,8 @@ def main(argv: list[str] | None = None) -> int:
                         "default ../shared/real_floors)")
     p.add_argument("--stills", type=int, default=40)
     p.add_argument("--frames", type=int, default=400, help="frames of the drive (0: none)")
+    p.add_argument("--corrupted", type=int, default=0,
+                   help="corrupted views per floor, the corruptions in turn (0: none)")
     p.add_argument("--only", default="", help="comma-separated floor ids")
     p.add_argument("--scale", type=float, default=1.0)
     p.add_argument("--camera", choices=("clean", "plain"), default="clean")
@@ -364,10 +387,11 @@ def main(argv: list[str] | None = None) -> int:
     seed0 = SPLITS[args.split]
     print(f"real floors: {len(floors)} floors, {args.stills} stills and a {args.frames}-frame "
           f"drive each; scale {args.scale:g}, camera {args.camera}, split {args.split}, "
-          f"declared {args.declare}")
+          f"declared {args.declare}; {args.corrupted} corrupted views each")
     print("| floor | stills accepted | outside bound | median err / bound px | refusals | "
-          "drive inside | contracted | lost | median box cm |")
-    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- |")
+          "corrupted accepted | outside | drive inside | contracted | lost | median box cm |")
+    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
+    kinds: dict[str, list[int]] = {}
     rows = []
     table: list[list[str]] = []
     machine = Machine()
@@ -377,30 +401,43 @@ def main(argv: list[str] | None = None) -> int:
         vision = VisionConfig(extractor="robust")
         s = stills(floor, args.stills, args.scale, args.camera, seed0, vision,
                    FloorModel(kind, tol))
+        c = (stills(floor, args.corrupted, args.scale, args.camera, seed0, vision,
+                    FloorModel(kind, tol), corrupted=True)
+             if args.corrupted > 0 else None)
+        for k, v in (c["by_kind"] if c is not None else {}).items():
+            kinds[k] = [a + b for a, b in zip(kinds.get(k, [0, 0, 0]), v, strict=True)]
         d = (drive(floor, args.frames, args.scale, args.camera, seed0, args.declare, args.keep)
              if args.frames > 0 else {"frames": 0})
         top = ", ".join(f"{k} {v}" for k, v in sorted(s["reasons"].items(),
                                                        key=lambda kv: -kv[1])[:3])
         n = d["frames"]
-        row = {"floor": floor.id, **{f"s_{k}": v for k, v in s.items() if k != "reasons"},
-               "refusals": top, **{f"d_{k}": v for k, v in d.items()}}
+        row = {"floor": floor.id,
+               **{f"s_{k}": v for k, v in s.items() if k not in ("reasons", "by_kind")},
+               "refusals": top, "c_views": c["views"] if c else 0,
+               "c_accepted": c["accepted"] if c else 0, "c_outside": c["outside"] if c else 0,
+               **{f"d_{k}": v for k, v in d.items()}}
+        cor = (f"{c['accepted']} of {c['views']}", str(c["outside"])) if c else ("-", "-")
         rows.append(row)
         print(f"| {floor.id} | {s['accepted']} of {s['views']} | {s['outside']} | "
-              f"{s['err_px']:.2f} / {s['bound_px']:.2f} | {top or '—'} | "
+              f"{s['err_px']:.2f} / {s['bound_px']:.2f} | {top or '—'} | {cor[0]} | {cor[1]} | "
               f"{_pct(d.get('inside', 0), d.get('vouched', 0)) if n else '—'} | "
               f"{_pct(d.get('contracted', 0), n) if n else '—'} | "
               f"{d.get('lost', 0) if n else '—'} | "
               f"{d.get('box_cm', math.nan):.2f} |", flush=True)
-        table.append([floor.id, f"{s['accepted']} of {s['views']}", str(s["outside"]),
+        table.append([floor.id, f"{s['accepted']} of {s['views']}", str(s["outside"]), *cor,
                       _pct(d.get("inside", 0), d.get("vouched", 0)) if n else "-",
                       _pct(d.get("contracted", 0), n) if n else "-",
                       str(d.get("lost", 0)) if n else "-",
                       f"{d['box_cm']:.2f}" if n and "box_cm" in d else "-"])
+    if kinds:
+        print("corrupted views, all floors: " + "; ".join(
+            f"{k} {v[1]} of {v[0]} accepted, {v[2]} outside" for k, v in kinds.items()))
     if args.write_figures:
         write_block(f"real_floors_{args.camera}_x{args.scale:g}",
                     f"Real floors ({args.camera} camera, x{args.scale:g} resolution)", table,
                     machine=machine,
                     header=("floor", "stills accepted", "accepted outside own bound",
+                            "corrupted accepted", "corrupted outside own bound",
                             "drive: truth inside", "contracted", "lost", "median box (cm)"),
                     note=f"Split {args.split}; floor declared: {args.declare} (kind, "
                     "lattice_tolerance from floors.json's measured departure). The photographs "

@@ -317,7 +317,7 @@ def render(spec: FloorSpec, cx: float, cy: float, theta: float,
     img = val.mean(axis=(2, 3)).astype(np.float32)
     cover = grout.mean(axis=(2, 3)).astype(np.float32) if spec.tint is not None else None
     if corruption is not None:
-        img = _corrupt(img, corruption, rng, spec)
+        img = corrupt(img, corruption, rng)
     if overlay is not None:
         img = overlay(img).astype(np.float32)
     # lighting: a linear gradient across the view and vignetting
@@ -330,7 +330,7 @@ def render(spec: FloorSpec, cx: float, cy: float, theta: float,
     if spec.blur > 0:
         img = cv2.GaussianBlur(img, (0, 0), spec.blur)
     if corruption == "motion_blur":
-        img = _motion_blur(img, rng)
+        img = random_motion_blur(img, rng)
     if motion is not None:
         img = motion_blur(img, *motion)
     img = img + rng.normal(0.0, spec.noise, img.shape).astype(np.float32)
@@ -369,13 +369,20 @@ def _laid(spec: FloorSpec, X: np.ndarray, Y: np.ndarray, i: np.ndarray, j: np.nd
     return X - ox, Y - oy
 
 
-def _corrupt(img: np.ndarray, kind: str, rng: np.random.Generator, spec: FloorSpec
-             ) -> np.ndarray:
-    h, w = img.shape
+def corrupt(img: np.ndarray, kind: str, rng: np.random.Generator) -> np.ndarray:
+    """``img`` (H x W shades, or H x W x C) with a corruption of ``kind`` (one of
+    :data:`CORRUPTIONS`) drawn from ``rng``: a cable (a band 3-10 px wide, dark or light), the
+    edge of a box, a shadow edge (a soft step darkening 35-60 %), glare (a bright blob), or,
+    for ``motion_blur``, the image unchanged (the smear is applied after the optics:
+    :func:`random_motion_blur`). The same draws for any number of channels."""
+    h, w = img.shape[:2]
     yy, xx = np.mgrid[0:h, 0:w].astype(np.float32)
     ang = rng.uniform(0, math.pi)
     off = rng.uniform(-0.25, 0.25) * min(w, h)
     d = (-(xx - (w - 1) / 2) * math.sin(ang) + (yy - (h - 1) / 2) * math.cos(ang)) - off
+    if img.ndim == 3:
+        d = d[..., None]
+        yy, xx = yy[..., None], xx[..., None]
     if kind == "cable":
         width = rng.uniform(3.0, 10.0)
         shade = rng.uniform(10, 60) if rng.uniform() < 0.7 else rng.uniform(200, 250)
@@ -392,7 +399,7 @@ def _corrupt(img: np.ndarray, kind: str, rng: np.random.Generator, spec: FloorSp
         r = rng.uniform(0.2, 0.35) * min(w, h)
         return img + 400.0 * np.exp(-((xx - gx) ** 2 + (yy - gy) ** 2) / (2 * r * r))
     if kind == "motion_blur":
-        return img  # applied after the optics (see render)
+        return img
     raise ValueError(f"unknown corruption {kind!r}")
 
 
@@ -420,7 +427,8 @@ def band(spec: FloorSpec, normal: tuple[float, float], s: float, width: float, s
     return lambda img: img + cov * (shade - img)
 
 
-def _motion_blur(img: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+def random_motion_blur(img: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """``img`` smeared by :func:`motion_blur` over 15-40 px at a random angle (``rng``)."""
     length = rng.uniform(15.0, 40.0)
     return motion_blur(img, length, rng.uniform(0, math.pi))
 
