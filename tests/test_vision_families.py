@@ -5,6 +5,7 @@ corrupted) lies outside the bound it declares. Fixed seeds of the study's splits
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import cv2
@@ -46,6 +47,37 @@ def test_a_motion_blurred_grout_floor_is_not_read_from_its_edge_image() -> None:
     checkerboard only."""
     r = study_view(4, "degraded", "motion_blur")
     assert r["inside"], r
+
+
+def faint_thin_grout_view(seed: int) -> tuple[np.ndarray, floorgen.FloorSpec, Pose]:
+    """A view of thin (2 px) light grout 14 gray levels above plain tiles, through a camera
+    with noise of 4 levels, a 0.9 px blur and vignetting (a real white ceramic floor seen by a
+    plain camera is like it): the image, its floor and the camera's pose."""
+    rng = np.random.default_rng([seed, 5150])
+    spec = dataclasses.replace(
+        floorgen.draw_floor("light_grout", rng), grout_px=2.0, tile_shade=185.0,
+        grout_shade=199.0, shade_spread=3.0, noise=4.0, blur=0.9, vignetting=0.3,
+        surface="flat", surface_amp=0.0, ppm=106 / 0.3, tile_size=0.3, jpeg=0, gradient=0.0)
+    cx, cy, th = floorgen.draw_view(rng)
+    return floorgen.render(spec, cx, cy, th, rng), spec, Pose(cx, cy, th)
+
+
+@pytest.mark.parametrize("seed", [32, 47])
+def test_faint_thin_grout_whose_gradients_point_anywhere_is_read_at_its_sharpest_heading(
+        seed: int) -> None:
+    """On such a view every heading from the gradients and the tile period is a degree or two
+    off, which smears a 2 px line into the noise (no lines); the heading near them at which the
+    lines are sharpest reads the view, within its bound."""
+    img, spec, pose = faint_thin_grout_view(seed)
+    cam = CameraConfig(ppm=spec.ppm, width=spec.width, height=spec.height, offset=(0.0, 0.0))
+    res = extract(img, camera=cam, tile_size=spec.tile_size,
+                  vision=VisionConfig(extractor="robust"))
+    assert res.accepted and res.observation is not None and res.decision is not None
+    tried = [t.reading.source for t in res.decision.readings]
+    assert tried[-1] == "sharpened heading" and "first heading" in tried, tried
+    e1, e2, e3 = observation_error(res.observation, pose, spec.tile_size, (0.0, 0.0))
+    assert max(abs(e1), abs(e2)) <= res.observation.position_error
+    assert abs(e3) <= res.observation.heading_error
 
 
 @pytest.mark.parametrize("family", floorgen.DECLARED_FAMILIES)

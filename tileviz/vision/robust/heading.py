@@ -13,7 +13,7 @@ from tileviz.vision.robust.settings import HeadingSettings
 from tileviz.vision.robust.state import View
 
 __all__ = ["first_heading", "gradient_votes",
-           "lattice_headings", "lattice_power", "smoothed_headings",
+           "lattice_headings", "lattice_power", "sharpened_headings", "smoothed_headings",
            "voters"]
 
 
@@ -166,3 +166,36 @@ def lattice_headings(view: View) -> list[float]:
         pw = turns.power(fine, detrend)
         out.append(float(fine[int(np.argmax(pw))]))
     return out
+
+
+def sharpened_headings(view: View, around: list[float]) -> list[float]:
+    """The headings (rad, modulo pi/2) at which the view's grout lines are sharpest near those
+    of ``around`` (the headings read so far): near each, the heading whose row and column
+    means repeat most strongly with the tile period on its harmonics down to a wavelength of
+    ``heading.sharpen_wavelength`` px (:func:`lattice_power`, blind to a trend of the light),
+    searched every ``heading.sharpen_coarse_step`` within ``heading.sharpen_span`` of it (on
+    one grid for all of them, each turn computed once), then every ``sharpen_fine_step``
+    within a coarse step of the best; the ``heading.sharpen_readings`` sharpest, each once
+    (``heading.same_heading``). A line a few px wide smears across its neighbouring samples a
+    degree off its heading; the few harmonics that find the lattice's heading do not see that
+    smear, these do (faint thin grout under camera noise, whose gradients point anywhere)."""
+    st = view.st.heading
+    img = view.gray.astype(np.float32)
+    img -= float(img.mean())
+    harmonics = max(st.lattice_harmonics, int(view.lp / st.sharpen_wavelength))
+    turns = _Turns(img, view.lp, harmonics)
+    coarse, fine = st.sharpen_coarse_step, st.sharpen_fine_step
+    reach = int(round(st.sharpen_span / coarse))
+    found: list[tuple[float, float]] = []
+    for y in around:
+        k0 = int(round(math.remainder(y, 0.5 * math.pi) / coarse))
+        grid = (np.arange(k0 - reach, k0 + reach + 1) * coarse).round(9)
+        best = float(grid[int(np.argmax(turns.power(grid, True)))])
+        near = (best + np.arange(-coarse, coarse + 0.5 * fine, fine)).round(9)
+        pw = turns.power(near, True)
+        i = int(np.argmax(pw))
+        if all(abs(math.remainder(float(near[i]) - b, 0.5 * math.pi)) >= st.same_heading
+               for _, b in found):
+            found.append((float(pw[i]), float(near[i])))
+    found.sort(key=lambda f: -f[0])
+    return [b for _, b in found[: st.sharpen_readings]]

@@ -19,8 +19,10 @@ measured beside the grout in one part). In each pass:
    outvoted by texture: a heading a few degrees off smears every line's profile), the
    headings at which the view repeats with the tile period
    (:func:`~tileviz.vision.robust.heading.lattice_headings`), then the gradient votes on the
-   smoothed view (:func:`~tileviz.vision.robust.heading.smoothed_headings`), each skipped when
-   within ``heading.same_heading`` of one read;
+   smoothed view (:func:`~tileviz.vision.robust.heading.smoothed_headings`), then the
+   headings near those read at which the lines are sharpest
+   (:func:`~tileviz.vision.robust.heading.sharpened_headings`), each skipped when within
+   ``heading.same_heading`` of one read;
 3. when every heading failed and the first failed with a reason of :data:`POLARITY_REASONS`
    (a bright tile cut by the border of a view of strongly shaded tiles is a narrow peak: the
    polarity can be misjudged), each heading read again with the other polarity.
@@ -52,7 +54,11 @@ from tileviz.vision.geometry import QUARTER
 from tileviz.vision.robust.checks import ANGLE_STRAIGHT, Refusal
 from tileviz.vision.robust.fit import check_lines, drop_stray_part, fit_tilt
 from tileviz.vision.robust.foreign import foreign_edges
-from tileviz.vision.robust.heading import lattice_headings, smoothed_headings
+from tileviz.vision.robust.heading import (
+    lattice_headings,
+    sharpened_headings,
+    smoothed_headings,
+)
 from tileviz.vision.robust.lattice import lattice_offsets
 from tileviz.vision.robust.periodic import on_lattice
 from tileviz.vision.robust.profiles import measure, select_lines
@@ -183,6 +189,7 @@ class Headings:
         self.tm = timings
         self._lattice: list[float] | None = None
         self._smoothed: list[tuple[float, float]] | None = None
+        self._sharpened: list[float] | None = None
 
     def _timed(self, fn: Callable[[View], list]) -> list:
         t = time.perf_counter()
@@ -200,6 +207,13 @@ class Headings:
             self._smoothed = self._timed(smoothed_headings)
         return self._smoothed
 
+    def sharpened(self, around: list[float]) -> list[float]:
+        """:func:`~tileviz.vision.robust.heading.sharpened_headings` near ``around``, computed
+        on the first call (both passes read the same headings first)."""
+        if self._sharpened is None:
+            self._sharpened = self._timed(lambda v: sharpened_headings(v, around))
+        return self._sharpened
+
 
 def lattice_readings(first: Reading, tried: Sequence[Outcome], headings: Headings
                      ) -> Iterator[Reading]:
@@ -215,6 +229,13 @@ def smoothed_readings(first: Reading, tried: Sequence[Outcome], headings: Headin
     for sigma, y in headings.smoothed():
         yield replace(first, heading=y, source=f"smoothed heading ({sigma:g} px)",
                       kind="heading")
+
+
+def sharpened_readings(first: Reading, tried: Sequence[Outcome], headings: Headings
+                       ) -> Iterator[Reading]:
+    """The headings near those read where the lines are sharpest (best first)."""
+    for y in headings.sharpened([o.reading.heading for o in tried]):
+        yield replace(first, heading=y, source="sharpened heading", kind="heading")
 
 
 def polarity_readings(first: Reading, tried: Sequence[Outcome], headings: Headings
@@ -240,6 +261,7 @@ class Stage:
 STAGES: tuple[Stage, ...] = (
     Stage("heading", RETRY_REASONS, lattice_readings),
     Stage("heading", RETRY_REASONS, smoothed_readings),
+    Stage("heading", RETRY_REASONS, sharpened_readings),
     Stage("polarity", POLARITY_REASONS, polarity_readings),
 )
 """The stages of a pass after the first heading, in order (module docstring)."""

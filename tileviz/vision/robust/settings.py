@@ -84,6 +84,17 @@ class HeadingSettings:
     """Step of the fine periodicity search, rad."""
     lattice_harmonics: int = 4
     """Harmonics of the tile period the periodicity is measured on."""
+    sharpen_span: float = 0.06
+    """The sharpened headings are searched this far (rad) either side of each heading read."""
+    sharpen_coarse_step: float = 0.01
+    """Step of that search, rad (on a grid common to every heading searched around)."""
+    sharpen_fine_step: float = 0.002
+    """Step of the fine search, one coarse step either side of the coarse best, rad."""
+    sharpen_wavelength: float = 4.0
+    """The sharpness is measured on the harmonics of the tile period down to this wavelength
+    (px): a thin line's profile is sharp only at the right heading, a few harmonics are not."""
+    sharpen_readings: int = 2
+    """Sharpened headings read at most (the sharpest first)."""
     same_heading: float = 0.004
     """A heading within this (rad, modulo pi/2) of one already read is not read again."""
     refine_tilt: float = 0.012
