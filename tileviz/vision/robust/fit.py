@@ -4,6 +4,7 @@ checks on the measured lines (``no lines`` .. ``foreign line``)."""
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 
@@ -160,14 +161,15 @@ def check_lines(run: ReadingState, lines: list[list[Line]]) -> None:
     # others (a cable along the grout direction, a seam) is foreign.
     widths = [ln.width for ln in every if math.isfinite(ln.width)]
     run.details["width_spread"] = max(widths) / min(widths) if widths else math.inf
-    contrasts = [ln.contrast for ln in every]
-    run.details["contrast_spread"] = max(contrasts) / max(min(contrasts), 1e-9)
+    run.details["contrast_spread"] = family_spread(
+        lines, lambda ln: ln.contrast, lambda v: max(v) / max(min(v), 1e-9))
     if run.inverted:
         # lighter grout: the lines agree in depth over the tiles' inverted level (shade
         # steps between the tiles move it little) or over the grout's own level (light
         # falling off across the view cancels); a line unlike the others differs in both
         run.details["contrast_spread"] = min(
-            run.details["contrast_spread"], spread([ln.contrast_grout for ln in every]))
+            run.details["contrast_spread"],
+            family_spread(lines, lambda ln: ln.contrast_grout, spread))
     rec.require(checks.FOREIGN_WIDTH, run, max(widths) if widths else math.nan,
                 min(widths) if widths else math.nan)
     # the floor's own variation: lines differ in contrast as much as each varies along itself
@@ -213,6 +215,23 @@ def shoulder_px(line: Line) -> float:
     band that every part shows."""
     spread = line.spread[(line.wpart > 0) & np.isfinite(line.spread)]
     return float(spread.min()) if spread.size >= 2 else 0.0
+
+
+def family_spread(lines: list[list[Line]], value: Callable[[Line], float],
+                  ratio: Callable[[list[float]], float]) -> float:
+    """How much the lines differ in ``value`` where it tells a foreign line: the ``ratio``
+    (max / min) within each family of two lines or more, and of a family's one line against
+    every line of both; the largest of these (1.0 without lines). A cable or a seam runs along
+    one family, unlike that family's grout lines; the two families may differ from each other
+    (light falling across recessed joints shades the joints of one family more than the
+    other's), so a family of two lines or more is compared with itself only."""
+    every = [value(ln) for fam in lines for ln in fam]
+    out = 1.0
+    for fam in lines:
+        if fam:
+            out = max(out, ratio([value(ln) for ln in fam]) if len(fam) >= 2
+                      else ratio(every))
+    return out
 
 
 def spread(values: list[float]) -> float:
