@@ -102,8 +102,6 @@ def test_each_declared_floor_family_is_read_within_its_bound(family: str) -> Non
                       "(was a step edge)"),
         ("photo", 54, "the brick photograph's mortar lines run into the grout and stop there "
                       "(was a step edge)"),
-        ("photo", 148, "the brick photograph's mortar lines run into the grout and stop there "
-                       "(was a foreign line)"),
         ("photo", 5_000_024, "mortar lines that run on along another tile's mortar beyond "
                              "the grout, which they leave alike (was a foreign line)"),
         ("photo", 5_000_093, "the same, the mortar's edge a step (was a step edge)"),
@@ -169,7 +167,6 @@ def test_each_declared_floor_family_is_read_within_its_bound(family: str) -> Non
                              "the grout's gray, its line running on along another tile's "
                              "mortar: the object there is the light ridge, which would have "
                              "brightened the grout (was a foreign line)"),
-        ("photo", 7_000_183, "the same on noisier bricks (was a foreign line)"),
         ("photo", 6_000_069, "a mortar edge with a 16 % step over dark grout, its line running "
                              "on along another tile's mortar where the tiles show no such "
                              "step: no shadow goes on across the grout (was a foreign line)"),
@@ -205,7 +202,6 @@ def test_each_declared_floor_family_is_read_within_its_bound(family: str) -> Non
                              "edge rise above both sides, a ridge no shadow edge makes (was a "
                              "foreign line)"),
         ("photo", 5_000_488, "the same, an 11 % step (was a step edge)"),
-        ("photo", 4_000_121, "the same (was a step edge)"),
         ("photo", 7_000_325, "the same (was a foreign line)"),
         ("photo", 6_000_351, "the same, the mortar edge passing the grout band near the border "
                              "(was a foreign line)"),
@@ -237,6 +233,17 @@ def test_views_once_refused_are_read_within_their_bound(family: str, seed: int, 
     r = study_view(seed, family, None)
     assert r["readable"] and r["accepted"], (why, r)
     assert r["err_px"] <= r["bound_px"] and r["err_rad"] <= r["bound_rad"], (why, r)
+
+
+@pytest.mark.parametrize("seed", [148, 7_000_183, 4_000_121])
+def test_a_mortar_line_beside_a_familys_lone_grout_line_is_refused_as_a_cable_would_be(
+        seed: int) -> None:
+    """Brick photographs on the tiles whose mortar runs beside the one grout line of a family
+    in view, deeper than 0.3 of it: one view cannot tell that mortar from a cable laid there
+    (``bench/cable_along.py`` seeds 93 mosaic and 106 light_grout, read at the cable 9.7 and
+    11.6 px off), so the view is refused (foreign line), as the cable's is."""
+    r = study_view(seed, "photo", None)
+    assert r["readable"] and not r["accepted"] and r["reason"] == "foreign line", r
 
 
 def test_a_trend_of_part_errors_along_a_line_stays_inside_the_heading_bound() -> None:
@@ -485,6 +492,43 @@ def test_a_cable_along_the_grout_off_the_tile_period_is_refused(seed: int, bag: 
     assert not res.accepted, res.reason
 
 
+def test_two_families_of_unlike_contrast_are_one_lattice() -> None:
+    """Recessed joints under light from one side: every line of one family has twice the
+    contrast of every line of the other (a paver mosaic's photoscan shows this), which is no
+    foreign line: each family agrees with itself. A cable along one of the fainter lines, as
+    dark as the others, is still unlike its own family and refused."""
+    rng = np.random.default_rng([3, 77])
+    spec = dataclasses.replace(floorgen.draw_floor("plain", rng), grout_shade=200.0,
+                               tile_shade=200.0, shade_spread=2.0, noise=2.0)
+    cx, cy, th = floorgen.draw_view(rng)
+    lp = spec.tile_size * spec.ppm
+    bands = []
+    for k, shade in ((0, 160.0), (1, 80.0)):
+        normal, s0 = floorgen.line_offset(spec, cx, cy, th, k)
+        bands += [floorgen.band(spec, normal, s0 + m * lp, 4.0, shade) for m in range(-3, 4)]
+
+    def lines(img: np.ndarray) -> np.ndarray:
+        for band in bands:
+            img = band(img)
+        return img
+
+    cam = CameraConfig(ppm=spec.ppm, width=spec.width, height=spec.height, offset=(0.0, 0.0))
+    pose = Pose(cx, cy, th)
+    img = floorgen.render(spec, cx, cy, th, np.random.default_rng(1), overlay=lines)
+    res = extract(img, camera=cam, tile_size=spec.tile_size,
+                  vision=VisionConfig(extractor="robust"))
+    assert res.accepted and res.observation is not None, res.reason
+    e1, e2, _ = observation_error(res.observation, pose, spec.tile_size, (0.0, 0.0))
+    assert max(abs(e1), abs(e2)) <= res.observation.position_error
+    normal, s0 = floorgen.line_offset(spec, cx, cy, th, 0)
+    cable = floorgen.band(spec, normal, s0, 4.0, 80.0)
+    img = floorgen.render(spec, cx, cy, th, np.random.default_rng(1),
+                          overlay=lambda im: cable(lines(im)))
+    res = extract(img, camera=cam, tile_size=spec.tile_size,
+                  vision=VisionConfig(extractor="robust"))
+    assert not res.accepted, res.reason
+
+
 @pytest.mark.parametrize(
     ("seed", "family", "refused", "why"),
     [
@@ -501,6 +545,13 @@ def test_a_cable_along_the_grout_off_the_tile_period_is_refused(seed: int, bag: 
                                 "depth lets the cable's shallower edge through as a dip)"),
         (33, "terrazzo", False, "a 3 px cable touching a 6 px grout line widens it to 10 px"),
         (37, "plain", False, "a 6 px cable 1 px off a 6 px grout line widens it by 1 px"),
+        (95, "mosaic", True, "a dark cable 23 px off the one grout line of its family, the "
+                             "thin joint a second dip of 0.33 of the cable's darkness"),
+        (93, "mosaic", True, "a dark cable 4 px beside a joint whose dip the panels' offsets "
+                             "smear: a second dip of 0.4 of the cable's darkness"),
+        (106, "light_grout", True, "a light cable 4 px beside a light grout line"),
+        (200, "mosaic", True, "a 3 px cable 11 px beside a joint"),
+        (368, "checker", True, "an 8 px dark cable over a checkerboard's edge"),
     ],
 )
 def test_a_cable_along_a_grout_line_is_refused_or_read_within_its_bound(

@@ -19,9 +19,11 @@ measured beside the grout in one part). In each pass:
    outvoted by texture: a heading a few degrees off smears every line's profile), the
    headings at which the view repeats with the tile period
    (:func:`~tileviz.vision.robust.heading.lattice_headings`), then the gradient votes on the
-   smoothed view (:func:`~tileviz.vision.robust.heading.smoothed_headings`), then the
-   headings near those read at which the lines are sharpest
-   (:func:`~tileviz.vision.robust.heading.sharpened_headings`), each skipped when within
+   smoothed view (:func:`~tileviz.vision.robust.heading.smoothed_headings`), then, when the
+   first found no lines or only faint ones (:data:`POLARITY_REASONS`), the headings near
+   those read at which the lines are sharpest
+   (:func:`~tileviz.vision.robust.heading.sharpened_headings`: not after a foreign line,
+   which a blunter heading may smear out of sight), each skipped when within
    ``heading.same_heading`` of one read;
 3. when every heading failed and the first failed with a reason of :data:`POLARITY_REASONS`
    (a bright tile cut by the border of a view of strongly shaded tiles is a narrow peak: the
@@ -261,7 +263,7 @@ class Stage:
 STAGES: tuple[Stage, ...] = (
     Stage("heading", RETRY_REASONS, lattice_readings),
     Stage("heading", RETRY_REASONS, smoothed_readings),
-    Stage("heading", RETRY_REASONS, sharpened_readings),
+    Stage("heading", POLARITY_REASONS, sharpened_readings),
     Stage("polarity", POLARITY_REASONS, polarity_readings),
 )
 """The stages of a pass after the first heading, in order (module docstring)."""

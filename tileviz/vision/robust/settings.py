@@ -216,11 +216,13 @@ class LineSettings:
     line's band."""
     crossing_min_reach: int = 6
     """Shortest such stretch (px): a crossing nearer the border of the view is not read."""
-    beside_share: float = 0.5
+    beside_share: float = 0.3
     """The one line of its family in view is foreign when the profile holds, within its
     measurement window, another dip at least this share of the line's depth, apart from it (the
     darkness between them falls below half of that dip's): a cable laid a few px beside a grout
-    line (:func:`~tileviz.vision.robust.profiles.beside_dip`)."""
+    line (:func:`~tileviz.vision.robust.profiles.beside_dip`). The share at which the selection
+    counts a dip as a line (``SelectionSettings.rel_depth``): a thin joint beside a wide cable,
+    or a joint whose dip the panels' offsets smear, is well under half the cable's."""
     shoulder_px: float = 0.75
     """A line is foreign when, in every part of it measured (two or more), its 25 % and 75 %
     midpoints lie more than this many px off its 50 % midpoint: a band with a shoulder (a dark
