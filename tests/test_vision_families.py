@@ -175,10 +175,8 @@ def test_each_declared_floor_family_is_read_within_its_bound(family: str) -> Non
                              "vignetting: the grout's level falls by 18 levels along it, "
                              "smoothly (was a foreign line)"),
         ("photo", 6_000_046, "the same, 17 levels over 133 px (was a foreign line)"),
-        ("photo", 5_000_030, "its own bound, 3.4 px and 0.042 rad, exceeds the 3 px and "
-                             "0.025 rad configured; its errors are 0.14 px and 0.0004 rad "
-                             "(was imprecise)"),
-        ("photo", 6_000_349, "the same, a bound of 3.04 px (was imprecise)"),
+        ("photo", 6_000_349, "its own bound, 3.04 px, exceeds the 3 px configured (was "
+                             "imprecise)"),
         ("photo", 6_000_106, "a mortar edge meets the light grout at 0.1 rad, where its short "
                              "line in view gives no reading of the grout's own variation: "
                              "the grout's level rises by 16 levels over the 180 px read, "
@@ -235,15 +233,18 @@ def test_views_once_refused_are_read_within_their_bound(family: str, seed: int, 
     assert r["err_px"] <= r["bound_px"] and r["err_rad"] <= r["bound_rad"], (why, r)
 
 
-@pytest.mark.parametrize("seed", [148, 7_000_183, 4_000_121])
+@pytest.mark.parametrize(("seed", "reason"), [
+    (148, "foreign line"), (7_000_183, "foreign line"), (4_000_121, "foreign line"),
+    (5_000_030, "inconsistent angle")])
 def test_a_mortar_line_beside_a_familys_lone_grout_line_is_refused_as_a_cable_would_be(
-        seed: int) -> None:
+        seed: int, reason: str) -> None:
     """Brick photographs on the tiles whose mortar runs beside the one grout line of a family
-    in view, deeper than 0.3 of it: one view cannot tell that mortar from a cable laid there
-    (``bench/cable_along.py`` seeds 93 mosaic and 106 light_grout, read at the cable 9.7 and
-    11.6 px off), so the view is refused (foreign line), as the cable's is."""
+    in view, deeper than 0.3 of it and apart from it (a valley between): one view cannot tell
+    that mortar from a cable laid there (``bench/cable_along.py`` seeds 93 mosaic, 106
+    light_grout and 378 degraded, read at the cable 9.7, 11.6 and 8.8 px off), so the view is
+    refused, as the cable's is (with its first reading's reason)."""
     r = study_view(seed, "photo", None)
-    assert r["readable"] and not r["accepted"] and r["reason"] == "foreign line", r
+    assert r["readable"] and not r["accepted"] and r["reason"] == reason, r
 
 
 def test_a_trend_of_part_errors_along_a_line_stays_inside_the_heading_bound() -> None:
@@ -552,6 +553,8 @@ def test_two_families_of_unlike_contrast_are_one_lattice() -> None:
         (106, "light_grout", True, "a light cable 4 px beside a light grout line"),
         (200, "mosaic", True, "a 3 px cable 11 px beside a joint"),
         (368, "checker", True, "an 8 px dark cable over a checkerboard's edge"),
+        (378, "degraded", True, "a light cable 3.6 px beside light grout under blur: half the "
+                                "grout's darkness stays between the two bands"),
     ],
 )
 def test_a_cable_along_a_grout_line_is_refused_or_read_within_its_bound(

@@ -190,9 +190,9 @@ def beside_dip(run: ReadingState, k: int, line: Line) -> float:
     apart from ``line``'s own within its measurement window (``run.window`` samples each side
     of the line's centre), over the line's depth (0.0 when there is none). Apart: every
     sample between the line's own deepest sample (within half its width + 2 of its centre)
-    and that dip's is lighter than half that dip's darkness, so their half-depth bands do not
-    touch. A grout line is one band; a cable or a seam along it, a few px beside it, is a
-    second band that every part of the line shows (a texture's dip beside one part of it is
+    and that dip's is lighter than ``lines.beside_apart`` of that dip's darkness (a valley
+    between two bands). A grout line is one band; a cable or a seam along it, a few px beside
+    it, is a second band that every part of the line shows (a texture's dip beside one part of it is
     a quarter as deep in the whole profile), and the line's measurement window, whose
     plateaus it darkens, cannot tell which band is the grout."""
     proj = run.projection
@@ -208,12 +208,13 @@ def beside_dip(run: ReadingState, k: int, line: Line) -> float:
     if a >= b:
         return 0.0
     own = a + int(np.argmax(d[a:b]))
+    apart = run.st.lines.beside_apart
     best = 0.0
     for step, end in ((-1, lo - 1), (1, hi)):
         col = math.inf
         for i in range(own + step, end, step):
             v = float(d[i])
-            if col < 0.5 * v:
+            if col < apart * v:
                 best = max(best, v)
             col = min(col, v)
     return best / line.depth

@@ -219,10 +219,16 @@ class LineSettings:
     beside_share: float = 0.3
     """The one line of its family in view is foreign when the profile holds, within its
     measurement window, another dip at least this share of the line's depth, apart from it (the
-    darkness between them falls below half of that dip's): a cable laid a few px beside a grout
+    darkness between them falls below ``beside_apart`` of that dip's): a cable laid a few px
+    beside a grout
     line (:func:`~tileviz.vision.robust.profiles.beside_dip`). The share at which the selection
     counts a dip as a line (``SelectionSettings.rel_depth``): a thin joint beside a wide cable,
     or a joint whose dip the panels' offsets smear, is well under half the cable's."""
+    beside_apart: float = 0.75
+    """See ``beside_share``: two dips are apart when the darkness between them falls below
+    this share of the shallower one's, a valley between two bands (a cable 4 px beside light
+    grout under blur keeps about half of the grout's darkness between them; the bottom of one
+    band, noisy, keeps more)."""
     shoulder_px: float = 0.75
     """A line is foreign when, in every part of it measured (two or more), its 25 % and 75 %
     midpoints lie more than this many px off its 50 % midpoint: a band with a shoulder (a dark
