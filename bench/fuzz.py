@@ -26,9 +26,9 @@ import tempfile
 import time
 from pathlib import Path
 
+from tileviz.testing.fuzz_cases import READERS
 from tileviz.testing.fuzzing import (
     OUTCOMES,
-    READERS,
     Finding,
     Report,
     Result,
@@ -42,7 +42,8 @@ def _atheris_worker(reader: str, runs: int, seed: int, timeout: float, log: str)
     lines), the inputs of the bad ones too."""
     import atheris
 
-    from tileviz.testing.fuzzing import Templates, _captured, run_case
+    from tileviz.testing.fuzz_cases import Templates
+    from tileviz.testing.fuzzing import _captured, run_case
 
     tmp = Path(tempfile.mkdtemp(prefix="fuzz-atheris-"))
     with _captured(tmp):

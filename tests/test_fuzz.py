@@ -17,7 +17,8 @@ import numpy as np
 import pytest
 
 from tileviz.__main__ import main as tileviz_main
-from tileviz.testing.fuzzing import READERS, Templates, campaign, describe, fix_png_crcs, png_bytes
+from tileviz.testing.fuzz_cases import READERS, Templates, fix_png_crcs, png_bytes
+from tileviz.testing.fuzzing import campaign, describe
 
 REPO = Path(__file__).resolve().parents[1]
 
