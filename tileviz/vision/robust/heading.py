@@ -141,6 +141,13 @@ class _Turns:
         return out
 
 
+def centred_gray(view: View) -> np.ndarray:
+    """The view's gray image (float32) less its mean: what the periodicity searches turn."""
+    img = view.gray.astype(np.float32)
+    img -= float(img.mean())
+    return img
+
+
 def lattice_headings(view: View) -> list[float]:
     """Headings (rad, modulo pi/2) at which the view repeats most strongly with the tile
     period in both directions (:func:`lattice_power`), blind to a trend of the light and not:
@@ -150,8 +157,7 @@ def lattice_headings(view: View) -> list[float]:
     gradient directions of :func:`first_heading` lead to no lattice (texture can outvote the
     grout, blur and uneven light can hide it)."""
     st = view.st.heading
-    img = view.gray.astype(np.float32)
-    img -= float(img.mean())
+    img = centred_gray(view)
     scale = st.lattice_scale
     small = cv2.resize(img, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
     coarse = np.arange(-0.25 * math.pi, 0.25 * math.pi, st.lattice_coarse_step)
@@ -180,8 +186,7 @@ def sharpened_headings(view: View, around: list[float]) -> list[float]:
     degree off its heading; the few harmonics that find the lattice's heading do not see that
     smear, these do (faint thin grout under camera noise, whose gradients point anywhere)."""
     st = view.st.heading
-    img = view.gray.astype(np.float32)
-    img -= float(img.mean())
+    img = centred_gray(view)
     harmonics = max(st.lattice_harmonics, int(view.lp / st.sharpen_wavelength))
     turns = _Turns(img, view.lp, harmonics)
     coarse, fine = st.sharpen_coarse_step, st.sharpen_fine_step

@@ -20,12 +20,12 @@ measured beside the grout in one part). In each pass:
    headings at which the view repeats with the tile period
    (:func:`~tileviz.vision.robust.heading.lattice_headings`), then the gradient votes on the
    smoothed view (:func:`~tileviz.vision.robust.heading.smoothed_headings`), then, when the
-   first found no lines or only faint ones (:data:`POLARITY_REASONS`), the headings near
+   first found no lines or only faint ones (:data:`UNSEEN_REASONS`), the headings near
    those read at which the lines are sharpest
    (:func:`~tileviz.vision.robust.heading.sharpened_headings`: not after a foreign line,
    which a blunter heading may smear out of sight), each skipped when within
    ``heading.same_heading`` of one read;
-3. when every heading failed and the first failed with a reason of :data:`POLARITY_REASONS`
+3. when every heading failed and the first failed with a reason of :data:`UNSEEN_REASONS`
    (a bright tile cut by the border of a view of strongly shaded tiles is a narrow peak: the
    polarity can be misjudged), each heading read again with the other polarity.
 
@@ -66,7 +66,7 @@ from tileviz.vision.robust.periodic import on_lattice
 from tileviz.vision.robust.profiles import measure, select_lines
 from tileviz.vision.robust.state import Line, ReadingState, View
 
-__all__ = ["POLARITY_REASONS", "RETRY_REASONS", "STAGES", "Outcome", "Stage", "decide",
+__all__ = ["UNSEEN_REASONS", "RETRY_REASONS", "STAGES", "Outcome", "Stage", "decide",
            "plan", "read", "read_lines"]
 
 RETRY_REASONS = frozenset(
@@ -75,10 +75,12 @@ RETRY_REASONS = frozenset(
 )
 """Refusals of the first heading's line checks after which other headings are read."""
 
-POLARITY_REASONS = frozenset({"no lines", "low contrast", "one family"})
-"""Refusals of the first heading's line checks after which, every heading having failed, the
-headings are read again with the grout's other polarity: reading dark grout as lighter (or the
-reverse) finds no line, or only shallow ones."""
+UNSEEN_REASONS = frozenset({"no lines", "low contrast", "one family"})
+"""Refusals of the first heading's line checks that say its lines were not seen (none, only
+faint ones, one family), unlike a foreign line or a bent one: after them the sharpest headings
+near those read are read, and then, every heading having failed, each heading again with the
+grout's other polarity (reading dark grout as lighter, or the reverse, finds no line, or only
+shallow ones)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -263,8 +265,8 @@ class Stage:
 STAGES: tuple[Stage, ...] = (
     Stage("heading", RETRY_REASONS, lattice_readings),
     Stage("heading", RETRY_REASONS, smoothed_readings),
-    Stage("heading", POLARITY_REASONS, sharpened_readings),
-    Stage("polarity", POLARITY_REASONS, polarity_readings),
+    Stage("heading", UNSEEN_REASONS, sharpened_readings),
+    Stage("polarity", UNSEEN_REASONS, polarity_readings),
 )
 """The stages of a pass after the first heading, in order (module docstring)."""
 
