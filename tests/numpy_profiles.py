@@ -92,25 +92,29 @@ def part_summary_numpy(
     mids: np.ndarray, msig: np.ndarray, count: np.ndarray, base: np.ndarray,
     lev_l: np.ndarray, lev_r: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
-           np.ndarray]:
+           np.ndarray, np.ndarray]:
     """m dips' lines from their part measurements (:func:`part_rows_numpy`, row i * PARTS + j
     is part j of dip i; ``count`` (m, PARTS) samples per part, ``base`` each dip's peak in
     profile coordinates, ``lev_l``, ``lev_r`` its plateau levels): the medians over the parts
     of width, rise and contrast, the step between the plateaus, and per part (m, PARTS) the
-    position (NaN where not measured), the length (0 there), the standard error and the
-    spread of the 25 / 75 % midpoints (0 there). :func:`~tileviz.vision.robust.kernel.
+    position (NaN where not measured), the length (0 there), the standard error, the
+    spread of the 25 / 75 % midpoints and the reach of the 25 % crossings from the 50 %
+    midpoint, at least the spread (both 0 there). :func:`~tileviz.vision.robust.kernel.
     part_summary` is the same computation compiled (bit-identical)."""
     m = count.shape[0]
     width = width.reshape(m, PARTS)
     rise = rise.reshape(m, PARTS)
     cen = cen.reshape(m, PARTS)
-    mids = mids.reshape(3, m, PARTS)
+    mids = mids.reshape(4, m, PARTS)
     msig = msig.reshape(m, PARTS)
     pos50 = np.where(np.isfinite(cen), mids[0], np.nan)
     spread = np.maximum(np.abs(mids[1] - mids[0]), np.abs(mids[2] - mids[0]))
     # a thin or shallow dip may miss its 25 or 75 % crossings: its position is then only
     # known to be within its half-depth width (from the 50 % crossings)
     sp_ok = np.where(np.isfinite(spread) & np.isfinite(msig), spread, 0.5 * width + 0.5)
+    # the reach of the 25 % crossings, at least the spread
+    rc = np.maximum(mids[3], sp_ok)
+    rc = np.where(np.isfinite(rc), rc, sp_ok)
     # medians over the parts of each dip's width, rise and contrast, in one sort
     meds = nanmedian(np.concatenate(
         (width.T, rise.T, contrast.reshape(m, PARTS).T), axis=1))
@@ -123,7 +127,8 @@ def part_summary_numpy(
     parts = np.where(ok, base[:, None] + pos50, np.nan)
     sigma = np.where(ok & np.isfinite(msig), msig, 0.0)
     spread = np.where(ok, sp_ok, 0.0)
-    return wmed, rmed, cmed, stepr, parts, wpart, sigma, spread
+    reach = np.where(ok, rc, 0.0)
+    return wmed, rmed, cmed, stepr, parts, wpart, sigma, spread, reach
 
 
 def part_profiles_numpy(
@@ -224,8 +229,9 @@ def midpoints(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Where each row of ``p`` (a part's profile over sample offsets ``j``, its dip within 3
     samples of ``start``) crosses 50, 25 and 75 % of its own depth, as the midpoints of its
-    left and right crossings (shape (3, rows), NaN where a crossing is missing), and the
-    predicted standard error of the 50 % midpoint (rows,), px.
+    left and right crossings, and the reach of the 25 % crossings from the 50 % midpoint (the
+    farther one; shape (4, rows), NaN where a crossing is missing), and the predicted standard
+    error of the 50 % midpoint (rows,), px.
 
     Each side's darkness is measured against that side's plateau (``lev_l``, ``lev_r``, taken
     outside the window ``c +- half``) and normalised by that side's depth (plateau - bottom of
@@ -256,9 +262,10 @@ def midpoints(
         mids = (0.5 * (xl + xr)).reshape(3, rows)
         mc = np.where(np.isfinite(mids[0]), mids[0], mc)
     xl3, xr3 = xl.reshape(3, rows), xr.reshape(3, rows)
+    reach = np.maximum(mids[0] - xl3[1], xr3[1] - mids[0])
     sl = rough / np.maximum(lev_l - bottom, 1e-6) * np.abs(xl3[2] - xl3[1]) / 0.5
     sr = rough / np.maximum(lev_r - bottom, 1e-6) * np.abs(xr3[2] - xr3[1]) / 0.5
-    return mids, 0.5 * np.sqrt(sl * sl + sr * sr)
+    return np.vstack([mids, reach[None, :]]), 0.5 * np.sqrt(sl * sl + sr * sr)
 
 
 def centroid(

@@ -572,6 +572,55 @@ def test_a_cable_along_a_grout_line_is_refused_or_read_within_its_bound(
         assert r["accepted"], (why, r)
 
 
+def test_grout_with_a_bevel_along_every_line_is_read_with_the_band_at_a_quarter_depth_bound(
+) -> None:
+    """A real floor's joints are not always a symmetric band: a bevel beside each grout line
+    (a shadowed edge of the tile) puts a shoulder on every line, which the line checks refuse
+    as a cable touching the grout. The view is then read again with each shouldered line's
+    parts bounded by its band at a quarter of its depth (``Reading.shoulder``): accepted,
+    within that bound; the bevel's side of the band is in the bound, so the bound is wider than
+    the same floor's without bevels."""
+    spec = floorgen.FloorSpec(family="plain", tile_size=0.3, ppm=400.0, grout_px=3.0,
+                              grout_shade=60.0, tile_shade=190.0, shade_spread=5.0,
+                              surface="flat", surface_amp=0.0, seed=3)
+    lp = spec.tile_size * spec.ppm
+    cam = CameraConfig(ppm=spec.ppm, width=spec.width, height=spec.height, offset=(0.0, 0.0))
+    read = 0
+    for cx, cy, th in ((0.41, 0.23, 0.3), (1.1, 0.7, -0.6), (0.05, 2.3, 1.2),
+                       (0.9, 0.1, 2.0), (0.3, 0.3, 0.7)):
+        def bevels(img: np.ndarray, cx: float = cx, cy: float = cy, th: float = th
+                   ) -> np.ndarray:
+            for fam in (0, 1):
+                normal, s = floorgen.line_offset(spec, cx, cy, th, fam)
+                for k in range(-3, 4):
+                    img = floorgen.band(spec, normal, s + k * lp + 3.0, 3.0, 140.0)(img)
+            return img
+
+        pose = Pose(cx, cy, th)
+        plain = extract(floorgen.render(spec, cx, cy, th, np.random.default_rng(1)),
+                        camera=cam, tile_size=spec.tile_size,
+                        vision=VisionConfig(extractor="robust"))
+        res = extract(floorgen.render(spec, cx, cy, th, np.random.default_rng(1),
+                                      overlay=bevels),
+                      camera=cam, tile_size=spec.tile_size,
+                      vision=VisionConfig(extractor="robust"))
+        assert res.decision is not None
+        first = res.decision.readings[0]
+        assert first.checks[-1].check == "foreign_line.shoulder", first
+        assert res.reason in ("ok", "imprecise"), res.reason
+        if not res.accepted:
+            continue
+        read += 1
+        shown = res.decision.readings[res.decision.shown or 0].reading
+        assert shown.shoulder and shown.kind == "shoulder", shown
+        assert res.observation is not None and plain.observation is not None
+        e1, e2, e3 = observation_error(res.observation, pose, spec.tile_size, (0.0, 0.0))
+        assert max(abs(e1), abs(e2)) <= res.observation.position_error
+        assert abs(e3) <= res.observation.heading_error
+        assert res.observation.position_error > plain.observation.position_error
+    assert read >= 3
+
+
 def test_the_studys_cable_beside_the_grout_of_a_gravel_photograph_is_refused() -> None:
     """Seed 9 000 015's corrupted photo view (the fresh7 split): a dark cable about 10 px
     from a grout line, one line of that family in view, was read at the cable (10.3 px off,

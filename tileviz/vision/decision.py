@@ -40,13 +40,16 @@ class Reading:
     pi/2) its lines are measured at first, ``source`` (how that heading was found: the
     gradient votes, the view's periodicity, the votes on a smoothed view), ``polarity``
     (``auto``: the grout's polarity decided from the profiles; ``dark`` / ``light``: imposed),
-    ``stray`` (the one part that alone keeps the lines from straight is left out) and ``kind``
-    (the stage of the plan it belongs to: ``first``, ``heading``, ``polarity``)."""
+    ``stray`` (the one part that alone keeps the lines from straight is left out),
+    ``shoulder`` (a line with a shoulder in every part is bounded by its band at a quarter of
+    its depth instead of refused) and ``kind`` (the stage of the plan it belongs to:
+    ``first``, ``heading``, ``polarity``, ``shoulder``)."""
 
     heading: float
     source: str
     polarity: str = "auto"
     stray: bool = False
+    shoulder: bool = False
     kind: str = "first"
 
     def label(self) -> str:
@@ -56,6 +59,8 @@ class Reading:
             out += f", {self.polarity} grout imposed"
         if self.stray:
             out += ", without the stray part"
+        if self.shoulder:
+            out += ", shoulders bounded"
         return out
 
 
@@ -87,8 +92,8 @@ class Decision:
     def as_dict(self) -> dict[str, object]:
         """JSON-able: ``reason``, ``refusal`` ({check, value, limit, relation, subject,
         reading} or null), ``view_checks``, ``readings`` (each: heading in rad, source,
-        polarity, stray, reason, checks) and ``shown``; a value or limit that is not finite
-        is null."""
+        polarity, stray, shoulder, reason, checks) and ``shown``; a value or limit that is not
+        finite is null."""
         ref = None
         if self.refusal is not None:
             ref = {**_check_dict(self.refusal), "reading": self.refused_in}
@@ -100,7 +105,8 @@ class Decision:
             "readings": [
                 {"heading": t.reading.heading, "source": t.reading.source,
                  "polarity": t.reading.polarity, "stray": t.reading.stray,
-                 "reason": t.reason, "checks": [_check_dict(c) for c in t.checks]}
+                 "shoulder": t.reading.shoulder, "reason": t.reason,
+                 "checks": [_check_dict(c) for c in t.checks]}
                 for t in self.readings],
             "shown": self.shown,
         }

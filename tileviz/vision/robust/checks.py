@@ -55,7 +55,8 @@ Per reading (:mod:`.readings`), on its lines:
 - ``foreign_line.beside``: a second dip beside the one line of a family, over its depth;
   < ``lines.beside_share`` (``foreign line``).
 - ``foreign_line.shoulder``: the smallest spread of a line's 25 / 75 % midpoints over its
-  parts, px; <= ``lines.shoulder_px`` (``foreign line``).
+  parts, px; <= ``lines.shoulder_px`` (``foreign line``); not run on a reading that bounds
+  such a line by its band at a quarter of its depth instead (``Reading.shoulder``).
 
 On the reading whose lines passed, the lattice and the bound:
 

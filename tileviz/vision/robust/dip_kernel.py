@@ -97,14 +97,15 @@ def part_summary(width: np.ndarray, rise: np.ndarray, contrast: np.ndarray, cen:
                  mids: np.ndarray, msig: np.ndarray, count: np.ndarray, base: np.ndarray,
                  lev_l: np.ndarray, lev_r: np.ndarray
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
-                            np.ndarray, np.ndarray, np.ndarray]:
+                            np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """m dips' lines from their part measurements (:func:`part_rows`, row i * PARTS + j is
     part j of dip i; ``count`` (m, PARTS) samples per part, ``base`` each dip's peak in profile
     coordinates, ``lev_l``, ``lev_r`` its plateau levels): the medians over the parts of
     width, rise and contrast, the step between the plateaus (over the brighter), and per part
-    (m, PARTS) the position (NaN where not measured), the length (0 there), the standard error
-    and the spread of the 25 / 75 % midpoints (0 there; a part that misses its 25 or 75 %
-    crossings is known to within its half-depth width)."""
+    (m, PARTS) the position (NaN where not measured), the length (0 there), the standard error,
+    the spread of the 25 / 75 % midpoints and the reach of the 25 % crossings from the 50 %
+    midpoint, at least the spread (both 0 there; a part that misses its 25 or 75 % crossings
+    is known to within its half-depth width)."""
     m = count.shape[0]
     wmed = np.empty(m)
     rmed = np.empty(m)
@@ -114,6 +115,7 @@ def part_summary(width: np.ndarray, rise: np.ndarray, contrast: np.ndarray, cen:
     wpart = np.empty((m, PARTS))
     sigma = np.empty((m, PARTS))
     spread = np.empty((m, PARTS))
+    reach = np.empty((m, PARTS))
     buf = np.empty(PARTS)
     for i in range(m):
         for j in range(PARTS):
@@ -123,11 +125,15 @@ def part_summary(width: np.ndarray, rise: np.ndarray, contrast: np.ndarray, cen:
             sp = _max(abs(mids[1, k] - m0), abs(mids[2, k] - m0))
             if not (math.isfinite(sp) and math.isfinite(msig[k])):
                 sp = 0.5 * width[k] + 0.5
+            rc = _max(mids[3, k], sp)
+            if not math.isfinite(rc):
+                rc = sp
             ok = math.isfinite(pos)
             wpart[i, j] = float(count[i, j]) if ok else 0.0
             parts[i, j] = float(base[i]) + pos if ok else math.nan
             sigma[i, j] = msig[k] if (ok and math.isfinite(msig[k])) else 0.0
             spread[i, j] = sp if ok else 0.0
+            reach[i, j] = rc if ok else 0.0
         for j in range(PARTS):
             buf[j] = width[i * PARTS + j]
         wmed[i] = _median_finite(buf, PARTS)
@@ -140,7 +146,7 @@ def part_summary(width: np.ndarray, rise: np.ndarray, contrast: np.ndarray, cen:
         lo_lev = _min(lev_l[i], lev_r[i])
         hi_lev = _max(lev_l[i], lev_r[i])
         stepr[i] = (hi_lev - lo_lev) / _max(hi_lev, 1e-9)
-    return wmed, rmed, cmed, stepr, parts, wpart, sigma, spread
+    return wmed, rmed, cmed, stepr, parts, wpart, sigma, spread, reach
 
 
 @compiled

@@ -15,7 +15,7 @@ from tileviz.vision.robust.profiles import beside_dip
 from tileviz.vision.robust.state import Line, ReadingState
 from tileviz.vision.robust.statistics import list_median
 
-__all__ = ["check_lines", "drop_stray_part", "fit_tilt", "shoulder_px"]
+__all__ = ["check_lines", "drop_stray_part", "fit_tilt", "part_spreads", "shoulder_px"]
 
 
 def fit_tilt(run: ReadingState, lines: list[list[Line]]) -> float:
@@ -38,7 +38,7 @@ def fit_tilt(run: ReadingState, lines: list[list[Line]]) -> float:
     eps, pos, var, g, d_eps, part_bound, straight, heading_se, tilt_gap = fit_kernel.fit_arrays(
         np.array([ln.wpart for ln in every]), np.array([ln.tpart for ln in every]),
         np.array([ln.parts for ln in every]), np.array([ln.sigma for ln in every]),
-        np.array([ln.spread for ln in every]), len(lines[0]), st.part_sigmas,
+        part_spreads(run, every), len(lines[0]), st.part_sigmas,
         st.prior_dof * st.prior_sigma**2, st.prior_dof, run.st.lines.straight_part_share)
     run.details["straightness_px"] = straight
     tol = run.tol_px
@@ -57,6 +57,22 @@ def fit_tilt(run: ReadingState, lines: list[list[Line]]) -> float:
     run.details["heading_se"] = heading_se
     run.details["tilt_gap"] = tilt_gap
     return eps
+
+
+def part_spreads(run: ReadingState, every: list[Line]) -> np.ndarray:
+    """The term of each part's own bound that its band's shape gives (lines, PARTS; px): the
+    spread of its 25 / 75 % midpoints; on a reading that bounds shoulders
+    (``ReadingState.bound_shoulders``), for a line with a shoulder in every part
+    (:func:`shoulder_px` above ``lines.shoulder_px``), the reach of its 25 % crossings from its
+    50 % midpoint. Such a band may be the grout and something along it read as one (a cable
+    touching it, a bevel's shadow): the grout, at least a quarter as dark as the band, lies
+    within the band at a quarter of its depth (docs/vision.md, "The bound of a view")."""
+    if not run.bound_shoulders:
+        return np.array([ln.spread for ln in every])
+    limit = run.st.lines.shoulder_px
+    wide = [shoulder_px(ln) > limit for ln in every]
+    run.details["shouldered"] = float(sum(wide))
+    return np.array([ln.reach if w else ln.spread for ln, w in zip(every, wide, strict=True)])
 
 
 def _family_tilt(fam: list[Line], sign: float) -> tuple[float, float]:
@@ -193,7 +209,8 @@ def check_lines(run: ReadingState, lines: list[list[Line]]) -> None:
     rec.require(checks.FOREIGN_BESIDE, run, beside)
     shoulder = max(shoulder_px(ln) for ln in every)
     run.details["shoulder_px"] = shoulder
-    rec.require(checks.FOREIGN_SHOULDER, run, shoulder)
+    if not run.bound_shoulders:  # else in the parts' bounds (part_spreads)
+        rec.require(checks.FOREIGN_SHOULDER, run, shoulder)
 
 
 def contrast_along(lines: list[Line]) -> float:

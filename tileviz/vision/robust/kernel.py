@@ -240,8 +240,9 @@ def _midpoints(p: np.ndarray, j: np.ndarray, start: float, c: float, half: float
                mids: np.ndarray) -> float:
     """Where the part profile ``p`` (over sample offsets ``j``, its dip within 3 samples of
     ``start``) crosses 50, 25 and 75 % of its own depth, as the midpoints of its left and right
-    crossings (into ``mids`` (3,), NaN where a crossing is missing); returns the predicted
-    standard error of the 50 % midpoint, px.
+    crossings (into ``mids[:3]``, NaN where a crossing is missing), and how far its 25 %
+    crossings reach from the 50 % midpoint (``mids[3]``: the farther of the two, px, NaN where
+    one is missing); returns the predicted standard error of the 50 % midpoint, px.
 
     Each side's darkness is measured against that side's plateau (``lev_l``, ``lev_r``, taken
     outside the window ``c +- half``) and normalised by that side's depth (plateau - bottom of
@@ -295,6 +296,7 @@ def _midpoints(p: np.ndarray, j: np.ndarray, start: float, c: float, half: float
         mids[2] = 0.5 * (xl2 + xr2)
         if math.isfinite(mids[0]):
             mc = mids[0]
+    mids[3] = _max(mids[0] - xl1, xr1 - mids[0])
     sl = rough / _max(lev_l - bottom, 1e-6) * abs(xl2 - xl1) / 0.5
     sr = rough / _max(lev_r - bottom, 1e-6) * abs(xr2 - xr1) / 0.5
     return 0.5 * math.sqrt(sl * sl + sr * sr)
@@ -307,8 +309,9 @@ def part_rows(pp: np.ndarray, jf: np.ndarray, cj: np.ndarray, hj: np.ndarray, r:
     """Every part profile's measurement (rows of ``pp`` over sample offsets ``jf`` = -r..r,
     the dip's centre ``cj`` and half window ``hj`` per row): half-depth width, 20-80 % rise,
     contrast (depth / brighter plateau), centroid (NaN where its window leaves the profile or
-    it strays beyond the half window), the 50/25/75 % midpoints (3, rows) and the 50 %
-    midpoint's standard error (:func:`_midpoints`).
+    it strays beyond the half window), the 50/25/75 % midpoints and the reach of the 25 %
+    crossings from the 50 % midpoint (4, rows), and the 50 % midpoint's standard error
+    (:func:`_midpoints`).
 
     The position is the midpoint of the dip's 50 % crossings, each side against its own
     plateau and depth (texture beside the grout, a slope of the light or a shade step between
@@ -319,12 +322,12 @@ def part_rows(pp: np.ndarray, jf: np.ndarray, cj: np.ndarray, hj: np.ndarray, r:
     rise = np.empty(rows)
     contrast = np.empty(rows)
     cen = np.empty(rows)
-    mids = np.empty((3, rows))
+    mids = np.empty((4, rows))
     msig = np.empty(rows)
     dp = np.empty(n)
     buf = np.empty(n)
     buf2 = np.empty(n)
-    m3 = np.empty(3)
+    m3 = np.empty(4)
     for k in range(rows):
         p = pp[k]
         c = cj[k]
@@ -358,6 +361,7 @@ def part_rows(pp: np.ndarray, jf: np.ndarray, cj: np.ndarray, hj: np.ndarray, r:
         mids[0, k] = m3[0]
         mids[1, k] = m3[1]
         mids[2, k] = m3[2]
+        mids[3, k] = m3[3]
     return width, rise, contrast, cen, mids, msig
 
 

@@ -113,7 +113,7 @@ def measure_parts(
         fam, u_lo, step, x0, y0, cols, proj.pad, integ.shape[0] + integ.shape[1], c0, half)
     pp = kernel.part_profiles(integ.ravel(), integ.shape[1], fam, line, idx, mean, p0)
     width, rise, contrast, cen, mids, msig = kernel.part_rows(pp, jf, cj, hj, r)
-    wmed, rmed, cmed, stepr, parts, wpart, sigma, spread = dip_kernel.part_summary(
+    wmed, rmed, cmed, stepr, parts, wpart, sigma, spread, reach = dip_kernel.part_summary(
         width, rise, contrast, cen, mids, msig, count, pk - proj.pad, lev_l, lev_r)
     gmed = np.full(rows.size, np.nan)
     if run.inverted:
@@ -140,6 +140,7 @@ def measure_parts(
                 wpart=wpart[i],
                 sigma=sigma[i],
                 spread=spread[i],
+                reach=reach[i],
             )
         )
     return out

@@ -27,7 +27,10 @@ measured beside the grout in one part). In each pass:
    ``heading.same_heading`` of one read;
 3. when every heading failed and the first failed with a reason of :data:`UNSEEN_REASONS`
    (a bright tile cut by the border of a view of strongly shaded tiles is a narrow peak: the
-   polarity can be misjudged), each heading read again with the other polarity.
+   polarity can be misjudged), each heading read again with the other polarity;
+4. when every reading failed, each one whose lines failed only for a shoulder again with its
+   shouldered lines bounded by their band at a quarter of its depth
+   (:func:`~tileviz.vision.robust.fit.part_spreads`): a shoulder-free reading is preferred.
 
 A pass stops at the first reading whose lines pass the line checks: its lattice, bound and
 foreign-edge checks decide the pass. The result is the first pass's unless the second
@@ -53,7 +56,7 @@ import numpy as np
 
 from tileviz.vision.decision import CheckResult, Reading
 from tileviz.vision.geometry import QUARTER
-from tileviz.vision.robust.checks import ANGLE_STRAIGHT, Refusal
+from tileviz.vision.robust.checks import ANGLE_STRAIGHT, FOREIGN_SHOULDER, Refusal
 from tileviz.vision.robust.fit import check_lines, drop_stray_part, fit_tilt
 from tileviz.vision.robust.foreign import foreign_edges
 from tileviz.vision.robust.heading import (
@@ -250,6 +253,16 @@ def polarity_readings(first: Reading, tried: Sequence[Outcome], headings: Headin
                       kind="polarity")
 
 
+def shoulder_readings(first: Reading, tried: Sequence[Outcome], headings: Headings
+                      ) -> Iterator[Reading]:
+    """Each reading of this pass whose lines failed only for a shoulder
+    (``foreign_line.shoulder``), again with the shouldered lines bounded by their band at a
+    quarter of its depth (:func:`~tileviz.vision.robust.fit.part_spreads`)."""
+    for o in tried:
+        if o.refusal is not None and o.refusal.check == FOREIGN_SHOULDER.id:
+            yield replace(o.reading, shoulder=True, kind="shoulder")
+
+
 @dataclass(frozen=True)
 class Stage:
     """One stage of the plan after the first heading: ``kind`` (of its readings), the refusals
@@ -267,14 +280,15 @@ STAGES: tuple[Stage, ...] = (
     Stage("heading", RETRY_REASONS, smoothed_readings),
     Stage("heading", UNSEEN_REASONS, sharpened_readings),
     Stage("polarity", UNSEEN_REASONS, polarity_readings),
+    Stage("shoulder", RETRY_REASONS, shoulder_readings),
 )
 """The stages of a pass after the first heading, in order (module docstring)."""
 
 
 def same(a: Reading, b: Reading, tolerance: float) -> bool:
-    """Whether two readings read alike: the same polarity and stray part, headings within
-    ``tolerance`` (rad, modulo pi/2)."""
-    return (a.polarity == b.polarity and a.stray == b.stray
+    """Whether two readings read alike: the same polarity, stray part and shoulders, headings
+    within ``tolerance`` (rad, modulo pi/2)."""
+    return (a.polarity == b.polarity and a.stray == b.stray and a.shoulder == b.shoulder
             and abs(math.remainder(a.heading - b.heading, QUARTER)) < tolerance)
 
 

@@ -230,10 +230,11 @@ class LineSettings:
     grout under blur keeps about half of the grout's darkness between them; the bottom of one
     band, noisy, keeps more)."""
     shoulder_px: float = 0.75
-    """A line is foreign when, in every part of it measured (two or more), its 25 % and 75 %
-    midpoints lie more than this many px off its 50 % midpoint: a band with a shoulder (a dark
-    cable touching a grout line, the grout shallower than half the cable's depth, is read as
-    the cable; clean grout keeps them within a few tenths of a px)."""
+    """A line has a shoulder when, in every part of it measured (two or more), its 25 % and 75 %
+    midpoints lie more than this many px off its 50 % midpoint (a dark cable touching a grout
+    line, the grout shallower than half the cable's depth, is read as the cable; clean grout
+    keeps them within a few tenths of a px): it is refused as foreign, or, on a shoulder
+    reading, bounded by its band at a quarter of its depth."""
 
 
 @dataclass(frozen=True)

@@ -46,6 +46,7 @@ class Line:
     wpart: np.ndarray  # (PARTS,) length of each part (0 when not measured)
     sigma: np.ndarray  # (PARTS,) predicted standard error of each part's position, px
     spread: np.ndarray  # (PARTS,) largest distance of its 25 / 75 % midpoints from the 50 %, px
+    reach: np.ndarray  # (PARTS,) farther 25 % crossing from the 50 % midpoint (>= spread), px
     infl: np.ndarray = field(default_factory=lambda: np.zeros(0))
     # d pos / d(position of every part of the fit), px per px (set by the fit)
     # lighter grout (an inverted view) only: depth / the grout's own level in the gray image
@@ -165,6 +166,9 @@ class ReadingState:
             None if reading.polarity == "auto" else reading.polarity == "light")
         # leave out the one part that alone keeps the lines from straight (fit.drop_stray_part)
         self.drop_stray = reading.stray
+        # bound a line with a shoulder in every part by its band at a quarter of its depth
+        # (its parts' reach) instead of refusing it (fit.fit_tilt, fit.check_lines)
+        self.bound_shoulders = reading.shoulder
         self.not_straight = False  # whether the lines were found not straight
         self.edges: np.ndarray | None = None
         self.free_edges: np.ndarray | None = None
