@@ -82,7 +82,7 @@ def heading_votes_numpy(dx: np.ndarray, dy: np.ndarray, share: float, nb: int,
 
 def fit_arrays_numpy(
     wp: np.ndarray, tp: np.ndarray, pp: np.ndarray, sig: np.ndarray, spr: np.ndarray, n0: int,
-    part_sigmas: float, prior: float, prior_dof: float, big_share: float
+    part_sigmas: float, prior: float, prior_dof: float, big_share: float, explained: float
 ) -> tuple[float, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, float, float,
            float]:
     """The fit of :func:`fit_tilt` on the (lines, PARTS) arrays of the parts' lengths ``wp``
@@ -91,7 +91,8 @@ def fit_arrays_numpy(
     (rad); each line's pos and var; its influence row ``g`` (d pos / d every measured part);
     d eps / d every measured part; every measured part's own bound (``part_sigmas`` sigma +
     spread); the straightness (px), the heading's standard error and the tilt gap. ``prior``
-    is ``prior_dof`` x the prior sigma squared. :func:`~tileviz.vision.robust.fit_kernel.
+    is ``prior_dof`` x the prior sigma squared; the variances from the residuals beyond
+    ``explained`` px, the gap from the whole residuals. :func:`~tileviz.vision.robust.fit_kernel.
     fit_arrays` is the same computation compiled (bit-identical)."""
     m = wp.shape[0]
     ok = wp > 0
@@ -114,6 +115,8 @@ def fit_arrays_numpy(
     pos = pb - sign * eps * tb
     res = np.where(ok, p - (pos[:, None] + sign[:, None] * eps * t), 0.0)
     ss = float((w * res * res).sum())
+    res_u = np.maximum(np.abs(res) - explained, 0.0)
+    ss_u = float((w * res_u * res_u).sum())
     nobs = int(ok.sum())
     big = ok & (wp >= big_share * wp.max(axis=1)[:, None])
     straight = float(np.abs(res[big]).max()) if big.any() else 0.0
@@ -130,8 +133,9 @@ def fit_arrays_numpy(
     # prior so that a fit with few degrees of freedom is not trusted blindly.
     dof = max(nobs - (m + 1), 0)
     sigma2 = (ss + prior) / (dof + prior_dof)
-    var_eps = sigma2 / dall if dall > 1e-9 else math.inf
-    var = sigma2 / sw + tb * tb * var_eps
+    sigma2_u = (ss_u + prior) / (dof + prior_dof)
+    var_eps = sigma2_u / dall if dall > 1e-9 else math.inf
+    var = sigma2_u / sw + tb * tb * var_eps
     # the two families must be perpendicular: their own tilts agree within their errors
     gap = 0.0
     if den[0] > 1e-9 and den[1] > 1e-9:

@@ -6,6 +6,7 @@ part measurement and projection (:mod:`tileviz.vision.robust.kernel`,
 
 from __future__ import annotations
 
+import math
 from dataclasses import fields
 
 import numpy as np
@@ -340,14 +341,15 @@ def test_the_compiled_missing_line_check_matches_numpy_on_any_lattice(
 
 @settings(max_examples=150, deadline=None)
 @given(seed=st.integers(0, 2**31 - 1), m=st.integers(1, 20), unmeasured=st.floats(0.0, 0.6),
-       tilt=st.floats(-0.05, 0.05))
+       tilt=st.floats(-0.05, 0.05), explained=st.one_of(st.just(0.0), st.floats(0.0, 1.0)))
 def test_the_compiled_fit_matches_numpy_on_any_parts(
-    seed: int, m: int, unmeasured: float, tilt: float
+    seed: int, m: int, unmeasured: float, tilt: float, explained: float
 ) -> None:
     """Random lines of four parts (any number of each family, some parts not measured, up to
     whole lines): the compiled common fit gives numpy's bits (tilt, positions, variances,
-    influences, the parts' bounds, straightness, heading error, tilt gap); parts drawn on
-    straight lines with one common tilt give that tilt back."""
+    influences, the parts' bounds, straightness, heading error, tilt gap), whatever share of
+    the residuals the floor's tolerance explains; parts drawn on straight lines with one
+    common tilt give that tilt back."""
     rng = np.random.default_rng(seed)
     n0 = int(rng.integers(0, m + 1))
     wp = np.where(rng.random((m, 4)) < unmeasured, 0.0, rng.integers(3, 200, (m, 4)) * 1.0)
@@ -357,14 +359,23 @@ def test_the_compiled_fit_matches_numpy_on_any_parts(
     pp = np.where(wp > 0, straight + rng.normal(0.0, 0.3, (m, 4)), np.nan)
     sig = np.where(wp > 0, rng.random((m, 4)), 0.0)
     spr = np.where(wp > 0, rng.random((m, 4)), 0.0)
-    args = (wp, tp, pp, sig, spr, n0, 4.0, 4.5, 2.0, 0.25)
+    args = (wp, tp, pp, sig, spr, n0, 4.0, 4.5, 2.0, 0.25, explained)
     with np.errstate(invalid="ignore", divide="ignore"):
         ref = nk.fit_arrays_numpy(*args)
     got = fit_kernel.fit_arrays(*args)
     assert all(_bits(a) == _bits(b) for a, b in zip(got, ref, strict=True))
+    # residuals the floor's tolerance explains whole leave the prior's scatter alone
+    nobs, m_fit = int((wp > 0).sum()), int(((wp > 0).sum(axis=1) > 0).sum())
+    dall = float(sum((w * (t - np.dot(w, t) / w.sum()) ** 2).sum()
+                     for w, t in ((wp[i][wp[i] > 0], tp[i][wp[i] > 0]) for i in range(m))
+                     if w.size))
+    if m_fit == m and dall > 1e-6:
+        prior_only = math.sqrt(4.5 / (max(nobs - (m + 1), 0) + 2.0) / dall)
+        heading_se = fit_kernel.fit_arrays(*args[:-1], 1e9)[7]
+        assert heading_se == pytest.approx(prior_only, rel=1e-9)
     exact = np.where(wp > 0, straight, np.nan)
     with np.errstate(invalid="ignore", divide="ignore"):
-        eps = nk.fit_arrays_numpy(wp, tp, exact, sig, spr, n0, 4.0, 4.5, 2.0, 0.25)[0]
+        eps = nk.fit_arrays_numpy(wp, tp, exact, sig, spr, n0, 4.0, 4.5, 2.0, 0.25, 0.0)[0]
     if ((wp > 0).sum(axis=1) >= 2).all():  # every line measured in two parts or more
         assert abs(eps - tilt) < 1e-6
 

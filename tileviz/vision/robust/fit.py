@@ -39,7 +39,8 @@ def fit_tilt(run: ReadingState, lines: list[list[Line]]) -> float:
         np.array([ln.wpart for ln in every]), np.array([ln.tpart for ln in every]),
         np.array([ln.parts for ln in every]), np.array([ln.sigma for ln in every]),
         part_spreads(run, every), len(lines[0]), st.part_sigmas,
-        st.prior_dof * st.prior_sigma**2, st.prior_dof, run.st.lines.straight_part_share)
+        st.prior_dof * st.prior_sigma**2, st.prior_dof, run.st.lines.straight_part_share,
+        2.0 * run.tol_px)
     run.details["straightness_px"] = straight
     tol = run.tol_px
     if tol > 0.0:

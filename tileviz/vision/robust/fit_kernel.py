@@ -20,7 +20,7 @@ __all__ = ["fit_arrays"]
 @compiled
 def fit_arrays(
     wp: np.ndarray, tp: np.ndarray, pp: np.ndarray, sig: np.ndarray, spr: np.ndarray, n0: int,
-    part_sigmas: float, prior: float, prior_dof: float, big_share: float
+    part_sigmas: float, prior: float, prior_dof: float, big_share: float, explained: float
 ) -> tuple[float, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, float, float,
            float]:
     """The fit of :func:`~tileviz.vision.robust.fit.fit_tilt` on the (lines, PARTS) arrays of
@@ -31,7 +31,9 @@ def fit_arrays(
     (``part_sigmas`` sigma + spread); the straightness (px: the largest residual of the parts
     ``big_share`` of their line's longest or more), the heading's standard error and the tilt gap
     (the two families' own tilts apart, in standard errors). ``prior`` is ``prior_dof`` x the
-    prior sigma squared.
+    prior sigma squared. The lines' variances and the heading's standard error come from the
+    residuals beyond ``explained`` px (what the floor's lattice tolerance explains of a part
+    off its line: it is in every part's bound already); the tilt gap from the whole residuals.
 
     The fit is linear in the part positions: d eps / d p_i = sign w_i (t_i - tb) / sum, d pos
     / d p_i = w_i / sum(w) [its own line] - sign tb d eps / d p_i; with every part within its
@@ -85,6 +87,7 @@ def fit_arrays(
     eps = (num0 + num1) / dall if dall > 1e-9 else 0.0
     pos = np.empty(m)
     flat = np.empty(m * parts)
+    flat_u = np.empty(m * parts)
     nobs = 0
     straight = -math.inf
     anybig = False
@@ -102,6 +105,8 @@ def fit_arrays(
         for j in range(parts):
             r = p[i, j] - (pos[i] + se * t[i, j]) if ok[i, j] else 0.0
             flat[i * parts + j] = w[i, j] * r * r
+            ru = _max(abs(r) - explained, 0.0)
+            flat_u[i * parts + j] = w[i, j] * ru * ru
             if ok[i, j]:
                 nobs += 1
                 if wp[i, j] >= big_share * wmax:
@@ -112,6 +117,7 @@ def fit_arrays(
                 own[k] = i
                 k += 1
     ss = _rowsum(flat)
+    ss_u = _rowsum(flat_u)
     g = np.empty((m, nok))
     for i in range(m):
         a = -(sign[i] * tb[i])
@@ -126,10 +132,11 @@ def fit_arrays(
     dof = nobs - (m + 1)
     dof = dof if dof > 0 else 0
     sigma2 = (ss + prior) / (dof + prior_dof)
-    var_eps = sigma2 / dall if dall > 1e-9 else math.inf
+    sigma2_u = (ss_u + prior) / (dof + prior_dof)
+    var_eps = sigma2_u / dall if dall > 1e-9 else math.inf
     var = np.empty(m)
     for i in range(m):
-        var[i] = sigma2 / sw[i] + tb[i] * tb[i] * var_eps
+        var[i] = sigma2_u / sw[i] + tb[i] * tb[i] * var_eps
     gap = 0.0
     if den0 > 1e-9 and den1 > 1e-9:
         gap = abs(num0 / den0 - num1 / den1)
