@@ -49,6 +49,37 @@ def test_a_motion_blurred_grout_floor_is_not_read_from_its_edge_image() -> None:
     assert r["inside"], r
 
 
+def test_a_checkerboard_of_two_hues_of_one_luma_is_read_from_a_difference_of_channels(
+) -> None:
+    """Tiles of two hues and one luma, edge to edge: the luma shows no edge, and the floor
+    undeclared is refused. Declared ``checker``, the edge images are read strongest first: the
+    red-green difference's (``details["projection"]`` -5: the fourth projection's edge
+    image) reads the view, within its bound."""
+    luma = np.array([0.299, 0.587, 0.114])
+    grey = np.array([150.0, 150.0, 150.0])
+    hue = np.array([1.0, -0.3, 0.0])
+    hue -= hue.dot(luma) / luma.dot(luma) * luma
+    hued = grey + hue * 70.0 / float(np.abs(hue).max())
+    spec = floorgen.FloorSpec(family="checker", kind="checker", tile_size=0.3, ppm=400.0,
+                              grout_px=0.0, grout_shade=float(hued.dot(luma)),
+                              tile_shade=150.0, shade_spread=0.0, surface="flat",
+                              surface_amp=0.0, seed=4,
+                              tint=(tuple(grey.tolist()), tuple(hued.tolist())))
+    cam = CameraConfig(ppm=spec.ppm, width=spec.width, height=spec.height, offset=(0.0, 0.0))
+    for cx, cy, th in ((0.41, 0.23, 0.3), (1.1, 0.7, -0.6)):
+        img = floorgen.render(spec, cx, cy, th, np.random.default_rng(2))
+        assert not extract(img, camera=cam, tile_size=spec.tile_size,
+                           vision=VisionConfig(extractor="robust")).accepted
+        res = extract(img, camera=cam, tile_size=spec.tile_size,
+                      vision=VisionConfig(extractor="robust"), floor=spec.model)
+        assert res.accepted and res.observation is not None, res.reason
+        assert res.details["projection"] == -5.0
+        e1, e2, e3 = observation_error(res.observation, Pose(cx, cy, th), spec.tile_size,
+                                       (0.0, 0.0))
+        assert max(abs(e1), abs(e2)) <= res.observation.position_error
+        assert abs(e3) <= res.observation.heading_error
+
+
 def faint_thin_grout_view(seed: int) -> tuple[np.ndarray, floorgen.FloorSpec, Pose]:
     """A view of thin (2 px) light grout 14 gray levels above plain tiles, through a camera
     with noise of 4 levels, a 0.9 px blur and vignetting (a real white ceramic floor seen by a
@@ -553,6 +584,10 @@ def test_two_families_of_unlike_contrast_are_one_lattice() -> None:
         (106, "light_grout", True, "a light cable 4 px beside a light grout line"),
         (200, "mosaic", True, "a 3 px cable 11 px beside a joint"),
         (368, "checker", True, "an 8 px dark cable over a checkerboard's edge"),
+        (265, "checker", True, "a light 2.4 px cable 15 px off a checkerboard's edge: the edge "
+                               "image refused it; the luma, read next, took the cable for a "
+                               "line of lighter grout (on a floor of no grout, a dip of the "
+                               "luma is no line)"),
         (378, "degraded", True, "a light cable 3.6 px beside light grout under blur: half the "
                                 "grout's darkness stays between the two bands"),
     ],

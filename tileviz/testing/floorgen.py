@@ -24,6 +24,8 @@ and the floors a user declares (:data:`DECLARED_FAMILIES`: their ``FloorSpec.kin
 ``lattice_tolerance`` are what such a floor's meta.json declares, :attr:`FloorSpec.model`):
 
 - ``checker``: tiles of two shades (60..180 levels apart) alternating edge to edge, no grout;
+  a third of them (drawn from the floor's own seed) two hues of nearly one luma (within 0..20
+  levels) instead;
 - ``hand_laid``: every tile laid up to 0.3..2.5 % of the tile off the lattice (its edges and the
   grout between them move; the grout 2..8 px);
 - ``mosaic``: panels of 3..5 x 3..5 small tiles with seams 2..3 x the grout's width, each panel
@@ -178,6 +180,13 @@ def draw_floor(family: str, rng: np.random.Generator) -> FloorSpec:
         spec.shade_spread = float(rng.uniform(0, 8))
         if rng.uniform() < 0.5:  # marble-like
             spec.surface, spec.surface_amp = "terrazzo", float(rng.uniform(0.05, 0.15))
+        # a coloured pair, from the floor's own seed (the family's other draws unchanged)
+        own = np.random.default_rng([spec.seed, 97])
+        if own.uniform() < 1.0 / 3.0:
+            pale, deep = _hues(own, float(own.uniform(60, 190)), float(own.uniform(0, 20)))
+            spec.tint = (tuple(deep.tolist()), tuple(pale.tolist()))
+            spec.grout_shade = float(np.dot(_LUMA, pale))
+            spec.tile_shade = float(np.dot(_LUMA, deep))
     elif family == "hand_laid":
         spec.grout_px = float(rng.uniform(2.0, 8.0))
         spec.lattice_tolerance = float(rng.uniform(0.003, 0.025)) * tile
@@ -192,11 +201,8 @@ def draw_floor(family: str, rng: np.random.Generator) -> FloorSpec:
     elif family == "faint_colour":
         spec.grout_px = float(rng.uniform(2.0, 6.0))
         grey = np.array([float(rng.uniform(120, 180))] * 3)
-        hue = rng.normal(0.0, 1.0, 3)
-        hue -= np.dot(hue, _LUMA) / np.dot(_LUMA, _LUMA) * _LUMA  # no luma change
-        hue *= float(rng.uniform(25, 45)) / float(np.abs(hue).max())
-        grout = np.clip(grey + hue - float(rng.uniform(2, 6)) * float(rng.choice([-1, 1])),
-                        0, 255)
+        hued = _hue_shift(rng, grey, 25, 45)
+        grout = np.clip(hued - float(rng.uniform(2, 6)) * float(rng.choice([-1, 1])), 0, 255)
         spec.tint = (tuple(grey.tolist()), tuple(grout.tolist()))
         spec.tile_shade = float(np.dot(_LUMA, grey))
         spec.grout_shade = float(np.dot(_LUMA, grout))
@@ -207,6 +213,24 @@ def draw_floor(family: str, rng: np.random.Generator) -> FloorSpec:
 
 _LUMA = np.array([0.299, 0.587, 0.114])
 """The luma's weights of R, G, B."""
+
+
+def _hue_shift(rng: np.random.Generator, grey: np.ndarray, lo: float, hi: float
+               ) -> np.ndarray:
+    """``grey`` (RGB) moved by a random hue of no luma, ``lo``..``hi`` levels in its largest
+    channel (not clipped)."""
+    hue = rng.normal(0.0, 1.0, 3)
+    hue -= np.dot(hue, _LUMA) / np.dot(_LUMA, _LUMA) * _LUMA  # no luma change
+    hue *= float(rng.uniform(lo, hi)) / float(np.abs(hue).max())
+    return grey + hue
+
+
+def _hues(rng: np.random.Generator, level: float, apart: float
+          ) -> tuple[np.ndarray, np.ndarray]:
+    """Two colours (RGB) of a coloured checkerboard about ``level``: hues 60..120 levels apart
+    in their largest channel, the second ``apart`` levels of luma darker."""
+    grey = np.array([level] * 3)
+    return grey, np.clip(_hue_shift(rng, grey, 60, 120) - apart, 0, 255)
 
 
 def _hash(i: np.ndarray, j: np.ndarray, seed: int, salt: int) -> np.ndarray:
@@ -308,14 +332,16 @@ def render(spec: FloorSpec, cx: float, cy: float, theta: float,
     else:
         grout = (np.minimum(fx, 1 - fx) < half) | (np.minimum(fy, 1 - fy) < half)
     shade0: float | np.ndarray = spec.tile_shade
+    hued = grout  # where the second colour of spec.tint is (the grout, or the odd tiles)
     if spec.kind == "checker":  # two shades alternate, no grout
-        shade0 = np.where((i + j) % 2 == 0, spec.tile_shade, spec.grout_shade)
+        hued = (i + j) % 2 != 0
+        shade0 = np.where(hued, spec.grout_shade, spec.tile_shade)
         grout = np.zeros_like(grout)
     shade = shade0 + spec.shade_spread * (2.0 * _hash(i, j, spec.seed, 1) - 1.0)
     tile = shade * (1.0 + _surface(spec, i, j, fx, fy))
     val = np.where(grout, spec.grout_shade, tile)
     img = val.mean(axis=(2, 3)).astype(np.float32)
-    cover = grout.mean(axis=(2, 3)).astype(np.float32) if spec.tint is not None else None
+    cover = hued.mean(axis=(2, 3)).astype(np.float32) if spec.tint is not None else None
     if corruption is not None:
         img = corrupt(img, corruption, rng)
     if overlay is not None:

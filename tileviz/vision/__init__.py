@@ -40,7 +40,7 @@ from tileviz.vision.colour import (
     RETRY_REASONS,
     SAME_AS_LUMA,
     correlation,
-    edge_image,
+    edges_and_strength,
 )
 from tileviz.vision.faithful import extract_faithful
 from tileviz.vision.geometry import observation_error
@@ -77,18 +77,19 @@ def _read_robust(gray: np.ndarray, image: np.ndarray, camera: CameraConfig, tile
                  floor: FloorModel) -> VisionResult:
     """The robust extractor on the luma ``gray``, then, while it shows no grout
     (:data:`~tileviz.vision.colour.RETRY_REASONS`), on the colour projections of ``image``
-    (RGB only); a floor declared ``checker`` has its edge image read first (docs/vision.md,
-    "Colour"). The first accepted reading is the result (its
-    ``details["projection"]``: 0 the luma, 1.. the colour projections in order, -1 the edge
-    image); otherwise the first reading's refusal."""
+    (RGB only); on a floor declared ``checker`` (no grout: its lines are the edges between
+    the tiles), on the edge images of the luma and of the colour projections instead
+    (docs/vision.md, "Colour"). The first accepted reading is the result (its
+    ``details["projection"]``: 0 the luma, 1.. the colour projections in order, -1 the luma's
+    edge image, -2.. the projections' edge images in order); otherwise the first reading's
+    refusal."""
     robust = _robust()
     candidates: list[tuple[float, Callable[[], np.ndarray]]] = [(0.0, lambda: gray)]
     if image.ndim == 3:
         candidates += [(float(k), lambda p=proj: p(image))  # type: ignore[misc]
                        for k, proj in enumerate(PROJECTIONS.values(), start=1)]
-    checker = floor.kind == "checker"
-    if checker:  # a checkerboard: its edge image first
-        candidates.insert(0, (-1.0, lambda: edge_image(gray)))
+    if floor.kind == "checker":
+        candidates = _edge_images(candidates, gray)
     first: VisionResult | None = None
     for number, make in candidates:
         t1 = time.perf_counter()
@@ -110,6 +111,22 @@ def _read_robust(gray: np.ndarray, image: np.ndarray, camera: CameraConfig, tile
             break
     assert first is not None
     return first
+
+
+def _edge_images(candidates: list[tuple[float, Callable[[], np.ndarray]]], gray: np.ndarray
+                 ) -> list[tuple[float, Callable[[], np.ndarray]]]:
+    """The edge images of the ``candidates`` (number, view: the luma 0, the projections 1..)
+    that differ from the luma ``gray``, numbered -1 - number, strongest edges first
+    (:func:`~tileviz.vision.colour.edges_and_strength`; the luma's first among equals)."""
+    out = []
+    for number, make in candidates:
+        view = make()
+        if number > 0 and abs(correlation(view, gray)) >= SAME_AS_LUMA:
+            continue
+        edges, strength = edges_and_strength(view)
+        out.append((-strength, -1.0 - number, edges))
+    out.sort(key=lambda c: c[0])
+    return [(n, lambda e=e: e) for _, n, e in out]  # type: ignore[misc]
 
 
 def to_gray(image: np.ndarray) -> np.ndarray:

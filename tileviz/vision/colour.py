@@ -12,11 +12,14 @@ channels, computed in integer arithmetic (the same pixels on every machine):
 
 The edge image (``edges``, :func:`edge_image`) shows a checkerboard's lattice: tiles of two
 shades meet edge to edge, no grout, and the lattice is the edges between them, which the
-gradient's magnitude draws as thin light lines on dark tiles, read as lighter grout. It is read
-on a floor declared ``checker`` only, first: on a grout floor the edge image's ridge is the
-grout's centre only while its two edges are alike (a motion blur that smears one edge more than
-the other moves it off the centre, beyond what the reading's bound can see), so a checkerboard
-is not recognised from the view.
+gradient's magnitude draws as thin light lines on dark tiles, read as lighter grout. On a floor
+declared ``checker`` the edge images are read instead of the luma and the projections (a dip of
+the luma there is no line of the floor): the luma's and each projection's that differs from it,
+in the order of how strongly their edges stand out (:func:`edges_and_strength`: two tiles of
+one luma and two hues show their edges in a difference of channels only). On a grout floor the
+edge image's ridge is the grout's centre only while its two edges are alike (a motion blur that
+smears one edge more than the other moves it off the centre, beyond what the reading's bound
+can see), so it is not read there.
 
 The projections are tried in that order, after the luma, each only when it differs from the
 luma (:data:`SAME_AS_LUMA`: a projection that is nearly the luma again, a channel of a gray
@@ -35,7 +38,7 @@ import cv2
 import numpy as np
 
 __all__ = ["EDGE_BLUR", "EDGE_QUANTILE", "PROJECTIONS", "RETRY_REASONS", "SAME_AS_LUMA",
-           "correlation", "edge_image", "project"]
+           "correlation", "edge_image", "edges_and_strength", "project"]
 
 EDGE_BLUR = 1.0
 """Gaussian std (px) of the blur before the edge image's gradient."""
@@ -59,12 +62,22 @@ def edge_image(gray: np.ndarray) -> np.ndarray:
     """The edge image of ``gray`` (HxW uint8): the L1 magnitude of the Scharr gradient after a
     Gaussian blur of :data:`EDGE_BLUR` px, scaled so that its :data:`EDGE_QUANTILE` quantile is
     255 (integer arithmetic after the blur), HxW uint8."""
+    return edges_and_strength(gray)[0]
+
+
+def edges_and_strength(gray: np.ndarray) -> tuple[np.ndarray, float]:
+    """:func:`edge_image` of ``gray`` and how strongly its edges stand out: the gradient
+    magnitude's :data:`EDGE_QUANTILE` quantile over its median (at least 1; from integers,
+    the same on every machine). A checkerboard's two shades meet along lines that stand out
+    many times over the noise and texture inside the tiles; a projection in which the two
+    shades are alike shows the noise alone."""
     g = cv2.GaussianBlur(gray, (0, 0), EDGE_BLUR)
     m = (np.abs(cv2.Scharr(g, cv2.CV_16S, 1, 0).astype(np.int32))
          + np.abs(cv2.Scharr(g, cv2.CV_16S, 0, 1).astype(np.int32)))
     flat = np.sort(m, axis=None)
     hi = max(1, int(flat[min(flat.size - 1, int(EDGE_QUANTILE * flat.size))]))
-    return np.minimum(255, m * 255 // hi).astype(np.uint8)
+    mid = max(1, int(flat[flat.size // 2]))
+    return np.minimum(255, m * 255 // hi).astype(np.uint8), hi / mid
 
 
 PROJECTIONS: dict[str, Callable[[np.ndarray], np.ndarray]] = {
