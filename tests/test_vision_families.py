@@ -52,9 +52,9 @@ def test_a_motion_blurred_grout_floor_is_not_read_from_its_edge_image() -> None:
 def test_a_checkerboard_of_two_hues_of_one_luma_is_read_from_a_difference_of_channels(
 ) -> None:
     """Tiles of two hues and one luma, edge to edge: the luma shows no edge, and the floor
-    undeclared is refused. Declared ``checker``, the edge images are read strongest first: the
-    red-green difference's (``details["projection"]`` -5: the fourth projection's edge
-    image) reads the view, within its bound."""
+    undeclared is refused. Declared ``checker``, the edge images are read strongest first: a
+    colour projection's (``details["projection"]`` -2 or below, not the luma's -1) reads the
+    view, within its bound."""
     luma = np.array([0.299, 0.587, 0.114])
     grey = np.array([150.0, 150.0, 150.0])
     hue = np.array([1.0, -0.3, 0.0])
@@ -73,7 +73,7 @@ def test_a_checkerboard_of_two_hues_of_one_luma_is_read_from_a_difference_of_cha
         res = extract(img, camera=cam, tile_size=spec.tile_size,
                       vision=VisionConfig(extractor="robust"), floor=spec.model)
         assert res.accepted and res.observation is not None, res.reason
-        assert res.details["projection"] == -5.0
+        assert res.details["projection"] <= -2.0
         e1, e2, e3 = observation_error(res.observation, Pose(cx, cy, th), spec.tile_size,
                                        (0.0, 0.0))
         assert max(abs(e1), abs(e2)) <= res.observation.position_error

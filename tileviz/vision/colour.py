@@ -15,8 +15,8 @@ shades meet edge to edge, no grout, and the lattice is the edges between them, w
 gradient's magnitude draws as thin light lines on dark tiles, read as lighter grout. On a floor
 declared ``checker`` the edge images are read instead of the luma and the projections (a dip of
 the luma there is no line of the floor): the luma's and each projection's that differs from it,
-in the order of how strongly their edges stand out (:func:`edges_and_strength`: two tiles of
-one luma and two hues show their edges in a difference of channels only). On a grout floor the
+strongest edges first (:func:`edges_and_strength`: two tiles of one luma and two hues show
+their edges in a difference of channels only). On a grout floor the
 edge image's ridge is the grout's centre only while its two edges are alike (a motion blur that
 smears one edge more than the other moves it off the centre, beyond what the reading's bound
 can see), so it is not read there.
@@ -66,18 +66,17 @@ def edge_image(gray: np.ndarray) -> np.ndarray:
 
 
 def edges_and_strength(gray: np.ndarray) -> tuple[np.ndarray, float]:
-    """:func:`edge_image` of ``gray`` and how strongly its edges stand out: the gradient
-    magnitude's :data:`EDGE_QUANTILE` quantile over its median (at least 1; from integers,
-    the same on every machine). A checkerboard's two shades meet along lines that stand out
-    many times over the noise and texture inside the tiles; a projection in which the two
-    shades are alike shows the noise alone."""
+    """:func:`edge_image` of ``gray`` and how strong its edges are: the gradient magnitude's
+    :data:`EDGE_QUANTILE` quantile (gray levels per px, times the Scharr kernel's gain of 32;
+    an integer, the same on every machine). A checkerboard's two shades meet along its
+    strongest edges; a projection in which the two shades are alike shows the noise and the
+    texture alone."""
     g = cv2.GaussianBlur(gray, (0, 0), EDGE_BLUR)
     m = (np.abs(cv2.Scharr(g, cv2.CV_16S, 1, 0).astype(np.int32))
          + np.abs(cv2.Scharr(g, cv2.CV_16S, 0, 1).astype(np.int32)))
     flat = np.sort(m, axis=None)
     hi = max(1, int(flat[min(flat.size - 1, int(EDGE_QUANTILE * flat.size))]))
-    mid = max(1, int(flat[flat.size // 2]))
-    return np.minimum(255, m * 255 // hi).astype(np.uint8), hi / mid
+    return np.minimum(255, m * 255 // hi).astype(np.uint8), float(hi)
 
 
 PROJECTIONS: dict[str, Callable[[np.ndarray], np.ndarray]] = {
