@@ -584,6 +584,12 @@ def test_two_families_of_unlike_contrast_are_one_lattice() -> None:
         (106, "light_grout", True, "a light cable 4 px beside a light grout line"),
         (200, "mosaic", True, "a 3 px cable 11 px beside a joint"),
         (368, "checker", True, "an 8 px dark cable over a checkerboard's edge"),
+        (343, "mosaic", False, "a 3.6 px cable 4.6 px beside a seam, two lines of the family "
+                               "in view: the declared tolerance widens the spacing check past "
+                               "the cable, so the band beside it is in the line's bound"),
+        (244, "hand_laid", False, "a 5 px cable 6 px off a grout line among others"),
+        (113, "mosaic", True, "a 6 px cable 17 px off a thin joint, read for it: 17 px in the "
+                              "bound is more than a view may declare"),
         (265, "checker", True, "a light 2.4 px cable 15 px off a checkerboard's edge: the edge "
                                "image refused it; the luma, read next, took the cable for a "
                                "line of lighter grout (on a floor of no grout, a dip of the "

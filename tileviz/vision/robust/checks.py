@@ -52,7 +52,8 @@ Per reading (:mod:`.readings`), on its lines:
   <= ``lines.crossing_ratio``.
 - ``foreign_line.unread``: lines not read at a crossing that agree in contrast (within
   ``lines.contrast_ratio``) with none read there; <= 0.
-- ``foreign_line.beside``: a second dip beside the one line of a family, over its depth;
+- ``foreign_line.beside``: a second dip beside a line, as far as the lattice spacing would not
+  show it read instead (:func:`~tileviz.vision.robust.fit.unseen_reach`), over its depth;
   < ``lines.beside_share`` (``foreign line``).
 - ``foreign_line.shoulder``: the smallest spread of a line's 25 / 75 % midpoints over its
   parts, px; <= ``lines.shoulder_px`` (``foreign line``); not run on a reading that bounds
@@ -233,7 +234,7 @@ CROSSINGS_UNREAD = Check("foreign_line.unread", "foreign line", AT_MOST, lambda 
                          "lines.contrast_ratio", "unread lines unlike the read ones")
 FOREIGN_BESIDE = Check("foreign_line.beside", "foreign line", BELOW,
                        lambda c: c.st.lines.beside_share, "lines.beside_share",
-                       "second dip beside a lone line / its depth")
+                       "second dip beside a line / its depth")
 FOREIGN_SHOULDER = Check("foreign_line.shoulder", "foreign line", AT_MOST,
                          lambda c: c.st.lines.shoulder_px, "lines.shoulder_px",
                          "a line's 25/75 % midpoints off its 50 % (px)")

@@ -38,7 +38,7 @@ def fit_tilt(run: ReadingState, lines: list[list[Line]]) -> float:
     eps, pos, var, g, d_eps, part_bound, straight, heading_se, tilt_gap = fit_kernel.fit_arrays(
         np.array([ln.wpart for ln in every]), np.array([ln.tpart for ln in every]),
         np.array([ln.parts for ln in every]), np.array([ln.sigma for ln in every]),
-        part_spreads(run, every), len(lines[0]), st.part_sigmas,
+        part_spreads(run, lines), len(lines[0]), st.part_sigmas,
         st.prior_dof * st.prior_sigma**2, st.prior_dof, run.st.lines.straight_part_share,
         2.0 * run.tol_px)
     run.details["straightness_px"] = straight
@@ -60,20 +60,32 @@ def fit_tilt(run: ReadingState, lines: list[list[Line]]) -> float:
     return eps
 
 
-def part_spreads(run: ReadingState, every: list[Line]) -> np.ndarray:
-    """The term of each part's own bound that its band's shape gives (lines, PARTS; px): the
-    spread of its 25 / 75 % midpoints; on a reading that bounds shoulders
+def part_spreads(run: ReadingState, lines: list[list[Line]]) -> np.ndarray:
+    """The term of each part's own bound that its band's shape gives (lines of both families
+    in order, PARTS; px): the spread of its 25 / 75 % midpoints; on a reading that bounds
+    shoulders
     (``ReadingState.bound_shoulders``), for a line with a shoulder in every part
     (:func:`shoulder_px` above ``lines.shoulder_px``), the reach of its 25 % crossings from its
     50 % midpoint. Such a band may be the grout and something along it read as one (a cable
     touching it, a bevel's shadow): the grout, at least a quarter as dark as the band, lies
-    within the band at a quarter of its depth (docs/vision.md, "The bound of a view")."""
-    if not run.bound_shoulders:
-        return np.array([ln.spread for ln in every])
-    limit = run.st.lines.shoulder_px
-    wide = [shoulder_px(ln) > limit for ln in every]
-    run.details["shouldered"] = float(sum(wide))
-    return np.array([ln.reach if w else ln.spread for ln, w in zip(every, wide, strict=True)])
+    within the band at a quarter of its depth (docs/vision.md, "The bound of a view"). A line
+    among others of its family with a second band beside it (at least ``lines.beside_share``
+    of its depth, apart) within the reach the lattice spacing leaves unseen
+    (:func:`unseen_reach`) adds that band's distance: it may be the grout.
+    A family's lone line is refused for such a band instead (``foreign_line.beside``); a band
+    at the same offset beside most lines of the family is the floor's own (a bevel, a double
+    joint: :func:`beside_reach`)."""
+    every = lines[0] + lines[1]
+    if run.bound_shoulders:
+        limit = run.st.lines.shoulder_px
+        wide = [shoulder_px(ln) > limit for ln in every]
+        run.details["shouldered"] = float(sum(wide))
+        out = np.array([ln.reach if w else ln.spread for ln, w in zip(every, wide, strict=True)])
+    else:
+        out = np.array([ln.spread for ln in every])
+    beside = np.array([d for k in range(2) for d in beside_reach(run, k, lines[k])])
+    run.details["beside_px"] = float(beside.max()) if beside.size else 0.0
+    return out + beside[:, None]
 
 
 def _family_tilt(fam: list[Line], sign: float) -> tuple[float, float]:
@@ -201,10 +213,10 @@ def check_lines(run: ReadingState, lines: list[list[Line]]) -> None:
         raise Refusal(rec.results[-1], "foreign line")
     # one grout line is one band: a second band just beside it (a cable along the grout)
     # darkens the plateaus its position is measured against, and may be read instead of
-    # it; with two lines or more of a family in view, one read off the grout is off the
-    # lattice spacing (a brick photograph's mortar line beside the grout all along a line
-    # that spans one tile is a second band too)
-    beside = max((beside_dip(run, k, lines[k][0]) for k in range(2) if len(lines[k]) == 1),
+    # it; a family's lone line is refused, a line among others bounded (part_spreads) as far
+    # as the spacing would not show it (a brick photograph's mortar line beside the grout
+    # all along a line that spans one tile is a second band too)
+    beside = max((beside_dip(run, k, lines[k][0])[0] for k in range(2) if len(lines[k]) == 1),
                  default=0.0)
     run.details["beside"] = beside
     rec.require(checks.FOREIGN_BESIDE, run, beside)
@@ -212,6 +224,43 @@ def check_lines(run: ReadingState, lines: list[list[Line]]) -> None:
     run.details["shoulder_px"] = shoulder
     if not run.bound_shoulders:  # else in the parts' bounds (part_spreads)
         rec.require(checks.FOREIGN_SHOULDER, run, shoulder)
+
+
+def beside_reach(run: ReadingState, k: int, fam: list[Line]) -> list[float]:
+    """How far (px) a second band beside each line of family ``k`` (``fam``) may lie, as the line's
+    bound must hold it (:func:`part_spreads`): the farthest sample of a dip apart from the
+    line, at least ``lines.beside_share`` of its depth, within :func:`unseen_reach`, that is
+    not the floor's own (a band within ``lines.beside_same_px`` of the same offset beside
+    half the other lines of the family or more: a joint's bevel or double line, where a cable
+    runs along one line only); 0 for a family's lone line (refused for such a band,
+    ``foreign_line.beside``)."""
+    if len(fam) < 2:
+        return [0.0] * len(fam)
+    share, same = run.st.lines.beside_share, run.st.lines.beside_same_px
+    found = [beside_dip(run, k, ln, reach, share)[1]
+             for ln, reach in unseen_reach(run, fam)]
+    need = math.ceil(0.5 * (len(fam) - 1))
+    out = []
+    for i, offs in enumerate(found):
+        own = [o for o in offs if sum(
+            any(abs(o - q) <= same for q in other)
+            for j, other in enumerate(found) if j != i) < need]
+        out.append(float(max((abs(o) for o in own), default=0)))
+    return out
+
+
+def unseen_reach(run: ReadingState, fam: list[Line]) -> list[tuple[Line, float]]:
+    """Each line of one family with how far (px) a band beside it, read instead of it, stays
+    unseen by the lattice spacing (``spacing``'s limit, which the declared tolerance widens
+    by 2 tol): a family's lone line, its whole measurement window (inf); a line among
+    others, the limit over one less its chord's share of the family's (the family's offset is
+    their chord-weighted mean, so a line read ``d`` off moves its own residual by ``d`` times
+    that)."""
+    if len(fam) == 1:
+        return [(fam[0], math.inf)]
+    limit = checks.SPACING.limit(run)
+    total = sum(ln.chord for ln in fam)
+    return [(ln, limit / max(1.0 - ln.chord / total, 1e-9)) for ln in fam]
 
 
 def contrast_along(lines: list[Line]) -> float:

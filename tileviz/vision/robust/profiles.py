@@ -186,39 +186,47 @@ def select_lines(run: ReadingState, lines: list[list[Line]]) -> list[list[Line]]
     ]
 
 
-def beside_dip(run: ReadingState, k: int, line: Line) -> float:
-    """The darkness of the deepest dip of family ``k``'s whole profile (the last projection)
-    apart from ``line``'s own within its measurement window (``run.window`` samples each side
-    of the line's centre), over the line's depth (0.0 when there is none). Apart: every
-    sample between the line's own deepest sample (within half its width + 2 of its centre)
-    and that dip's is lighter than ``lines.beside_apart`` of that dip's darkness (a valley
-    between two bands). A grout line is one band; a cable or a seam along it, a few px beside
-    it, is a second band that every part of the line shows (a texture's dip beside one part of it is
-    a quarter as deep in the whole profile), and the line's measurement window, whose
-    plateaus it darkens, cannot tell which band is the grout."""
+def beside_dip(run: ReadingState, k: int, line: Line, reach: float = math.inf,
+               share: float = math.inf) -> tuple[float, list[int]]:
+    """The dips of family ``k``'s whole profile (the last projection) apart from ``line``'s
+    own within its measurement window (``run.window`` samples each side of the line's
+    centre, at most ``reach``): the deepest one's darkness over the line's depth (0.0 when
+    there is none), and the signed offsets (samples = px, from the line's own deepest sample)
+    of those samples whose darkness is at least ``share`` of the line's depth. Apart: every
+    sample between the line's own deepest
+    sample (within half its width + 2 of its centre) and that dip's is lighter than
+    ``lines.beside_apart`` of that dip's darkness (a valley between two bands). A grout line
+    is one band; a cable or a seam along it, a few px beside it, is a second band that every
+    part of the line shows (a texture's dip beside one part of it is a quarter as deep in the
+    whole profile), and the line's measurement window, whose plateaus it darkens, cannot
+    tell which band is the grout."""
     proj = run.projection
     at = list_median([p for p in line.parts.tolist() if p == p] or [math.nan])
     if proj is None or not math.isfinite(at) or not line.depth > 0.0:
-        return 0.0
+        return 0.0, []
     d = np.where(np.isnan(proj.prof[k]), -np.inf, proj.dark[k])
     c = int(round(at)) + proj.pad
-    r = run.window
+    r = run.window if reach >= run.window else int(reach)
     lo, hi = max(c - r, 0), min(c + r + 1, d.size)
     near = max(int(math.ceil(0.5 * line.width)) + 2, 1) if math.isfinite(line.width) else 2
     a, b = max(c - near, lo), min(c + near + 1, hi)
     if a >= b:
-        return 0.0
+        return 0.0, []
     own = a + int(np.argmax(d[a:b]))
     apart = run.st.lines.beside_apart
+    least = share * line.depth
     best = 0.0
+    offsets: list[int] = []
     for step, end in ((-1, lo - 1), (1, hi)):
         col = math.inf
         for i in range(own + step, end, step):
             v = float(d[i])
             if col < apart * v:
                 best = max(best, v)
+                if v >= least:
+                    offsets.append(i - own)
             col = min(col, v)
-    return best / line.depth
+    return best / line.depth, offsets
 
 
 def distinct(fam: list[Line]) -> list[Line]:

@@ -217,13 +217,18 @@ class LineSettings:
     crossing_min_reach: int = 6
     """Shortest such stretch (px): a crossing nearer the border of the view is not read."""
     beside_share: float = 0.3
-    """The one line of its family in view is foreign when the profile holds, within its
-    measurement window, another dip at least this share of the line's depth, apart from it (the
+    """A line is foreign when the profile holds, within its measurement window and as far as
+    the lattice spacing would not show that dip read instead (:func:`~tileviz.vision.robust.
+    fit.unseen_reach`), another dip at least this share of the line's depth, apart from it (the
     darkness between them falls below ``beside_apart`` of that dip's): a cable laid a few px
-    beside a grout
-    line (:func:`~tileviz.vision.robust.profiles.beside_dip`). The share at which the selection
-    counts a dip as a line (``SelectionSettings.rel_depth``): a thin joint beside a wide cable,
-    or a joint whose dip the panels' offsets smear, is well under half the cable's."""
+    beside a grout line (:func:`~tileviz.vision.robust.profiles.beside_dip`). The share at
+    which the selection counts a dip as a line (``SelectionSettings.rel_depth``): a thin joint
+    beside a wide cable, or a joint whose dip the panels' offsets smear, is well under half the
+    cable's."""
+    beside_same_px: float = 2.0
+    """A band beside a line among others of its family is the floor's own (a bevel, a double
+    joint), not bounded, when half the other lines of the family or more have one within this
+    many px of the same offset (:func:`~tileviz.vision.robust.fit.beside_reach`)."""
     beside_apart: float = 0.75
     """See ``beside_share``: two dips are apart when the darkness between them falls below
     this share of the shallower one's, a valley between two bands (a cable 4 px beside light
