@@ -27,24 +27,16 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
-from dataclasses import replace
 
 import cv2
 import numpy as np
 
 from tileviz.config import PERFECT_FLOOR, CameraConfig, FloorModel, VisionConfig
 from tileviz.core.constants import MAX_TILE_PX, MIN_TILE_PX
-from tileviz.vision.colour import (
-    PROJECTIONS,
-    RETRY_REASONS,
-    SAME_AS_LUMA,
-    correlation,
-    edges_and_strength,
-)
 from tileviz.vision.faithful import extract_faithful
 from tileviz.vision.geometry import observation_error
 from tileviz.vision.result import REASONS, VisionResult
+from tileviz.vision.views import read_robust
 
 OPENCV_THREADS = 1
 """The OpenCV thread count every tileviz entry point sets (module docstring)."""
@@ -60,73 +52,6 @@ __all__ = [
     "OPENCV_THREADS", "REASONS", "VisionResult", "extract", "observation_error",
     "set_opencv_threads", "to_gray",
 ]
-
-
-def _robust() -> Callable[..., VisionResult]:
-    """The robust extractor (:func:`tileviz.vision.robust.extract_robust`), imported on first
-    use: it loads numba for its compiled kernels, which a process that
-    imports this package but never extracts does without (the main process of a replay whose
-    workers run vision, :mod:`tileviz.pipeline.workers`)."""
-    from tileviz.vision.robust import extract_robust
-
-    return extract_robust
-
-
-def _read_robust(gray: np.ndarray, image: np.ndarray, camera: CameraConfig, tile_size: float,
-                 vision: VisionConfig, keep_stages: bool, timings: dict[str, float],
-                 floor: FloorModel) -> VisionResult:
-    """The robust extractor on the luma ``gray``, then, while it shows no grout
-    (:data:`~tileviz.vision.colour.RETRY_REASONS`), on the colour projections of ``image``
-    (RGB only); on a floor declared ``checker`` (no grout: its lines are the edges between
-    the tiles), on the edge images of the luma and of the colour projections instead
-    (docs/vision.md, "Colour"). The first accepted reading is the result (its
-    ``details["projection"]``: 0 the luma, 1.. the colour projections in order, -1 the luma's
-    edge image, -2.. the projections' edge images in order); otherwise the first reading's
-    refusal."""
-    robust = _robust()
-    candidates: list[tuple[float, Callable[[], np.ndarray]]] = [(0.0, lambda: gray)]
-    if image.ndim == 3:
-        candidates += [(float(k), lambda p=proj: p(image))  # type: ignore[misc]
-                       for k, proj in enumerate(PROJECTIONS.values(), start=1)]
-    if floor.kind == "checker":
-        candidates = _edge_images(candidates, gray)
-    first: VisionResult | None = None
-    for number, make in candidates:
-        t1 = time.perf_counter()
-        view = make()
-        if number > 0 and abs(correlation(view, gray)) >= SAME_AS_LUMA:
-            continue  # the luma again: nothing new to read
-        tm = dict(timings)
-        if number != 0.0:
-            tm["projection"] = (time.perf_counter() - t1) * 1e3
-        got = robust(view, camera=camera, tile_size=tile_size, vision=vision,
-                     keep_stages=keep_stages, image=image, timings=tm, floor=floor)
-        if got.accepted:
-            return got if number == 0.0 else replace(
-                got, details={**got.details, "projection": number})
-        if first is None:
-            first = got
-            timings.update(tm)
-        if got.reason not in RETRY_REASONS:
-            break
-    assert first is not None
-    return first
-
-
-def _edge_images(candidates: list[tuple[float, Callable[[], np.ndarray]]], gray: np.ndarray
-                 ) -> list[tuple[float, Callable[[], np.ndarray]]]:
-    """The edge images of the ``candidates`` (number, view: the luma 0, the projections 1..)
-    that differ from the luma ``gray``, numbered -1 - number, strongest edges first
-    (:func:`~tileviz.vision.colour.edges_and_strength`; the luma's first among equals)."""
-    out = []
-    for number, make in candidates:
-        view = make()
-        if number > 0 and abs(correlation(view, gray)) >= SAME_AS_LUMA:
-            continue
-        edges, strength = edges_and_strength(view)
-        out.append((-strength, -1.0 - number, edges))
-    out.sort(key=lambda c: c[0])
-    return [(n, lambda e=e: e) for _, n, e in out]  # type: ignore[misc]
 
 
 def to_gray(image: np.ndarray) -> np.ndarray:
@@ -195,7 +120,7 @@ def extract(
         )
     timings = {"gray": (time.perf_counter() - t0) * 1e3}
     if vision.extractor == "robust":
-        return _read_robust(gray, image, camera, float(tile_size), vision, keep_stages,
-                            timings, floor)
+        return read_robust(gray, image, camera, float(tile_size), vision, keep_stages,
+                           timings, floor)
     return extract_faithful(gray, camera=camera, tile_size=float(tile_size), vision=vision,
                             keep_stages=keep_stages, image=image, timings=timings)

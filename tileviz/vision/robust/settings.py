@@ -7,7 +7,8 @@ One group per stage of :mod:`tileviz.vision.robust`: :class:`StatisticsSettings`
 (which dips are lines), :class:`LineSettings` (the checks on the lines), :class:`FitSettings`
 (the common fit of the parts), :class:`ScaleSettings` (the scale of the consistency checks),
 :class:`LatticeSettings` (spacing and evidence), :class:`BoundSettings` (the view's own error
-bound) and :class:`ForeignSettings` (edges off the lattice). Every check's limit is computed
+bound), :class:`ForeignSettings` (edges off the lattice) and :class:`CheckerSettings` (a
+checkerboard recognised from the view). Every check's limit is computed
 from these in one place, :mod:`.checks` (its docstring lists the check ids and the settings
 each reads).
 
@@ -27,7 +28,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-__all__ = ["DEFAULT_SETTINGS", "BoundSettings", "FitSettings", "ForeignSettings",
+__all__ = ["DEFAULT_SETTINGS", "BoundSettings", "CheckerSettings", "FitSettings",
+           "ForeignSettings",
            "HeadingSettings", "LatticeSettings", "LineSettings", "ProfileSettings",
            "RobustSettings", "ScaleSettings", "SelectionSettings", "StatisticsSettings"]
 
@@ -378,6 +380,36 @@ class ForeignSettings:
 
 
 @dataclass(frozen=True)
+class CheckerSettings:
+    """Recognising a checkerboard the user did not declare (:mod:`.checker`): every piece of
+    every line its edge image read must be one step between two tiles' levels."""
+
+    min_piece: float = 0.25
+    """A piece of a line between two crossings (or a crossing and the border) is measured
+    when its middle is at least this share of the tile period long ..."""
+    piece_margin: float = 0.15
+    """... its ends this share of it left out (the crossings' corners)."""
+    reach: float = 0.12
+    """The profile across a line spans this share of the tile period each side ..."""
+    min_reach: float = 6.0
+    """... at least this many px."""
+    plateau: float = 2.0
+    """A side's level: the mean of the profile's outer this many px on that side."""
+    step_sigmas: float = 6.0
+    """The two sides' levels differ by at least this many times the profile's noise ..."""
+    min_step: float = 6.0
+    """... and at least this many gray levels."""
+    overshoot: float = 0.15
+    """The profile stays within this share of the step (plus 3 noise) of the two levels: a
+    grout band darker or lighter than both tiles leaves them."""
+    single_edge: float = 0.5
+    """The profile's slope reaches this share of its steepest over one stretch only: a band of
+    a third level between two edges is two."""
+    min_pieces: int = 2
+    """A view is recognised as a checkerboard from this many pieces, every one a step."""
+
+
+@dataclass(frozen=True)
 class RobustSettings:
     """Every threshold of the robust extractor, one group per stage (module docstring)."""
 
@@ -391,6 +423,7 @@ class RobustSettings:
     lattice: LatticeSettings = field(default_factory=LatticeSettings)
     bound: BoundSettings = field(default_factory=BoundSettings)
     foreign: ForeignSettings = field(default_factory=ForeignSettings)
+    checker: CheckerSettings = field(default_factory=CheckerSettings)
 
 
 DEFAULT_SETTINGS = RobustSettings()

@@ -1,0 +1,122 @@
+"""Whether the lines a view's edge image read are the edges between tiles of a checkerboard
+(docs/vision.md, "Colour"): :func:`tile_edges`.
+
+On a checkerboard two shades meet edge to edge: across each line, between two crossings, the
+view steps once from one tile's level to the other's. A grout line is a band: its level lies
+beyond both tiles' (darker or lighter), or, grout of a shade between the two tiles', the view
+steps twice with the band's level between. Read from its edge image, a grout band's ridge is its
+centre only while its two edges are alike, so a view is read as a checkerboard that the user did
+not declare only when every piece of every line it read is one step: the level on either side
+differs, the view stays between the two levels across the line, and it is steep over one
+stretch only (one edge, not two with a band of a third level between).
+"""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+
+from tileviz.vision.result import BAG_HORIZONTAL, BAG_VERTICAL
+from tileviz.vision.robust.settings import CheckerSettings
+from tileviz.vision.robust.statistics import noise_sigma
+
+__all__ = ["Steps", "tile_edges"]
+
+
+class Steps:
+    """What :func:`tile_edges` found: the pieces of lines measured (between two crossings, or
+    a crossing and the view's border) and how many of them are not one step."""
+
+    def __init__(self, measured: int, failed: int) -> None:
+        self.measured = measured
+        self.failed = failed
+
+    def checker(self, st: CheckerSettings) -> bool:
+        """Whether the lines are a checkerboard's edges: ``st.min_pieces`` measured or more,
+        none failed."""
+        return self.measured >= st.min_pieces and self.failed == 0
+
+
+def tile_edges(view: np.ndarray, segments: np.ndarray, bags: np.ndarray, lp: float,
+               st: CheckerSettings) -> Steps:
+    """Each line read (``segments``: (N, 4) image endpoints x1, y1, x2, y2 px; ``bags``: 1 or 2
+    its family, 0 not a line) cut at its crossings with the other family's lines, each piece
+    whose middle is at least ``st.min_piece`` of the period ``lp`` (px) long measured on
+    ``view`` (HxW uint8, the image whose edge image was read): its profile across the line
+    (mean along the piece's middle, the ends ``st.piece_margin`` of it left out by the
+    crossings' corners) over ``st.reach`` of the period each side (at least ``st.min_reach``
+    px), the levels either side the mean of its outer ``st.plateau`` px. A piece is one step
+    when the two levels differ by ``st.step_sigmas`` of the profile's noise (the view's noise
+    over the root of the piece's length) and ``st.min_step`` gray levels, the profile stays
+    within ``st.overshoot`` of the step (plus 3 noise) of the two levels, and its slope is at
+    least ``st.single_edge`` of its steepest over one stretch only (by central differences:
+    one edge, not two with a band of a third level between)."""
+    keep = (bags == BAG_HORIZONTAL) | (bags == BAG_VERTICAL)
+    seg, fam = segments[keep], bags[keep]
+    if seg.shape[0] == 0:
+        return Steps(0, 0)
+    sigma = noise_sigma(view)
+    reach = max(st.min_reach, st.reach * lp)
+    u = np.arange(-reach, reach + 0.25, 0.5)
+    outer = np.abs(u) >= reach - st.plateau
+    src = view.astype(np.float32)
+    measured = failed = 0
+    for i in range(seg.shape[0]):
+        p0, p1 = seg[i, :2], seg[i, 2:]
+        length = float(np.hypot(*(p1 - p0)))
+        if length <= 0.0:
+            continue
+        t = (p1 - p0) / length
+        n = np.array([-t[1], t[0]])
+        cuts = [0.0, length]
+        for j in np.flatnonzero(fam != fam[i]).tolist():
+            at = _crossing(p0, t, seg[j])
+            if at is not None and 0.0 < at < length:
+                cuts.append(at)
+        cuts.sort()
+        for a, b in zip(cuts[:-1], cuts[1:], strict=True):
+            m = st.piece_margin * (b - a)
+            if (b - a) - 2.0 * m < st.min_piece * lp:
+                continue
+            s = np.arange(a + m, b - m, 1.0)
+            xs = p0[0] + s[:, None] * t[0] + u[None, :] * n[0]
+            ys = p0[1] + s[:, None] * t[1] + u[None, :] * n[1]
+            prof = cv2.remap(src, xs.astype(np.float32), ys.astype(np.float32),
+                             cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
+                             borderValue=math.nan)
+            if not np.isfinite(prof).all():
+                continue  # the piece's profile leaves the view
+            measured += 1
+            failed += not _one_step(prof.mean(axis=0), u, outer, sigma / math.sqrt(s.size), st)
+    return Steps(measured, failed)
+
+
+def _crossing(p0: np.ndarray, t: np.ndarray, other: np.ndarray) -> float | None:
+    """Where (px along the line from ``p0``, direction ``t``) the line through ``other``'s
+    endpoints crosses it; None when they are parallel."""
+    q0, q1 = other[:2], other[2:]
+    d = q1 - q0
+    den = t[0] * d[1] - t[1] * d[0]
+    if abs(den) < 1e-9:
+        return None
+    w = q0 - p0
+    return float((w[0] * d[1] - w[1] * d[0]) / den)
+
+
+def _one_step(prof: np.ndarray, u: np.ndarray, outer: np.ndarray, noise: float,
+              st: CheckerSettings) -> bool:
+    """Whether a profile across a line (levels at offsets ``u``, px) is one step between its
+    two outer levels (:func:`tile_edges`)."""
+    left = float(prof[outer & (u < 0)].mean())
+    right = float(prof[outer & (u > 0)].mean())
+    step = right - left
+    if abs(step) < max(st.step_sigmas * noise, st.min_step):
+        return False
+    margin = st.overshoot * abs(step) + 3.0 * noise
+    if prof.min() < min(left, right) - margin or prof.max() > max(left, right) + margin:
+        return False
+    slope = np.gradient(prof, u) * math.copysign(1.0, step)
+    steep = slope >= st.single_edge * float(slope.max())
+    return int(np.count_nonzero(steep[1:] & ~steep[:-1])) + int(steep[0]) == 1

@@ -1,0 +1,154 @@
+"""The images of a view the robust extractor reads, in turn (docs/vision.md, "Colour"): the
+luma, then, while it shows no grout, the colour projections; on a floor declared ``checker``,
+their edge images instead; on a floor not declared so whose grout reading was refused, their
+edge images again, a reading of them kept only when its lines are a checkerboard's tile edges
+(:func:`tileviz.vision.robust.checker.tile_edges`).
+
+Importing this module loads neither numba nor the robust extractor: they are imported on the
+first reading (:func:`read_robust`).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import replace
+
+import numpy as np
+
+from tileviz.config import CameraConfig, FloorModel, VisionConfig
+from tileviz.vision.colour import (
+    PROJECTIONS,
+    RETRY_REASONS,
+    SAME_AS_LUMA,
+    correlation,
+    edges_and_strength,
+)
+from tileviz.vision.decision import CheckResult
+from tileviz.vision.result import VisionResult
+
+__all__ = ["VIEW_REASONS", "read_robust"]
+
+VIEW_REASONS = frozenset({"constant image", "glare"})
+"""Refusals of a whole view, before any line is read: no checkerboard is looked for."""
+
+Candidate = tuple[float, Callable[[], np.ndarray]]
+"""A view to read: its number (``details["projection"]``) and how to make it (HxW uint8)."""
+
+
+def read_robust(gray: np.ndarray, image: np.ndarray, camera: CameraConfig, tile_size: float,
+                vision: VisionConfig, keep_stages: bool, timings: dict[str, float],
+                floor: FloorModel) -> VisionResult:
+    """The robust extractor on the luma ``gray``, then, while it shows no grout
+    (:data:`~tileviz.vision.colour.RETRY_REASONS`), on the colour projections of ``image``
+    (RGB only); on a floor declared ``checker`` (no grout: its lines are the edges between
+    the tiles), on the edge images of the luma and of the colour projections instead. On a
+    grout floor whose reading was refused for its lines (not :data:`VIEW_REASONS`), the edge
+    images are read too, and one accepted only when every piece of its lines is one step
+    between two tiles' levels (a checkerboard not declared: ``details["checker"]``, the pieces
+    measured). The first accepted reading is the result (its ``details["projection"]``: 0 the
+    luma, 1.. the colour projections in order, -1 the luma's edge image, -2.. the
+    projections' edge images in order); otherwise the first reading's refusal."""
+    from tileviz.vision.robust import extract_robust
+
+    def read(view: np.ndarray, tm: dict[str, float], as_floor: FloorModel) -> VisionResult:
+        return extract_robust(view, camera=camera, tile_size=tile_size, vision=vision,
+                              keep_stages=keep_stages, image=image, timings=tm,
+                              floor=as_floor)
+
+    views: list[Candidate] = [(0.0, lambda: gray)]
+    if image.ndim == 3:
+        views += [(float(k), lambda p=proj: p(image))  # type: ignore[misc]
+                  for k, proj in enumerate(PROJECTIONS.values(), start=1)]
+    if floor.kind == "checker":
+        got, first = _first_accepted(_edge_images(views, gray), gray, timings, floor, read)
+        return got or first
+    got, first = _first_accepted(views, gray, timings, floor, read)
+    if got is not None or first.reason in VIEW_REASONS:
+        return got or first
+    recognised = _recognise(views, gray, camera.ppm * tile_size, timings, floor, read)
+    return recognised or first
+
+
+def _first_accepted(candidates: list[Candidate], gray: np.ndarray, timings: dict[str, float],
+                    floor: FloorModel,
+                    read: Callable[[np.ndarray, dict[str, float], FloorModel], VisionResult],
+                    accept: Callable[[float, VisionResult], VisionResult | None] | None = None
+                    ) -> tuple[VisionResult | None, VisionResult]:
+    """The ``candidates`` read in turn while refused for not showing the lattice
+    (:data:`~tileviz.vision.colour.RETRY_REASONS`; a projection nearly the luma again,
+    :data:`~tileviz.vision.colour.SAME_AS_LUMA`, is skipped): the first accepted (``accept``,
+    when given, may turn it down: None), and the first refusal (the first reading's; its
+    timings join ``timings``)."""
+    first: VisionResult | None = None
+    for number, make in candidates:
+        t1 = time.perf_counter()
+        view = make()
+        if number > 0 and abs(correlation(view, gray)) >= SAME_AS_LUMA:
+            continue  # the luma again: nothing new to read
+        tm = dict(timings)
+        if number != 0.0:
+            tm["projection"] = (time.perf_counter() - t1) * 1e3
+        got = read(view, tm, floor)
+        if got.accepted:
+            if number != 0.0:
+                got = replace(got, details={**got.details, "projection": number})
+            kept = got if accept is None else accept(number, got)
+            if kept is not None:
+                return kept, first or kept
+        if first is None:
+            first = got
+            timings.update(tm)
+        if got.reason not in RETRY_REASONS:
+            break
+    assert first is not None
+    return None, first
+
+
+def _edge_images(candidates: list[Candidate], gray: np.ndarray) -> list[Candidate]:
+    """The edge images of the ``candidates`` (the luma 0, the projections 1..) that differ
+    from the luma ``gray``, numbered -1 - number, strongest edges first
+    (:func:`~tileviz.vision.colour.edges_and_strength`; the luma's first among equals)."""
+    out = []
+    for number, make in candidates:
+        view = make()
+        if number > 0 and abs(correlation(view, gray)) >= SAME_AS_LUMA:
+            continue
+        edges, strength = edges_and_strength(view)
+        out.append((-strength, -1.0 - number, edges))
+    out.sort(key=lambda c: c[0])
+    return [(n, lambda e=e: e) for _, n, e in out]  # type: ignore[misc]
+
+
+def _recognise(views: list[Candidate], gray: np.ndarray, lp: float,
+               timings: dict[str, float], floor: FloorModel,
+               read: Callable[[np.ndarray, dict[str, float], FloorModel], VisionResult]
+               ) -> VisionResult | None:
+    """A checkerboard the user did not declare: the edge images of ``views`` read as on a
+    floor declared ``checker`` (its tolerance kept), a reading accepted only when every piece
+    of its lines is one step on the view it was made from
+    (:func:`~tileviz.vision.robust.checker.tile_edges`; ``lp`` the tile period, px); the
+    decision then shows the checks ``checker.pieces`` and ``checker.steps``. None when none is
+    recognised."""
+    from tileviz.vision.robust.checker import tile_edges
+    from tileviz.vision.robust.settings import DEFAULT_SETTINGS
+
+    st = DEFAULT_SETTINGS.checker
+    source = {-1.0 - number: make for number, make in views}
+
+    def accept(number: float, got: VisionResult) -> VisionResult | None:
+        steps = tile_edges(source[number](), got.segments, got.bags, lp, st)
+        if not steps.checker(st):
+            return None
+        checks = (CheckResult("checker.pieces", steps.measured, st.min_pieces, ">=", True),
+                  CheckResult("checker.steps", steps.failed, 0, "<=", True))
+        decision = got.decision
+        if decision is not None:
+            decision = replace(decision, view_checks=decision.view_checks + checks)
+        return replace(got, decision=decision,
+                       details={**got.details, "checker": float(steps.measured)})
+
+    as_checker = FloorModel("checker", floor.lattice_tolerance)
+    got, _ = _first_accepted(_edge_images(views, gray), gray, dict(timings), as_checker, read,
+                             accept)
+    return got
