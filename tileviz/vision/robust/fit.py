@@ -73,7 +73,7 @@ def part_spreads(run: ReadingState, lines: list[list[Line]]) -> np.ndarray:
     of its depth, apart) within the reach the lattice spacing leaves unseen
     (:func:`unseen_reach`) adds that band's distance: it may be the grout.
     A family's lone line is refused for such a band instead (``foreign_line.beside``); a band
-    at the same offset beside most lines of the family is the floor's own (a bevel, a double
+    at the same offset beside another line of the family is the floor's own (a bevel, a double
     joint: :func:`beside_reach`)."""
     every = lines[0] + lines[1]
     if run.bound_shoulders:
@@ -231,20 +231,19 @@ def beside_reach(run: ReadingState, k: int, fam: list[Line]) -> list[float]:
     bound must hold it (:func:`part_spreads`): the farthest sample of a dip apart from the
     line, at least ``lines.beside_share`` of its depth, within :func:`unseen_reach`, that is
     not the floor's own (a band within ``lines.beside_same_px`` of the same offset beside
-    half the other lines of the family or more: a joint's bevel or double line, where a cable
-    runs along one line only); 0 for a family's lone line (refused for such a band,
+    another line of the family: a joint's bevel or double line, where a cable runs along one
+    line only); 0 for a family's lone line (refused for such a band,
     ``foreign_line.beside``)."""
     if len(fam) < 2:
         return [0.0] * len(fam)
     share, same = run.st.lines.beside_share, run.st.lines.beside_same_px
     found = [beside_dip(run, k, ln, reach, share)[1]
              for ln, reach in unseen_reach(run, fam)]
-    need = math.ceil(0.5 * (len(fam) - 1))
     out = []
     for i, offs in enumerate(found):
-        own = [o for o in offs if sum(
+        own = [o for o in offs if not any(
             any(abs(o - q) <= same for q in other)
-            for j, other in enumerate(found) if j != i) < need]
+            for j, other in enumerate(found) if j != i)]
         out.append(float(max((abs(o) for o in own), default=0)))
     return out
 

@@ -229,8 +229,8 @@ class LineSettings:
     cable's."""
     beside_same_px: float = 2.0
     """A band beside a line among others of its family is the floor's own (a bevel, a double
-    joint), not bounded, when half the other lines of the family or more have one within this
-    many px of the same offset (:func:`~tileviz.vision.robust.fit.beside_reach`)."""
+    joint), not bounded, when another line of the family has one within this many px of the
+    same offset (:func:`~tileviz.vision.robust.fit.beside_reach`)."""
     beside_apart: float = 0.75
     """See ``beside_share``: two dips are apart when the darkness between them falls below
     this share of the shallower one's, a valley between two bands (a cable 4 px beside light
