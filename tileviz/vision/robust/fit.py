@@ -31,14 +31,20 @@ def fit_tilt(run: ReadingState, lines: list[list[Line]]) -> float:
     if m == 0:
         run.details["straightness_px"] = 0.0
         run.part_bound = np.zeros(0)
+        run.part_band = np.zeros(0)
         run.details["heading_parts"] = 0.0
         run.details["heading_se"] = math.inf
         run.details["tilt_gap"] = 0.0
         return 0.0
+    wpart = np.array([ln.wpart for ln in every])
+    spreads = part_spreads(run, lines)
+    # what the band-shape terms (a shouldered line's reach, a band beside) add to the parts'
+    # bounds, in the fit's order of parts: like the tolerance, they never refuse a view alone
+    run.part_band = (spreads - np.array([ln.spread for ln in every]))[wpart > 0]
     eps, pos, var, g, d_eps, part_bound, straight, heading_se, tilt_gap = fit_kernel.fit_arrays(
-        np.array([ln.wpart for ln in every]), np.array([ln.tpart for ln in every]),
+        wpart, np.array([ln.tpart for ln in every]),
         np.array([ln.parts for ln in every]), np.array([ln.sigma for ln in every]),
-        part_spreads(run, lines), len(lines[0]), st.part_sigmas,
+        spreads, len(lines[0]), st.part_sigmas,
         st.prior_dof * st.prior_sigma**2, st.prior_dof, run.st.lines.straight_part_share,
         2.0 * run.tol_px)
     run.details["straightness_px"] = straight
@@ -51,6 +57,7 @@ def fit_tilt(run: ReadingState, lines: list[list[Line]]) -> float:
         tilt_gap = _tolerated_gap(lines, tilt_gap, tol)
     run.part_bound = part_bound
     run.details["heading_parts"] = float(np.dot(np.abs(d_eps), part_bound))
+    run.details["heading_band"] = float(np.dot(np.abs(d_eps), run.part_band))
     for i, ln in enumerate(every):
         ln.pos = float(pos[i])
         ln.var = float(var[i])

@@ -90,6 +90,8 @@ def lattice_offsets(run: ReadingState, lines: list[list[Line]], y3: float) -> No
         parts_k = float(np.dot(np.abs(g), run.part_bound))
         run.details["position_parts"] = max(run.details.get("position_parts", 0.0),
                                              parts_k)
+        run.details["position_band"] = max(run.details.get("position_band", 0.0),
+                                            float(np.dot(np.abs(g), run.part_band)))
         if run.tol_px > 0.0:  # the part of it that the floor's lattice tolerance makes
             run.details["position_tolerance"] = max(
                 run.details.get("position_tolerance", 0.0),
@@ -113,11 +115,13 @@ def lattice_offsets(run: ReadingState, lines: list[list[Line]], y3: float) -> No
     run.details["bound_px"] = pos_px
     run.details["bound_rad"] = head
     # what the tolerance adds to the bound: its part of the parts' term, and at most tol to
-    # the scatter's standard error (fit.sigmas of them) and to half a width's excess
+    # the scatter's standard error (fit.sigmas of them) and to half a width's excess; and what
+    # the band-shape terms add to the parts' term (a shouldered line, a band beside a line)
     rec.require(checks.BOUND_POSITION, run, pos_px,
                 run.details.get("position_tolerance", 0.0)
-                + (run.st.fit.sigmas + 1.0) * run.tol_px)
-    rec.require(checks.BOUND_HEADING, run, head, run.details.get("heading_tolerance", 0.0))
+                + (run.st.fit.sigmas + 1.0) * run.tol_px + run.details["position_band"])
+    rec.require(checks.BOUND_HEADING, run, head,
+                run.details.get("heading_tolerance", 0.0) + run.details["heading_band"])
     run.y = normalise(ys[0], ys[1], y3, run.tile_size)
 
 

@@ -180,6 +180,8 @@ class ReadingState:
         self.foreign: np.ndarray = np.zeros((0, 4))
         # each measured part's own error bound (px), in the fit's order of parts (set by it)
         self.part_bound: np.ndarray = np.zeros(0)
+        # what the band-shape terms add to each part's bound (px, the same order; fit.fit_tilt)
+        self.part_band: np.ndarray = np.zeros(0)
         # half-depth width (px) of the deepest dip when the window could not measure it in
         # parts (NaN otherwise; set by profiles.dips): a wider window is tried
         self.unmeasured_width = math.nan
