@@ -145,15 +145,18 @@ def faint_thin_grout_view(seed: int) -> tuple[np.ndarray, floorgen.FloorSpec, Po
 def test_faint_thin_grout_whose_gradients_point_anywhere_is_read_at_its_sharpest_heading(
         seed: int) -> None:
     """On such a view every heading from the gradients and the tile period is a degree or two
-    off, which smears a 2 px line into the noise (no lines); the heading near them at which the
-    lines are sharpest reads the view, within its bound."""
+    off, which smears a 2 px line into the noise (no lines); the headings near them at which the
+    lines are sharpest are read, and read the view (seed 32: the sharpest heading with the
+    grout's polarity imposed, or the lattice heading so, before it), within its bound."""
     img, spec, pose = faint_thin_grout_view(seed)
     cam = CameraConfig(ppm=spec.ppm, width=spec.width, height=spec.height, offset=(0.0, 0.0))
     res = extract(img, camera=cam, tile_size=spec.tile_size,
                   vision=VisionConfig(extractor="robust"))
     assert res.accepted and res.observation is not None and res.decision is not None
     tried = [t.reading.source for t in res.decision.readings]
-    assert tried[-1] == "sharpened heading" and "first heading" in tried, tried
+    assert "sharpened heading" in tried and "first heading" in tried, tried
+    if seed == 47:
+        assert tried[-1] == "sharpened heading", tried
     e1, e2, e3 = observation_error(res.observation, pose, spec.tile_size, (0.0, 0.0))
     assert max(abs(e1), abs(e2)) <= res.observation.position_error
     assert abs(e3) <= res.observation.heading_error

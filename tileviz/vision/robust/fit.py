@@ -22,12 +22,21 @@ def fit_tilt(run: ReadingState, lines: list[list[Line]]) -> float:
     """Fit one residual tilt eps for all lines (family-1 rows drift by +eps per unit of t,
     family-2 columns by -eps) and one intercept per line, weighted by part lengths; set each
     line's ``pos`` (at t = 0), ``var`` and ``infl``, and ``run.part_bound``; return eps (rad).
+    A part whose own bound reaches half the period is left out of the fit, and a line of no
+    other part out of ``lines``.
     Also records the tilt of each family on its own (``tilt_gap``: their difference in
     standard errors). All lines at once, compiled
     (:func:`~tileviz.vision.robust.fit_kernel.fit_arrays`)."""
+    st = run.st.fit
+    # a part whose own bound reaches half the tile period (one side of its dip with no depth
+    # over the noise) says nothing of where its line is, modulo the period: the fit leaves it,
+    # and a line with nothing else measured
+    blind = {id(ln): st.part_sigmas * ln.sigma + ln.spread >= 0.5 * run.lp
+             for fam in lines for ln in fam}
+    for fam in lines:
+        fam[:] = [ln for ln in fam if not blind[id(ln)][ln.wpart > 0].all()]
     every = lines[0] + lines[1]
     m = len(every)
-    st = run.st.fit
     if m == 0:
         run.details["straightness_px"] = 0.0
         run.part_bound = np.zeros(0)
@@ -36,15 +45,15 @@ def fit_tilt(run: ReadingState, lines: list[list[Line]]) -> float:
         run.details["heading_se"] = math.inf
         run.details["tilt_gap"] = 0.0
         return 0.0
-    wpart = np.array([ln.wpart for ln in every])
     spreads = part_spreads(run, lines)
+    sigma = np.array([ln.sigma for ln in every])
+    wpart = np.array([np.where(blind[id(ln)], 0.0, ln.wpart) for ln in every])
     # what the band-shape terms (a shouldered line's reach, a band beside) add to the parts'
     # bounds, in the fit's order of parts: like the tolerance, they never refuse a view alone
     run.part_band = (spreads - np.array([ln.spread for ln in every]))[wpart > 0]
     eps, pos, var, g, d_eps, part_bound, straight, heading_se, tilt_gap = fit_kernel.fit_arrays(
         wpart, np.array([ln.tpart for ln in every]),
-        np.array([ln.parts for ln in every]), np.array([ln.sigma for ln in every]),
-        spreads, len(lines[0]), st.part_sigmas,
+        np.array([ln.parts for ln in every]), sigma, spreads, len(lines[0]), st.part_sigmas,
         st.prior_dof * st.prior_sigma**2, st.prior_dof, run.st.lines.straight_part_share,
         2.0 * run.tol_px)
     run.details["straightness_px"] = straight

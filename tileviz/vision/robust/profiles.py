@@ -115,12 +115,6 @@ def measure_parts(
     width, rise, contrast, cen, mids, msig = kernel.part_rows(pp, jf, cj, hj, r)
     wmed, rmed, cmed, stepr, parts, wpart, sigma, spread, reach = dip_kernel.part_summary(
         width, rise, contrast, cen, mids, msig, count, pk - proj.pad, lev_l, lev_r)
-    # a part whose own bound reaches half the tile period (one side of its dip with no depth
-    # over the noise) says nothing of where its line is, modulo the period: not measured
-    blind = run.st.fit.part_sigmas * sigma + spread >= 0.5 * run.lp
-    if blind.any():
-        wpart = np.where(blind, 0.0, wpart)
-        parts = np.where(blind, np.nan, parts)
     gmed = np.full(rows.size, np.nan)
     if run.inverted:
         gmed = nanmedian(grout_contrast(pp, jf, cj, hj, contrast).reshape(rows.size, PARTS).T)
