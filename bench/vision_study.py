@@ -1,6 +1,6 @@
 """Domain-randomised accuracy study of the robust extractor on independently rendered floors.
 
-    python bench/vision_study.py [--views-per-family 500] [--split fresh2|...|fresh7|fresh8]
+    python bench/vision_study.py [--views-per-family 500] [--split fresh2|...|fresh11|fresh12]
                                  [--corrupted-per-family 100] [--jobs 1] [--csv out.csv]
     python bench/vision_study.py --report out.csv     # the tables of a (partial) run
     python -m bench.vision_study --split fresh8 --views-per-family 20 --corrupted-per-family 5
@@ -29,7 +29,9 @@ from 11 * 10**6, kept unseen while the declared floors (checker, hand-laid, mosa
 were built, for the study that reports them (reported once: no longer held out); ``--split
 fresh10`` seeds from 12 * 10**6, kept unseen while the sharpened headings and the per-family
 contrast were built (reported once); ``--split fresh11`` seeds from 13 * 10**6, kept unseen
-until the valley rule of the beside check.
+until the valley rule of the beside check (reported once); ``--split fresh12`` seeds from
+14 * 10**6, kept unseen until the checkerboard's recognition, the band allowances and the blind
+parts were built.
 
 For each family: the share of readable clean views accepted (``readable``: each line family
 crosses the view over at least 0.75 x its smaller side, ``floorgen.readable``), the error of the
@@ -57,7 +59,7 @@ from tileviz.testing.views import study_view
 SPLITS = {"tuning": 0, "heldout": 10**6, "fresh": 3 * 10**6, "fresh2": 4 * 10**6,
           "fresh3": 5 * 10**6, "fresh4": 6 * 10**6, "fresh5": 7 * 10**6,
           "fresh6": 8 * 10**6, "fresh7": 9 * 10**6, "fresh8": 10**7, "fresh9": 11 * 10**6,
-          "fresh10": 12 * 10**6, "fresh11": 13 * 10**6}
+          "fresh10": 12 * 10**6, "fresh11": 13 * 10**6, "fresh12": 14 * 10**6}
 """First seed of each split."""
 
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Callable
 
 import cv2
 import numpy as np
@@ -575,14 +576,17 @@ def test_a_cable_along_the_grout_off_the_tile_period_is_refused(seed: int, bag: 
     assert not res.accepted, res.reason
 
 
-def test_two_families_of_unlike_contrast_are_one_lattice() -> None:
-    """Recessed joints under light from one side: every line of one family has twice the
-    contrast of every line of the other (a paver mosaic's photoscan shows this), which is no
-    foreign line: each family agrees with itself. A cable along one of the fainter lines, as
-    dark as the others, is still unlike its own family and refused."""
+def unlike_contrast_floor(period_px: float | None = None) -> tuple[
+        floorgen.FloorSpec, tuple[float, float, float], Callable[[np.ndarray], np.ndarray]]:
+    """A floor whose grout lines are drawn as 4 px bands: one family's of shade 160, the
+    other's of shade 80, on tiles of 200 (``period_px``: the tile period in the view, px,
+    instead of the drawn floor's); the floor, the view (x, y, heading) and the overlay that
+    draws the lines."""
     rng = np.random.default_rng([3, 77])
     spec = dataclasses.replace(floorgen.draw_floor("plain", rng), grout_shade=200.0,
                                tile_shade=200.0, shade_spread=2.0, noise=2.0)
+    if period_px is not None:
+        spec = dataclasses.replace(spec, tile_size=period_px / spec.ppm)
     cx, cy, th = floorgen.draw_view(rng)
     lp = spec.tile_size * spec.ppm
     bands = []
@@ -595,6 +599,17 @@ def test_two_families_of_unlike_contrast_are_one_lattice() -> None:
             img = band(img)
         return img
 
+    return spec, (cx, cy, th), lines
+
+
+def test_two_families_of_unlike_contrast_are_one_lattice() -> None:
+    """Recessed joints under light from one side: every line of one family has twice the
+    contrast of every line of the other (a paver mosaic's photoscan shows this), which is no
+    foreign line: each family agrees with itself. A cable along one of the fainter lines, as
+    dark as the others, is unlike its own family: the view is read without that line, from
+    the others, within its bound."""
+    spec, (cx, cy, th), lines = unlike_contrast_floor()
+
     cam = CameraConfig(ppm=spec.ppm, width=spec.width, height=spec.height, offset=(0.0, 0.0))
     pose = Pose(cx, cy, th)
     img = floorgen.render(spec, cx, cy, th, np.random.default_rng(1), overlay=lines)
@@ -603,13 +618,45 @@ def test_two_families_of_unlike_contrast_are_one_lattice() -> None:
     assert res.accepted and res.observation is not None, res.reason
     e1, e2, _ = observation_error(res.observation, pose, spec.tile_size, (0.0, 0.0))
     assert max(abs(e1), abs(e2)) <= res.observation.position_error
+    n_lines = res.lines
+    normal, s0 = floorgen.line_offset(spec, cx, cy, th, 0)
+    # a cable as dark as the other family's lines, along a line and 3 px off its centre
+    for off in (0.0, 3.0):
+        cable = floorgen.band(spec, normal, s0 + off, 4.0, 80.0)
+        img = floorgen.render(spec, cx, cy, th, np.random.default_rng(1),
+                              overlay=lambda im, c=cable: c(lines(im)))
+        res = extract(img, camera=cam, tile_size=spec.tile_size,
+                      vision=VisionConfig(extractor="robust"))
+        assert res.accepted and res.observation is not None and res.decision is not None, off
+        assert res.decision.readings[0].reason == "foreign line"
+        shown = res.decision.readings[res.decision.shown or 0].reading
+        assert shown.unlike and shown.kind == "unlike", shown
+        assert res.lines == n_lines - 1, (res.lines, n_lines)
+        e1, e2, _ = observation_error(res.observation, pose, spec.tile_size, (0.0, 0.0))
+        assert max(abs(e1), abs(e2)) <= res.observation.position_error
+
+
+def test_a_line_unlike_the_only_other_of_its_family_is_not_left_out() -> None:
+    """With two lines of each family in view (a tile period of 120 px in a 320 x 240 view), a
+    cable along one leaves no majority to tell which is the grout: the reading that would
+    leave one out refuses (``foreign_line.left_out``), and so does the view."""
+    spec, (cx, cy, th), lines = unlike_contrast_floor(120.0)
+    cam = CameraConfig(ppm=spec.ppm, width=spec.width, height=spec.height, offset=(0.0, 0.0))
+    img = floorgen.render(spec, cx, cy, th, np.random.default_rng(1), overlay=lines)
+    res = extract(img, camera=cam, tile_size=spec.tile_size,
+                  vision=VisionConfig(extractor="robust"))
+    assert res.accepted, res.reason
+    assert np.count_nonzero(res.bags == 1) == 2 and np.count_nonzero(res.bags == 2) == 2
     normal, s0 = floorgen.line_offset(spec, cx, cy, th, 0)
     cable = floorgen.band(spec, normal, s0, 4.0, 80.0)
     img = floorgen.render(spec, cx, cy, th, np.random.default_rng(1),
                           overlay=lambda im: cable(lines(im)))
     res = extract(img, camera=cam, tile_size=spec.tile_size,
                   vision=VisionConfig(extractor="robust"))
-    assert not res.accepted, res.reason
+    assert not res.accepted and res.decision is not None, res.reason
+    left = [c for t in res.decision.readings if t.reading.unlike for c in t.checks
+            if c.check == "foreign_line.left_out"]
+    assert left and not any(c.passed for c in left), res.decision.readings
 
 
 @pytest.mark.parametrize(

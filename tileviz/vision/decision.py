@@ -42,14 +42,16 @@ class Reading:
     (``auto``: the grout's polarity decided from the profiles; ``dark`` / ``light``: imposed),
     ``stray`` (the one part that alone keeps the lines from straight is left out),
     ``shoulder`` (a line with a shoulder in every part is bounded by its band at a quarter of
-    its depth instead of refused) and ``kind`` (the stage of the plan it belongs to:
-    ``first``, ``heading``, ``polarity``, ``shoulder``)."""
+    its depth instead of refused), ``unlike`` (the one line most unlike the others of its
+    family in contrast and width is left out) and ``kind`` (the stage of the plan it belongs
+    to: ``first``, ``heading``, ``polarity``, ``shoulder``, ``unlike``)."""
 
     heading: float
     source: str
     polarity: str = "auto"
     stray: bool = False
     shoulder: bool = False
+    unlike: bool = False
     kind: str = "first"
 
     def label(self) -> str:
@@ -61,6 +63,8 @@ class Reading:
             out += ", without the stray part"
         if self.shoulder:
             out += ", shoulders bounded"
+        if self.unlike:
+            out += ", without the unlike line"
         return out
 
 
@@ -105,7 +109,8 @@ class Decision:
             "readings": [
                 {"heading": t.reading.heading, "source": t.reading.source,
                  "polarity": t.reading.polarity, "stray": t.reading.stray,
-                 "shoulder": t.reading.shoulder, "reason": t.reason,
+                 "shoulder": t.reading.shoulder, "unlike": t.reading.unlike,
+                 "reason": t.reason,
                  "checks": [_check_dict(c) for c in t.checks]}
                 for t in self.readings],
             "shown": self.shown,

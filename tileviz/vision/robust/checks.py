@@ -30,6 +30,9 @@ Per reading (:mod:`.readings`), on its lines:
   pixels a part averages along its line), within ``lines.min_depth_floor`` ..
   ``lines.min_depth`` (``low contrast``).
 - ``lines.families``: lines of the family with fewer; >= 1 (``one family``).
+- ``foreign_line.left_out`` (a reading that leaves out the line most unlike the others,
+  ``Reading.unlike``): the other lines of its family; >= ``lines.unlike_others``
+  (``foreign line``).
 - ``blur.rise``: median 20-80 % edge rise, px; <= ``lines.max_rise`` (``blurred``; not
   measured fails).
 - ``step_edge.levels``: largest step between a line's two sides over the brighter;
@@ -204,6 +207,9 @@ CONTRAST_DEPTH = Check("contrast.depth", "low contrast", AT_LEAST,
                        "deepest dip (gray levels)")
 LINES_FAMILIES = Check("lines.families", "one family", AT_LEAST, lambda c: 1.0, "",
                        "lines of the sparser family")
+FOREIGN_LEFT_OUT = Check("foreign_line.left_out", "foreign line", AT_LEAST,
+                         lambda c: float(c.st.lines.unlike_others), "lines.unlike_others",
+                         "other lines of the left-out line's family")
 BLUR_RISE = Check("blur.rise", "blurred", WITHIN, lambda c: c.st.lines.max_rise,
                   "lines.max_rise", "median edge rise (px)")
 STEP_LEVELS = Check("step_edge.levels", "step edge", AT_MOST, lambda c: c.st.lines.max_step,
@@ -262,8 +268,8 @@ FOREIGN_EDGE = Check("foreign_edge", "foreign line", AT_MOST, lambda c: 0.0,
 
 CHECKS: dict[str, Check] = {c.id: c for c in (
     CONSTANT_RANGE, CONSTANT_THIN, GLARE_SATURATED, GLARE_PATCHES, HEADING_GRADIENTS,
-    LINES_FOUND, CONTRAST_DEPTH, LINES_FAMILIES, BLUR_RISE, STEP_LEVELS, ANGLE_STRAIGHT,
-    ANGLE_PERPENDICULAR, FOREIGN_WIDTH, FOREIGN_CONTRAST, CROSSINGS_READ, CROSSINGS,
+    LINES_FOUND, CONTRAST_DEPTH, LINES_FAMILIES, FOREIGN_LEFT_OUT, BLUR_RISE, STEP_LEVELS,
+    ANGLE_STRAIGHT, ANGLE_PERPENDICULAR, FOREIGN_WIDTH, FOREIGN_CONTRAST, CROSSINGS_READ, CROSSINGS,
     CROSSINGS_UNREAD, FOREIGN_BESIDE, FOREIGN_SHOULDER, SPACING_MISSING, SPACING, EVIDENCE,
     BOUND_POSITION, BOUND_HEADING, FOREIGN_EDGE)}
 """Every check by id, in the order they run."""

@@ -15,7 +15,8 @@ from tileviz.vision.robust.profiles import beside_dip
 from tileviz.vision.robust.state import Line, ReadingState
 from tileviz.vision.robust.statistics import list_median
 
-__all__ = ["check_lines", "drop_stray_part", "fit_tilt", "part_spreads", "shoulder_px"]
+__all__ = ["check_lines", "drop_stray_part", "fit_tilt", "leave_out_unlike", "part_spreads",
+           "shoulder_px"]
 
 
 def fit_tilt(run: ReadingState, lines: list[list[Line]]) -> float:
@@ -192,6 +193,8 @@ def check_lines(run: ReadingState, lines: list[list[Line]]) -> None:
     rec.require(checks.LINES_FOUND, run, len(lines[0]) + len(lines[1]))
     rec.require(checks.CONTRAST_DEPTH, run, run.details["depth"])
     rec.require(checks.LINES_FAMILIES, run, min(len(lines[0]), len(lines[1])))
+    if run.reading.unlike:
+        rec.require(checks.FOREIGN_LEFT_OUT, run, run.unlike_others)
     every = lines[0] + lines[1]
     rises = [ln.rise for ln in every if math.isfinite(ln.rise)]
     rise = list_median(rises) if rises else math.inf
@@ -276,6 +279,44 @@ def unseen_reach(run: ReadingState, fam: list[Line]) -> list[tuple[Line, float]]
     limit = checks.SPACING.limit(run)
     total = sum(ln.chord for ln in fam)
     return [(ln, limit / max(1.0 - ln.chord / total, 1e-9)) for ln in fam]
+
+
+def leave_out_unlike(run: ReadingState, lines: list[list[Line]]) -> None:
+    """Leave out of ``lines`` (in place) the one line most unlike the others of its family
+    (``Reading.unlike``): of the families with more than ``lines.unlike_others`` lines, the line
+    farthest from the median of its family's other lines in log contrast plus log half-depth
+    width (a line without a positive finite value the farthest). A panel's seam along a joint,
+    a cable along one: the family's other lines, alike, read the lattice without it, and every
+    check runs on them. Sets ``run.unlike_others`` (the other lines of that family; when no
+    family has enough, of the largest, and nothing is left out: ``foreign_line.left_out``
+    refuses) and ``details["left_out_family"]`` (1 or 2)."""
+    need = run.st.lines.unlike_others
+    best: tuple[float, int, int] | None = None  # (how unlike, family, index)
+    for k, fam in enumerate(lines):
+        if len(fam) <= need:
+            continue
+        for i, ln in enumerate(fam):
+            others = fam[:i] + fam[i + 1:]
+            score = (_unlike(ln.contrast, [o.contrast for o in others])
+                     + _unlike(ln.width, [o.width for o in others]))
+            if best is None or score > best[0]:
+                best = (score, k, i)
+    if best is None:
+        run.unlike_others = float(max(max(len(f) for f in lines) - 1, 0))
+        return
+    _, k, i = best
+    del lines[k][i]
+    run.unlike_others = float(len(lines[k]))
+    run.details["left_out_family"] = float(k + 1)
+
+
+def _unlike(value: float, others: list[float]) -> float:
+    """|log(value / median of the positive finite ``others``)| (inf when ``value`` is not
+    positive and finite; 0 when no other is)."""
+    if not (value > 0.0 and math.isfinite(value)):
+        return math.inf
+    kept = [o for o in others if o > 0.0 and math.isfinite(o)]
+    return abs(math.log(value / list_median(kept))) if kept else 0.0
 
 
 def contrast_along(lines: list[Line]) -> float:

@@ -28,9 +28,14 @@ measured beside the grout in one part). In each pass:
 3. when every heading failed and the first failed with a reason of :data:`UNSEEN_REASONS`
    (a bright tile cut by the border of a view of strongly shaded tiles is a narrow peak: the
    polarity can be misjudged), each heading read again with the other polarity;
-4. when every reading failed, each one whose lines failed only for a shoulder again with its
+4. when every reading failed, each one refused for a line unlike the others in width or
+   contrast (:data:`UNLIKE_CHECKS`) again without the one line of a family most unlike that
+   family's others (:func:`~tileviz.vision.robust.fit.leave_out_unlike`: a panel's seam or a
+   cable along a joint), in a family where ``lines.unlike_others`` lines or more remain;
+5. when every reading failed, each one whose lines failed only for a shoulder again with its
    shouldered lines bounded by their band at a quarter of its depth
-   (:func:`~tileviz.vision.robust.fit.part_spreads`): a shoulder-free reading is preferred.
+   (:func:`~tileviz.vision.robust.fit.part_spreads`): a shoulder-free reading, and one
+   without a line left out, is preferred.
 
 A pass stops at the first reading whose lines pass the line checks: its lattice, bound and
 foreign-edge checks decide the pass. The result is the first pass's unless the second
@@ -56,8 +61,17 @@ import numpy as np
 
 from tileviz.vision.decision import CheckResult, Reading
 from tileviz.vision.geometry import QUARTER
-from tileviz.vision.robust.checks import ANGLE_STRAIGHT, FOREIGN_SHOULDER, Refusal
-from tileviz.vision.robust.fit import check_lines, drop_stray_part, fit_tilt
+from tileviz.vision.robust.checks import (
+    ANGLE_STRAIGHT,
+    CROSSINGS,
+    CROSSINGS_READ,
+    CROSSINGS_UNREAD,
+    FOREIGN_CONTRAST,
+    FOREIGN_SHOULDER,
+    FOREIGN_WIDTH,
+    Refusal,
+)
+from tileviz.vision.robust.fit import check_lines, drop_stray_part, fit_tilt, leave_out_unlike
 from tileviz.vision.robust.foreign import foreign_edges
 from tileviz.vision.robust.heading import (
     lattice_headings,
@@ -171,6 +185,8 @@ def read_lines(run: ReadingState, y3: float, t: float) -> tuple[list[list[Line]]
         if need > run.window:
             run.window = need
             lines = on_lattice(run, select_lines(run, measure(run, y3, attempt + 1)))
+        if run.reading.unlike:
+            leave_out_unlike(run, lines)
         tilt = fit_tilt(run, lines)
         if run.details["straightness_px"] > ANGLE_STRAIGHT.limit(run):
             run.not_straight = True
@@ -263,6 +279,21 @@ def shoulder_readings(first: Reading, tried: Sequence[Outcome], headings: Headin
             yield replace(o.reading, shoulder=True, kind="shoulder")
 
 
+UNLIKE_CHECKS = frozenset(c.id for c in (FOREIGN_WIDTH, FOREIGN_CONTRAST, CROSSINGS_READ,
+                                         CROSSINGS, CROSSINGS_UNREAD))
+"""The checks that find a line unlike the others of the view in width or contrast."""
+
+
+def unlike_readings(first: Reading, tried: Sequence[Outcome], headings: Headings
+                    ) -> Iterator[Reading]:
+    """Each reading of this pass refused for a line unlike the others (:data:`UNLIKE_CHECKS`),
+    again without the line of a family most unlike the family's others
+    (:func:`~tileviz.vision.robust.fit.leave_out_unlike`)."""
+    for o in tried:
+        if o.refusal is not None and o.refusal.check in UNLIKE_CHECKS and not o.reading.unlike:
+            yield replace(o.reading, unlike=True, kind="unlike")
+
+
 @dataclass(frozen=True)
 class Stage:
     """One stage of the plan after the first heading: ``kind`` (of its readings), the refusals
@@ -280,6 +311,7 @@ STAGES: tuple[Stage, ...] = (
     Stage("heading", RETRY_REASONS, smoothed_readings),
     Stage("heading", UNSEEN_REASONS, sharpened_readings),
     Stage("polarity", UNSEEN_REASONS, polarity_readings),
+    Stage("unlike", RETRY_REASONS, unlike_readings),
     Stage("shoulder", RETRY_REASONS, shoulder_readings),
 )
 """The stages of a pass after the first heading, in order (module docstring)."""
@@ -289,6 +321,7 @@ def same(a: Reading, b: Reading, tolerance: float) -> bool:
     """Whether two readings read alike: the same polarity, stray part and shoulders, headings
     within ``tolerance`` (rad, modulo pi/2)."""
     return (a.polarity == b.polarity and a.stray == b.stray and a.shoulder == b.shoulder
+            and a.unlike == b.unlike
             and abs(math.remainder(a.heading - b.heading, QUARTER)) < tolerance)
 
 

@@ -231,6 +231,10 @@ class LineSettings:
     """A band beside a line among others of its family is the floor's own (a bevel, a double
     joint), not bounded, when another line of the family has one within this many px of the
     same offset (:func:`~tileviz.vision.robust.fit.beside_reach`)."""
+    unlike_others: int = 2
+    """A reading that leaves out the line most unlike the others (``Reading.unlike``: a panel's
+    seam, a cable along a joint) does so in a family where at least this many other lines
+    remain to agree (``foreign_line.left_out``)."""
     beside_apart: float = 0.75
     """See ``beside_share``: two dips are apart when the darkness between them falls below
     this share of the shallower one's, a valley between two bands (a cable 4 px beside light

@@ -169,6 +169,9 @@ class ReadingState:
         # bound a line with a shoulder in every part by its band at a quarter of its depth
         # (its parts' reach) instead of refusing it (fit.fit_tilt, fit.check_lines)
         self.bound_shoulders = reading.shoulder
+        # the other lines of the family whose most unlike line was left out (Reading.unlike;
+        # fit.leave_out_unlike), NaN before
+        self.unlike_others = math.nan
         self.not_straight = False  # whether the lines were found not straight
         self.edges: np.ndarray | None = None
         self.free_edges: np.ndarray | None = None
