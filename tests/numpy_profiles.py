@@ -166,12 +166,12 @@ def part_rows_numpy(
     pp: np.ndarray, jf: np.ndarray, cj: np.ndarray, hj: np.ndarray, r: int
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Every part profile's measurement (rows of ``pp`` over sample offsets ``jf`` = -r..r,
-    the dip's centre ``cj`` and half window ``hj`` per row): half-depth width, 20-80 % rise,
-    contrast (depth / brighter plateau), centroid (NaN where its window leaves the profile or
-    it strays beyond the half window), the 50/25/75 % midpoints (3, rows) and the 50 %
-    midpoint's standard error (:func:`midpoints`). :func:`~tileviz.vision.robust.kernel.
-    part_rows` is the same computation compiled (bit-identical); this one is used without
-    numba."""
+    the dip's centre ``cj`` and half window ``hj`` per row): half-depth width and 20-80 % rise
+    (NaN where the profile shows no dip), contrast (depth / brighter plateau), centroid (NaN
+    where its window leaves the profile or it strays beyond the half window), the 50/25/75 %
+    midpoints (3, rows) and the 50 % midpoint's standard error (:func:`midpoints`).
+    :func:`~tileviz.vision.robust.kernel.part_rows` is the same computation compiled
+    (bit-identical); this one is used without numba."""
     ll, lr = plateaus(pp, jf, cj, hj)
     lev = ll[:, None] + (lr - ll)[:, None] * np.clip(jf[None, :] - cj[:, None] + 0.5, 0, 1)
     dp = lev - pp
@@ -184,6 +184,9 @@ def part_rows_numpy(
     nr = dp.shape[0]
     width = xr[:nr] - xl[:nr]
     rise = 0.5 * ((xl[2 * nr :] - xl[nr : 2 * nr]) + (xr[nr : 2 * nr] - xr[2 * nr :]))
+    nodip = ~(dpk > 0.0)  # no band to measure the width or rise of
+    width = np.where(nodip, np.nan, width)
+    rise = np.where(nodip, np.nan, rise)
     inside = (cj - hj - 4.0 >= -r) & (cj + hj + 4.0 <= r)
     cen = centroid(pp, jf, cj, hj, ll, lr)
     cen = np.where(inside & (np.abs(cen - cj) <= hj), cen, np.nan)

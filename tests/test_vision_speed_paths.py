@@ -495,3 +495,22 @@ def test_the_compiled_stretch_range_matches_numpy(
     got = foreign_kernel.stretch_range(*args)
     ref = nk.stretch_range_numpy(*args)
     assert float(got).hex() == float(ref).hex() or (np.isnan(got) and np.isnan(ref))
+
+
+def test_a_part_without_a_dip_has_no_width() -> None:
+    """A part profile lighter at the line than on its plateaus (no dip: a stain, a seam of
+    another colour where the line should be) has no half-depth width or rise (NaN), where a
+    negative width once led the crossings' windows to read nothing; a dip beside it keeps
+    its width. Compiled and numpy reference alike."""
+    r = 12
+    jf = np.arange(-r, r + 1, dtype=np.float64)
+    plateau = np.full(2 * r + 1, 100.0)
+    dip = plateau - 40.0 * np.exp(-0.5 * (jf / 1.5) ** 2)
+    bump = plateau + 40.0 * np.exp(-0.5 * (jf / 6.0) ** 2)  # a wide light band
+    pp = np.stack([dip, bump])
+    cj = np.zeros(2)
+    hj = np.full(2, 5.0)
+    for width, rise, *_ in (kernel.part_rows(pp, jf, cj, hj, r),
+                            npf.part_rows_numpy(pp, jf, cj, hj, r)):
+        assert width[0] > 2.0 and rise[0] > 0.0
+        assert np.isnan(width[1]) and np.isnan(rise[1])

@@ -87,7 +87,7 @@ def crossing_depths(run: ReadingState, a: Line, b: Line) -> tuple[float, float] 
         xc = b.pos - eps * (yc - y0)
     ha = 1.5 * a.width + 1.5
     hb = 1.5 * b.width + 1.5
-    if not (math.isfinite(ha) and math.isfinite(hb)):
+    if not (math.isfinite(ha) and math.isfinite(hb) and ha > 0.0 and hb > 0.0):
         return None
     pa = band_profiles(run, 0, yc, xc, ha, hb)
     pb = band_profiles(run, 1, xc, yc, hb, ha)

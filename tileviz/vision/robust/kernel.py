@@ -307,9 +307,10 @@ def part_rows(pp: np.ndarray, jf: np.ndarray, cj: np.ndarray, hj: np.ndarray, r:
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
                          np.ndarray]:
     """Every part profile's measurement (rows of ``pp`` over sample offsets ``jf`` = -r..r,
-    the dip's centre ``cj`` and half window ``hj`` per row): half-depth width, 20-80 % rise,
-    contrast (depth / brighter plateau), centroid (NaN where its window leaves the profile or
-    it strays beyond the half window), the 50/25/75 % midpoints and the reach of the 25 %
+    the dip's centre ``cj`` and half window ``hj`` per row): half-depth width and 20-80 % rise
+    (NaN where the profile shows no dip: none darker than its plateaus), contrast (depth /
+    brighter plateau), centroid (NaN where its window leaves the profile or it strays beyond
+    the half window), the 50/25/75 % midpoints and the reach of the 25 %
     crossings from the 50 % midpoint (4, rows), and the 50 % midpoint's standard error
     (:func:`_midpoints`).
 
@@ -351,6 +352,9 @@ def part_rows(pp: np.ndarray, jf: np.ndarray, cj: np.ndarray, hj: np.ndarray, r:
         xl8, xr8 = _crossings(dp, jf, pk, 0.8 * dpk)
         width[k] = xr5 - xl5
         rise[k] = 0.5 * ((xl8 - xl2) + (xr2 - xr8))
+        if not dpk > 0.0:  # no dip: no band to measure the width or rise of
+            width[k] = math.nan
+            rise[k] = math.nan
         contrast[k] = dpk / _max(ll, lr)
         inside = (c - h - 4.0 >= -r) and (c + h + 4.0 <= r)
         ce = _centroid(p, jf, c, h, ll, lr, buf, buf2)
