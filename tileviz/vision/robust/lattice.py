@@ -115,13 +115,15 @@ def lattice_offsets(run: ReadingState, lines: list[list[Line]], y3: float) -> No
     run.details["bound_px"] = pos_px
     run.details["bound_rad"] = head
     # what the tolerance adds to the bound: its part of the parts' term, and at most tol to
-    # the scatter's standard error (fit.sigmas of them) and to half a width's excess; and what
-    # the band-shape terms add to the parts' term (a shouldered line, a band beside a line)
+    # the scatter's standard error (fit.sigmas of them) and to half a width's excess. What the
+    # band-shape terms add (a shouldered line, a band beside a line; details position_band,
+    # heading_band) is not allowed for: a view that needs them beyond the limit is refused
+    # (a motion-blurred checkerboard read 8 degrees off its heading declared 0.18 rad, 32 px,
+    # and lay 61 px off)
     rec.require(checks.BOUND_POSITION, run, pos_px,
                 run.details.get("position_tolerance", 0.0)
-                + (run.st.fit.sigmas + 1.0) * run.tol_px + run.details["position_band"])
-    rec.require(checks.BOUND_HEADING, run, head,
-                run.details.get("heading_tolerance", 0.0) + run.details["heading_band"])
+                + (run.st.fit.sigmas + 1.0) * run.tol_px)
+    rec.require(checks.BOUND_HEADING, run, head, run.details.get("heading_tolerance", 0.0))
     run.y = normalise(ys[0], ys[1], y3, run.tile_size)
 
 
