@@ -50,7 +50,8 @@ def fit_tilt(run: ReadingState, lines: list[list[Line]]) -> float:
     sigma = np.array([ln.sigma for ln in every])
     wpart = np.array([np.where(blind[id(ln)], 0.0, ln.wpart) for ln in every])
     # what the band-shape terms (a shouldered line's reach, a band beside) add to the parts'
-    # bounds, in the fit's order of parts: like the tolerance, they never refuse a view alone
+    # bounds, in the fit's order of parts (details heading_band, position_band: shown, not
+    # allowed for by the bound checks)
     run.part_band = (spreads - np.array([ln.spread for ln in every]))[wpart > 0]
     eps, pos, var, g, d_eps, part_bound, straight, heading_se, tilt_gap = fit_kernel.fit_arrays(
         wpart, np.array([ln.tpart for ln in every]),
