@@ -35,8 +35,8 @@ seeds from 10**6 (reported once: no longer held out); ``heldout2`` seeds from 2 
 unseen while the sharpened headings and the per-family contrast were built; reported once);
 ``heldout3`` from 3 * 10**6 (kept unseen until the valley rule of the beside check; reported
 once); ``heldout4`` from 4 * 10**6 (kept unseen until the checkerboard's recognition, the band
-allowances and the blind parts; reported once); ``heldout5`` from 5 * 10**6 (kept unseen until the
-extractor of issue 30 was finished).
+allowances and the blind parts; reported once); ``heldout5`` from 5 * 10**6 (kept unseen until
+commit 859d163; reported once).
 """
 
 from __future__ import annotations

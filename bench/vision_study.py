@@ -32,7 +32,7 @@ contrast were built (reported once); ``--split fresh11`` seeds from 13 * 10**6, 
 until the valley rule of the beside check (reported once); ``--split fresh12`` seeds from
 14 * 10**6, kept unseen until the checkerboard's recognition, the band allowances and the blind
 parts were built (reported once); ``--split fresh13`` seeds from 15 * 10**6, kept unseen until
-the extractor of issue 30 was finished.
+commit 859d163 (reported once).
 
 For each family: the share of readable clean views accepted (``readable``: each line family
 crosses the view over at least 0.75 x its smaller side, ``floorgen.readable``), the error of the
