@@ -90,7 +90,8 @@ def test_an_undeclared_checkerboard_is_recognised_from_its_tile_edges(seed: int)
     """The study's checkerboards (tuning seeds: marble-like, and seed 5 two hues of one luma)
     extracted with nothing declared: the grout reading is refused, the edge images read as on
     a declared checkerboard, and the reading kept because every piece of its lines is one step
-    between two tiles' levels; the decision shows the two checks; within its bound."""
+    between two tiles' levels and the tiles beside each line swap shades at its crossings; the
+    decision shows the three checks in the reading kept; within its bound."""
     rng = np.random.default_rng([seed, FAMILY_SALT["checker"], 0])
     spec = floorgen.draw_floor("checker", rng)
     cx, cy, th = floorgen.draw_view(rng)
@@ -100,7 +101,9 @@ def test_an_undeclared_checkerboard_is_recognised_from_its_tile_edges(seed: int)
                   vision=VisionConfig(extractor="robust"))
     assert res.accepted and res.observation is not None and res.decision is not None
     assert res.details["checker"] >= 2 and res.details["projection"] <= -1
-    assert {c.check for c in res.decision.view_checks} >= {"checker.pieces", "checker.steps"}
+    assert res.decision.shown is not None
+    shown = {c.check for c in res.decision.readings[res.decision.shown].checks}
+    assert shown >= {"checker.pieces", "checker.steps", "checker.sides"}
     e1, e2, e3 = observation_error(res.observation, Pose(cx, cy, th), spec.tile_size,
                                    (0.0, 0.0))
     assert max(abs(e1), abs(e2)) <= res.observation.position_error
@@ -127,6 +130,62 @@ def test_only_one_step_between_two_levels_is_a_tile_edge() -> None:
                          0.5, st)  # a dark grout band between them
     assert not _one_step(60.0 + edge(-3.0, 50.0) + edge(3.0, 50.0), u, outer, 0.5, st)
     assert not _one_step(60.0 + edge(0.0, 4.0), u, outer, 0.5, st)
+
+
+def _checker_view(light: np.ndarray, dark: np.ndarray) -> tuple[np.ndarray, np.ndarray,
+                                                                  np.ndarray]:
+    """A 240x320 checkerboard of 100 px tiles (corners at x = 60 + 100 i, y = 20 + 100 j),
+    tile (i, j) of shade ``light[i, j]`` or ``dark[i, j]`` by parity, blurred 1 px and noisy
+    (3 levels): the view, and the segments and families of its lines read exactly."""
+    ys, xs = np.mgrid[0:240, 0:320].astype(np.float64)
+    i = np.floor((xs - 60.0) / 100.0).astype(int) + 1
+    j = np.floor((ys - 20.0) / 100.0).astype(int) + 1
+    img = np.where((i + j) % 2 == 0, light[i, j], dark[i, j])
+    img = cv2.GaussianBlur(img, (0, 0), 1.0) + np.random.default_rng(1).normal(0, 3, img.shape)
+    segments = np.array([[60, 0, 60, 239], [160, 0, 160, 239], [260, 0, 260, 239],
+                         [0, 20, 319, 20], [0, 120, 319, 120], [0, 220, 319, 220]], float)
+    bags = np.array([2, 2, 2, 1, 1, 1], np.int8)
+    return np.clip(img, 0, 255).astype(np.uint8), segments, bags
+
+
+def test_the_tiles_beside_a_checkerboard_line_swap_shades_at_each_crossing() -> None:
+    """On a checkerboard both tiles beside a line change shade at each crossing, even where
+    tiles of one shade differ (worn marble: 140..210 and 40..100); the edge of a gray box lying
+    on the floor, read where a line of the lattice would be, has the box on one side, which
+    keeps its level: the swap is under 1, and a reading with that edge is refused
+    (``checker.sides``, a foreign line) with the check in its decision."""
+    from dataclasses import replace
+
+    from tileviz.vision.decision import CheckResult, Decision, Reading, Tried
+    from tileviz.vision.result import VisionResult
+    from tileviz.vision.robust.checker import sides_alternate
+    from tileviz.vision.robust.settings import DEFAULT_SETTINGS
+    from tileviz.vision.views import _sides_swap
+
+    st = DEFAULT_SETTINGS.checker
+    rng = np.random.default_rng(3)
+    light, dark = rng.uniform(140, 210, (6, 6)), rng.uniform(40, 100, (6, 6))
+    img, segments, bags = _checker_view(light, dark)
+    crossings, swap = sides_alternate(img, segments, bags, 100.0, st)
+    assert crossings >= 6 and swap >= 1.0, swap
+    boxed = img.copy()
+    boxed[:, :110] = 120  # a box's gray face; its edge at x = 110, half a tile off the lattice
+    moved = segments.copy()
+    moved[0] = [110, 0, 110, 239]
+    crossings, swap = sides_alternate(boxed, moved[[0, 3, 4, 5]], bags[[0, 3, 4, 5]], 100.0, st)
+    assert crossings >= 2 and swap < 1.0, swap
+
+    tried = Tried(Reading(0.0, "votes"), (CheckResult("lines.found", 4, 1, ">=", True),), "ok")
+    got = VisionResult(observation=None, accepted=True, reason="ok", segments=moved[[0, 3, 4, 5]],
+                       bags=bags[[0, 3, 4, 5]],
+                       decision=Decision((), (tried,), 0, "ok", None, None))
+    refused = _sides_swap(boxed, got, 100.0)
+    assert not refused.accepted and refused.reason == "foreign line"
+    assert refused.decision is not None and refused.decision.refusal is not None
+    assert refused.decision.refusal.check == "checker.sides"
+    assert refused.decision.readings[0].checks[-1].check == "checker.sides"
+    kept = _sides_swap(img, replace(got, segments=segments, bags=bags), 100.0)
+    assert kept.accepted and kept.details["checker_sides"] >= 1.0
 
 
 def faint_thin_grout_view(seed: int) -> tuple[np.ndarray, floorgen.FloorSpec, Pose]:

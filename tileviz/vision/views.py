@@ -60,26 +60,30 @@ def read_robust(gray: np.ndarray, image: np.ndarray, camera: CameraConfig, tile_
     if image.ndim == 3:
         views += [(float(k), lambda p=proj: p(image))  # type: ignore[misc]
                   for k, proj in enumerate(PROJECTIONS.values(), start=1)]
+    lp = camera.ppm * tile_size
     if floor.kind == "checker":
-        got, first = _first_accepted(_edge_images(views, gray), gray, timings, floor, read)
+        source = {-1.0 - number: make for number, make in views}
+        got, first = _first_accepted(
+            _edge_images(views, gray), gray, timings, floor, read,
+            lambda number, r: _sides_swap(source[number](), r, lp))
         return got or first
     got, first = _first_accepted(views, gray, timings, floor, read)
     if got is not None or first.reason in VIEW_REASONS:
         return got or first
-    recognised = _recognise(views, gray, camera.ppm * tile_size, timings, floor, read)
+    recognised = _recognise(views, gray, lp, timings, floor, read)
     return recognised or first
 
 
 def _first_accepted(candidates: list[Candidate], gray: np.ndarray, timings: dict[str, float],
                     floor: FloorModel,
                     read: Callable[[np.ndarray, dict[str, float], FloorModel], VisionResult],
-                    accept: Callable[[float, VisionResult], VisionResult | None] | None = None
+                    accept: Callable[[float, VisionResult], VisionResult] | None = None
                     ) -> tuple[VisionResult | None, VisionResult]:
     """The ``candidates`` read in turn while refused for not showing the lattice
     (:data:`~tileviz.vision.colour.RETRY_REASONS`; a projection nearly the luma again,
     :data:`~tileviz.vision.colour.SAME_AS_LUMA`, is skipped): the first accepted (``accept``,
-    when given, may turn it down: None), and the first refusal (the first reading's; its
-    timings join ``timings``)."""
+    when given, checks an accepted reading further and may refuse it), and the first refusal
+    (the first reading's; its timings join ``timings``)."""
     first: VisionResult | None = None
     for number, make in candidates:
         t1 = time.perf_counter()
@@ -93,9 +97,10 @@ def _first_accepted(candidates: list[Candidate], gray: np.ndarray, timings: dict
         if got.accepted:
             if number != 0.0:
                 got = replace(got, details={**got.details, "projection": number})
-            kept = got if accept is None else accept(number, got)
-            if kept is not None:
-                return kept, first or kept
+            if accept is not None:
+                got = accept(number, got)
+            if got.accepted:
+                return got, first or got
         if first is None:
             first = got
             timings.update(tm)
@@ -136,19 +141,57 @@ def _recognise(views: list[Candidate], gray: np.ndarray, lp: float,
     st = DEFAULT_SETTINGS.checker
     source = {-1.0 - number: make for number, make in views}
 
-    def accept(number: float, got: VisionResult) -> VisionResult | None:
-        steps = tile_edges(source[number](), got.segments, got.bags, lp, st)
-        if not steps.checker(st):
-            return None
-        checks = (CheckResult("checker.pieces", steps.measured, st.min_pieces, ">=", True),
-                  CheckResult("checker.steps", steps.failed, 0, "<=", True))
-        decision = got.decision
-        if decision is not None:
-            decision = replace(decision, view_checks=decision.view_checks + checks)
-        return replace(got, decision=decision,
-                       details={**got.details, "checker": float(steps.measured)})
+    def accept(number: float, got: VisionResult) -> VisionResult:
+        view = source[number]()
+        steps = tile_edges(view, got.segments, got.bags, lp, st)
+        checks = (CheckResult("checker.pieces", steps.measured, st.min_pieces, ">=",
+                              steps.measured >= st.min_pieces),
+                  CheckResult("checker.steps", steps.failed, 0, "<=", steps.failed == 0))
+        got = replace(got, details={**got.details, "checker": float(steps.measured)})
+        got = _with_checks(got, checks)
+        return _sides_swap(view, got, lp) if got.accepted else got
 
     as_checker = FloorModel("checker", floor.lattice_tolerance)
     got, _ = _first_accepted(_edge_images(views, gray), gray, dict(timings), as_checker, read,
                              accept)
     return got
+
+
+def _sides_swap(view: np.ndarray, got: VisionResult, lp: float) -> VisionResult:
+    """``got``, an accepted reading of the edge image of ``view`` (HxW uint8) on a
+    checkerboard (``lp`` the tile period, px), checked by ``checker.sides``: at each crossing
+    of a line read, the tiles on both its sides swap shades
+    (:func:`~tileviz.vision.robust.checker.sides_alternate`: the smallest change of a side the
+    way that swaps them, over the least step between two tiles; at least 1, inf when no
+    crossing is measured; ``details["checker_sides"]``); refused (``foreign line``) when it
+    fails: a line with one side unchanged is the edge of something lying on the floor."""
+    from tileviz.vision.robust.checker import sides_alternate
+    from tileviz.vision.robust.settings import DEFAULT_SETTINGS
+
+    st = DEFAULT_SETTINGS.checker
+    _, swap = sides_alternate(view, got.segments, got.bags, lp, st)
+    check = CheckResult("checker.sides", swap, 1.0, ">=", swap >= 1.0)
+    got = replace(got, details={**got.details, "checker_sides": swap})
+    return _with_checks(got, (check,))
+
+
+def _with_checks(got: VisionResult, checks: tuple[CheckResult, ...]) -> VisionResult:
+    """``got`` (accepted) with ``checks`` run after its reading's own (the decision shows them
+    in the reading shown); refused (``foreign line``, without an observation) by the first
+    that failed."""
+    failed = next((c for c in checks if not c.passed), None)
+    decision = got.decision
+    if decision is not None and decision.shown is not None:
+        readings = list(decision.readings)
+        tried = readings[decision.shown]
+        readings[decision.shown] = replace(
+            tried, checks=tried.checks + checks,
+            reason=tried.reason if failed is None else "foreign line")
+        decision = replace(decision, readings=tuple(readings))
+        if failed is not None:
+            decision = replace(decision, reason="foreign line", refusal=failed,
+                               refused_in=decision.shown)
+    if failed is None:
+        return replace(got, decision=decision)
+    return replace(got, observation=None, accepted=False, reason="foreign line",
+                   decision=decision)

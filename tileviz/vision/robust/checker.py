@@ -14,6 +14,8 @@ stretch only (one edge, not two with a band of a third level between).
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
+from typing import NamedTuple
 
 import cv2
 import numpy as np
@@ -22,7 +24,7 @@ from tileviz.vision.result import BAG_HORIZONTAL, BAG_VERTICAL
 from tileviz.vision.robust.settings import CheckerSettings
 from tileviz.vision.robust.statistics import noise_sigma
 
-__all__ = ["Steps", "tile_edges"]
+__all__ = ["Steps", "sides_alternate", "tile_edges"]
 
 
 class Steps:
@@ -58,11 +60,85 @@ def tile_edges(view: np.ndarray, segments: np.ndarray, bags: np.ndarray, lp: flo
     if seg.shape[0] == 0:
         return Steps(0, 0)
     sigma = noise_sigma(view)
+    measured = failed = 0
+    for piece in _pieces(view, seg, fam, lp, st):
+        measured += 1
+        failed += not _one_step(piece.profile, piece.u, piece.outer, sigma / math.sqrt(piece.n),
+                                st)
+    return Steps(measured, failed)
+
+
+def sides_alternate(view: np.ndarray, segments: np.ndarray, bags: np.ndarray, lp: float,
+                    st: CheckerSettings) -> tuple[int, float]:
+    """Whether the tiles on both sides of each line swap shades at its crossings, as on a
+    checkerboard (docs/vision.md, "Colour"): (crossings measured, the smallest swap).
+
+    On a checkerboard every line is the edge between two tiles of opposite shades, and at
+    each crossing with a line of the other family both tiles beside it change to the other
+    shade: the side that was the darker becomes the lighter. Each line read (``segments``
+    (N, 4) image endpoints x1, y1, x2, y2 px; ``bags`` 1 or 2 its family, 0 not a line) is cut
+    into pieces at its crossings as in :func:`tile_edges` (same settings, measured on ``view``,
+    HxW uint8, the image whose edge image was read; ``lp`` the tile period, px), each side's
+    level the mean of the profile's outer ``st.plateau`` px. Two pieces measured either side of
+    one crossing, with levels (l0, r0) and (l1, r1), see the four tiles around it: on a
+    checkerboard l0 and r1 are of one shade, r0 and l1 of the other, so each of the four pairs
+    of neighbours differs the same way: r0 - l0, l1 - r1 (across the line), l1 - l0 and
+    r0 - r1 (along it) all have the sign of (r0 + l1) - (l0 + r1). Each is compared with the
+    least step a piece has between two tiles (``st.step_sigmas`` of the profile's noise, the
+    view's noise over the root of the shorter piece's length, and at least ``st.min_step``
+    gray levels): the swap is the smallest of the four, signed that way, over it; 1 or more
+    where the four tiles alternate, about 0 where one side keeps its level (the edge of an
+    object lying on the floor: one side the object, the other the tiles) or a piece is no step
+    (a line running into the object), negative where a pair differs the wrong way. Tiles of
+    one shade may differ from each other (marble, a worn floor): only the direction of each
+    difference and that it stands out of the noise are asked for. With no crossing measured
+    the swap is inf."""
+    keep = (bags == BAG_HORIZONTAL) | (bags == BAG_VERTICAL)
+    seg, fam = segments[keep], bags[keep]
+    sigma = noise_sigma(view)
+    crossings = 0
+    worst = math.inf
+    last: _Piece | None = None
+    for piece in _pieces(view, seg, fam, lp, st):
+        if last is not None and last.line == piece.line and last.cut + 1 == piece.cut:
+            crossings += 1
+            l0, r0 = _levels(last)
+            l1, r1 = _levels(piece)
+            way = math.copysign(1.0, (r0 + l1) - (l0 + r1))
+            least = max(st.step_sigmas * sigma / math.sqrt(min(last.n, piece.n)), st.min_step)
+            worst = min(worst, min(r0 - l0, l1 - r1, l1 - l0, r0 - r1) * way / least)
+        last = piece
+    return crossings, worst
+
+
+class _Piece(NamedTuple):
+    """A piece of line ``line`` between its cuts ``cut`` and ``cut + 1``: its mean
+    ``profile`` across the line at offsets ``u`` (px, ``outer`` the plateau samples), averaged
+    over ``n`` samples along it."""
+
+    line: int
+    cut: int
+    profile: np.ndarray
+    u: np.ndarray
+    outer: np.ndarray
+    n: int
+
+
+def _levels(piece: _Piece) -> tuple[float, float]:
+    """The levels (left, right) of a piece: the means of its outer plateau on either side."""
+    prof, u, outer = piece.profile, piece.u, piece.outer
+    return float(prof[outer & (u < 0)].mean()), float(prof[outer & (u > 0)].mean())
+
+
+def _pieces(view: np.ndarray, seg: np.ndarray, fam: np.ndarray, lp: float,
+            st: CheckerSettings) -> Iterator[_Piece]:
+    """Every piece of every line (``seg`` (N, 4), ``fam`` its family) cut at the crossings
+    with the other family's lines whose middle is long enough and whose profile stays in
+    ``view``, in order along each line (:func:`tile_edges`)."""
     reach = max(st.min_reach, st.reach * lp)
     u = np.arange(-reach, reach + 0.25, 0.5)
     outer = np.abs(u) >= reach - st.plateau
     src = view.astype(np.float32)
-    measured = failed = 0
     for i in range(seg.shape[0]):
         p0, p1 = seg[i, :2], seg[i, 2:]
         length = float(np.hypot(*(p1 - p0)))
@@ -76,7 +152,7 @@ def tile_edges(view: np.ndarray, segments: np.ndarray, bags: np.ndarray, lp: flo
             if at is not None and 0.0 < at < length:
                 cuts.append(at)
         cuts.sort()
-        for a, b in zip(cuts[:-1], cuts[1:], strict=True):
+        for k, (a, b) in enumerate(zip(cuts[:-1], cuts[1:], strict=True)):
             m = st.piece_margin * (b - a)
             if (b - a) - 2.0 * m < st.min_piece * lp:
                 continue
@@ -88,9 +164,7 @@ def tile_edges(view: np.ndarray, segments: np.ndarray, bags: np.ndarray, lp: flo
                              borderValue=math.nan)
             if not np.isfinite(prof).all():
                 continue  # the piece's profile leaves the view
-            measured += 1
-            failed += not _one_step(prof.mean(axis=0), u, outer, sigma / math.sqrt(s.size), st)
-    return Steps(measured, failed)
+            yield _Piece(i, k, prof.mean(axis=0), u, outer, int(s.size))
 
 
 def _crossing(p0: np.ndarray, t: np.ndarray, other: np.ndarray) -> float | None:

@@ -385,8 +385,9 @@ class ForeignSettings:
 
 @dataclass(frozen=True)
 class CheckerSettings:
-    """Recognising a checkerboard the user did not declare (:mod:`.checker`): every piece of
-    every line its edge image read must be one step between two tiles' levels."""
+    """Checkerboards (:mod:`.checker`): recognising one the user did not declare (every piece
+    of every line its edge image read must be one step between two tiles' levels), and on every
+    checkerboard the tiles beside each line swapping shades at its crossings."""
 
     min_piece: float = 0.25
     """A piece of a line between two crossings (or a crossing and the border) is measured
@@ -400,7 +401,10 @@ class CheckerSettings:
     plateau: float = 2.0
     """A side's level: the mean of the profile's outer this many px on that side."""
     step_sigmas: float = 6.0
-    """The two sides' levels differ by at least this many times the profile's noise ..."""
+    """The two sides' levels differ by at least this many times the profile's noise (and, on
+    every checkerboard, each pair of neighbouring tiles around a crossing differs by as much,
+    the way a checkerboard's alternate: :func:`~tileviz.vision.robust.checker.sides_alternate`)
+    ..."""
     min_step: float = 6.0
     """... and at least this many gray levels."""
     overshoot: float = 0.15
