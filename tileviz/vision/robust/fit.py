@@ -92,7 +92,8 @@ def part_spreads(run: ReadingState, lines: list[list[Line]]) -> np.ndarray:
     (:func:`unseen_reach`) adds that band's distance: it may be the grout.
     A family's lone line is refused for such a band instead (``foreign_line.beside``); a band
     at the same offset beside another line of the family is the floor's own (a bevel, a double
-    joint: :func:`beside_reach`)."""
+    joint: :func:`beside_reach`). A family's lone line is bounded at least by
+    :func:`lone_reach`."""
     every = lines[0] + lines[1]
     if run.bound_shoulders:
         limit = run.st.lines.shoulder_px
@@ -101,9 +102,36 @@ def part_spreads(run: ReadingState, lines: list[list[Line]]) -> np.ndarray:
         out = np.array([ln.reach if w else ln.spread for ln, w in zip(every, wide, strict=True)])
     else:
         out = np.array([ln.spread for ln in every])
+    lone = lone_reach(lines)
+    if lone.size:
+        out = np.maximum(out, lone)
     beside = np.array([d for k in range(2) for d in beside_reach(run, k, lines[k])])
     run.details["beside_px"] = float(beside.max()) if beside.size else 0.0
     return out + beside[:, None]
+
+
+def lone_reach(lines: list[list[Line]]) -> np.ndarray:
+    """How far (px, per part of each line of both families in order; empty when no family
+    has a lone line) the grout may lie from where a family's lone line is read: the reach of
+    the line's 25 % crossings from its 50 % midpoint less half the narrowest half-depth width
+    among the other family's lines (0 for lines of a family of two or more). A lone line meets
+    no spacing check: a band along the grout read with it as one line (a cable over the joint)
+    moves the line's centre, while its width and contrast may still agree with the other
+    family's; the grout, as wide as the other family's narrowest line at half its depth and
+    wider at a quarter, lies within the band at a quarter of its depth (docs/vision.md,
+    "The bound of a view"). It is at least half the line's width beyond that narrowest line's
+    (its 25 % crossing lies beyond its 50 % one), so such a line's excess width is not added
+    again (:func:`~tileviz.vision.robust.lattice.lattice_offsets`)."""
+    if all(len(fam) != 1 for fam in lines):
+        return np.zeros(0)
+    rows = []
+    for k, fam in enumerate(lines):
+        widths = [ln.width for ln in lines[1 - k] if math.isfinite(ln.width) and ln.width > 0]
+        half = 0.5 * min(widths) if widths else 0.0
+        for ln in fam:
+            rows.append(np.maximum(ln.reach - half, 0.0) if len(fam) == 1
+                        else np.zeros_like(ln.reach))
+    return np.array(rows)
 
 
 def _family_tilt(fam: list[Line], sign: float) -> tuple[float, float]:

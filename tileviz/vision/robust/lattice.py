@@ -96,8 +96,10 @@ def lattice_offsets(run: ReadingState, lines: list[list[Line]], y3: float) -> No
             run.details["position_tolerance"] = max(
                 run.details.get("position_tolerance", 0.0),
                 run.tol_px * float(np.abs(g).sum()))
-        excess = np.array([max(ln.width - narrowest, 0.0) if math.isfinite(ln.width) else 0.0
-                           for ln in fam])
+        # (a family's lone line: its parts' bounds hold its band's reach instead, at least
+        # half its excess width, fit.lone_reach)
+        excess = np.array([max(ln.width - narrowest, 0.0)
+                           if math.isfinite(ln.width) and len(fam) > 1 else 0.0 for ln in fam])
         run.details["width_excess_px"] = max(run.details["width_excess_px"],
                                              0.5 * float(np.dot(w_arr, excess) / w_arr.sum()))
         var = np.array([ln.var for ln in fam])
