@@ -79,7 +79,8 @@ On the reading whose lines passed, the lattice and the bound:
   ``VisionConfig.heading_error`` and ``bound.max_rad``, plus the tolerance's part (as
   ``bound.position``).
 - ``foreign_edge``: long straight edges (``foreign.length`` x the smaller side, at least
-  ``foreign.min_length`` px) off the lattice that no texture explains; <= 0 (``step edge`` when
+  ``foreign.min_length`` px) off the lattice (its bands widened by the lattice tolerance each
+  side) that no texture explains; <= 0 (``step edge`` when
   the longest separates two levels, else ``foreign line``).
 
 The position check scale is the smaller of ``VisionConfig.position_error_px`` and

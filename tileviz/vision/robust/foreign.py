@@ -39,7 +39,8 @@ def foreign_edges(run: ReadingState) -> None:
     run.edges = cv2.Canny(dx, dy, st.canny_low * high, high, L2gradient=True)
     free = run.edges.copy()
     wmax = max(ln.width for fam in run.lines for ln in fam)
-    thick = int(math.ceil(wmax + 2.0 * max(2.0, 0.5 * wmax) + 2.0))
+    # each line may lie the declared tolerance off the ideal lattice the mask is drawn on
+    thick = int(math.ceil(wmax + 2.0 * max(2.0, 0.5 * wmax) + 2.0 + 2.0 * run.tol_px))
     draw_lattice_mask(free, run.y, run.ppm, run.tile_size, thick)
     run.free_edges = free
     minlen = max(st.min_length, st.length * run.side)
