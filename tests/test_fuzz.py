@@ -6,6 +6,7 @@ problem: never a traceback, a decoder's own message, a hang or gigabytes of memo
 from __future__ import annotations
 
 import json
+import math
 import shutil
 import subprocess
 import sys
@@ -297,6 +298,23 @@ def test_a_campaign_json_key_with_line_breaks_stays_one_line(
     assert len(err) == 1 and "'a\\nb\\u2028c' was 1 there, now None" in err[0]
 
 
+def test_a_run_whose_mcl_lost_the_truth_by_far_is_read_back(templates: Templates,
+                                                            tmp_path: Path) -> None:
+    """MCL's squared Mahalanobis distance of the truth grows without bound when its particles
+    collapse away from it (1e12, inf): a run holding it is its result, read back as kept."""
+    import pickle
+
+    from tileviz.evaluation.store import load_run
+
+    file = tmp_path / "run.pkl"
+    res = pickle.loads((templates.store / "runs/clean-r0-s0.pkl").read_bytes())
+    res.methods["mcl"].d2[0] = 1e12
+    res.methods["mcl"].d2[-1] = math.inf
+    file.write_bytes(pickle.dumps(res))
+    back = load_run(file, ("clean", 0, 0))
+    assert back.methods["mcl"].d2[0] == 1e12 and back.methods["mcl"].d2[-1] == math.inf
+
+
 def _drop_truth(res: object) -> None:
     del res.truth  # type: ignore[attr-defined]
 
@@ -317,13 +335,19 @@ def _huge_truth(res: object) -> None:
     res.truth[0, 0] = 1e300  # type: ignore[attr-defined]
 
 
+def _negative_d2(res: object) -> None:
+    res.methods["mcl"].d2[0] = -1.0  # type: ignore[attr-defined]
+
+
 @pytest.mark.parametrize(("damage", "said"), [
     (_drop_truth, "truth is not an array of numbers"),
     (_rename_method, "it has no results of the method(s) mcl-untuned"),
     (_short_status, "method mcl: status has shape"),
     (_other_run, "it holds the run ('clean', 7, 0), not ('clean', 0, 0)"),
     (_huge_truth, "truth holds numbers beyond +-1e+09"),
-], ids=["missing-field", "missing-method", "wrong-shape", "other-run", "huge-number"])
+    (_negative_d2, "method mcl: d2 holds negative numbers"),
+], ids=["missing-field", "missing-method", "wrong-shape", "other-run", "huge-number",
+        "negative-distance"])
 def test_a_results_file_that_unpickles_to_a_damaged_run_is_one_line(
         damage: object, said: str, templates: Templates, tmp_path: Path,
         capfd: pytest.CaptureFixture[str]) -> None:

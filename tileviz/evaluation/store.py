@@ -255,11 +255,19 @@ _TRACE_ARRAYS = {"lo": 3, "hi": 3, "centre": 3, "inside": 1, "status": 1, "boxes
 """The per-frame arrays of a :class:`MethodTrace` and their columns (1: a vector)."""
 
 
+_UNBOUNDED = frozenset({"d2"})
+"""Arrays whose numbers have no magnitude limit, only a sign: MCL's squared Mahalanobis
+distance grows without bound (to inf) when its particles collapse away from the truth."""
+
+
 def _array_problem(obj: object, name: str, columns: int, n: int | None) -> str | None:
     v = getattr(obj, name, None)
     if not isinstance(v, np.ndarray) or v.dtype.kind not in "biuf":
         return f"{name} is not an array of numbers"
-    if v.dtype.kind == "f" and v.size and np.nanmax(np.abs(v), initial=0.0) > LIMIT:
+    if name in _UNBOUNDED:
+        if v.dtype.kind == "f" and v.size and bool((v < 0.0).any()):
+            return f"{name} holds negative numbers"
+    elif v.dtype.kind == "f" and v.size and np.nanmax(np.abs(v), initial=0.0) > LIMIT:
         return f"{name} holds numbers beyond +-{LIMIT:g}"
     want = (n,) if columns == 1 else (n, columns)
     if v.ndim != len(want) or (n is not None and v.shape != want) or (
