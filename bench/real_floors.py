@@ -12,7 +12,8 @@ says, per floor, the image, the map from floor coordinates in tiles to its pixel
 integer tile coordinates), the tile size to declare, the view's pixels per tile
 (``view_period_px``), whether the image wraps around (a seamless texture) or which of its pixels
 are floor (``valid_mask``), and how far its lines depart from the ideal lattice
-(``lattice_residual_max_px``, in the image's pixels). The default is ``../shared/real_floors``.
+(``lattice_residual_max_px``, in the image's pixels). The default is ``../shared/real_floors``;
+``bench/extra_floors.py`` builds a second such folder of three more floors.
 
 For each floor: ``--stills`` views (320 x 240 at ``view_period_px`` pixels a tile, times
 ``--scale``, the image size times ``--scale`` too: a sharper camera seeing the same floor) cut at
