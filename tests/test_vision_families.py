@@ -188,6 +188,47 @@ def test_the_tiles_beside_a_checkerboard_line_swap_shades_at_each_crossing() -> 
     assert kept.accepted and kept.details["checker_sides"] >= 1.0
 
 
+def test_a_reading_of_another_image_must_explain_the_lines_the_first_read() -> None:
+    """When the luma's reading is refused for a missing line (the edge of a box hides one) and
+    a colour projection's reading is accepted, the lines the luma read must lie on the lattice
+    accepted: the same lattice passes, one turned 25 degrees (the box's edge read as a line in
+    the tiles' edges' place) or moved half a tile is refused as a foreign line, the check
+    ``first.lines`` in its decision."""
+    from dataclasses import replace
+
+    from tileviz.config import FloorModel
+    from tileviz.types import Observation
+    from tileviz.vision.decision import CheckResult, Decision, Reading, Tried
+    from tileviz.vision.result import VisionResult
+    from tileviz.vision.views import _explains_first
+
+    rng = np.random.default_rng(3)
+    img, segments, bags = _checker_view(rng.uniform(140, 210, (6, 6)),
+                                        rng.uniform(40, 100, (6, 6)))
+    ppm, lp = 100.0 / 0.3, 100.0
+    first = VisionResult(observation=None, accepted=False, reason="inconsistent spacing",
+                         segments=segments[[0, 1, 3, 4]], bags=bags[[0, 1, 3, 4]])
+    bounds = (CheckResult("bound.position", 2.0, 5.0, "<=", True),
+              CheckResult("bound.heading", 0.01, 0.05, "<=", True))
+    tried = Tried(Reading(0.0, "votes"), bounds, "ok")
+    # the lines at x = 60 + 100 k and y = 20 + 100 k lie 0.5 px from the view's centre's
+    # multiples of the period along both normals
+    true = Observation(0.5 / ppm, 0.5 / ppm, 0.0, 2.0 / ppm, 0.01)
+    got = VisionResult(observation=true, accepted=True, reason="ok",
+                       decision=Decision((), (tried,), 0, "ok", None, None))
+    floor = FloorModel("checker", 0.0)
+    kept = _explains_first(first, got, img.shape, ppm, lp, floor)
+    assert kept.accepted and kept.decision is not None
+    assert kept.decision.readings[0].checks[-1].check == "first.lines"
+    assert kept.decision.readings[0].checks[-1].value < 0.2
+    for wrong in (replace(true, y3=math.radians(25.0)), replace(true, y1=true.y1 + 50.0 / ppm)):
+        refused = _explains_first(first, replace(got, observation=wrong), img.shape, ppm, lp,
+                                  floor)
+        assert not refused.accepted and refused.reason == "foreign line"
+        assert refused.decision is not None and refused.decision.refusal is not None
+        assert refused.decision.refusal.check == "first.lines"
+
+
 def faint_thin_grout_view(seed: int) -> tuple[np.ndarray, floorgen.FloorSpec, Pose]:
     """A view of thin (2 px) light grout 14 gray levels above plain tiles, through a camera
     with noise of 4 levels, a 0.9 px blur and vignetting (a real white ceramic floor seen by a

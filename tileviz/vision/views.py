@@ -10,6 +10,7 @@ first reading (:func:`read_robust`).
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 from dataclasses import replace
@@ -25,6 +26,7 @@ from tileviz.vision.colour import (
     edges_and_strength,
 )
 from tileviz.vision.decision import CheckResult
+from tileviz.vision.geometry import family_normals, wrap_quarter
 from tileviz.vision.result import VisionResult
 
 __all__ = ["VIEW_REASONS", "read_robust"]
@@ -64,26 +66,29 @@ def read_robust(gray: np.ndarray, image: np.ndarray, camera: CameraConfig, tile_
     if floor.kind == "checker":
         source = {-1.0 - number: make for number, make in views}
         got, first = _first_accepted(
-            _edge_images(views, gray), gray, timings, floor, read,
+            _edge_images(views, gray), gray, timings, floor, read, camera.ppm, lp,
             lambda number, r: _sides_swap(source[number](), r, lp))
         return got or first
-    got, first = _first_accepted(views, gray, timings, floor, read)
+    got, first = _first_accepted(views, gray, timings, floor, read, camera.ppm, lp)
     if got is not None or first.reason in VIEW_REASONS:
         return got or first
-    recognised = _recognise(views, gray, lp, timings, floor, read)
+    recognised = _recognise(views, gray, camera.ppm, lp, timings, floor, read)
     return recognised or first
 
 
 def _first_accepted(candidates: list[Candidate], gray: np.ndarray, timings: dict[str, float],
                     floor: FloorModel,
                     read: Callable[[np.ndarray, dict[str, float], FloorModel], VisionResult],
+                    ppm: float, lp: float,
                     accept: Callable[[float, VisionResult], VisionResult] | None = None
                     ) -> tuple[VisionResult | None, VisionResult]:
     """The ``candidates`` read in turn while refused for not showing the lattice
     (:data:`~tileviz.vision.colour.RETRY_REASONS`; a projection nearly the luma again,
     :data:`~tileviz.vision.colour.SAME_AS_LUMA`, is skipped): the first accepted (``accept``,
-    when given, checks an accepted reading further and may refuse it), and the first refusal
-    (the first reading's; its timings join ``timings``)."""
+    when given, checks an accepted reading further and may refuse it; after a first reading
+    refused for a missing line, :func:`_explains_first` too), and the first refusal (the first
+    reading's; its timings join ``timings``). ``ppm``: the view's pixels per metre, ``lp`` the
+    tile period, px."""
     first: VisionResult | None = None
     for number, make in candidates:
         t1 = time.perf_counter()
@@ -99,6 +104,8 @@ def _first_accepted(candidates: list[Candidate], gray: np.ndarray, timings: dict
                 got = replace(got, details={**got.details, "projection": number})
             if accept is not None:
                 got = accept(number, got)
+            if got.accepted and first is not None and first.reason == "inconsistent spacing":
+                got = _explains_first(first, got, gray.shape, ppm, lp, floor)
             if got.accepted:
                 return got, first or got
         if first is None:
@@ -125,14 +132,15 @@ def _edge_images(candidates: list[Candidate], gray: np.ndarray) -> list[Candidat
     return [(n, lambda e=e: e) for _, n, e in out]  # type: ignore[misc]
 
 
-def _recognise(views: list[Candidate], gray: np.ndarray, lp: float,
+def _recognise(views: list[Candidate], gray: np.ndarray, ppm: float, lp: float,
                timings: dict[str, float], floor: FloorModel,
                read: Callable[[np.ndarray, dict[str, float], FloorModel], VisionResult]
                ) -> VisionResult | None:
     """A checkerboard the user did not declare: the edge images of ``views`` read as on a
     floor declared ``checker`` (its tolerance kept), a reading accepted only when every piece
     of its lines is one step on the view it was made from
-    (:func:`~tileviz.vision.robust.checker.tile_edges`; ``lp`` the tile period, px); the
+    (:func:`~tileviz.vision.robust.checker.tile_edges`; ``ppm`` the view's pixels per metre,
+    ``lp`` the tile period, px); the
     decision then shows the checks ``checker.pieces`` and ``checker.steps``. None when none is
     recognised."""
     from tileviz.vision.robust.checker import tile_edges
@@ -153,7 +161,7 @@ def _recognise(views: list[Candidate], gray: np.ndarray, lp: float,
 
     as_checker = FloorModel("checker", floor.lattice_tolerance)
     got, _ = _first_accepted(_edge_images(views, gray), gray, dict(timings), as_checker, read,
-                             accept)
+                             ppm, lp, accept)
     return got
 
 
@@ -173,6 +181,46 @@ def _sides_swap(view: np.ndarray, got: VisionResult, lp: float) -> VisionResult:
     check = CheckResult("checker.sides", swap, 1.0, ">=", swap >= 1.0)
     got = replace(got, details={**got.details, "checker_sides": swap})
     return _with_checks(got, (check,))
+
+
+def _explains_first(first: VisionResult, got: VisionResult, shape: tuple[int, ...],
+                    ppm: float, lp: float, floor: FloorModel) -> VisionResult:
+    """``got``, a reading accepted on another image of the view (``shape``: its rows and
+    columns; ``ppm`` its pixels per metre, ``lp`` the tile period, px) after the ``first`` was
+    refused for a missing line (``inconsistent spacing``: its lines were read, one the lattice
+    predicts was not), checked by ``first.lines``: every line the first reading measured lies on
+    the lattice ``got`` reads. Were it a grout line, it would lie within the largest bound a view
+    may declare (the limits of ``got``'s checks ``bound.position`` and ``bound.heading``) of the
+    true lattice, which lies within ``got``'s own bound of ``got``'s: a line farther off in
+    direction, or in position at its midpoint in view (plus its distance from the view's centre
+    along the line times both heading bounds, and twice the floor's lattice tolerance), shows
+    something the reading does not explain, an edge read as the lattice in its place (the edge
+    of a box on a checkerboard whose colour projection hides the tiles' edges). Value: the
+    largest ratio of a line's discrepancy to its limit (0 without lines); refused
+    (``foreign line``) above 1. Pixel frame as :class:`~tileviz.vision.result.VisionResult`'s."""
+    obs, decision = got.observation, got.decision
+    assert obs is not None and decision is not None and decision.shown is not None
+    limits = {c.check: c.limit for c in decision.readings[decision.shown].checks}
+    head = obs.heading_error + float(limits.get("bound.heading", 0.0))
+    pos = (obs.position_error * ppm + float(limits.get("bound.position", 0.0))
+           + 2.0 * floor.lattice_tolerance * ppm)
+    normals = family_normals(obs.y3)
+    cx, cy = (shape[1] - 1) / 2.0, (shape[0] - 1) / 2.0
+    worst = 0.0
+    for (x1, y1, x2, y2), bag in zip(first.segments.tolist(), first.bags.tolist(), strict=True):
+        if bag == 0:
+            continue
+        turn = wrap_quarter(math.atan2(y2 - y1, x2 - x1) - obs.y3)
+        # the family whose direction the line is nearest: y3 (mod pi) for family 1
+        k = 0 if abs(math.remainder(math.atan2(y2 - y1, x2 - x1) - obs.y3, math.pi)) \
+            <= 0.25 * math.pi else 1
+        mx, my = 0.5 * (x1 + x2) - cx, 0.5 * (y1 + y2) - cy
+        n = normals[k]
+        s = n[0] * mx + n[1] * my + (obs.y1, obs.y2)[k] * ppm
+        off = abs(s - lp * round(s / lp))
+        along = abs(-n[1] * mx + n[0] * my)
+        worst = max(worst, abs(turn) / head, off / (pos + along * head))
+    return _with_checks(got, (CheckResult("first.lines", worst, 1.0, "<=", worst <= 1.0),))
 
 
 def _with_checks(got: VisionResult, checks: tuple[CheckResult, ...]) -> VisionResult:
