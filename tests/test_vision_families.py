@@ -188,45 +188,85 @@ def test_the_tiles_beside_a_checkerboard_line_swap_shades_at_each_crossing() -> 
     assert kept.accepted and kept.details["checker_sides"] >= 1.0
 
 
+def _lattice_lines(y: tuple[float, float, float], ppm: float, lp: float,
+                   centre: tuple[float, float], along: float) -> tuple[np.ndarray, np.ndarray]:
+    """Two lines of each family of the lattice ``y`` (m, m, rad) as segments 200 px long whose
+    midpoints lie ``along`` px from the foot of the view centre's normal on them, and their
+    bags (1: the family of y1, 2: of y2); lines where n_k . (p - centre) = (j L - y_k) ppm."""
+    from tileviz.vision.geometry import family_normals
+
+    segs, bags = [], []
+    for k, n in enumerate(family_normals(y[2])):
+        t = (-n[1], n[0])
+        for j in (0, 1):
+            s = j * lp - y[k] * ppm
+            mx, my = centre[0] + s * n[0] + along * t[0], centre[1] + s * n[1] + along * t[1]
+            segs.append([mx - 100 * t[0], my - 100 * t[1], mx + 100 * t[0], my + 100 * t[1]])
+            bags.append(k + 1)
+    return np.array(segs), np.array(bags, np.int8)
+
+
 def test_a_reading_of_another_image_must_explain_the_lines_the_first_read() -> None:
     """When the luma's reading is refused for a missing line (the edge of a box hides one) and
     a colour projection's reading is accepted, the lines the luma read must lie on the lattice
-    accepted: the same lattice passes, one turned 25 degrees (the box's edge read as a line in
-    the tiles' edges' place) or moved half a tile is refused as a foreign line, the check
-    ``first.lines`` in its decision."""
+    accepted, within its bound plus the largest a view may declare, more far from the view's
+    centre along a line (its heading bound turns it): the same lattice passes, one turned within
+    the bounds passes, one turned 25 degrees (the box's edge read as a line in the tiles' edges'
+    place) or moved half a tile along one family is refused as a foreign line, the check
+    ``first.lines`` in its decision; through the readings of a view in turn, that refusal is the
+    one reported."""
     from dataclasses import replace
 
     from tileviz.config import FloorModel
     from tileviz.types import Observation
     from tileviz.vision.decision import CheckResult, Decision, Reading, Tried
     from tileviz.vision.result import VisionResult
-    from tileviz.vision.views import _explains_first
+    from tileviz.vision.views import _explains_first, _first_accepted
 
-    rng = np.random.default_rng(3)
-    img, segments, bags = _checker_view(rng.uniform(140, 210, (6, 6)),
-                                        rng.uniform(40, 100, (6, 6)))
-    ppm, lp = 100.0 / 0.3, 100.0
+    shape, ppm, lp = (480, 640), 100.0 / 0.3, 100.0
+    centre = (319.5, 239.5)
+    true = Observation(30.0 / ppm, 70.0 / ppm, 0.2, 2.0 / ppm, 0.01)
+    segments, bags = _lattice_lines((true.y1, true.y2, true.y3), ppm, lp, centre, 200.0)
     first = VisionResult(observation=None, accepted=False, reason="inconsistent spacing",
-                         segments=segments[[0, 1, 3, 4]], bags=bags[[0, 1, 3, 4]])
+                         segments=segments, bags=bags)
     bounds = (CheckResult("bound.position", 2.0, 5.0, "<=", True),
               CheckResult("bound.heading", 0.01, 0.05, "<=", True))
     tried = Tried(Reading(0.0, "votes"), bounds, "ok")
-    # the lines at x = 60 + 100 k and y = 20 + 100 k lie 0.5 px from the view's centre's
-    # multiples of the period along both normals
-    true = Observation(0.5 / ppm, 0.5 / ppm, 0.0, 2.0 / ppm, 0.01)
     got = VisionResult(observation=true, accepted=True, reason="ok",
                        decision=Decision((), (tried,), 0, "ok", None, None))
-    floor = FloorModel("checker", 0.0)
-    kept = _explains_first(first, got, img.shape, ppm, lp, floor)
+    floor = FloorModel("grout", 0.0)
+
+    def check(obs: Observation) -> VisionResult:
+        return _explains_first(first, replace(got, observation=obs), shape, ppm, lp, floor)
+
+    kept = check(true)
     assert kept.accepted and kept.decision is not None
     assert kept.decision.readings[0].checks[-1].check == "first.lines"
-    assert kept.decision.readings[0].checks[-1].value < 0.2
-    for wrong in (replace(true, y3=math.radians(25.0)), replace(true, y1=true.y1 + 50.0 / ppm)):
-        refused = _explains_first(first, replace(got, observation=wrong), img.shape, ppm, lp,
-                                  floor)
+    assert kept.decision.readings[0].checks[-1].value < 0.01
+    # turned 0.05 rad: 10 px off at 200 px along, under 7 px + 200 px x 0.06 rad
+    turned = check(replace(true, y3=true.y3 + 0.05))
+    assert turned.accepted, turned.decision
+    for wrong in (replace(true, y3=true.y3 + math.radians(25.0)),
+                  replace(true, y1=true.y1 + 50.0 / ppm),
+                  replace(true, y2=true.y2 + 50.0 / ppm)):
+        refused = check(wrong)
         assert not refused.accepted and refused.reason == "foreign line"
         assert refused.decision is not None and refused.decision.refusal is not None
         assert refused.decision.refusal.check == "first.lines"
+
+    wrong_read = replace(got, observation=replace(true, y1=true.y1 + 50.0 / ppm))
+    answers = {0.0: first, 1.0: wrong_read}
+    gray = np.random.default_rng(5).integers(0, 256, shape, dtype=np.uint8)
+    ramp = np.tile((np.arange(640) // 3).astype(np.uint8), (480, 1))  # unlike the luma
+
+    def read(view: np.ndarray, tm: dict[str, float], as_floor: FloorModel) -> VisionResult:
+        return answers[0.0 if view is gray else 1.0]
+
+    accepted, reported = _first_accepted([(0.0, lambda: gray), (1.0, lambda: ramp)], gray, {},
+                                         floor, read, ppm, lp)
+    assert accepted is None and reported.decision is not None
+    assert reported.decision.refusal is not None
+    assert reported.decision.refusal.check == "first.lines"
 
 
 def faint_thin_grout_view(seed: int) -> tuple[np.ndarray, floorgen.FloorSpec, Pose]:

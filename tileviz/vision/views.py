@@ -70,7 +70,9 @@ def read_robust(gray: np.ndarray, image: np.ndarray, camera: CameraConfig, tile_
             lambda number, r: _sides_swap(source[number](), r, lp))
         return got or first
     got, first = _first_accepted(views, gray, timings, floor, read, camera.ppm, lp)
-    if got is not None or first.reason in VIEW_REASONS:
+    refusal = first.decision.refusal if first.decision is not None else None
+    if got is not None or first.reason in VIEW_REASONS or (
+            refusal is not None and refusal.check == "first.lines"):
         return got or first
     recognised = _recognise(views, gray, camera.ppm, lp, timings, floor, read)
     return recognised or first
@@ -86,8 +88,9 @@ def _first_accepted(candidates: list[Candidate], gray: np.ndarray, timings: dict
     (:data:`~tileviz.vision.colour.RETRY_REASONS`; a projection nearly the luma again,
     :data:`~tileviz.vision.colour.SAME_AS_LUMA`, is skipped): the first accepted (``accept``,
     when given, checks an accepted reading further and may refuse it; after a first reading
-    refused for a missing line, :func:`_explains_first` too), and the first refusal (the first
-    reading's; its timings join ``timings``). ``ppm``: the view's pixels per metre, ``lp`` the
+    refused for inconsistent spacing, :func:`_explains_first` too), and the refusal to report:
+    a later reading's refused by those further checks (final: a foreign line), else the first
+    reading's (its timings join ``timings``). ``ppm``: the view's pixels per metre, ``lp`` the
     tile period, px."""
     first: VisionResult | None = None
     for number, make in candidates:
@@ -108,6 +111,9 @@ def _first_accepted(candidates: list[Candidate], gray: np.ndarray, timings: dict
                 got = _explains_first(first, got, gray.shape, ppm, lp, floor)
             if got.accepted:
                 return got, first or got
+            if first is not None:
+                timings.update(tm)
+                return None, got
         if first is None:
             first = got
             timings.update(tm)
@@ -187,22 +193,23 @@ def _explains_first(first: VisionResult, got: VisionResult, shape: tuple[int, ..
                     ppm: float, lp: float, floor: FloorModel) -> VisionResult:
     """``got``, a reading accepted on another image of the view (``shape``: its rows and
     columns; ``ppm`` its pixels per metre, ``lp`` the tile period, px) after the ``first`` was
-    refused for a missing line (``inconsistent spacing``: its lines were read, one the lattice
-    predicts was not), checked by ``first.lines``: every line the first reading measured lies on
-    the lattice ``got`` reads. Were it a grout line, it would lie within the largest bound a view
-    may declare (the limits of ``got``'s checks ``bound.position`` and ``bound.heading``) of the
-    true lattice, which lies within ``got``'s own bound of ``got``'s: a line farther off in
-    direction, or in position at its midpoint in view (plus its distance from the view's centre
-    along the line times both heading bounds, and twice the floor's lattice tolerance), shows
-    something the reading does not explain, an edge read as the lattice in its place (the edge
-    of a box on a checkerboard whose colour projection hides the tiles' edges). Value: the
-    largest ratio of a line's discrepancy to its limit (0 without lines); refused
-    (``foreign line``) above 1. Pixel frame as :class:`~tileviz.vision.result.VisionResult`'s."""
+    refused for inconsistent spacing (its lines were read, and one the lattice predicts was not
+    seen, or one lay off the lattice), checked by ``first.lines``: every line the first reading
+    measured lies on the lattice ``got`` reads. Were it a grout line, it would lie within the
+    largest bound a view may declare (the limits of ``got``'s checks ``bound.position`` and
+    ``bound.heading``) of the true lattice, which lies within ``got``'s own bound of ``got``'s:
+    a line farther off in direction, or in position at its midpoint in view (plus its distance
+    from the view's centre along the line times both heading bounds, and twice the floor's
+    lattice tolerance), shows something the reading does not explain, an edge read as the
+    lattice in its place (the edge of a box on a checkerboard whose colour projection hides the
+    tiles' edges). Value: the largest ratio of a line's discrepancy to its limit (0 without
+    lines); refused (``foreign line``) above 1. Pixel frame as
+    :class:`~tileviz.vision.result.VisionResult`'s."""
     obs, decision = got.observation, got.decision
     assert obs is not None and decision is not None and decision.shown is not None
     limits = {c.check: c.limit for c in decision.readings[decision.shown].checks}
-    head = obs.heading_error + float(limits.get("bound.heading", 0.0))
-    pos = (obs.position_error * ppm + float(limits.get("bound.position", 0.0))
+    head = obs.heading_error + float(limits["bound.heading"])
+    pos = (obs.position_error * ppm + float(limits["bound.position"])
            + 2.0 * floor.lattice_tolerance * ppm)
     normals = family_normals(obs.y3)
     cx, cy = (shape[1] - 1) / 2.0, (shape[0] - 1) / 2.0
