@@ -228,7 +228,9 @@ def test_a_reading_of_another_image_must_explain_the_lines_the_first_read() -> N
     true = Observation(30.0 / ppm, 70.0 / ppm, 0.2, 2.0 / ppm, 0.01)
     segments, bags = _lattice_lines((true.y1, true.y2, true.y3), ppm, lp, centre, 200.0)
     first = VisionResult(observation=None, accepted=False, reason="inconsistent spacing",
-                         segments=segments, bags=bags)
+                         segments=segments, bags=bags,
+                         angles=np.arctan2(segments[:, 3] - segments[:, 1],
+                                           segments[:, 2] - segments[:, 0]))
     bounds = (CheckResult("bound.position", 2.0, 5.0, "<=", True),
               CheckResult("bound.heading", 0.01, 0.05, "<=", True))
     tried = Tried(Reading(0.0, "votes"), bounds, "ok")

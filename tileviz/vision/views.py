@@ -14,6 +14,7 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import replace
+from functools import cache
 
 import numpy as np
 
@@ -60,11 +61,12 @@ def read_robust(gray: np.ndarray, image: np.ndarray, camera: CameraConfig, tile_
 
     views: list[Candidate] = [(0.0, lambda: gray)]
     if image.ndim == 3:
-        views += [(float(k), lambda p=proj: p(image))  # type: ignore[misc]
+        # each projection made once, however many readings and checks look at it
+        views += [(float(k), cache(lambda p=proj: p(image)))
                   for k, proj in enumerate(PROJECTIONS.values(), start=1)]
     lp = camera.ppm * tile_size
     if floor.kind == "checker":
-        source = {-1.0 - number: make for number, make in views}
+        source = _edge_sources(views)
         got, first = _first_accepted(
             _edge_images(views, gray), gray, timings, floor, read, camera.ppm, lp,
             lambda number, r: _sides_swap(source[number](), r, lp))
@@ -138,6 +140,12 @@ def _edge_images(candidates: list[Candidate], gray: np.ndarray) -> list[Candidat
     return [(n, lambda e=e: e) for _, n, e in out]  # type: ignore[misc]
 
 
+def _edge_sources(views: list[Candidate]) -> dict[float, Callable[[], np.ndarray]]:
+    """How to make the image each edge image of ``views`` was made from, by the edge
+    image's number (-1 - the view's: :func:`_edge_images`)."""
+    return {-1.0 - number: make for number, make in views}
+
+
 def _recognise(views: list[Candidate], gray: np.ndarray, ppm: float, lp: float,
                timings: dict[str, float], floor: FloorModel,
                read: Callable[[np.ndarray, dict[str, float], FloorModel], VisionResult]
@@ -153,7 +161,7 @@ def _recognise(views: list[Candidate], gray: np.ndarray, ppm: float, lp: float,
     from tileviz.vision.robust.settings import DEFAULT_SETTINGS
 
     st = DEFAULT_SETTINGS.checker
-    source = {-1.0 - number: make for number, make in views}
+    source = _edge_sources(views)
 
     def accept(number: float, got: VisionResult) -> VisionResult:
         view = source[number]()
@@ -214,13 +222,13 @@ def _explains_first(first: VisionResult, got: VisionResult, shape: tuple[int, ..
     normals = family_normals(obs.y3)
     cx, cy = (shape[1] - 1) / 2.0, (shape[0] - 1) / 2.0
     worst = 0.0
-    for (x1, y1, x2, y2), bag in zip(first.segments.tolist(), first.bags.tolist(), strict=True):
+    for (x1, y1, x2, y2), angle, bag in zip(first.segments.tolist(), first.angles.tolist(),
+                                             first.bags.tolist(), strict=True):
         if bag == 0:
             continue
-        turn = wrap_quarter(math.atan2(y2 - y1, x2 - x1) - obs.y3)
+        turn = wrap_quarter(angle - obs.y3)
         # the family whose direction the line is nearest: y3 (mod pi) for family 1
-        k = 0 if abs(math.remainder(math.atan2(y2 - y1, x2 - x1) - obs.y3, math.pi)) \
-            <= 0.25 * math.pi else 1
+        k = 0 if abs(math.remainder(angle - obs.y3, math.pi)) <= 0.25 * math.pi else 1
         mx, my = 0.5 * (x1 + x2) - cx, 0.5 * (y1 + y2) - cy
         n = normals[k]
         s = n[0] * mx + n[1] * my + (obs.y1, obs.y2)[k] * ppm

@@ -55,13 +55,9 @@ def tile_edges(view: np.ndarray, segments: np.ndarray, bags: np.ndarray, lp: flo
     within ``st.overshoot`` of the step (plus 3 noise) of the two levels, and its slope is at
     least ``st.single_edge`` of its steepest over one stretch only (by central differences:
     one edge, not two with a band of a third level between)."""
-    keep = (bags == BAG_HORIZONTAL) | (bags == BAG_VERTICAL)
-    seg, fam = segments[keep], bags[keep]
-    if seg.shape[0] == 0:
-        return Steps(0, 0)
     sigma = noise_sigma(view)
     measured = failed = 0
-    for piece in _pieces(view, seg, fam, lp, st):
+    for piece in _pieces(view, segments, bags, lp, st):
         measured += 1
         failed += not _one_step(piece.profile, piece.u, piece.outer, sigma / math.sqrt(piece.n),
                                 st)
@@ -93,13 +89,11 @@ def sides_alternate(view: np.ndarray, segments: np.ndarray, bags: np.ndarray, lp
     one shade may differ from each other (marble, a worn floor): only the direction of each
     difference and that it stands out of the noise are asked for. With no crossing measured
     the swap is inf."""
-    keep = (bags == BAG_HORIZONTAL) | (bags == BAG_VERTICAL)
-    seg, fam = segments[keep], bags[keep]
     sigma = noise_sigma(view)
     crossings = 0
     worst = math.inf
     last: _Piece | None = None
-    for piece in _pieces(view, seg, fam, lp, st):
+    for piece in _pieces(view, segments, bags, lp, st):
         if last is not None and last.line == piece.line and last.cut + 1 == piece.cut:
             crossings += 1
             l0, r0 = _levels(last)
@@ -130,11 +124,13 @@ def _levels(piece: _Piece) -> tuple[float, float]:
     return float(prof[outer & (u < 0)].mean()), float(prof[outer & (u > 0)].mean())
 
 
-def _pieces(view: np.ndarray, seg: np.ndarray, fam: np.ndarray, lp: float,
+def _pieces(view: np.ndarray, segments: np.ndarray, bags: np.ndarray, lp: float,
             st: CheckerSettings) -> Iterator[_Piece]:
-    """Every piece of every line (``seg`` (N, 4), ``fam`` its family) cut at the crossings
-    with the other family's lines whose middle is long enough and whose profile stays in
-    ``view``, in order along each line (:func:`tile_edges`)."""
+    """Every piece of every line (``segments`` (N, 4), ``bags`` its family, 0 not a line)
+    cut at the crossings with the other family's lines whose middle is long enough and whose
+    profile stays in ``view``, in order along each line (:func:`tile_edges`)."""
+    keep = (bags == BAG_HORIZONTAL) | (bags == BAG_VERTICAL)
+    seg, fam = segments[keep], bags[keep]
     reach = max(st.min_reach, st.reach * lp)
     u = np.arange(-reach, reach + 0.25, 0.5)
     outer = np.abs(u) >= reach - st.plateau
