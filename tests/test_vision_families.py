@@ -1004,3 +1004,67 @@ def test_a_wide_blurred_lone_band_declares_no_more_than_a_view_may() -> None:
     it cannot vouch for."""
     r = study_view(4_000_058, "degraded", None)
     assert r["readable"] and not r["accepted"] and r["reason"] == "imprecise", r
+
+
+def _inside(res: object, pose: Pose, tile_size: float) -> bool:
+    """Whether an accepted result's observation holds ``pose`` within its own bound."""
+    obs = getattr(res, "observation", None)
+    assert obs is not None
+    e1, e2, e3 = observation_error(obs, pose, tile_size, (0.0, 0.0))
+    return max(abs(e1), abs(e2)) <= obs.position_error and abs(e3) <= obs.heading_error
+
+
+def test_joints_of_two_widths_are_each_measured_in_a_window_that_fits_them() -> None:
+    """A mosaic whose joints along one direction are twice as wide as the others (14 px and
+    7 px, the wide ones shallower), declared with a lattice tolerance: the wide family's
+    bands reach past the window that measures the narrow, deeper family, and were left
+    unmeasured (the view refused for one family). Each family is measured in a window fitting
+    its own bands: every view is read, within its bound."""
+    from tileviz.config import FloorModel
+
+    rng = np.random.default_rng(5)
+    for seed in range(12):
+        spec = floorgen.FloorSpec(family="plain", tile_size=0.1, ppm=1000.0, grout_px=7.0,
+                                  grout_shade=70.0, tile_shade=170.0, shade_spread=5.0,
+                                  surface="flat", surface_amp=0.0, seed=seed, width=512,
+                                  height=384, second=(14.0, 120.0))
+        cx, cy, th = rng.uniform(0, 1), rng.uniform(0, 1), rng.uniform(-3, 3)
+        cam = CameraConfig(ppm=spec.ppm, width=spec.width, height=spec.height,
+                           offset=(0.0, 0.0))
+        img = floorgen.render(spec, cx, cy, th, np.random.default_rng(seed))
+        res = extract(img, camera=cam, tile_size=spec.tile_size, vision=VisionConfig(),
+                      floor=FloorModel("grout", 0.004))
+        assert res.accepted, (seed, res.reason)
+        assert _inside(res, Pose(cx, cy, th), spec.tile_size), seed
+
+
+def test_joints_filled_with_light_dirt_are_read_at_the_grouts_own_polarity() -> None:
+    """Dark grout, every fifth joint filled along its centre with light dirt: the filled
+    joints make the strongest narrow peaks, so the profiles call the grout lighter, and the
+    lines read at that polarity (the filled joints) miss the lattice (``spacing.missing``).
+    The view is then read once more at the other polarity: accepted there, within its bound.
+    When that reading is refused too, the view's refusal is the first reading's."""
+    spec = floorgen.FloorSpec(family="plain", tile_size=0.1, ppm=1000.0, grout_px=8.0,
+                              grout_shade=125.0, tile_shade=150.0, shade_spread=3.0,
+                              surface="flat", surface_amp=0.0, seed=1, width=512, height=384,
+                              fill=(5, 0.6, 240.0))
+    cam = CameraConfig(ppm=spec.ppm, width=spec.width, height=spec.height, offset=(0.0, 0.0))
+    for th, edge, accepted in ((0.01, 110, True), (-0.01, 70, True), (0.0, 40, False)):
+        # the filled joints x = 0 and y = 0 ``edge`` px inside the view's top and left sides
+        cx, cy = -(191.5 - edge) / spec.ppm, -(255.5 - edge) / spec.ppm
+        res = extract(floorgen.render(spec, cx, cy, th, np.random.default_rng(1)),
+                      camera=cam, tile_size=spec.tile_size, vision=VisionConfig())
+        dec = res.decision
+        assert dec is not None
+        first = dec.readings[0]
+        assert first.reading.polarity == "auto" and first.reason == "inconsistent spacing"
+        assert first.checks[-1].check == "spacing.missing", first
+        other = dec.readings[1].reading
+        assert other.kind == "polarity" and other.polarity == "dark", other
+        assert res.accepted == accepted, (th, edge, res.reason)
+        if accepted:
+            assert dec.shown == 1
+            assert _inside(res, Pose(cx, cy, th), spec.tile_size), (th, edge)
+        else:
+            assert dec.refused_in == 0 and dec.refusal is not None
+            assert dec.refusal.check == "spacing.missing", dec.refusal

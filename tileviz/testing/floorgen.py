@@ -100,6 +100,14 @@ class FloorSpec:
     seam_px: float = 0.0
     tint: tuple[tuple[float, float, float], tuple[float, float, float]] | None = None
     """RGB of the tiles and of the grout (0..255) when they differ in hue, else None."""
+    second: tuple[float, float] | None = None
+    """The width (px) and shade of the joints along y = kL when they differ from those along
+    x = kL (a mosaic whose two families of joints differ), else None. No family draws it."""
+    fill: tuple[int, float, float] | None = None
+    """Every n-th joint of each family (joint index k % n == 0) filled along its centre line
+    with another material: (n, the share of the joint's width filled, its shade), else None
+    (dirt in a paver mosaic's joints). No family draws it; with ``second``, only on a floor
+    laid on the lattice (no ``lattice_tolerance``, no ``panel``)."""
 
     @property
     def model(self) -> FloorModel:
@@ -320,6 +328,8 @@ def render(spec: FloorSpec, cx: float, cy: float, theta: float,
     fy = Y - j
     i, j, fx, fy = np.broadcast_arrays(i, j, fx, fy)
     half = 0.5 * spec.grout_px / ppm / L
+    other: tuple[np.ndarray, float] | None = None  # joints of another width and shade
+    filled: tuple[np.ndarray, float] | None = None  # joints filled with another material
     if spec.lattice_tolerance > 0 or spec.panel:
         X, Y = _laid(spec, X, Y, i, j)
         i, j = np.floor(X), np.floor(Y)
@@ -329,8 +339,19 @@ def render(spec: FloorSpec, cx: float, cy: float, theta: float,
         hx = np.where((kx % spec.panel == 0) if spec.panel else False, seam, half)
         hy = np.where((ky % spec.panel == 0) if spec.panel else False, seam, half)
         grout = (np.abs(X - kx) < hx) | (np.abs(Y - ky) < hy)
-    else:
+    elif spec.second is None and spec.fill is None:
         grout = (np.minimum(fx, 1 - fx) < half) | (np.minimum(fy, 1 - fy) < half)
+    else:  # the two families of joints differ, or some joints are filled
+        half_y = half if spec.second is None else 0.5 * spec.second[0] / ppm / L
+        ex, ey = np.abs(X - np.rint(X)), np.abs(Y - np.rint(Y))
+        on_x, on_y = ex < half, ey < half_y
+        grout = on_x | on_y
+        if spec.second is not None:
+            other = (on_y & ~on_x, spec.second[1])
+        if spec.fill is not None:
+            n, share, fill_shade = spec.fill
+            filled = (((on_x & (np.rint(X) % n == 0) & (ex < share * half))
+                       | (on_y & (np.rint(Y) % n == 0) & (ey < share * half_y))), fill_shade)
     shade0: float | np.ndarray = spec.tile_shade
     hued = grout  # where the second colour of spec.tint is (the grout, or the odd tiles)
     if spec.kind == "checker":  # two shades alternate, no grout
@@ -340,6 +361,8 @@ def render(spec: FloorSpec, cx: float, cy: float, theta: float,
     shade = shade0 + spec.shade_spread * (2.0 * _hash(i, j, spec.seed, 1) - 1.0)
     tile = shade * (1.0 + _surface(spec, i, j, fx, fy))
     val = np.where(grout, spec.grout_shade, tile)
+    for mask, level in (m for m in (other, filled) if m is not None):
+        val = np.where(mask, level, val)
     img = val.mean(axis=(2, 3)).astype(np.float32)
     cover = hued.mean(axis=(2, 3)).astype(np.float32) if spec.tint is not None else None
     if corruption is not None:

@@ -128,7 +128,9 @@ def conclude(view: View, refusal: Refusal | None, done: Sequence[Outcome]) -> Co
     :func:`~tileviz.vision.robust.readings.plan`'s passes), or from the ``refusal`` of the
     view's own checks.
 
-    Per pass: when a reading's lines passed (the last of the pass), its outcome decides;
+    Per pass: when a reading's lines passed (the last of the pass), its outcome decides,
+    unless it is the other polarity read after a first reading whose lines passed, and is
+    refused: the first reading's refusal then stands;
     otherwise the pass refuses with its first reading's reason and shows its last reading
     that imposed no polarity. The first pass decides unless the second (without the stray
     part) accepts. ``details``: the view's, then each reading's up to the one shown, in order
@@ -173,6 +175,10 @@ def _pass(done: Sequence[Outcome], idx: list[int]) -> tuple[str, int, int | None
     details the result merges (see :func:`conclude`)."""
     last = idx[-1]
     if done[last].lines_passed:
+        if done[last].reason != "ok" and last != idx[0] and done[idx[0]].lines_passed:
+            # the other polarity read after the first's lines missed the lattice, refused
+            # too: the view read at its own polarity tells why
+            return done[idx[0]].reason, idx[0], idx[0], [idx[0]]
         ok = done[last].reason == "ok"
         return done[last].reason, last, None if ok else last, idx
     shown = max(i for i in idx if done[i].reading.kind != "polarity")

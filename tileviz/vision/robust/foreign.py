@@ -173,9 +173,10 @@ def measurement_band(run: ReadingState) -> float:
     """How far from a grout line (px) its measurement reads the image: a dip's position uses
     its profile out to 4 plateau samples beyond its window c +- (1.5 w + 1.5)
     (:func:`~tileviz.vision.robust.profiles.dips`, w its half-depth width), and never beyond
-    the measurement window ``run.window``; 2 px more for the heading's last correction."""
+    the widest measurement window (``run.window_of``); 2 px more for the heading's last
+    correction."""
     wmax = max(ln.width for fam in run.lines for ln in fam)
-    return min(float(run.window), 1.5 * wmax + 1.5 + 5.0) + 2.0
+    return min(float(max(run.window_of(0), run.window_of(1))), 1.5 * wmax + 1.5 + 5.0) + 2.0
 
 
 def grout_like(run: ReadingState, proj: object, e: tuple[float, float, float, float]) -> bool:

@@ -6,16 +6,17 @@ levels), and the choice of the lines among them.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
-from tileviz.vision.robust import dip_kernel, kernel
+from tileviz.vision.robust import checks, dip_kernel, kernel
 from tileviz.vision.robust.projection import Projection, project
 from tileviz.vision.robust.state import PARTS, Line, ReadingState
 from tileviz.vision.robust.statistics import list_median
 
-__all__ = ["beside_dip", "dips", "grout_contrast", "measure", "measure_parts", "nanmedian",
-           "plateaus", "select_lines"]
+__all__ = ["DipGroup", "beside_dip", "dips", "grout_contrast", "measure", "measure_parts",
+           "nanmedian", "plateaus", "select_lines"]
 
 
 def measure(
@@ -35,23 +36,100 @@ def measure(
 def dips(run: ReadingState, proj: Projection, *, every: bool = False) -> list[list[Line]]:
     """The lines of both families from the dips of their profiles (:func:`profiles`): each
     dip is measured in PARTS equal stretches of the part of its line that every sample of its
-    window (``run.window`` samples each side) sees (so all samples of a part average the same
-    stretch of floor), from the integral image. Every dip of both families is measured at
-    once (vectorised). Only the dips that :func:`select_lines` can keep are measured in parts
-    (at least ``rel_depth`` of the deepest line's depth): the others give no line; with
-    ``every``, every usable dip is (the same lines once :func:`select_lines` has run).
+    window (``run.window_of(k)`` samples each side, family k) sees (so all samples of a part
+    average the same stretch of floor), from the integral image. The dips of a window are
+    measured at once (vectorised). Only the dips that :func:`select_lines` can keep are
+    measured in parts (at least ``rel_depth`` of the deepest line's depth): the others give
+    no line; with ``every``, every usable dip is (the same lines once :func:`select_lines` has
+    run). Sets ``run.unmeasured_width`` and ``run.unmeasured_family`` (the bands too wide for
+    their window, which a wider one may measure).
 
     Missing data is NaN throughout: the caller silences numpy's warnings on it
     (:func:`~tileviz.vision.robust.extractor.extract_robust` does)."""
     run.unmeasured_width = math.nan
+    run.unmeasured_family = (math.nan, math.nan)
     if proj.peak.size == 0:
         return [[], []]
-    r = run.window
-    pk = proj.peak
+    windows = (run.window_of(0), run.window_of(1))
+    if windows[0] == windows[1]:
+        groups = [_dip_group(run, proj, np.arange(proj.peak.size), windows[0])]
+    else:  # a family measured in a wider window of its own
+        groups = [_dip_group(run, proj, np.flatnonzero(proj.fam == k), windows[k])
+                  for k in range(2)]
+    tops = [float(g.depth[g.usable].max()) for g in groups if g.usable.size]
+    if not tops:
+        return [[], []]
+    # every row is measured on its own: a subset of the rows gives the same lines
+    top = max(tops)
+    out: list[list[Line]] = [[], []]
+    unmeasured: list[list[float]] = [[], []]
+    least = checks.CONTRAST_DEPTH.limit(run)
+    measured = [0, 0]
+    for g in groups:
+        if g.usable.size == 0:
+            continue
+        strong = g.usable if every else g.usable[g.depth[g.usable] >= (
+            run.st.selection.rel_depth * top)]
+        lines, got = measure_parts(run, proj, g, strong)
+        if float(g.depth[g.usable].max()) == top and not got[g.depth[strong] == top].any():
+            # the deepest dip gave no line: shallower ones may pass select_lines; its own
+            # half-depth width on the whole profile (half = 1.5 width + 1.5) tells the caller
+            # whether a wider window would measure it (a grout band wider than the window
+            # allows, beside a texture's thin lines)
+            deepest = g.usable[int(np.argmax(g.depth[g.usable]))]
+            run.unmeasured_width = float((g.half[deepest] - 1.5) / 1.5)
+            lines, got = measure_parts(run, proj, g, g.usable)
+            strong = g.usable
+        for i, kept in zip(strong.tolist(), got.tolist(), strict=True):
+            k = int(proj.fam[g.rows[i]])
+            if g.depth[i] < run.st.selection.rel_depth * top:
+                continue
+            if kept:
+                measured[k] += 1
+            elif abs(g.c0[i]) + g.half[i] + 4.0 > g.r and g.depth[i] >= least:
+                # a band as deep as a grout line must be (contrast.depth), whose band and
+                # plateaus (4 samples beyond it) reach past the window (kernel.part_rows): a
+                # wider window may measure it
+                unmeasured[k].append(float((g.half[i] - 1.5) / 1.5))
+        for k in range(2):
+            out[k].extend(lines[k])
+    # a family with profiles.wide_family strong bands or more too wide for the window (its
+    # grout, not one wide stain or shadow)
+    run.unmeasured_family = tuple(  # type: ignore[assignment]
+        list_median(unmeasured[k])
+        if len(unmeasured[k]) >= run.st.profiles.wide_family else math.nan
+        for k in range(2))
+    return out
+
+
+class DipGroup(NamedTuple):
+    """Dips of one projection measured in one window ``r`` on their whole profiles: ``rows``
+    (indices into the projection's dips), the sample offsets ``jf`` (-r..r), each dip's
+    padded profile indices ``cols``, the :func:`~tileviz.vision.robust.dip_kernel.dip_rows`
+    arrays (index i: the dip ``rows[i]``) and the ``usable`` ones (indices into ``rows``)."""
+
+    rows: np.ndarray
+    r: int
+    jf: np.ndarray
+    cols: np.ndarray
+    p0: np.ndarray
+    depth: np.ndarray
+    c0: np.ndarray
+    half: np.ndarray
+    u_lo: np.ndarray
+    step: np.ndarray
+    lev_l: np.ndarray
+    lev_r: np.ndarray
+    usable: np.ndarray
+
+
+def _dip_group(run: ReadingState, proj: Projection, rows: np.ndarray, r: int) -> DipGroup:
+    """The dips ``rows`` of ``proj`` measured on their whole profiles in a window of ``r``
+    samples each side."""
     jj = np.arange(-r, r + 1)
-    jf = jj.astype(np.float64)
+    fam, pk = proj.fam[rows], proj.peak[rows]
     p0, depth, c0, half, u_lo, step, lev_l, lev_r = dip_kernel.dip_rows(
-        proj.prof, proj.dark, proj.lo, proj.hi, proj.fam, pk, r)
+        proj.prof, proj.dark, proj.lo, proj.hi, fam, pk, r)
     # The deepest sample of a wide, flat-bottomed band may lie at either of its edges, half
     # the band off its centre, where the band's far edge and plateau fall outside the window
     # (its parts could not be measured, kernel.part_rows): such a dip is measured again
@@ -61,53 +139,27 @@ def dips(run: ReadingState, proj: Projection, *, every: bool = False) -> list[li
                                         proj.prof.shape[1] - 1 - proj.pad)
     if moved:
         p0, depth, c0, half, u_lo, step, lev_l, lev_r = dip_kernel.dip_rows(
-            proj.prof, proj.dark, proj.lo, proj.hi, proj.fam, pk, r)
-    cols = pk[:, None] + jj[None, :]  # padded profile index
+            proj.prof, proj.dark, proj.lo, proj.hi, fam, pk, r)
     usable = np.flatnonzero(np.isfinite(c0) & (step >= run.st.profiles.min_part / 2.0))
-    if usable.size == 0:
-        return [[], []]
-    # every row is measured on its own: a subset of the rows gives the same lines
-    top = float(depth[usable].max())
-    strong = usable if every else usable[depth[usable] >= run.st.selection.rel_depth * top]
-    meas = (p0, c0, half, depth, u_lo, step, lev_l, lev_r)
-    out = measure_parts(run, proj, strong, cols, jf, *meas)
-    if not any(ln.depth == top for fam_lines in out for ln in fam_lines):
-        # the deepest dip gave no line: shallower ones may pass select_lines; its own
-        # half-depth width on the whole profile (half = 1.5 width + 1.5) tells the caller
-        # whether a wider window would measure it (a grout band wider than the window
-        # allows, beside a texture's thin lines)
-        deepest = usable[int(np.argmax(depth[usable]))]
-        run.unmeasured_width = float((half[deepest] - 1.5) / 1.5)
-        out = measure_parts(run, proj, usable, cols, jf, *meas)
-    return out
+    return DipGroup(rows, r, jj.astype(np.float64), pk[:, None] + jj[None, :], p0, depth, c0,
+                    half, u_lo, step, lev_l, lev_r, usable)
 
 
-def measure_parts(
-    run: ReadingState,
-    proj: Projection,
-    rows: np.ndarray,
-    cols: np.ndarray,
-    jf: np.ndarray,
-    p0: np.ndarray,
-    c0: np.ndarray,
-    half: np.ndarray,
-    depth: np.ndarray,
-    u_lo: np.ndarray,
-    step: np.ndarray,
-    lev_l: np.ndarray,
-    lev_r: np.ndarray,
-) -> list[list[Line]]:
-    """The lines of the dips ``rows`` (indices into the dips of ``proj``), measured in parts
-    (see :func:`dips`; the per-dip arrays are those :func:`dips` computed for every dip)."""
-    r = run.window
+def measure_parts(run: ReadingState, proj: Projection, g: DipGroup, idx: np.ndarray
+                  ) -> tuple[list[list[Line]], np.ndarray]:
+    """The lines of the dips ``idx`` (indices into the group ``g``), measured in parts (see
+    :func:`dips`), and for each of ``idx`` whether it gave a line."""
+    r = g.r
+    jf = g.jf
     mean = run.mean
     integ = proj.integ
-    fam = proj.fam[rows]
-    cols = cols[rows]
+    rows = idx
+    fam = proj.fam[g.rows[idx]]
+    cols = g.cols[idx]
     pk = cols[:, r]  # each dip's centre sample (padded index)
-    p0, c0, half, depth = p0[rows], c0[rows], half[rows], depth[rows]
-    u_lo, step = u_lo[rows], step[rows]
-    lev_l, lev_r = lev_l[rows], lev_r[rows]
+    p0, c0, half, depth = g.p0[idx], g.c0[idx], g.half[idx], g.depth[idx]
+    u_lo, step = g.u_lo[idx], g.step[idx]
+    lev_l, lev_r = g.lev_l[idx], g.lev_r[idx]
     x0, y0 = run.centre
     idx, count, tpart, line, cj, hj = dip_kernel.part_layout(
         fam, u_lo, step, x0, y0, cols, proj.pad, integ.shape[0] + integ.shape[1], c0, half)
@@ -124,7 +176,8 @@ def measure_parts(
     wmed_l, rmed_l, stepr_l = wmed.tolist(), rmed.tolist(), stepr.tolist()
     cmed_l, gmed_l = cmed.tolist(), gmed.tolist()
     part_contrast = contrast.reshape(rows.size, PARTS)
-    for i in np.flatnonzero(np.isfinite(parts).any(axis=1)).tolist():
+    got = np.isfinite(parts).any(axis=1)
+    for i in np.flatnonzero(got).tolist():
         out[fam_l[i]].append(
             Line(
                 depth=depth_l[i],
@@ -143,7 +196,7 @@ def measure_parts(
                 reach=reach[i],
             )
         )
-    return out
+    return out, got
 
 
 def grout_contrast(pp: np.ndarray, jf: np.ndarray, cj: np.ndarray, hj: np.ndarray,
@@ -206,7 +259,7 @@ def beside_dip(run: ReadingState, k: int, line: Line, reach: float = math.inf,
         return 0.0, []
     d = np.where(np.isnan(proj.prof[k]), -np.inf, proj.dark[k])
     c = int(round(at)) + proj.pad
-    r = run.window if reach >= run.window else int(reach)
+    r = run.window_of(k) if reach >= run.window_of(k) else int(reach)
     lo, hi = max(c - r, 0), min(c + r + 1, d.size)
     near = max(int(math.ceil(0.5 * line.width)) + 2, 1) if math.isfinite(line.width) else 2
     a, b = max(c - near, lo), min(c + near + 1, hi)

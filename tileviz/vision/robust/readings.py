@@ -38,9 +38,12 @@ measured beside the grout in one part). In each pass:
    without a line left out, is preferred.
 
 A pass stops at the first reading whose lines pass the line checks: its lattice, bound and
-foreign-edge checks decide the pass. The result is the first pass's unless the second
-accepts the view. When no reading of a pass passes, the pass refuses with its first
-reading's reason and shows the lines of its last heading read (:func:`conclude`).
+foreign-edge checks decide the pass; when that is the first reading and its lines miss the
+lattice (:data:`OFF_LATTICE_REASONS`), the view is read once more at the other polarity, which
+decides the pass when accepted (else the first reading's refusal stands). The result is the
+first pass's unless the second accepts the view. When no reading of a pass passes, the pass
+refuses with its first reading's reason and shows the lines of its last heading read
+(:func:`conclude`).
 
 Adding a reading: a field of :class:`~tileviz.vision.decision.Reading` that
 :class:`~tileviz.vision.robust.state.ReadingState` (or a step) acts on, and one line in
@@ -83,8 +86,8 @@ from tileviz.vision.robust.periodic import on_lattice
 from tileviz.vision.robust.profiles import measure, select_lines
 from tileviz.vision.robust.state import Line, ReadingState, View
 
-__all__ = ["UNSEEN_REASONS", "RETRY_REASONS", "STAGES", "Outcome", "Stage", "decide",
-           "plan", "read", "read_lines"]
+__all__ = ["OFF_LATTICE_REASONS", "RETRY_REASONS", "STAGES", "UNSEEN_REASONS", "Outcome",
+           "Stage", "decide", "plan", "read", "read_lines"]
 
 RETRY_REASONS = frozenset(
     {"no lines", "low contrast", "one family", "blurred", "step edge", "inconsistent angle",
@@ -98,6 +101,13 @@ faint ones, one family), unlike a foreign line or a bent one: after them the sha
 near those read are read, and then, every heading having failed, each heading again with the
 grout's other polarity (reading dark grout as lighter, or the reverse, finds no line, or only
 shallow ones)."""
+
+OFF_LATTICE_REASONS = frozenset({"inconsistent spacing"})
+"""Refusals of a first reading whose lines passed the line checks but do not make one lattice
+(a predicted line not seen, a line off the spacing): the view is then read once more at the
+grout's other polarity. The polarity is decided from the profiles' narrow peaks and dips, and
+joints filled with a material of the other polarity (light dirt in a mosaic's dark joints)
+make strong narrow peaks of their own: the lines read are then those joints, not the grout."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -185,6 +195,13 @@ def read_lines(run: ReadingState, y3: float, t: float) -> tuple[list[list[Line]]
         if need > run.window:
             run.window = need
             lines = on_lattice(run, select_lines(run, measure(run, y3, attempt + 1)))
+        # a family whose strong bands the window could not measure (its grout wider than the
+        # other family's): that family alone is measured again in a window fitting them
+        wider = tuple(_fitting(run, w) for w in run.unmeasured_family)
+        if any(r > run.window_of(k) for k, r in enumerate(wider)):
+            run.family_window = (max(run.family_window[0], wider[0]),
+                                 max(run.family_window[1], wider[1]))
+            lines = on_lattice(run, select_lines(run, measure(run, y3, attempt + 1)))
         if run.reading.unlike:
             leave_out_unlike(run, lines)
         tilt = fit_tilt(run, lines)
@@ -199,6 +216,15 @@ def read_lines(run: ReadingState, y3: float, t: float) -> tuple[list[list[Line]]
     run.lines = lines
     run.y3 = y3
     return lines, y3, t
+
+
+def _fitting(run: ReadingState, width: float) -> int:
+    """The half-window (samples) that measures a band of half-depth ``width`` px (0 for
+    NaN), at most the widest."""
+    if not math.isfinite(width):
+        return 0
+    pst = run.st.profiles
+    return min(int(math.ceil(pst.window_per_width * width + pst.window_margin)), run.widest)
 
 
 class Headings:
@@ -338,6 +364,9 @@ def plan(view: View, done: Sequence[Outcome], timings: dict[str, float]) -> Iter
         first = Reading(view.heading, "first heading", stray=stray)
         yield first
         if done[start].lines_passed:
+            if done[start].reason in OFF_LATTICE_REASONS:
+                yield replace(first, polarity="dark" if done[start].inverted else "light",
+                              kind="polarity")
             continue
         for stage in STAGES:
             if done[start].reason not in stage.after:

@@ -137,6 +137,13 @@ class ProfileSettings:
     its half-depth width + ``window_margin`` (up to the widest)."""
     window_margin: float = 12.0
     """See ``window_per_width``, samples."""
+    wide_family: int = 2
+    """A family with this many strong dips or more (``selection.rel_depth`` of the deepest,
+    and as deep as ``contrast.depth`` asks of a line) that the window cannot measure (band
+    and plateaus reach past it) is measured again in a
+    window of its own fitting their median half-depth width (``window_per_width``): its grout
+    is wider than the other family's (the two families of joints of a mosaic), not one stain
+    or shadow."""
     min_part: float = 20.0
     """Shortest stretch of a line measured on its own (a part), px."""
 

@@ -188,7 +188,16 @@ class ReadingState:
         # half-depth width (px) of the deepest dip when the window could not measure it in
         # parts (NaN otherwise; set by profiles.dips): a wider window is tried
         self.unmeasured_width = math.nan
+        # per family, the half-depth width (px) of its strong dips that the window could not
+        # measure in parts (NaN when none; set by profiles.dips), and the wider window such a
+        # family is measured in (0: ``window``)
+        self.unmeasured_family: tuple[float, float] = (math.nan, math.nan)
+        self.family_window: tuple[int, int] = (0, 0)
         self.projection: Any = None  # the last profiles.Projection (reused by a wider window)
+
+    def window_of(self, k: int) -> int:
+        """The half-size of the window family ``k``'s dips are measured in (samples)."""
+        return max(self.window, self.family_window[k])
 
     def lap(self, name: str, t0: float) -> float:
         """Add the time since ``t0`` (perf_counter, s) to stage ``name`` (ms); the time now."""
