@@ -1068,3 +1068,25 @@ def test_joints_filled_with_light_dirt_are_read_at_the_grouts_own_polarity() -> 
         else:
             assert dec.refused_in == 0 and dec.refusal is not None
             assert dec.refusal.check == "spacing.missing", dec.refusal
+
+
+def test_the_other_polarity_refused_too_leaves_the_first_readings_refusal() -> None:
+    """A pass's decision (``extractor._pass``): the other polarity, read after a first reading
+    whose lines passed but missed the lattice, decides when accepted; refused too, the first
+    reading's refusal is the view's. A polarity reading of the unseen-lines stage (the first
+    reading's lines did not pass) still reports its own refusal."""
+    from types import SimpleNamespace
+
+    from tileviz.vision.robust.extractor import _pass
+
+    def outcome(kind: str, passed: bool, reason: str) -> SimpleNamespace:
+        return SimpleNamespace(reading=SimpleNamespace(kind=kind), lines_passed=passed,
+                               reason=reason)
+
+    first = outcome("first", True, "inconsistent spacing")
+    done = [first, outcome("polarity", True, "foreign line")]
+    assert _pass(done, [0, 1]) == ("inconsistent spacing", 0, 0, [0])  # type: ignore[arg-type]
+    done = [first, outcome("polarity", True, "ok")]
+    assert _pass(done, [0, 1]) == ("ok", 1, None, [0, 1])  # type: ignore[arg-type]
+    done = [outcome("first", False, "no lines"), outcome("polarity", True, "imprecise")]
+    assert _pass(done, [0, 1]) == ("imprecise", 1, 1, [0, 1])  # type: ignore[arg-type]

@@ -106,8 +106,8 @@ class FloorSpec:
     fill: tuple[int, float, float] | None = None
     """Every n-th joint of each family (joint index k % n == 0) filled along its centre line
     with another material: (n, the share of the joint's width filled, its shade), else None
-    (dirt in a paver mosaic's joints). No family draws it; with ``second``, only on a floor
-    laid on the lattice (no ``lattice_tolerance``, no ``panel``)."""
+    (dirt in a paver mosaic's joints). No family draws it. Both only on a floor laid on the
+    lattice (no ``lattice_tolerance``, no ``panel``: :func:`render` raises ValueError)."""
 
     @property
     def model(self) -> FloorModel:
@@ -328,6 +328,10 @@ def render(spec: FloorSpec, cx: float, cy: float, theta: float,
     fy = Y - j
     i, j, fx, fy = np.broadcast_arrays(i, j, fx, fy)
     half = 0.5 * spec.grout_px / ppm / L
+    if (spec.second is not None or spec.fill is not None) and (
+            spec.lattice_tolerance > 0 or spec.panel):
+        raise ValueError("floorgen: second and fill draw a floor laid on the lattice "
+                         "(no lattice_tolerance, no panel)")
     other: tuple[np.ndarray, float] | None = None  # joints of another width and shade
     filled: tuple[np.ndarray, float] | None = None  # joints filled with another material
     if spec.lattice_tolerance > 0 or spec.panel:

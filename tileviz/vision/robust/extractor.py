@@ -24,7 +24,7 @@ from tileviz.vision.result import BAG_HORIZONTAL, BAG_VERTICAL, VisionResult
 from tileviz.vision.robust import lattice_kernel
 from tileviz.vision.robust.checks import Record, Refusal
 from tileviz.vision.robust.heading import first_heading
-from tileviz.vision.robust.readings import Outcome, decide
+from tileviz.vision.robust.readings import OFF_LATTICE_REASONS, Outcome, decide
 from tileviz.vision.robust.settings import DEFAULT_SETTINGS, RobustSettings
 from tileviz.vision.robust.state import Scale, View, check_scale
 from tileviz.vision.robust.statistics import gray_statistics, noise_sigma
@@ -175,10 +175,12 @@ def _pass(done: Sequence[Outcome], idx: list[int]) -> tuple[str, int, int | None
     details the result merges (see :func:`conclude`)."""
     last = idx[-1]
     if done[last].lines_passed:
-        if done[last].reason != "ok" and last != idx[0] and done[idx[0]].lines_passed:
+        first = done[idx[0]]
+        if (done[last].reason != "ok" and done[last].reading.kind == "polarity"
+                and first.lines_passed and first.reason in OFF_LATTICE_REASONS):
             # the other polarity read after the first's lines missed the lattice, refused
             # too: the view read at its own polarity tells why
-            return done[idx[0]].reason, idx[0], idx[0], [idx[0]]
+            return first.reason, idx[0], idx[0], [idx[0]]
         ok = done[last].reason == "ok"
         return done[last].reason, last, None if ok else last, idx
     shown = max(i for i in idx if done[i].reading.kind != "polarity")

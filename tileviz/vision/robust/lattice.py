@@ -11,6 +11,7 @@ from tileviz.vision.geometry import QUARTER, family_normals
 from tileviz.vision.robust import checks, lattice_kernel
 from tileviz.vision.robust.bound import frame_bound
 from tileviz.vision.robust.state import Line, ReadingState
+from tileviz.vision.robust.statistics import list_median
 
 __all__ = ["clip_line", "lattice_offsets", "measured_period",
            "missing_lines", "normalise"]
@@ -156,8 +157,13 @@ def missing_lines(run: ReadingState, k: int, ref: float, found: np.ndarray, y3: 
     (compiled: :func:`~tileviz.vision.robust.lattice_kernel.missing_line`)."""
     n = family_normals(y3)[k]
     reach = 0.5 * math.hypot(run.w, run.h)
+    # the grout's width; a family measured in a window of its own (profiles.wide_family) has
+    # wider grout than the other: its own lines' median width when wider
+    width = run.details["width"]
+    if run.family_window[k] and run.lines[k]:
+        width = max(width, list_median([ln.width for ln in run.lines[k]]))
     # a dip is measured over its window and 4 plateau samples on each side
-    margin = math.ceil(1.5 * run.details["width"] + 1.5) + 5
+    margin = math.ceil(1.5 * width + 1.5) + 5
     # the family's dips (the deepest sample of each, px offsets as ``s``): a grout line
     # between two tiles of nearly its own shade (lighter grout beside light tiles) may be
     # too shallow for a line, or too near the border of the view to be measured in parts,
@@ -169,7 +175,7 @@ def missing_lines(run: ReadingState, k: int, ref: float, found: np.ndarray, y3: 
         peak, fam, pad = proj.peak, proj.fam, proj.pad
     centre = run.centre[1] if k == 0 else run.centre[0]
     # a line may lie up to twice the lattice tolerance from where the others put it
-    near = 0.5 * run.details["width"] + 1.5 + 2.0 * run.tol_px
+    near = 0.5 * width + 1.5 + 2.0 * run.tol_px
     missing = lattice_kernel.missing_line(
         n[0], n[1], math.hypot(-n[1], n[0]), ref, run.lp, reach, margin, run.w, run.h,
         run.st.lattice.min_chord, found, peak, fam, k, pad, centre, near,

@@ -22,10 +22,11 @@ __all__ = ["DipGroup", "beside_dip", "dips", "grout_contrast", "measure", "measu
 def measure(
     run: ReadingState, y3: float, attempt: int = 1, *, reuse: bool = True, every: bool = False
 ) -> list[list[Line]]:
-    """The dips of both families at heading y3, measured with the window ``run.window``. The
-    warp and the profiles are computed once per heading (a second call with the same y3 on a
-    later attempt, with a wider window, reuses them unless ``reuse`` is false); on the first
-    attempt, this also decides the grout's polarity. ``every``: see :func:`dips`."""
+    """The dips of both families at heading y3, measured with their windows
+    (``run.window_of``). The warp and the profiles are computed once per heading (a second
+    call with the same y3 on a later attempt, with a wider window, reuses them unless
+    ``reuse`` is false); on the first attempt, this also decides the grout's polarity.
+    ``every``: see :func:`dips`."""
     proj = run.projection if reuse else None
     if attempt == 0 or proj is None or proj.y3 != y3:
         proj = project(run, y3, attempt)
@@ -39,10 +40,11 @@ def dips(run: ReadingState, proj: Projection, *, every: bool = False) -> list[li
     window (``run.window_of(k)`` samples each side, family k) sees (so all samples of a part
     average the same stretch of floor), from the integral image. The dips of a window are
     measured at once (vectorised). Only the dips that :func:`select_lines` can keep are
-    measured in parts (at least ``rel_depth`` of the deepest line's depth): the others give
-    no line; with ``every``, every usable dip is (the same lines once :func:`select_lines` has
-    run). Sets ``run.unmeasured_width`` and ``run.unmeasured_family`` (the bands too wide for
-    their window, which a wider one may measure).
+    measured in parts (at least ``rel_depth`` of the deepest dip's depth; every usable dip
+    when the deepest gave no line): the others give no line; with ``every``, every usable dip
+    is (the same lines once :func:`select_lines` has run). Sets ``run.unmeasured_width`` and
+    ``run.unmeasured_family`` (the bands too wide for their window, which a wider one may
+    measure).
 
     Missing data is NaN throughout: the caller silences numpy's warnings on it
     (:func:`~tileviz.vision.robust.extractor.extract_robust` does)."""
@@ -56,49 +58,43 @@ def dips(run: ReadingState, proj: Projection, *, every: bool = False) -> list[li
     else:  # a family measured in a wider window of its own
         groups = [_dip_group(run, proj, np.flatnonzero(proj.fam == k), windows[k])
                   for k in range(2)]
-    tops = [float(g.depth[g.usable].max()) for g in groups if g.usable.size]
-    if not tops:
+    groups = [g for g in groups if g.usable.size]
+    if not groups:
         return [[], []]
     # every row is measured on its own: a subset of the rows gives the same lines
-    top = max(tops)
+    top = max(float(g.depth[g.usable].max()) for g in groups)
+    strong = [g.usable if every else g.usable[g.depth[g.usable] >= (
+        run.st.selection.rel_depth * top)] for g in groups]
+    measured = [measure_parts(run, proj, g, rows) for g, rows in zip(groups, strong, strict=True)]
+    if not any(got[g.depth[rows] == top].any()
+               for g, rows, (_, got) in zip(groups, strong, measured, strict=True)):
+        # the deepest dip gave no line: shallower ones may pass select_lines; its own
+        # half-depth width on the whole profile (half = 1.5 width + 1.5) tells the caller
+        # whether a wider window would measure it (a grout band wider than the window
+        # allows, beside a texture's thin lines)
+        g = next(g for g in groups if float(g.depth[g.usable].max()) == top)
+        deepest = g.usable[int(np.argmax(g.depth[g.usable]))]
+        run.unmeasured_width = float((g.half[deepest] - 1.5) / 1.5)
+        strong = [g.usable for g in groups]
+        measured = [measure_parts(run, proj, g, g.usable) for g in groups]
     out: list[list[Line]] = [[], []]
     unmeasured: list[list[float]] = [[], []]
     least = checks.CONTRAST_DEPTH.limit(run)
-    measured = [0, 0]
-    for g in groups:
-        if g.usable.size == 0:
-            continue
-        strong = g.usable if every else g.usable[g.depth[g.usable] >= (
-            run.st.selection.rel_depth * top)]
-        lines, got = measure_parts(run, proj, g, strong)
-        if float(g.depth[g.usable].max()) == top and not got[g.depth[strong] == top].any():
-            # the deepest dip gave no line: shallower ones may pass select_lines; its own
-            # half-depth width on the whole profile (half = 1.5 width + 1.5) tells the caller
-            # whether a wider window would measure it (a grout band wider than the window
-            # allows, beside a texture's thin lines)
-            deepest = g.usable[int(np.argmax(g.depth[g.usable]))]
-            run.unmeasured_width = float((g.half[deepest] - 1.5) / 1.5)
-            lines, got = measure_parts(run, proj, g, g.usable)
-            strong = g.usable
-        for i, kept in zip(strong.tolist(), got.tolist(), strict=True):
-            k = int(proj.fam[g.rows[i]])
-            if g.depth[i] < run.st.selection.rel_depth * top:
-                continue
-            if kept:
-                measured[k] += 1
-            elif abs(g.c0[i]) + g.half[i] + 4.0 > g.r and g.depth[i] >= least:
-                # a band as deep as a grout line must be (contrast.depth), whose band and
-                # plateaus (4 samples beyond it) reach past the window (kernel.part_rows): a
-                # wider window may measure it
-                unmeasured[k].append(float((g.half[i] - 1.5) / 1.5))
+    for g, rows, (lines, got) in zip(groups, strong, measured, strict=True):
+        for i, kept in zip(rows.tolist(), got.tolist(), strict=True):
+            if (not kept and g.depth[i] >= run.st.selection.rel_depth * top
+                    and g.depth[i] >= least and abs(g.c0[i]) + g.half[i] + 4.0 > g.r):
+                # a strong band, as deep as a grout line must be (contrast.depth), that gave
+                # no line and whose band and plateaus (4 samples beyond it) reach past the
+                # window (kernel.part_rows): a wider window may measure it
+                unmeasured[int(proj.fam[g.rows[i]])].append(float((g.half[i] - 1.5) / 1.5))
         for k in range(2):
             out[k].extend(lines[k])
-    # a family with profiles.wide_family strong bands or more too wide for the window (its
-    # grout, not one wide stain or shadow)
-    run.unmeasured_family = tuple(  # type: ignore[assignment]
-        list_median(unmeasured[k])
-        if len(unmeasured[k]) >= run.st.profiles.wide_family else math.nan
-        for k in range(2))
+    # a family with profiles.wide_family such bands or more (its grout, not one wide stain or
+    # shadow): their median half-depth width (px)
+    wide = [list_median(u) if len(u) >= run.st.profiles.wide_family else math.nan
+            for u in unmeasured]
+    run.unmeasured_family = (wide[0], wide[1])
     return out
 
 
@@ -145,21 +141,21 @@ def _dip_group(run: ReadingState, proj: Projection, rows: np.ndarray, r: int) ->
                     half, u_lo, step, lev_l, lev_r, usable)
 
 
-def measure_parts(run: ReadingState, proj: Projection, g: DipGroup, idx: np.ndarray
+def measure_parts(run: ReadingState, proj: Projection, g: DipGroup, sel: np.ndarray
                   ) -> tuple[list[list[Line]], np.ndarray]:
-    """The lines of the dips ``idx`` (indices into the group ``g``), measured in parts (see
-    :func:`dips`), and for each of ``idx`` whether it gave a line."""
+    """The lines of the dips ``sel`` (indices into the group ``g``), measured in parts (see
+    :func:`dips`), and for each of ``sel`` whether it gave a line."""
     r = g.r
     jf = g.jf
     mean = run.mean
     integ = proj.integ
-    rows = idx
-    fam = proj.fam[g.rows[idx]]
-    cols = g.cols[idx]
+    rows = sel
+    fam = proj.fam[g.rows[sel]]
+    cols = g.cols[sel]
     pk = cols[:, r]  # each dip's centre sample (padded index)
-    p0, c0, half, depth = g.p0[idx], g.c0[idx], g.half[idx], g.depth[idx]
-    u_lo, step = g.u_lo[idx], g.step[idx]
-    lev_l, lev_r = g.lev_l[idx], g.lev_r[idx]
+    p0, c0, half, depth = g.p0[sel], g.c0[sel], g.half[sel], g.depth[sel]
+    u_lo, step = g.u_lo[sel], g.step[sel]
+    lev_l, lev_r = g.lev_l[sel], g.lev_r[sel]
     x0, y0 = run.centre
     idx, count, tpart, line, cj, hj = dip_kernel.part_layout(
         fam, u_lo, step, x0, y0, cols, proj.pad, integ.shape[0] + integ.shape[1], c0, half)
@@ -242,7 +238,7 @@ def select_lines(run: ReadingState, lines: list[list[Line]]) -> list[list[Line]]
 def beside_dip(run: ReadingState, k: int, line: Line, reach: float = math.inf,
                share: float = math.inf) -> tuple[float, list[int]]:
     """The dips of family ``k``'s whole profile (the last projection) apart from ``line``'s
-    own within its measurement window (``run.window`` samples each side of the line's
+    own within its measurement window (``run.window_of(k)`` samples each side of the line's
     centre, at most ``reach``): the deepest one's darkness over the line's depth (0.0 when
     there is none), and the signed offsets (samples = px, from the line's own deepest sample)
     of those samples whose darkness is at least ``share`` of the line's depth. Apart: every

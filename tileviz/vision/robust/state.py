@@ -188,9 +188,9 @@ class ReadingState:
         # half-depth width (px) of the deepest dip when the window could not measure it in
         # parts (NaN otherwise; set by profiles.dips): a wider window is tried
         self.unmeasured_width = math.nan
-        # per family, the half-depth width (px) of its strong dips that the window could not
-        # measure in parts (NaN when none; set by profiles.dips), and the wider window such a
-        # family is measured in (0: ``window``)
+        # per family, the median half-depth width (px) of its strong dips that the window
+        # could not measure in parts (NaN when fewer than profiles.wide_family; set by
+        # profiles.dips), and the wider window such a family is measured in (0: ``window``)
         self.unmeasured_family: tuple[float, float] = (math.nan, math.nan)
         self.family_window: tuple[int, int] = (0, 0)
         self.projection: Any = None  # the last profiles.Projection (reused by a wider window)
