@@ -35,6 +35,10 @@ __all__ = ["VIEW_REASONS", "read_robust"]
 VIEW_REASONS = frozenset({"constant image", "glare"})
 """Refusals of a whole view, before any line is read: no checkerboard is looked for."""
 
+FIRST_LINES = "first.lines"
+"""The check that a reading accepted on another image explains the first reading's lines
+(:func:`_explains_first`); its refusal is final."""
+
 Candidate = tuple[float, Callable[[], np.ndarray]]
 """A view to read: its number (``details["projection"]``) and how to make it (HxW uint8)."""
 
@@ -74,7 +78,7 @@ def read_robust(gray: np.ndarray, image: np.ndarray, camera: CameraConfig, tile_
     got, first = _first_accepted(views, gray, timings, floor, read, camera.ppm, lp)
     refusal = first.decision.refusal if first.decision is not None else None
     if got is not None or first.reason in VIEW_REASONS or (
-            refusal is not None and refusal.check == "first.lines"):
+            refusal is not None and refusal.check == FIRST_LINES):
         return got or first
     recognised = _recognise(views, gray, camera.ppm, lp, timings, floor, read)
     return recognised or first
@@ -235,7 +239,7 @@ def _explains_first(first: VisionResult, got: VisionResult, shape: tuple[int, ..
         off = abs(s - lp * round(s / lp))
         along = abs(-n[1] * mx + n[0] * my)
         worst = max(worst, abs(turn) / head, off / (pos + along * head))
-    return _with_checks(got, (CheckResult("first.lines", worst, 1.0, "<=", worst <= 1.0),))
+    return _with_checks(got, (CheckResult(FIRST_LINES, worst, 1.0, "<=", worst <= 1.0),))
 
 
 def _with_checks(got: VisionResult, checks: tuple[CheckResult, ...]) -> VisionResult:

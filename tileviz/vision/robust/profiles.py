@@ -81,20 +81,21 @@ def dips(run: ReadingState, proj: Projection, *, every: bool = False) -> list[li
     unmeasured: list[list[float]] = [[], []]
     least = checks.CONTRAST_DEPTH.limit(run)
     for g, rows, (lines, got) in zip(groups, strong, measured, strict=True):
-        for i, kept in zip(rows.tolist(), got.tolist(), strict=True):
-            if (not kept and g.depth[i] >= run.st.selection.rel_depth * top
-                    and g.depth[i] >= least and abs(g.c0[i]) + g.half[i] + 4.0 > g.r):
-                # a strong band, as deep as a grout line must be (contrast.depth), that gave
-                # no line and whose band and plateaus (4 samples beyond it) reach past the
-                # window (kernel.part_rows): a wider window may measure it
-                unmeasured[int(proj.fam[g.rows[i]])].append(float((g.half[i] - 1.5) / 1.5))
+        # the strong bands, as deep as a grout line must be (contrast.depth), that gave no
+        # line and whose band and plateaus (4 samples beyond it) reach past the window
+        # (kernel.part_rows): a wider window may measure them
+        depth = g.depth[rows]
+        wide = rows[~got & (depth >= run.st.selection.rel_depth * top) & (depth >= least)
+                    & (np.abs(g.c0[rows]) + g.half[rows] + 4.0 > g.r)]
+        fam, width = proj.fam[g.rows[wide]], (g.half[wide] - 1.5) / 1.5
         for k in range(2):
+            unmeasured[k].extend(width[fam == k].tolist())
             out[k].extend(lines[k])
     # a family with profiles.wide_family such bands or more (its grout, not one wide stain or
     # shadow): their median half-depth width (px)
-    wide = [list_median(u) if len(u) >= run.st.profiles.wide_family else math.nan
-            for u in unmeasured]
-    run.unmeasured_family = (wide[0], wide[1])
+    median = [list_median(u) if len(u) >= run.st.profiles.wide_family else math.nan
+              for u in unmeasured]
+    run.unmeasured_family = (median[0], median[1])
     return out
 
 

@@ -179,7 +179,6 @@ def read_lines(run: ReadingState, y3: float, t: float) -> tuple[list[list[Line]]
     the lines, the corrected heading and the time (perf_counter) after the "profiles" lap. A
     band wider than the measurement window is measured again with a wider one. Sets
     ``run.lines``, ``run.y3`` and ``run.not_straight``."""
-    pst = run.st.profiles
     last = run.st.heading.max_warps - 1
     for attempt in range(last + 1):
         lines = on_lattice(run, select_lines(run, measure(run, y3, attempt)))
@@ -189,9 +188,7 @@ def read_lines(run: ReadingState, y3: float, t: float) -> tuple[list[list[Line]]
             # the deepest dip was too wide for the window: the lines kept are shallower
             # ones (a texture's), the grout band is measured with a window fitting it
             width = max(width, run.unmeasured_width) if math.isfinite(width) else width
-        need = run.widest
-        if math.isfinite(width):
-            need = min(int(math.ceil(pst.window_per_width * width + pst.window_margin)), need)
+        need = _fitting(run, width) if math.isfinite(width) else run.widest
         if need > run.window:
             run.window = need
             lines = on_lattice(run, select_lines(run, measure(run, y3, attempt + 1)))
