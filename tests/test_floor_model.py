@@ -61,18 +61,20 @@ def test_a_sharper_camera_reads_at_least_as_many_views_of_a_hand_laid_floor() ->
 
 
 def test_the_declared_tolerance_is_in_the_view_bound() -> None:
-    """The same view declared with a tolerance of 2 mm: a bound at least 2 mm larger
-    (every part of it may lie that far off), and a tolerance of 0 is the perfect lattice."""
+    """The same view declared with a tolerance of 4 mm: a larger bound, of at least 4 mm (a
+    floor whose every line lies 4 mm off the lattice moves the view that far), and a tolerance
+    of 0 is the perfect lattice."""
     cfg = preset("default")
     img = FloorRenderer(cfg.floor, cfg.camera).render(Pose(0.3, 0.2, 0.25))
     base = extract(img, camera=cfg.camera, tile_size=1.0, vision=cfg.vision)
     zero = extract(img, camera=cfg.camera, tile_size=1.0, vision=cfg.vision,
                    floor=FloorModel("grout", 0.0))
     wide = extract(img, camera=cfg.camera, tile_size=1.0, vision=cfg.vision,
-                   floor=FloorModel("grout", 0.002))
+                   floor=FloorModel("grout", 0.004))
     assert base.observation == zero.observation
     assert wide.observation is not None and base.observation is not None
-    assert wide.observation.position_error >= base.observation.position_error + 0.002 - 1e-12
+    assert wide.observation.position_error >= 0.004
+    assert wide.observation.position_error > base.observation.position_error
     assert wide.observation.heading_error > base.observation.heading_error
 
 

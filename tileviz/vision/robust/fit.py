@@ -40,8 +40,8 @@ def fit_tilt(run: ReadingState, lines: list[list[Line]]) -> float:
     m = len(every)
     if m == 0:
         run.details["straightness_px"] = 0.0
-        run.part_bound = np.zeros(0)
-        run.part_band = np.zeros(0)
+        run.part_bound = run.part_band = run.part_t = run.part_p = np.zeros(0)
+        run.part_line = np.zeros(0, np.intp)
         run.details["heading_parts"] = 0.0
         run.details["heading_se"] = math.inf
         run.details["tilt_gap"] = 0.0
@@ -49,13 +49,14 @@ def fit_tilt(run: ReadingState, lines: list[list[Line]]) -> float:
     spreads = part_spreads(run, lines)
     sigma = np.array([ln.sigma for ln in every])
     wpart = np.array([np.where(blind[id(ln)], 0.0, ln.wpart) for ln in every])
+    tpart = np.array([ln.tpart for ln in every])
+    ppart = np.array([ln.parts for ln in every])
     # what the band-shape terms (a shouldered line's reach, a band beside) add to the parts'
     # bounds, in the fit's order of parts (details heading_band, position_band: shown, not
     # allowed for by the bound checks)
     run.part_band = (spreads - np.array([ln.spread for ln in every]))[wpart > 0]
     eps, pos, var, g, d_eps, part_bound, straight, heading_se, tilt_gap = fit_kernel.fit_arrays(
-        wpart, np.array([ln.tpart for ln in every]),
-        np.array([ln.parts for ln in every]), sigma, spreads, len(lines[0]), st.part_sigmas,
+        wpart, tpart, ppart, sigma, spreads, len(lines[0]), st.part_sigmas,
         st.prior_dof * st.prior_sigma**2, st.prior_dof, run.st.lines.straight_part_share,
         2.0 * run.tol_px)
     run.details["straightness_px"] = straight
@@ -67,6 +68,10 @@ def fit_tilt(run: ReadingState, lines: list[list[Line]]) -> float:
         run.details["heading_tolerance"] = tol * float(np.abs(d_eps).sum())
         tilt_gap = _tolerated_gap(lines, tilt_gap, tol)
     run.part_bound = part_bound
+    run.tilt = eps
+    measured = wpart > 0  # the fit's order of parts: line by line, along each line
+    run.part_t, run.part_p = tpart[measured], ppart[measured]
+    run.part_line = np.nonzero(measured)[0]
     run.details["heading_parts"] = float(np.dot(np.abs(d_eps), part_bound))
     run.details["heading_band"] = float(np.dot(np.abs(d_eps), run.part_band))
     for i, ln in enumerate(every):

@@ -10,7 +10,8 @@ kernels (each dip on its whole profile, its parts, each line's medians) are in
 :mod:`~tileviz.vision.robust.heading_kernel`, the common fit of the lines' parts in
 :mod:`~tileviz.vision.robust.fit_kernel`, the lattice's missing-line check and line clipping in
 :mod:`~tileviz.vision.robust.lattice_kernel`, the foreign-edge search's in
-:mod:`~tileviz.vision.robust.foreign_kernel`.
+:mod:`~tileviz.vision.robust.foreign_kernel`, the set of lattices the lines allow in
+:mod:`~tileviz.vision.robust.feasible_kernel`.
 
 Every operation is the numpy one in the same order: sums over a profile are numpy's pairwise
 sums (:func:`_pairwise`, the order ``ndarray.sum`` adds a contiguous row in), medians sort the

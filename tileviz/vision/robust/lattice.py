@@ -10,10 +10,11 @@ import numpy as np
 from tileviz.vision.geometry import QUARTER, family_normals
 from tileviz.vision.robust import checks, lattice_kernel
 from tileviz.vision.robust.bound import frame_bound
+from tileviz.vision.robust.feasible_kernel import relaxed_ranges
 from tileviz.vision.robust.state import Line, ReadingState
 from tileviz.vision.robust.statistics import list_median
 
-__all__ = ["clip_line", "lattice_offsets", "measured_period",
+__all__ = ["clip_line", "feasible_terms", "lattice_offsets", "measured_period",
            "missing_lines", "normalise"]
 
 
@@ -66,6 +67,8 @@ def lattice_offsets(run: ReadingState, lines: list[list[Line]], y3: float) -> No
     x0, y0 = run.centre
     lp = run.lp
     ys: list[float] = []
+    refs: list[float] = []
+    terms: list[float] = []  # each family's parts' term of the bound (px)
     worst = 0.0
     se = 0.0
     # a line wider than the view's narrowest may be the grout and something beside it (a
@@ -89,6 +92,7 @@ def lattice_offsets(run: ReadingState, lines: list[list[Line]], y3: float) -> No
         g = np.add.accumulate(w_arr[:, None] * np.array([ln.infl for ln in fam]),
                               axis=0)[-1] / w_arr.sum()
         parts_k = float(np.dot(np.abs(g), run.part_bound))
+        terms.append(parts_k)
         run.details["position_parts"] = max(run.details.get("position_parts", 0.0),
                                              parts_k)
         run.details["position_band"] = max(run.details.get("position_band", 0.0),
@@ -105,6 +109,7 @@ def lattice_offsets(run: ReadingState, lines: list[list[Line]], y3: float) -> No
                                              0.5 * float(np.dot(w_arr, excess) / w_arr.sum()))
         var = np.array([ln.var for ln in fam])
         se = max(se, math.sqrt(float(np.dot(w_arr * w_arr, var))) / float(w_arr.sum()))
+        refs.append(ref)
         ys.append(-ref / run.ppm)  # eq. 4.6 corrected: y_k = -s_k mod L
         measured_period(run, s_arr, ref)
         missing_lines(run, k, ref, s_arr, y3)
@@ -114,6 +119,7 @@ def lattice_offsets(run: ReadingState, lines: list[list[Line]], y3: float) -> No
     for k, fam in enumerate(lines):
         rec.require(checks.EVIDENCE, run, sum(ln.chord for ln in fam), subject=FAMILY[k])
     run.details["position_se_px"] = se
+    feasible_terms(run, lines, refs, terms)
     pos_px, head = frame_bound(run, se)
     run.details["bound_px"] = pos_px
     run.details["bound_rad"] = head
@@ -128,6 +134,45 @@ def lattice_offsets(run: ReadingState, lines: list[list[Line]], y3: float) -> No
                 + (run.st.fit.sigmas + 1.0) * run.tol_px)
     rec.require(checks.BOUND_HEADING, run, head, run.details.get("heading_tolerance", 0.0))
     run.y = normalise(ys[0], ys[1], y3, run.tile_size)
+
+
+def feasible_terms(run: ReadingState, lines: list[list[Line]], refs: list[float],
+                   terms: list[float]) -> None:
+    """Replace the parts' terms of the bound (``position_parts``, ``heading_parts``) by the
+    distance from the estimate to the far ends of the lattices that the parts of every line
+    but one allow, each part within its own bound (docs/vision.md, "The bound of a view";
+    :func:`~tileviz.vision.robust.feasible_kernel.relaxed_ranges`), where that is less: one
+    line whose parts lie beyond their bounds (a joint farther off than the tolerance, a band
+    read beside the grout) cannot move the set off the truth. ``refs`` are the families'
+    offsets (px, the estimate, as ``s`` in :func:`lattice_offsets`) and ``terms`` their parts'
+    terms from the fit (px); each part belongs to the ideal line nearest its own line's
+    offset. ``details["feasible"]``: 1 when the parts allow a lattice, 0 when none (the terms
+    stay the fit's), NaN when the set is unbounded (a family's lone line left out: the terms
+    stay the fit's)."""
+    every = lines[0] + lines[1]
+    line = run.part_line
+    fam = (line >= len(lines[0])).astype(np.intp)
+    sign = np.where(fam == 0, 1.0, -1.0)
+    centre = np.where(fam == 0, run.centre[1], run.centre[0])
+    # a part's line, at the signed offset s = -(pos - centre), is the ideal line n periods
+    # from its family's offset o: the part says -o + sign t eps = p - centre + n L ppm
+    s_line = -(np.array([ln.pos for ln in every])[line] - centre)
+    n = np.rint((s_line - np.asarray(refs)[fam]) / run.lp)
+    status, ranges = relaxed_ranges(sign * run.part_t, run.part_p - centre + n * run.lp,
+                                    run.part_bound, fam, line)
+    d = run.details
+    d["feasible"] = 1.0 if status == 0 else 0.0 if status == 1 else math.nan
+    # the fit's own terms, shown beside the ones the bound takes
+    d["position_fit"] = max(terms)
+    d["heading_fit"] = d["heading_parts"]
+    if status != 0:
+        return
+    eps = run.tilt
+    d["heading_parts"] = min(d["heading_parts"],
+                             max(eps - ranges[0, 0], ranges[0, 1] - eps))
+    d["position_parts"] = max(
+        min(terms[k], max(refs[k] - ranges[1 + k, 0], ranges[1 + k, 1] - refs[k]))
+        for k in range(2))
 
 
 def measured_period(run: ReadingState, s: np.ndarray, ref: float) -> None:
