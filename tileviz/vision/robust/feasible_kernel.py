@@ -7,7 +7,7 @@ residual tilt (rad), a_i the part's tangent coordinate signed as the fit's famil
 its position relative to the ideal line it belongs to
 (:func:`~tileviz.vision.robust.lattice.feasible_terms`). The lattices that every part allows
 form a convex polygon in (eps, o_1, o_2); :func:`feasible_ranges` gives its extent along each
-axis exactly (up to the rounding of the bisection, which only widens it), and
+axis exactly, and
 :func:`relaxed_ranges` the extent of the lattices that the parts of every line but one allow.
 The truth lies in the first whenever every part is within its bound, in the second whenever
 every line's but one's are; the distance from the estimate to the set's far ends then bounds
@@ -21,10 +21,6 @@ import numpy as np
 from tileviz.vision.robust.kernel import compiled
 
 __all__ = ["feasible_ranges", "relaxed_ranges"]
-
-_HALVINGS = 60
-"""Bisection steps for the least offset (the interval shrinks 2**60 times)."""
-
 
 @compiled
 def _tilt_range(a: np.ndarray, lo: np.ndarray, hi: np.ndarray, fam: np.ndarray,
@@ -53,53 +49,36 @@ def _tilt_range(a: np.ndarray, lo: np.ndarray, hi: np.ndarray, fam: np.ndarray,
 
 
 @compiled
-def _envelope(a: np.ndarray, c: np.ndarray, fam: np.ndarray, k: int, eps: float,
-              sign: float) -> tuple[float, float]:
-    """``sign`` x the upper envelope ``max_i sign (a_i eps - c_i)`` of family ``k``'s parts at
-    ``eps`` (the lower envelope's min for sign -1) and its slope there (the active part's
-    ``sign a_i``, the steepest on a tie)."""
-    best = -np.inf
-    slope = 0.0
-    for i in range(a.size):
-        if fam[i] != k:
-            continue
-        v = sign * (a[i] * eps - c[i])
-        s = sign * a[i]
-        if v > best or (v == best and s > slope):
-            best = v
-            slope = s
-    return best, slope
+def _pair_least(ai: float, ci: float, aj: float, cj: float, e_lo: float, e_hi: float) -> float:
+    """The least over eps in [e_lo, e_hi] of ``max(ai eps - ci, aj eps - cj)``: at an end or
+    where the two lines cross (a convex function with one corner)."""
+    best = max(ai * e_lo - ci, aj * e_lo - cj)
+    best = min(best, max(ai * e_hi - ci, aj * e_hi - cj))
+    if ai != aj:
+        x = min(max((ci - cj) / (ai - aj), e_lo), e_hi)
+        best = min(best, max(ai * x - ci, aj * x - cj))
+    return best
 
 
 @compiled
 def _least(a: np.ndarray, c: np.ndarray, fam: np.ndarray, k: int, e_lo: float, e_hi: float,
            sign: float) -> float:
     """The least over eps in [e_lo, e_hi] of the convex ``max_i sign (a_i eps - c_i)`` over
-    family ``k``'s parts, or a little less (the bisection's last interval times the steepest
-    slope)."""
-    lo = e_lo
-    hi = e_hi
-    v_lo, s_lo = _envelope(a, c, fam, k, lo, sign)
-    if s_lo >= 0.0:
-        return v_lo
-    v_hi, s_hi = _envelope(a, c, fam, k, hi, sign)
-    if s_hi <= 0.0:
-        return v_hi
-    steep = 0.0
-    for i in range(a.size):
-        if fam[i] == k:
-            steep = max(steep, abs(a[i]))
-    for _ in range(_HALVINGS):
-        mid = 0.5 * (lo + hi)
-        if not lo < mid < hi:
-            break
-        _, s = _envelope(a, c, fam, k, mid, sign)
-        if s > 0.0:
-            hi = mid
-        else:
-            lo = mid
-    v = min(_envelope(a, c, fam, k, lo, sign)[0], _envelope(a, c, fam, k, hi, sign)[0])
-    return v - steep * (hi - lo)
+    family ``k``'s parts (-inf when it has none). On an interval of one variable the least of
+    a maximum of lines is that of its worst pair (Helly's theorem: two constraints decide a
+    linear programme in one variable), each pair's in closed form."""
+    best = -np.inf
+    n = a.size
+    for i in range(n):
+        if fam[i] != k:
+            continue
+        ai = sign * a[i]
+        ci = sign * c[i]
+        for j in range(i, n):
+            if fam[j] != k:
+                continue
+            best = max(best, _pair_least(ai, ci, sign * a[j], sign * c[j], e_lo, e_hi))
+    return best
 
 
 @compiled
