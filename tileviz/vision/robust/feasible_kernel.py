@@ -22,30 +22,9 @@ from tileviz.vision.robust.kernel import compiled
 
 __all__ = ["feasible_ranges", "relaxed_ranges"]
 
-@compiled
-def _tilt_range(a: np.ndarray, lo: np.ndarray, hi: np.ndarray, fam: np.ndarray,
-                k: int) -> tuple[float, float]:
-    """The tilts eps (rad) at which family ``k``'s parts allow one common offset:
-    ``max_i (a_i eps - hi_i) <= min_j (a_j eps - lo_j)`` for every pair of its parts (an
-    empty range is returned as lower > upper)."""
-    e_lo = -np.inf
-    e_hi = np.inf
-    n = a.size
-    for i in range(n):
-        if fam[i] != k:
-            continue
-        for j in range(n):
-            if fam[j] != k or j == i:
-                continue
-            da = a[i] - a[j]
-            c = hi[i] - lo[j]
-            if da > 0.0:
-                e_hi = min(e_hi, c / da)
-            elif da < 0.0:
-                e_lo = max(e_lo, c / da)
-            elif c < 0.0:
-                return np.inf, -np.inf
-    return e_lo, e_hi
+_DECIDERS = 12
+"""Parts that decide a set's extent: a pair for each end of the tilt's range and of each
+family's offset range."""
 
 
 @compiled
@@ -61,24 +40,73 @@ def _pair_least(ai: float, ci: float, aj: float, cj: float, e_lo: float, e_hi: f
 
 
 @compiled
-def _least(a: np.ndarray, c: np.ndarray, fam: np.ndarray, k: int, e_lo: float, e_hi: float,
-           sign: float) -> float:
-    """The least over eps in [e_lo, e_hi] of the convex ``max_i sign (a_i eps - c_i)`` over
-    family ``k``'s parts (-inf when it has none). On an interval of one variable the least of
-    a maximum of lines is that of its worst pair (Helly's theorem: two constraints decide a
-    linear programme in one variable), each pair's in closed form."""
-    best = -np.inf
+def _extent(a: np.ndarray, lo: np.ndarray, hi: np.ndarray, fam: np.ndarray, keep: np.ndarray,
+            out: np.ndarray, who: np.ndarray) -> int:
+    """The extent of the lattices that the kept parts allow (part i: ``-o_fam + a_i eps`` in
+    [lo_i, hi_i]) into ``out`` (rows eps, o_1, o_2; columns lower, upper) and the parts that
+    decide it into ``who`` (-1: none); the status of :func:`feasible_ranges`.
+
+    The tilt: two parts of one family allow one offset only where ``a_i eps - hi_i <= a_j eps
+    - lo_j``, a half-line of eps for each pair. Each offset's least: the least over the tilt
+    range of the convex ``max_i (a_i eps - hi_i)``, which on an interval of one variable is that
+    of its worst pair (two constraints decide a linear programme in one variable, Helly), each
+    pair's in closed form; its greatest likewise."""
+    out[:] = np.nan
+    who[:] = -1
     n = a.size
+    e_lo = -np.inf
+    e_hi = np.inf
     for i in range(n):
-        if fam[i] != k:
+        if not keep[i]:
             continue
-        ai = sign * a[i]
-        ci = sign * c[i]
-        for j in range(i, n):
-            if fam[j] != k:
+        for j in range(n):
+            if j == i or not keep[j] or fam[j] != fam[i]:
                 continue
-            best = max(best, _pair_least(ai, ci, sign * a[j], sign * c[j], e_lo, e_hi))
-    return best
+            da = a[i] - a[j]
+            c = hi[i] - lo[j]
+            if da > 0.0:
+                if c / da < e_hi:
+                    e_hi = c / da
+                    who[2] = i
+                    who[3] = j
+            elif da < 0.0:
+                if c / da > e_lo:
+                    e_lo = c / da
+                    who[0] = i
+                    who[1] = j
+            elif c < 0.0:  # parallel slabs that do not meet
+                who[:] = -1
+                who[0] = i
+                who[1] = j
+                return 1
+    if e_lo > e_hi:
+        return 1
+    if not (np.isfinite(e_lo) and np.isfinite(e_hi)):
+        return 2
+    out[0, 0] = e_lo
+    out[0, 1] = e_hi
+    for k in range(2):
+        for end in range(2):
+            # lower end: o_k >= a_i eps - hi_i for every part; upper end: -o_k >= -(a_i eps -
+            # lo_i), the same with the signs turned
+            sign = 1.0 if end == 0 else -1.0
+            c = hi if end == 0 else lo
+            best = -np.inf
+            slot = 4 + 4 * k + 2 * end
+            for i in range(n):
+                if not keep[i] or fam[i] != k:
+                    continue
+                for j in range(i, n):
+                    if not keep[j] or fam[j] != k:
+                        continue
+                    v = _pair_least(sign * a[i], sign * c[i], sign * a[j], sign * c[j],
+                                    e_lo, e_hi)
+                    if v > best:
+                        best = v
+                        who[slot] = i
+                        who[slot + 1] = j
+            out[1 + k, end] = sign * best
+    return 0
 
 
 @compiled
@@ -93,26 +121,9 @@ def feasible_ranges(a: np.ndarray, q: np.ndarray, b: np.ndarray,
     for i in range(a.size):
         if not (np.isfinite(a[i]) and np.isfinite(q[i]) and np.isfinite(b[i])):
             return 2, out
-    lo = q - b
-    hi = q + b
-    e_lo = -np.inf
-    e_hi = np.inf
-    for k in range(2):
-        r_lo, r_hi = _tilt_range(a, lo, hi, fam, k)
-        e_lo = max(e_lo, r_lo)
-        e_hi = min(e_hi, r_hi)
-    if e_lo > e_hi:
-        return 1, out
-    if not (np.isfinite(e_lo) and np.isfinite(e_hi)):
-        return 2, out
-    out[0, 0] = e_lo
-    out[0, 1] = e_hi
-    for k in range(2):
-        # o_k >= a_i eps - hi_i for every part: its least is the least of that upper envelope;
-        # o_k <= a_i eps - lo_i: its greatest is minus the least of max_i -(a_i eps - lo_i)
-        out[1 + k, 0] = _least(a, hi, fam, k, e_lo, e_hi, 1.0)
-        out[1 + k, 1] = -_least(a, lo, fam, k, e_lo, e_hi, -1.0)
-    return 0, out
+    who = np.empty(_DECIDERS, np.intp)
+    status = _extent(a, q - b, q + b, fam, np.ones(a.size, np.bool_), out, who)
+    return status, out
 
 
 @compiled
@@ -122,15 +133,28 @@ def relaxed_ranges(a: np.ndarray, q: np.ndarray, b: np.ndarray, fam: np.ndarray,
     be wrong: the union over each group left out in turn of the ranges the others allow. A
     status 0 and the ranges when some group left out leaves a set and none leaves the tilt
     unbounded; 2 when one does (or an input is not finite); 1 when every group left out leaves
-    none."""
+    none. Only the groups of the parts that decide the whole set's extent are left out: leaving
+    out any other leaves the same extent (a constraint not active at a linear programme's
+    optimum does not move it), which every set of all groups but one holds."""
     out = np.full((3, 2), np.nan)
-    found = False
-    for g in np.unique(group):
-        keep = group != g
-        status, r = feasible_ranges(a[keep], q[keep], b[keep], fam[keep])
-        if status == 2:
+    for i in range(a.size):
+        if not (np.isfinite(a[i]) and np.isfinite(q[i]) and np.isfinite(b[i])):
             return 2, out
-        if status == 1:
+    lo = q - b
+    hi = q + b
+    who = np.empty(_DECIDERS, np.intp)
+    status = _extent(a, lo, hi, fam, np.ones(a.size, np.bool_), out, who)
+    if status == 2:
+        return 2, out
+    found = status == 0
+    deciders = np.unique(np.array([group[i] for i in who if i >= 0]))
+    r = np.empty((3, 2))
+    who_g = np.empty(_DECIDERS, np.intp)
+    for g in deciders:
+        s_g = _extent(a, lo, hi, fam, group != g, r, who_g)
+        if s_g == 2:
+            return 2, out
+        if s_g == 1:
             continue
         if not found:
             out[:] = r
