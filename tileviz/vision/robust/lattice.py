@@ -120,19 +120,22 @@ def lattice_offsets(run: ReadingState, lines: list[list[Line]], y3: float) -> No
         rec.require(checks.EVIDENCE, run, sum(ln.chord for ln in fam), subject=FAMILY[k])
     run.details["position_se_px"] = se
     feasible_terms(run, lines, refs, terms)
-    pos_px, head = frame_bound(run, se)
-    run.details["bound_px"] = pos_px
-    run.details["bound_rad"] = head
+    d = run.details
+    # the view declares the bound from the set the parts allow (where tighter than the fit's
+    # sums); whether it is precise enough is judged on the fit's sums
+    d["bound_px"], d["bound_rad"] = frame_bound(run, se, d["position_parts"],
+                                                d["heading_parts"])
+    pos_fit, head_fit = frame_bound(run, se, d["position_fit"], d["heading_fit"])
     # what the tolerance adds to the bound: its part of the parts' term, and at most tol to
     # the scatter's standard error (fit.sigmas of them) and to half a width's excess. What the
     # band-shape terms add (a shouldered line, a band beside a line; details position_band,
     # heading_band) is not allowed for: a view that needs them beyond the limit is refused
     # (a motion-blurred checkerboard read 8 degrees off its heading declared 0.18 rad, 32 px,
-    # and lay 61 px off)
-    rec.require(checks.BOUND_POSITION, run, pos_px,
-                run.details.get("position_tolerance", 0.0)
-                + (run.st.fit.sigmas + 1.0) * run.tol_px)
-    rec.require(checks.BOUND_HEADING, run, head, run.details.get("heading_tolerance", 0.0))
+    # and lay 61 px off; another read 10 degrees off, whose parts' set allowed 0.13 rad of its
+    # 0.36 from the fit's sums: the set's tight parts were blurred alike)
+    rec.require(checks.BOUND_POSITION, run, pos_fit,
+                d.get("position_tolerance", 0.0) + (run.st.fit.sigmas + 1.0) * run.tol_px)
+    rec.require(checks.BOUND_HEADING, run, head_fit, d.get("heading_tolerance", 0.0))
     run.y = normalise(ys[0], ys[1], y3, run.tile_size)
 
 
