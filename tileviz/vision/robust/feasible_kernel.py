@@ -110,6 +110,15 @@ def _extent(a: np.ndarray, lo: np.ndarray, hi: np.ndarray, fam: np.ndarray, keep
 
 
 @compiled
+def _finite(a: np.ndarray, q: np.ndarray, b: np.ndarray) -> bool:
+    """Whether every part's tangent coordinate, position and bound is finite."""
+    for i in range(a.size):
+        if not (np.isfinite(a[i]) and np.isfinite(q[i]) and np.isfinite(b[i])):
+            return False
+    return True
+
+
+@compiled
 def feasible_ranges(a: np.ndarray, q: np.ndarray, b: np.ndarray,
                     fam: np.ndarray) -> tuple[int, np.ndarray]:
     """The extent of the lattices (eps, o_1, o_2) that the parts allow, each part i of family
@@ -118,9 +127,8 @@ def feasible_ranges(a: np.ndarray, q: np.ndarray, b: np.ndarray,
     input not finite) and the ranges as rows [eps, o_1, o_2] x [lower, upper] (a family with
     no part: its offset's range is infinite)."""
     out = np.full((3, 2), np.nan)
-    for i in range(a.size):
-        if not (np.isfinite(a[i]) and np.isfinite(q[i]) and np.isfinite(b[i])):
-            return 2, out
+    if not _finite(a, q, b):
+        return 2, out
     who = np.empty(_DECIDERS, np.intp)
     status = _extent(a, q - b, q + b, fam, np.ones(a.size, np.bool_), out, who)
     return status, out
@@ -137,9 +145,8 @@ def relaxed_ranges(a: np.ndarray, q: np.ndarray, b: np.ndarray, fam: np.ndarray,
     out any other leaves the same extent (a constraint not active at a linear programme's
     optimum does not move it), which every set of all groups but one holds."""
     out = np.full((3, 2), np.nan)
-    for i in range(a.size):
-        if not (np.isfinite(a[i]) and np.isfinite(q[i]) and np.isfinite(b[i])):
-            return 2, out
+    if not _finite(a, q, b):
+        return 2, out
     lo = q - b
     hi = q + b
     who = np.empty(_DECIDERS, np.intp)

@@ -185,9 +185,9 @@ class ReadingState:
         self.part_bound: np.ndarray = np.zeros(0)
         # what the band-shape terms add to each part's bound (px, the same order; fit.fit_tilt)
         self.part_band: np.ndarray = np.zeros(0)
+        self.tilt = 0.0  # the fit's residual tilt (rad; fit.fit_tilt)
         # each measured part's tangent coordinate and position (px) and its line's index in
         # lines[0] + lines[1], the same order (fit.fit_tilt; lattice.feasible_terms)
-        self.tilt = 0.0  # the fit's residual tilt (rad; fit.fit_tilt)
         self.part_t: np.ndarray = np.zeros(0)
         self.part_p: np.ndarray = np.zeros(0)
         self.part_line: np.ndarray = np.zeros(0, np.intp)
