@@ -142,20 +142,20 @@ def test_a_part_with_no_finite_bound_gives_no_ranges() -> None:
 
 
 @pytest.mark.parametrize("family", ["hand_laid", "mosaic"])
-def test_a_floor_laid_off_the_lattice_gets_a_bound_tighter_than_its_summed_tolerance(
+def test_a_floor_laid_off_the_lattice_gets_a_heading_bound_tighter_than_its_summed_tolerance(
         family: str) -> None:
     """Views of floors whose lines lie off the lattice within a declared tolerance (the
-    study's renderer): the lattices the parts of every line but one allow give a tighter bound
-    than the fit's sum
-    of |influence| x (part bound + tolerance), on the heading for most views and on the
-    position for some, never a looser one, and every accepted view holds the truth."""
+    study's renderer): the lattices the parts of every line but one allow give a tighter
+    heading bound than the fit's sum of |influence| x (part bound + tolerance) on most views,
+    and every accepted view holds the truth. The position term is the set's too, which may
+    be wider than the fit's sum: the set allows any one line to be wrong, the sum none."""
     from tileviz.config import CameraConfig, VisionConfig
     from tileviz.testing import floorgen
     from tileviz.testing.views import FAMILY_SALT, _errors
     from tileviz.types import Pose
     from tileviz.vision import extract
 
-    accepted = tighter_heading = tighter_position = 0
+    accepted = tighter_heading = wider_position = 0
     for seed in range(16):
         rng = np.random.default_rng([seed, FAMILY_SALT[family], 9])
         spec = floorgen.draw_floor(family, rng)
@@ -171,10 +171,8 @@ def test_a_floor_laid_off_the_lattice_gets_a_bound_tighter_than_its_summed_toler
         assert _errors(res, spec, Pose(cx, cy, th))[-1], seed  # inside its own bound
         d = res.details
         assert d["feasible"] == 1.0
-        assert d["position_parts"] <= d["position_fit"]
-        assert d["heading_parts"] <= d["heading_fit"]
-        tighter_position += d["position_parts"] < 0.99 * d["position_fit"]
         tighter_heading += d["heading_parts"] < 0.99 * d["heading_fit"]
+        wider_position += d["position_parts"] > 1.01 * d["position_fit"]
     assert accepted >= 12
     assert tighter_heading >= accepted // 2
-    assert tighter_position >= accepted // 4
+    assert wider_position >= 1  # the set's term is declared even where the sum is tighter

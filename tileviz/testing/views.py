@@ -2,10 +2,11 @@
 
 Each view is rendered by :mod:`tileviz.testing.floorgen` from a generator seeded with
 ``[seed, FAMILY_SALT[family], kind]`` (kind 0: a clean view, 1: a corrupted one, 2: a cable along
-a grout line, 3: a short motion blur), so a test and a bench that name the same seed and family
-see the same view. Each function returns a dict of the outcome: accepted, the refusal reason,
-the error of the accepted observation and its declared bound in px (position: the worse of y1,
-y2, modulo the floor's symmetries) and whether the truth is inside that bound.
+a grout line, 3: a short motion blur, 4: a cable crossing a grout line at a small angle), so a
+test and a bench that name the same seed and family see the same view. Each function returns a
+dict of the outcome: accepted, the refusal reason, the error of the accepted observation and its
+declared bound in px (position: the worse of y1, y2, modulo the floor's symmetries) and whether
+the truth is inside that bound.
 """
 
 from __future__ import annotations
@@ -20,7 +21,8 @@ from tileviz.testing import floorgen
 from tileviz.types import Pose
 from tileviz.vision import VisionResult, extract, observation_error
 
-__all__ = ["DETAILS", "FAMILY_SALT", "cable_view", "motion_view", "study_view"]
+__all__ = ["DETAILS", "FAMILY_SALT", "cable_view", "crossing_cable_view", "motion_view",
+           "study_view"]
 
 FAMILY_SALT = {f: i + 1 for i, f in enumerate(floorgen.ALL_FAMILIES)}
 """The second word of every view's seed, by family."""
@@ -77,6 +79,30 @@ def cable_view(seed: int, family: str) -> dict[str, Any]:
         "seed": seed, "family": family, "delta": delta, "width": width, "shade": shade,
         "grout_px": spec.grout_px, "gap": abs(delta) - 0.5 * (width + spec.grout_px),
         "line_s": s}
+    return _outcome(out, img, spec, Pose(cx, cy, th))
+
+
+def crossing_cable_view(seed: int, family: str) -> dict[str, Any]:
+    """A view of ``family`` from ``seed`` with a straight cable of the grout's shade, 0.8..1.6
+    times its width, crossing the grout line of one family nearest the view's centre at
+    ``angle`` (rad, 0.02..0.08 either way) ``t0`` px along it (uniform in [-60, 60] from the
+    point nearest the centre): over the view it lies on that line, then beside it."""
+    rng = np.random.default_rng([seed, FAMILY_SALT[family], 4])
+    spec = floorgen.draw_floor(family, rng)
+    cx, cy, th = floorgen.draw_view(rng)
+    k = int(rng.integers(2))
+    angle = float(rng.uniform(0.02, 0.08)) * (1.0 if rng.uniform() < 0.5 else -1.0)
+    width = float(rng.uniform(0.8, 1.6)) * spec.grout_px
+    t0 = float(rng.uniform(-60.0, 60.0))
+    (gu, gv), s = floorgen.line_offset(spec, cx, cy, th, k)
+    pu, pv = gu * s - gv * t0, gv * s + gu * t0  # the crossing, on the grout line
+    ca, sa = math.cos(angle), math.sin(angle)
+    nu, nv = ca * gu - sa * gv, sa * gu + ca * gv  # the cable's normal
+    img = floorgen.render(spec, cx, cy, th, rng,
+                          overlay=floorgen.band(spec, (nu, nv), nu * pu + nv * pv, width,
+                                                spec.grout_shade))
+    out: dict[str, Any] = {"seed": seed, "family": family, "angle": angle, "width": width,
+                           "t0": t0, "grout_px": spec.grout_px}
     return _outcome(out, img, spec, Pose(cx, cy, th))
 
 

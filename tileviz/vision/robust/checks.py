@@ -72,7 +72,7 @@ On the reading whose lines passed, the lattice and the bound:
 - ``evidence`` (per family): line length in view, px; >= ``lattice.min_evidence`` x the smaller
   side (``too few segments``).
 - ``bound.position``: the view's position bound with the fit's sums as its parts' term
-  (``details["position_fit"]``; the view declares the set's where tighter), px; <= the larger of
+  (``details["position_fit"]``; the view declares the set's), px; <= the larger of
   ``VisionConfig.position_error_px`` and ``bound.max_px``, plus what the lattice tolerance adds
   to the bound (its part of the parts' term, and ``fit.sigmas`` + 1 times it for the scatter and
   a width's excess: ``imprecise``; a declared tolerance alone is never a reason to refuse).

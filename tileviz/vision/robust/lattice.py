@@ -121,8 +121,8 @@ def lattice_offsets(run: ReadingState, lines: list[list[Line]], y3: float) -> No
     run.details["position_se_px"] = se
     feasible_terms(run, lines, refs, terms)
     d = run.details
-    # the view declares the bound from the set the parts allow (where tighter than the fit's
-    # sums); whether it is precise enough is judged on the fit's sums
+    # the view declares the bound from the set the parts allow (one line may be wrong); whether
+    # it is precise enough is judged on the fit's sums
     d["bound_px"], d["bound_rad"] = frame_bound(run, se, d["position_parts"],
                                                 d["heading_parts"])
     pos_fit, head_fit = frame_bound(run, se, d["position_fit"], d["heading_fit"])
@@ -144,14 +144,15 @@ def feasible_terms(run: ReadingState, lines: list[list[Line]], refs: list[float]
     """Replace the parts' terms of the bound (``position_parts``, ``heading_parts``) by the
     distance from the estimate to the far ends of the lattices that the parts of every line
     but one allow, each part within its own bound (docs/vision.md, "The bound of a view";
-    :func:`~tileviz.vision.robust.feasible_kernel.relaxed_ranges`), where that is less: one
-    line whose parts lie beyond their bounds (a joint farther off than the tolerance, a band
-    read beside the grout) cannot move the set off the truth. ``refs`` are the families'
-    offsets (px, the estimate, as ``s`` in :func:`lattice_offsets`) and ``terms`` their parts'
-    terms from the fit (px); each part belongs to the ideal line nearest its own line's
-    offset. ``details["feasible"]``: 1 when the parts allow a lattice, 0 when none (the terms
-    stay the fit's), NaN when the set is unbounded (a family's lone line left out: the terms
-    stay the fit's)."""
+    :func:`~tileviz.vision.robust.feasible_kernel.relaxed_ranges`): one line whose parts lie
+    beyond their bounds (a joint farther off than the tolerance, a cable lying on it) cannot
+    move the set off the truth, though it moves the fit, so the set may reach farther than
+    the fit's terms. ``refs`` are the families' offsets (px, the estimate, as ``s`` in
+    :func:`lattice_offsets`) and ``terms`` their parts' terms from the fit (px); each part
+    belongs to the ideal line nearest its own line's offset. ``details["feasible"]``: 1 when
+    the parts allow a lattice, 0 when none (the terms stay the fit's), NaN when the tilt is
+    unbounded (the terms stay the fit's); a family whose offset the set leaves unbounded (its
+    lone line left out) keeps its fit's term."""
     every = lines[0] + lines[1]
     line = run.part_line
     fam = (line >= len(lines[0])).astype(np.intp)
@@ -171,11 +172,10 @@ def feasible_terms(run: ReadingState, lines: list[list[Line]], refs: list[float]
     if status != 0:
         return
     eps = run.tilt
-    d["heading_parts"] = min(d["heading_parts"],
-                             max(eps - ranges[0, 0], ranges[0, 1] - eps))
-    d["position_parts"] = max(
-        min(terms[k], max(refs[k] - ranges[1 + k, 0], ranges[1 + k, 1] - refs[k]))
-        for k in range(2))
+    d["heading_parts"] = max(eps - ranges[0, 0], ranges[0, 1] - eps)
+    # a family whose lone line is left out has no offset in the set: its fit's term stays
+    reach = [max(refs[k] - ranges[1 + k, 0], ranges[1 + k, 1] - refs[k]) for k in range(2)]
+    d["position_parts"] = max(r if math.isfinite(r) else terms[k] for k, r in enumerate(reach))
 
 
 def measured_period(run: ReadingState, s: np.ndarray, ref: float) -> None:
