@@ -2,7 +2,7 @@
 often outside its own declared bound (a false accept).
 
     python bench/cable_along.py [--views-per-family 100] [--first-seed 0] [--jobs 1]
-                                [--csv out.csv] [--motion] [--write-figures]
+                                [--csv out.csv] [--motion | --crossing] [--write-figures]
     python -m bench.cable_along --motion --views-per-family 80
 
 Floors and cameras as in ``bench/vision_study.py`` (``tileviz/testing/floorgen.py``, every
@@ -17,6 +17,11 @@ grout's edges (negative: they overlap).
 ``--motion``: no cable; instead a short motion blur (2..15 px, shorter than the study's
 15..40 px, at any angle) that smears the grout lines of one family more than the other's into
 ramps, rather than wiping them out. The table groups the views by the blur's length.
+
+``--crossing``: a cable of the grout's shade crossing that grout line at a small angle
+(:func:`~tileviz.testing.views.crossing_cable_view`, 0.02..0.08 rad): over the view it lies on
+the line, then beside it, and one line read as the grout and the cable turns off the lattice.
+The table groups the views by the angle.
 """
 
 from __future__ import annotations
@@ -30,12 +35,14 @@ from contextlib import nullcontext
 
 from tileviz.testing import floorgen
 from tileviz.testing.figures import Machine, write_block
-from tileviz.testing.views import cable_view, motion_view
+from tileviz.testing.views import cable_view, crossing_cable_view, motion_view
 
 GAPS = ((-math.inf, 0.0), (0.0, 3.0), (3.0, 6.0), (6.0, 10.0), (10.0, math.inf))
 """Buckets of the gap between the cable's and the grout's edges (px)."""
 LENGTHS = ((2.0, 4.0), (4.0, 7.0), (7.0, 10.0), (10.0, 15.0))
 """Buckets of the motion blur's length (px) with ``--motion``."""
+ANGLES = ((0.02, 0.04), (0.04, 0.06), (0.06, 0.08))
+"""Buckets of the cable's angle to the grout line (rad, either way) with ``--crossing``."""
 
 
 def _task(args: tuple[int, str]) -> dict:
@@ -46,12 +53,24 @@ def _motion_task(args: tuple[int, str]) -> dict:
     return motion_view(*args)
 
 
-def report(rows: list[dict], motion: bool = False) -> str:
-    """Markdown: per gap (``motion``: blur length) bucket and per family, views, accepted,
+def _crossing_task(args: tuple[int, str]) -> dict:
+    row = crossing_cable_view(*args)
+    row["abs_angle"] = abs(row["angle"])
+    return row
+
+
+MODES = {"cable": (_task, "gap", GAPS, "gap between cable and grout", "px"),
+         "motion": (_motion_task, "length", LENGTHS, "motion blur length", "px"),
+         "crossing": (_crossing_task, "abs_angle", ANGLES, "angle of the cable to the grout",
+                      "rad")}
+"""Per kind of view: its task, the row's key that buckets it, the buckets, their name, unit."""
+
+
+def report(rows: list[dict], mode: str = "cable") -> str:
+    """Markdown: per bucket of ``mode``'s key (:data:`MODES`) and per family, views, accepted,
     accepted outside the bound."""
-    head = "motion blur length (px)" if motion else "gap between cable and grout (px)"
-    key, buckets = ("length", LENGTHS) if motion else ("gap", GAPS)
-    out = [f"| {head} | views | accepted | outside own bound | "
+    _, key, buckets, what, unit = MODES[mode]
+    out = [f"| {what} ({unit}) | views | accepted | outside own bound | "
            "largest error / bound |", "|---|---|---|---|---|"]
     for lo, hi in buckets:
         sel = [r for r in rows if lo <= r[key] < hi]
@@ -65,7 +84,9 @@ def report(rows: list[dict], motion: bool = False) -> str:
     if bad:
         out += ["", "Accepted outside their bound:"]
         out += [f"- seed {r['seed']} {r['family']}: " + (
-                f"motion blur {r['length']:.1f} px at {r['angle']:.2f} rad" if motion else
+                f"motion blur {r['length']:.1f} px at {r['angle']:.2f} rad" if mode == "motion"
+                else f"cable {r['width']:.1f} px crossing a {r['grout_px']:.1f} px grout line at "
+                f"{r['angle']:+.3f} rad" if mode == "crossing" else
                 f"cable {r['width']:.1f} px, shade {r['shade']:.0f}, {r['delta']:+.1f} px off "
                 f"a {r['grout_px']:.1f} px grout line") +
                 f"; error {r['err_px']:.2f} px, bound {r['bound_px']:.2f} px" for r in bad]
@@ -84,10 +105,10 @@ def _cells(name: str, sel: list[dict]) -> tuple[str, str, str, str, str]:
     return name, str(len(sel)), str(len(acc)), str(len(bad)), floorgen.cell(worst, ".2f")
 
 
-def figure_rows(rows: list[dict], motion: bool) -> list[tuple[str, ...]]:
-    """The figures: per bucket of the gap (``motion``: the blur's length), then all views."""
-    key, buckets = ("length", LENGTHS) if motion else ("gap", GAPS)
-    return [*(_cells(f"{lo:g} .. {hi:g} px", [r for r in rows if lo <= r[key] < hi])
+def figure_rows(rows: list[dict], mode: str) -> list[tuple[str, ...]]:
+    """The figures: per bucket of ``mode``'s key (:data:`MODES`), then all views."""
+    _, key, buckets, _, unit = MODES[mode]
+    return [*(_cells(f"{lo:g} .. {hi:g} {unit}", [r for r in rows if lo <= r[key] < hi])
               for lo, hi in buckets), _cells("all", rows)]
 
 
@@ -97,16 +118,20 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--first-seed", type=int, default=0)
     ap.add_argument("--jobs", type=int, default=1)
     ap.add_argument("--csv", default="")
-    ap.add_argument("--motion", action="store_true",
-                    help="a short motion blur instead of a cable along the grout")
+    kind = ap.add_mutually_exclusive_group()
+    kind.add_argument("--motion", action="store_true",
+                      help="a short motion blur instead of a cable along the grout")
+    kind.add_argument("--crossing", action="store_true",
+                      help="a cable crossing a grout line at a small angle")
     ap.add_argument("--write-figures", action="store_true",
                     help="also write the figures into docs/figures.md (figures:cable_along, "
-                    "figures:motion_blur with --motion)")
+                    "figures:motion_blur with --motion, figures:cable_crossing with --crossing)")
     args = ap.parse_args(argv)
+    mode = "motion" if args.motion else "crossing" if args.crossing else "cable"
+    task, _, _, what, _ = MODES[mode]
     machine = Machine()
     tasks = [(args.first_seed + i, fam) for i in range(args.views_per_family)
              for fam in floorgen.ALL_FAMILIES]
-    task = _motion_task if args.motion else _task
     try:
         with ProcessPoolExecutor(args.jobs) if args.jobs > 1 else nullcontext() as pool:
             rows = list(pool.map(task, tasks, chunksize=8) if pool else map(task, tasks))
@@ -118,14 +143,15 @@ def main(argv: list[str] | None = None) -> int:
             wr = csv.DictWriter(f, fieldnames=list(rows[0]))
             wr.writeheader()
             wr.writerows(rows)
-    print(report(rows, args.motion))
+    print(report(rows, mode))
     reasons = collections.Counter(r["reason"] for r in rows if not r["accepted"])
     print("\nrefusals: " + ", ".join(f"{k} {v}" for k, v in reasons.most_common()))
     if args.write_figures:
-        what = "motion blur length" if args.motion else "gap between cable and grout"
-        write_block("motion_blur" if args.motion else "cable_along",
-                    "A short motion blur" if args.motion else "A cable along a grout line",
-                    figure_rows(rows, args.motion), machine=machine,
+        block, title = {"cable": ("cable_along", "A cable along a grout line"),
+                        "motion": ("motion_blur", "A short motion blur"),
+                        "crossing": ("cable_crossing",
+                                     "A cable crossing a grout line")}[mode]
+        write_block(block, title, figure_rows(rows, mode), machine=machine,
                     header=(what, "views", "accepted", "accepted outside own bound",
                             "largest error / bound"),
                     note=f"Seeds {args.first_seed}..{args.first_seed + args.views_per_family - 1}"
