@@ -9,6 +9,7 @@ import os
 import re
 import subprocess
 import sys
+import threading
 import urllib.request
 from pathlib import Path
 
@@ -247,37 +248,72 @@ def test_frames_runs_n_frames_prints_a_summary_and_exits_0(tmp_path):
     assert "Websocket" not in r.stdout
 
 
-def test_the_page_says_it_is_starting_until_the_first_frame(tmp_path):
-    """Until the first frame is computed (the first start compiles the vision kernels) the left
-    panel says so in place of the empty set and camera view; the first push hides the note."""
-    import threading
-
-    from tileviz.app.server import STARTING_NOTE
+def slow_start_app(tmp_path: Path, release: threading.Event) -> App:
+    """An app whose first frame is not rendered until ``release`` is set (as the first start
+    after an install waits for the vision kernels to compile); it shows, once started, as
+    ``app.starting`` is set."""
     from tileviz.sim.camera import FloorRenderer
 
     cfg = preset("default")
-    release = threading.Event()
 
     class SlowFirstFrame(FloorRenderer):
         def render(self, *args, **kwargs):
-            release.wait(120)  # the first frame takes as long as the test says
+            release.wait(300)
             return super().render(*args, **kwargs)
 
-    a = App(cfg, SessionOptions(out_dir=tmp_path, interactive=True,
-                                renderer=SlowFirstFrame(cfg.floor, cfg.camera)), port=0)
+    return App(cfg, SessionOptions(out_dir=tmp_path, interactive=True,
+                                   renderer=SlowFirstFrame(cfg.floor, cfg.camera)), port=0)
+
+
+def wait_until_starting(a: App) -> None:
+    """Wait until ``a``'s page is built (its first frame may still be in progress)."""
+    for _ in range(1200):
+        if getattr(a, "starting", None) is not None:
+            return
+        threading.Event().wait(0.05)
+
+
+def test_the_page_says_it_is_starting_until_the_first_frame(tmp_path):
+    """Until the first frame is computed (the first start compiles the vision kernels) the left
+    panel says so in place of the empty set and camera view; the first push hides the note."""
+    from tileviz.app.server import STARTING_NOTE
+
+    release = threading.Event()  # the first frame takes as long as the test says
+    a = slow_start_app(tmp_path, release)
     starter = threading.Thread(target=a.start)
     starter.start()
     try:
-        for _ in range(1200):
-            if getattr(a, "starting", None) is not None:
-                break
-            threading.Event().wait(0.05)
+        wait_until_starting(a)
         assert a.starting.visible and a.starting.content == STARTING_NOTE
         assert "compiles the vision kernels" in STARTING_NOTE
         assert "starting" in a.controls.status.content
         release.set()
         starter.join(120)
         assert a.starting.visible is False  # the first frame is shown: the panels take over
+    finally:
+        release.set()
+        starter.join(120)
+        a.stop()
+
+
+def test_ctrl_c_while_the_first_frame_is_made_stops_without_waiting_for_it(tmp_path):
+    """Ctrl-C (serve's stop event) while the first frame is still being made (the first run
+    after an install compiles the vision kernels for up to minutes) stops the app at once: the
+    start returns False and the page is no longer served, while that frame is still held."""
+    release = threading.Event()  # the first frame is not made until the test is done
+    a = slow_start_app(tmp_path, release)
+    cancel = threading.Event()
+    result: list[bool] = []
+    starter = threading.Thread(target=lambda: result.append(a.start(cancel=cancel)))
+    starter.start()
+    try:
+        wait_until_starting(a)
+        assert a.server is not None
+        cancel.set()
+        starter.join(120)
+        assert not starter.is_alive() and not release.is_set()
+        assert result == [False]
+        assert a.server is None and not a.running
     finally:
         release.set()
         starter.join(120)

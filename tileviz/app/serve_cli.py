@@ -315,9 +315,13 @@ def _serve(args: argparse.Namespace, port: int, feed: Any) -> int:
     # would otherwise never see KeyboardInterrupt
     previous_int = signal.signal(signal.SIGINT, on_term)
     status = 0
+    started_up = False
     try:
         with notice_if_slow(f"tileviz serve: {FIRST_RUN_NOTICE}"):
-            app.start()
+            started_up = app.start(cancel=stopping)
+        if not started_up:  # Ctrl-C or SIGTERM before the first frame
+            print("tileviz serve: stopped", flush=True)
+            return 0
         if port != 0 and app.port != port:
             print(f"tileviz serve: port {port} is busy; serving on port {app.port} instead",
                   flush=True)
@@ -347,7 +351,8 @@ def _serve(args: argparse.Namespace, port: int, feed: Any) -> int:
         watchdog = threading.Timer(20.0, _force_exit)
         watchdog.daemon = True
         watchdog.start()
-        app.stop()
+        # before the first frame, the loop is not waited for (it may be compiling for minutes)
+        app.stop(wait=10.0 if started_up else 0.0)
         watchdog.cancel()
     print("tileviz serve: stopped", flush=True)
     return status

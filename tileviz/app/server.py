@@ -66,6 +66,8 @@ QUEUE_SIZE = 1000
 """Commands waiting at most; a flood beyond it is dropped (and counted)."""
 HEAP_TRIM_PERIOD = 60.0
 """Seconds between two returns of the heaps' free pages to the system (App._return_freed_memory)."""
+START_POLL = 0.1
+"""Seconds between two looks at ``App.start``'s cancel event while the first frame is made."""
 
 
 class App:
@@ -119,9 +121,11 @@ class App:
         """The last push raised (it is made again at the next push, said only if that fails)."""
 
     # ------------------------------------------------------------------ lifecycle
-    def start(self, timeout: float = 120.0) -> None:
-        """Start viser and the loop thread; return once the first frame is shown (or raise what
-        stopped the start)."""
+    def start(self, timeout: float = 120.0, cancel: threading.Event | None = None) -> bool:
+        """Start viser and the loop thread; return True once the first frame is shown (or raise
+        what stopped the start, or the loop's not starting within ``timeout`` s). When
+        ``cancel`` is set first (Ctrl-C while the first run after an install compiles the
+        vision kernels), stop without waiting for that frame and return False."""
         import viser
 
         from tileviz.app.gui import Controls
@@ -206,13 +210,20 @@ class App:
         self._thread.start()
         threading.Thread(target=self._return_freed_memory, name="tileviz-heap",
                          daemon=True).start()
-        if not self._started.wait(timeout):
-            self.stop()
-            raise RuntimeError("the loop thread did not start in time")
+        deadline = time.monotonic() + timeout
+        while not self._started.wait(START_POLL):
+            if cancel is not None and cancel.is_set():
+                # the loop is inside its first frame: nothing is recorded yet to wait for
+                self.stop(wait=0.0)
+                return False
+            if time.monotonic() >= deadline:
+                self.stop()
+                raise RuntimeError("the loop thread did not start in time")
         if self._failure is not None:
             failure = self._failure
             self.stop()
             raise failure
+        return True
 
     def _return_freed_memory(self) -> None:
         """Every :data:`HEAP_TRIM_PERIOD` seconds until the server stops, hand the heaps' free
@@ -250,15 +261,16 @@ class App:
             host = f"[{host}]"
         return f"http://{host}:{self.port}/"
 
-    def stop(self) -> None:
-        """Stop the loop (after the frame in progress), close files and the server."""
+    def stop(self, wait: float = 10.0) -> None:
+        """Stop the loop (after the frame in progress, waiting ``wait`` s at most for it), close
+        files and the server."""
         self._stop.set()
         try:
             self.queue.put_nowait(None)  # wake the loop
         except queue.Full:
             pass
         if self._thread is not None and self._thread is not threading.current_thread():
-            self._thread.join(timeout=10.0)
+            self._thread.join(timeout=wait)
         if self.session is not None:
             self.session.close()
         if self.server is not None:
