@@ -308,12 +308,62 @@ def test_ctrl_c_while_the_first_frame_is_made_stops_without_waiting_for_it(tmp_p
     starter.start()
     try:
         wait_until_starting(a)
-        assert a.server is not None
+        url = a.url
+        urllib.request.urlopen(url, timeout=30).close()  # served while it starts
         cancel.set()
         starter.join(120)
-        assert not starter.is_alive() and not release.is_set()
+        assert not starter.is_alive()
         assert result == [False]
-        assert a.server is None and not a.running
+        with pytest.raises(OSError):  # refused: no longer served
+            urllib.request.urlopen(url, timeout=30).close()
+    finally:
+        release.set()
+        starter.join(120)
+        a.stop()
+
+
+def test_a_stop_on_the_way_to_the_start_frame_closes_the_csv_after_the_frame_in_progress(
+        tmp_path):
+    """Ctrl-C while serve computes the frames up to ``--start-frame``: the start returns at once,
+    the loop ends the frame in progress, computes no further one, and only then closes the CSV
+    of residuals it writes a row to per frame: every row in it is whole."""
+    from tileviz.sim.camera import FloorRenderer
+
+    cfg = preset("default")
+    release = threading.Event()
+    frames: list[int] = []
+
+    class SlowThirdFrame(FloorRenderer):
+        def render(self, *args, **kwargs):
+            frames.append(1)
+            if len(frames) == 3:
+                release.wait(300)
+            return super().render(*args, **kwargs)
+
+    a = App(cfg, SessionOptions(out_dir=tmp_path, interactive=True, output_file="res",
+                                start_frame=50, renderer=SlowThirdFrame(cfg.floor, cfg.camera)),
+            port=0)
+    cancel = threading.Event()
+    result: list[bool] = []
+    starter = threading.Thread(target=lambda: result.append(a.start(cancel=cancel)))
+    starter.start()
+    try:
+        for _ in range(2400):
+            if len(frames) >= 3:
+                break
+            threading.Event().wait(0.05)
+        cancel.set()
+        starter.join(120)
+        assert result == [False]
+        assert a.session is not None and a.session.csv is not None  # its writer is mid-frame
+        release.set()
+        assert a._thread is not None
+        a._thread.join(120)
+        assert a.session.csv is None  # closed by the loop, after its frame
+        assert len(frames) == 3  # no frame after the stop
+        rows = (tmp_path / "res.csv").read_text(encoding="utf-8").splitlines()
+        assert len(rows) == 1 + 3  # the header and one whole row per frame
+        assert len({row.count(",") for row in rows}) == 1
     finally:
         release.set()
         starter.join(120)

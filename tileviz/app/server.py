@@ -117,6 +117,11 @@ class App:
         self._thread: threading.Thread | None = None
         self._started = threading.Event()
         self._failure: BaseException | None = None
+        # the session's files are closed by whoever is last: stop(), or the loop thread when
+        # stop() gave up waiting for its frame (a file is never closed under its writer)
+        self._closing = threading.Lock()
+        self._loop_ended = False
+        self._close_on_loop_end = False
         self._push_failed = False
         """The last push raised (it is made again at the next push, said only if that fails)."""
 
@@ -213,7 +218,8 @@ class App:
         deadline = time.monotonic() + timeout
         while not self._started.wait(START_POLL):
             if cancel is not None and cancel.is_set():
-                # the loop is inside its first frame: nothing is recorded yet to wait for
+                # the loop is inside its first frame (or the frames up to --start-frame): it
+                # closes the session's files itself once that frame ends
                 self.stop(wait=0.0)
                 return False
             if time.monotonic() >= deadline:
@@ -263,7 +269,8 @@ class App:
 
     def stop(self, wait: float = 10.0) -> None:
         """Stop the loop (after the frame in progress, waiting ``wait`` s at most for it), close
-        files and the server."""
+        files and the server. A loop still inside its frame after ``wait`` closes the session's
+        files itself when that frame ends."""
         self._stop.set()
         try:
             self.queue.put_nowait(None)  # wake the loop
@@ -272,7 +279,12 @@ class App:
         if self._thread is not None and self._thread is not threading.current_thread():
             self._thread.join(timeout=wait)
         if self.session is not None:
-            self.session.close()
+            with self._closing:
+                live = (self._thread is not None and self._thread.is_alive()
+                        and not self._loop_ended)
+                self._close_on_loop_end = live
+            if not live:
+                self.session.close()
         if self.server is not None:
             self.server.stop()
             self.server = None
@@ -290,11 +302,23 @@ class App:
 
     # ------------------------------------------------------------------ loop thread
     def _run(self) -> None:
+        """The loop thread: :meth:`_loop`, then close the session's files if :meth:`stop`
+        left that to it."""
+        try:
+            self._loop()
+        finally:
+            with self._closing:
+                self._loop_ended = True
+                close = self._close_on_loop_end
+            if close and self.session is not None:
+                self.session.close()
+
+    def _loop(self) -> None:
         s = self.session
         assert s is not None
         try:
             if len(s.history) == 0:
-                s.skip_to(self.options.start_frame)
+                s.skip_to(self.options.start_frame, stopped=self._stop.is_set)
             self._push(force=True)
         except BaseException as e:  # noqa: BLE001 - reported by start()
             self._failure = e

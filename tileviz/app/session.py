@@ -25,6 +25,7 @@ import math
 import sys
 import time
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, assert_never, cast
@@ -310,14 +311,17 @@ class Session:
                     return p
         return pos
 
-    def skip_to(self, index: int) -> None:
+    def skip_to(self, index: int, stopped: Callable[[], bool] | None = None) -> None:
         """Compute frames until the shown one has frame index ``index`` or more (the frames on the
-        way keep no stage images), or the source ends (then the note says so)."""
+        way keep no stage images), or the source ends (then the note says so), or ``stopped()``
+        says so between two frames."""
         keep = self.runner.keep_stages
         display, self.display = self.display, False
         self.runner.keep_stages = False
         try:
             while index > 0:
+                if stopped is not None and stopped():
+                    return
                 entry = self.shown_entry()
                 if entry is not None and entry.index >= index - 1:
                     break
