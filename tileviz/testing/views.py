@@ -127,10 +127,10 @@ def _outcome(out: dict[str, Any], img: np.ndarray, spec: floorgen.FloorSpec,
     res = extract(img, camera=cam, tile_size=spec.tile_size,
                   vision=VisionConfig(extractor="robust"), floor=spec.model)
     out.update(accepted=res.accepted, reason=res.reason, err_px=math.nan, bound_px=math.nan,
-               inside=True)
+               err_rad=math.nan, bound_rad=math.nan, inside=True)
     if res.accepted:
-        ep, _, bp, _, inside = _errors(res, spec, pose)
-        out.update(err_px=ep, bound_px=bp, inside=inside)
+        ep, eh, bp, bh, inside = _errors(res, spec, pose)
+        out.update(err_px=ep, bound_px=bp, err_rad=eh, bound_rad=bh, inside=inside)
     return out
 
 

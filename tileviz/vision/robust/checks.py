@@ -71,12 +71,14 @@ On the reading whose lines passed, the lattice and the bound:
   position check scale + twice the lattice tolerance (``inconsistent spacing``).
 - ``evidence`` (per family): line length in view, px; >= ``lattice.min_evidence`` x the smaller
   side (``too few segments``).
-- ``bound.position``: the view's position bound with the fit's sums as its parts' term
-  (``details["position_fit"]``; the view declares the set's), px; <= the larger of
+- ``bound.position``: the larger of the position bound the view declares (the set's reach as
+  its parts' term) and the one with the fit's sums (``details["position_fit"]``), px; <= the
+  larger of
   ``VisionConfig.position_error_px`` and ``bound.max_px``, plus what the lattice tolerance adds
   to the bound (its part of the parts' term, and ``fit.sigmas`` + 1 times it for the scatter and
   a width's excess: ``imprecise``; a declared tolerance alone is never a reason to refuse).
-- ``bound.heading``: the view's heading bound with the fit's sum, rad; <= the larger of
+- ``bound.heading``: the larger of the declared heading bound and the one with the fit's sum,
+  rad; <= the larger of
   ``VisionConfig.heading_error`` and ``bound.max_rad``, plus the tolerance's part (as
   ``bound.position``).
 - ``foreign_edge``: long straight edges (``foreign.length`` x the smaller side, at least
@@ -258,12 +260,12 @@ BOUND_POSITION = Check("bound.position", "imprecise", AT_MOST,
                        lambda c, tolerance: max(c.vision.position_error_px, c.st.bound.max_px)
                        + tolerance,
                        "bound.max_px, VisionConfig.position_error_px",
-                       "the view's position bound from the fit's sums (px)")
+                       "the view's position bound, declared or from the fit's sums (px)")
 BOUND_HEADING = Check("bound.heading", "imprecise", AT_MOST,
                       lambda c, tolerance: max(c.vision.heading_error, c.st.bound.max_rad)
                       + tolerance,
                       "bound.max_rad, VisionConfig.heading_error",
-                      "the view's heading bound from the fit's sum (rad)")
+                      "the view's heading bound, declared or from the fit's sum (rad)")
 FOREIGN_EDGE = Check("foreign_edge", "foreign line", AT_MOST, lambda c: 0.0,
                      "foreign.length, min_length, contrast",
                      "long straight edges off the lattice")

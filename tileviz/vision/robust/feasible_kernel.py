@@ -136,38 +136,54 @@ def feasible_ranges(a: np.ndarray, q: np.ndarray, b: np.ndarray,
 
 @compiled
 def relaxed_ranges(a: np.ndarray, q: np.ndarray, b: np.ndarray, fam: np.ndarray,
-                   group: np.ndarray) -> tuple[int, np.ndarray]:
+                   group: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
     """:func:`feasible_ranges` allowing one group of constraints (``group[i]``: one line's) to
     be wrong: the union over each group left out in turn of the ranges the others allow. A
     status 0 and the ranges when some group left out leaves a set and none leaves the tilt
     unbounded; 2 when one does (or an input is not finite); 1 when every group left out leaves
     none. Only the groups of the parts that decide the whole set's extent are left out: leaving
     out any other leaves the same extent (a constraint not active at a linear programme's
-    optimum does not move it), which every set of all groups but one holds."""
+    optimum does not move it), which every set of all groups but one holds.
+
+    A group whose leaving out leaves a family's offset unbounded (the family's only line) does
+    not widen that offset's range, which is the union over the other groups left out (NaN when
+    there is none); ``opened[k]`` (the third result) says that family k's offset is bounded
+    only with that group right: the caller bounds it otherwise."""
     out = np.full((3, 2), np.nan)
+    opened = np.zeros(2, np.bool_)
     if not _finite(a, q, b):
-        return 2, out
+        return 2, out, opened
     lo = q - b
     hi = q + b
     who = np.empty(_DECIDERS, np.intp)
     status = _extent(a, lo, hi, fam, np.ones(a.size, np.bool_), out, who)
     if status == 2:
-        return 2, out
+        return 2, out, opened
     found = status == 0
+    if not found:
+        out[:] = np.nan  # no lattice allows every part: the ranges are the left-out sets' only
+    for k in range(2):
+        if found and not (np.isfinite(out[1 + k, 0]) and np.isfinite(out[1 + k, 1])):
+            opened[k] = True  # a family without parts
+            out[1 + k] = np.nan
     deciders = np.unique(np.array([group[i] for i in who if i >= 0]))
     r = np.empty((3, 2))
     who_g = np.empty(_DECIDERS, np.intp)
     for g in deciders:
         s_g = _extent(a, lo, hi, fam, group != g, r, who_g)
         if s_g == 2:
-            return 2, out
+            return 2, out, opened
         if s_g == 1:
             continue
-        if not found:
-            out[:] = r
-            found = True
-        else:
-            for v in range(3):
+        found = True
+        for v in range(3):
+            if v > 0 and not (np.isfinite(r[v, 0]) and np.isfinite(r[v, 1])):
+                opened[v - 1] = True
+                continue
+            if np.isnan(out[v, 0]):
+                out[v, 0] = r[v, 0]
+                out[v, 1] = r[v, 1]
+            else:
                 out[v, 0] = min(out[v, 0], r[v, 0])
                 out[v, 1] = max(out[v, 1], r[v, 1])
-    return (0 if found else 1), out
+    return (0 if found else 1), out, opened

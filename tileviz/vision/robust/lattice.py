@@ -121,8 +121,8 @@ def lattice_offsets(run: ReadingState, lines: list[list[Line]], y3: float) -> No
     run.details["position_se_px"] = se
     feasible_terms(run, lines, refs, terms)
     d = run.details
-    # the view declares the bound from the set the parts allow (one line may be wrong); whether
-    # it is precise enough is judged on the fit's sums
+    # the view declares the bound from the set the parts allow (one line may be wrong); it is
+    # precise enough when that bound and the one from the fit's sums are both within the limit
     d["bound_px"], d["bound_rad"] = frame_bound(run, se, d["position_parts"],
                                                 d["heading_parts"])
     pos_fit, head_fit = frame_bound(run, se, d["position_fit"], d["heading_fit"])
@@ -133,9 +133,10 @@ def lattice_offsets(run: ReadingState, lines: list[list[Line]], y3: float) -> No
     # (a motion-blurred checkerboard read 8 degrees off its heading declared 0.18 rad, 32 px,
     # and lay 61 px off; another read 10 degrees off, whose parts' set allowed 0.13 rad of its
     # 0.36 from the fit's sums: the set's tight parts were blurred alike)
-    rec.require(checks.BOUND_POSITION, run, pos_fit,
+    rec.require(checks.BOUND_POSITION, run, max(pos_fit, d["bound_px"]),
                 d.get("position_tolerance", 0.0) + (run.st.fit.sigmas + 1.0) * run.tol_px)
-    rec.require(checks.BOUND_HEADING, run, head_fit, d.get("heading_tolerance", 0.0))
+    rec.require(checks.BOUND_HEADING, run, max(head_fit, d["bound_rad"]),
+                d.get("heading_tolerance", 0.0))
     run.y = normalise(ys[0], ys[1], y3, run.tile_size)
 
 
@@ -150,9 +151,11 @@ def feasible_terms(run: ReadingState, lines: list[list[Line]], refs: list[float]
     the fit's terms. ``refs`` are the families' offsets (px, the estimate, as ``s`` in
     :func:`lattice_offsets`) and ``terms`` their parts' terms from the fit (px); each part
     belongs to the ideal line nearest its own line's offset. ``details["feasible"]``: 1 when
-    the parts allow a lattice, 0 when none (the terms stay the fit's), NaN when the tilt is
-    unbounded (the terms stay the fit's); a family whose offset the set leaves unbounded (its
-    lone line left out) keeps its fit's term."""
+    the parts of every line but one allow a lattice, 0 when they do not for any line left out,
+    NaN when the tilt is unbounded or a part's input is not finite (for 0 and NaN the terms
+    stay the fit's). A family whose offset is free with its lone line left out takes the larger
+    of the set's reach (any other line wrong) and its fit's term (that line wrong within its
+    band's reach)."""
     every = lines[0] + lines[1]
     line = run.part_line
     fam = (line >= len(lines[0])).astype(np.intp)
@@ -162,8 +165,8 @@ def feasible_terms(run: ReadingState, lines: list[list[Line]], refs: list[float]
     # from its family's offset o: the part says -o + sign t eps = p - centre + n L ppm
     s_line = -(np.array([ln.pos for ln in every])[line] - centre)
     n = np.rint((s_line - np.asarray(refs)[fam]) / run.lp)
-    status, ranges = relaxed_ranges(sign * run.part_t, run.part_p - centre + n * run.lp,
-                                    run.part_bound, fam, line)
+    status, ranges, opened = relaxed_ranges(sign * run.part_t, run.part_p - centre + n * run.lp,
+                                            run.part_bound, fam, line)
     d = run.details
     d["feasible"] = 1.0 if status == 0 else 0.0 if status == 1 else math.nan
     # the fit's own terms, shown beside the ones the bound takes
@@ -173,9 +176,12 @@ def feasible_terms(run: ReadingState, lines: list[list[Line]], refs: list[float]
         return
     eps = run.tilt
     d["heading_parts"] = max(eps - ranges[0, 0], ranges[0, 1] - eps)
-    # a family whose lone line is left out has no offset in the set: its fit's term stays
+    # a family's lone line left out leaves its offset free: the set bounds it with any other
+    # line wrong, the fit's term (the line's band's reach in its parts' bounds) with that one
     reach = [max(refs[k] - ranges[1 + k, 0], ranges[1 + k, 1] - refs[k]) for k in range(2)]
-    d["position_parts"] = max(r if math.isfinite(r) else terms[k] for k, r in enumerate(reach))
+    d["position_parts"] = max(
+        terms[k] if not math.isfinite(r) else max(terms[k], r) if opened[k] else r
+        for k, r in enumerate(reach))
 
 
 def measured_period(run: ReadingState, s: np.ndarray, ref: float) -> None:
