@@ -43,6 +43,9 @@ LENGTHS = ((2.0, 4.0), (4.0, 7.0), (7.0, 10.0), (10.0, 15.0))
 """Buckets of the motion blur's length (px) with ``--motion``."""
 ANGLES = ((0.02, 0.04), (0.04, 0.06), (0.06, 0.08))
 """Buckets of the cable's angle to the grout line (rad, either way) with ``--crossing``."""
+WORST = "largest error / bound (position or heading)"
+"""The last column: over the accepted views, the larger of error / bound for the position and
+the heading (a view is outside its bound when either passes 1)."""
 
 
 def _task(args: tuple[int, str]) -> dict:
@@ -71,11 +74,11 @@ def report(rows: list[dict], mode: str = "cable") -> str:
     accepted outside the bound."""
     _, key, buckets, what, unit = MODES[mode]
     out = [f"| {what} ({unit}) | views | accepted | outside own bound | "
-           "largest error / bound |", "|---|---|---|---|---|"]
+           f"{WORST} |", "|---|---|---|---|---|"]
     for lo, hi in buckets:
         sel = [r for r in rows if lo <= r[key] < hi]
         out.append(_row(f"{lo:g} .. {hi:g}", sel))
-    out += ["", "| family | views | accepted | outside own bound | largest error / bound |",
+    out += ["", f"| family | views | accepted | outside own bound | {WORST} |",
             "|---|---|---|---|---|"]
     for fam in floorgen.ALL_FAMILIES:
         out.append(_row(fam, [r for r in rows if r["family"] == fam]))
@@ -89,7 +92,8 @@ def report(rows: list[dict], mode: str = "cable") -> str:
                 f"{r['angle']:+.3f} rad" if mode == "crossing" else
                 f"cable {r['width']:.1f} px, shade {r['shade']:.0f}, {r['delta']:+.1f} px off "
                 f"a {r['grout_px']:.1f} px grout line") +
-                f"; error {r['err_px']:.2f} px, bound {r['bound_px']:.2f} px" for r in bad]
+                f"; error {r['err_px']:.2f} px, {r['err_rad']:.4f} rad; bound "
+                f"{r['bound_px']:.2f} px, {r['bound_rad']:.4f} rad" for r in bad]
     return "\n".join(out)
 
 
@@ -98,10 +102,12 @@ def _row(name: str, sel: list[dict]) -> str:
 
 
 def _cells(name: str, sel: list[dict]) -> tuple[str, str, str, str, str]:
-    """(name, views, accepted, accepted outside their bound, largest error / bound)."""
+    """(name, views, accepted, accepted outside their bound, largest error / bound: the worse
+    of the position's and the heading's)."""
     acc = [r for r in sel if r["accepted"]]
     bad = [r for r in acc if not r["inside"]]
-    worst = max((r["err_px"] / r["bound_px"] for r in acc), default=math.nan)
+    worst = max((max(r["err_px"] / r["bound_px"], r["err_rad"] / r["bound_rad"]) for r in acc),
+                default=math.nan)
     return name, str(len(sel)), str(len(acc)), str(len(bad)), floorgen.cell(worst, ".2f")
 
 
@@ -152,8 +158,7 @@ def main(argv: list[str] | None = None) -> int:
                         "crossing": ("cable_crossing",
                                      "A cable crossing a grout line")}[mode]
         write_block(block, title, figure_rows(rows, mode), machine=machine,
-                    header=(what, "views", "accepted", "accepted outside own bound",
-                            "largest error / bound"),
+                    header=(what, "views", "accepted", "accepted outside own bound", WORST),
                     note=f"Seeds {args.first_seed}..{args.first_seed + args.views_per_family - 1}"
                     " of every family.")
     return 0
