@@ -119,6 +119,12 @@ def _finite(a: np.ndarray, q: np.ndarray, b: np.ndarray) -> bool:
 
 
 @compiled
+def _bounded(row: np.ndarray) -> bool:
+    """Whether a range (lower, upper) is finite at both ends."""
+    return bool(np.isfinite(row[0]) and np.isfinite(row[1]))
+
+
+@compiled
 def feasible_ranges(a: np.ndarray, q: np.ndarray, b: np.ndarray,
                     fam: np.ndarray) -> tuple[int, np.ndarray]:
     """The extent of the lattices (eps, o_1, o_2) that the parts allow, each part i of family
@@ -163,7 +169,7 @@ def relaxed_ranges(a: np.ndarray, q: np.ndarray, b: np.ndarray, fam: np.ndarray,
     if not found:
         out[:] = np.nan  # no lattice allows every part: the ranges are the left-out sets' only
     for k in range(2):
-        if found and not (np.isfinite(out[1 + k, 0]) and np.isfinite(out[1 + k, 1])):
+        if found and not _bounded(out[1 + k]):
             opened[k] = True  # a family without parts
             out[1 + k] = np.nan
     deciders = np.unique(np.array([group[i] for i in who if i >= 0]))
@@ -177,13 +183,9 @@ def relaxed_ranges(a: np.ndarray, q: np.ndarray, b: np.ndarray, fam: np.ndarray,
             continue
         found = True
         for v in range(3):
-            if v > 0 and not (np.isfinite(r[v, 0]) and np.isfinite(r[v, 1])):
+            if v > 0 and not _bounded(r[v]):
                 opened[v - 1] = True
                 continue
-            if np.isnan(out[v, 0]):
-                out[v, 0] = r[v, 0]
-                out[v, 1] = r[v, 1]
-            else:
-                out[v, 0] = min(out[v, 0], r[v, 0])
-                out[v, 1] = max(out[v, 1], r[v, 1])
+            out[v, 0] = np.fmin(out[v, 0], r[v, 0])  # a NaN end (none yet) takes r's
+            out[v, 1] = np.fmax(out[v, 1], r[v, 1])
     return (0 if found else 1), out, opened
