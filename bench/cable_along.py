@@ -30,8 +30,10 @@ import argparse
 import collections
 import csv
 import math
+from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from contextlib import nullcontext
+from typing import NamedTuple
 
 from tileviz.testing import floorgen
 from tileviz.testing.figures import Machine, write_block
@@ -62,21 +64,44 @@ def _crossing_task(args: tuple[int, str]) -> dict:
     return row
 
 
-MODES = {"cable": (_task, "gap", GAPS, "gap between cable and grout", "px"),
-         "motion": (_motion_task, "length", LENGTHS, "motion blur length", "px"),
-         "crossing": (_crossing_task, "abs_angle", ANGLES, "angle of the cable to the grout",
-                      "rad")}
-"""Per kind of view: its task, the row's key that buckets it, the buckets, their name, unit."""
+class Mode(NamedTuple):
+    """One kind of view: its task, the row's key that buckets it, the buckets, their name and
+    unit, the figures block and its title, and how a view outside its bound is described."""
+
+    task: Callable[[tuple[int, str]], dict]
+    key: str
+    buckets: tuple[tuple[float, float], ...]
+    what: str
+    unit: str
+    block: str
+    title: str
+    describe: Callable[[dict], str]
+
+
+MODES = {
+    "cable": Mode(_task, "gap", GAPS, "gap between cable and grout", "px", "cable_along",
+                  "A cable along a grout line",
+                  lambda r: f"cable {r['width']:.1f} px, shade {r['shade']:.0f}, "
+                  f"{r['delta']:+.1f} px off a {r['grout_px']:.1f} px grout line"),
+    "motion": Mode(_motion_task, "length", LENGTHS, "motion blur length", "px", "motion_blur",
+                   "A short motion blur",
+                   lambda r: f"motion blur {r['length']:.1f} px at {r['angle']:.2f} rad"),
+    "crossing": Mode(_crossing_task, "abs_angle", ANGLES, "angle of the cable to the grout",
+                     "rad", "cable_crossing", "A cable crossing a grout line",
+                     lambda r: f"cable {r['width']:.1f} px crossing a {r['grout_px']:.1f} px "
+                     f"grout line at {r['angle']:+.3f} rad"),
+}
+"""The kinds of view, by the option that chooses them (none: ``cable``)."""
 
 
 def report(rows: list[dict], mode: str = "cable") -> str:
     """Markdown: per bucket of ``mode``'s key (:data:`MODES`) and per family, views, accepted,
     accepted outside the bound."""
-    _, key, buckets, what, unit = MODES[mode]
-    out = [f"| {what} ({unit}) | views | accepted | outside own bound | "
+    m = MODES[mode]
+    out = [f"| {m.what} ({m.unit}) | views | accepted | outside own bound | "
            f"{WORST} |", "|---|---|---|---|---|"]
-    for lo, hi in buckets:
-        sel = [r for r in rows if lo <= r[key] < hi]
+    for lo, hi in m.buckets:
+        sel = [r for r in rows if lo <= r[m.key] < hi]
         out.append(_row(f"{lo:g} .. {hi:g}", sel))
     out += ["", f"| family | views | accepted | outside own bound | {WORST} |",
             "|---|---|---|---|---|"]
@@ -86,14 +111,9 @@ def report(rows: list[dict], mode: str = "cable") -> str:
     bad = [r for r in rows if r["accepted"] and not r["inside"]]
     if bad:
         out += ["", "Accepted outside their bound:"]
-        out += [f"- seed {r['seed']} {r['family']}: " + (
-                f"motion blur {r['length']:.1f} px at {r['angle']:.2f} rad" if mode == "motion"
-                else f"cable {r['width']:.1f} px crossing a {r['grout_px']:.1f} px grout line at "
-                f"{r['angle']:+.3f} rad" if mode == "crossing" else
-                f"cable {r['width']:.1f} px, shade {r['shade']:.0f}, {r['delta']:+.1f} px off "
-                f"a {r['grout_px']:.1f} px grout line") +
-                f"; error {r['err_px']:.2f} px, {r['err_rad']:.4f} rad; bound "
-                f"{r['bound_px']:.2f} px, {r['bound_rad']:.4f} rad" for r in bad]
+        out += [f"- seed {r['seed']} {r['family']}: {m.describe(r)}; error {r['err_px']:.2f} px, "
+                f"{r['err_rad']:.4f} rad; bound {r['bound_px']:.2f} px, {r['bound_rad']:.4f} rad"
+                for r in bad]
     return "\n".join(out)
 
 
@@ -113,9 +133,9 @@ def _cells(name: str, sel: list[dict]) -> tuple[str, str, str, str, str]:
 
 def figure_rows(rows: list[dict], mode: str) -> list[tuple[str, ...]]:
     """The figures: per bucket of ``mode``'s key (:data:`MODES`), then all views."""
-    _, key, buckets, _, unit = MODES[mode]
-    return [*(_cells(f"{lo:g} .. {hi:g} {unit}", [r for r in rows if lo <= r[key] < hi])
-              for lo, hi in buckets), _cells("all", rows)]
+    m = MODES[mode]
+    return [*(_cells(f"{lo:g} .. {hi:g} {m.unit}", [r for r in rows if lo <= r[m.key] < hi])
+              for lo, hi in m.buckets), _cells("all", rows)]
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -134,13 +154,13 @@ def main(argv: list[str] | None = None) -> int:
                     "figures:motion_blur with --motion, figures:cable_crossing with --crossing)")
     args = ap.parse_args(argv)
     mode = "motion" if args.motion else "crossing" if args.crossing else "cable"
-    task, _, _, what, _ = MODES[mode]
+    m = MODES[mode]
     machine = Machine()
     tasks = [(args.first_seed + i, fam) for i in range(args.views_per_family)
              for fam in floorgen.ALL_FAMILIES]
     try:
         with ProcessPoolExecutor(args.jobs) if args.jobs > 1 else nullcontext() as pool:
-            rows = list(pool.map(task, tasks, chunksize=8) if pool else map(task, tasks))
+            rows = list(pool.map(m.task, tasks, chunksize=8) if pool else map(m.task, tasks))
     except ImportError as exc:
         print(f"cable_along.py: {exc}")
         return 2
@@ -153,12 +173,8 @@ def main(argv: list[str] | None = None) -> int:
     reasons = collections.Counter(r["reason"] for r in rows if not r["accepted"])
     print("\nrefusals: " + ", ".join(f"{k} {v}" for k, v in reasons.most_common()))
     if args.write_figures:
-        block, title = {"cable": ("cable_along", "A cable along a grout line"),
-                        "motion": ("motion_blur", "A short motion blur"),
-                        "crossing": ("cable_crossing",
-                                     "A cable crossing a grout line")}[mode]
-        write_block(block, title, figure_rows(rows, mode), machine=machine,
-                    header=(what, "views", "accepted", "accepted outside own bound", WORST),
+        write_block(m.block, m.title, figure_rows(rows, mode), machine=machine,
+                    header=(m.what, "views", "accepted", "accepted outside own bound", WORST),
                     note=f"Seeds {args.first_seed}..{args.first_seed + args.views_per_family - 1}"
                     " of every family.")
     return 0
