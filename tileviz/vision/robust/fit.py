@@ -182,7 +182,11 @@ def drop_stray_part(run: ReadingState, lines: list[list[Line]], eps: float) -> b
     photograph a few px beside the grout) measured instead of the grout in one part of a short
     line moves that part alone; the line is then measured by its other parts. True when a
     part was left out (the caller fits again; every check then applies as before). Used only
-    in a second reading of a view the first refused (``ReadingState.drop_stray``)."""
+    in a second reading of a view the first refused (``ReadingState.drop_stray``). The part
+    left out is kept in ``Line.dropped``: where its line is its family's only one, nothing
+    else in the view says which of its parts are right (a cable along one segment of a
+    checkerboard's edge moves every part of that segment alike), and the bound covers the
+    part left out too (:func:`~tileviz.vision.robust.lattice.lattice_offsets`)."""
     st = run.st.lines
     limit = checks.ANGLE_STRAIGHT.limit(run)
     stray: list[tuple[Line, int]] = []
@@ -213,6 +217,8 @@ def drop_stray_part(run: ReadingState, lines: list[list[Line]], eps: float) -> b
     if len(stray) != 1:
         return False
     ln, i = stray[0]
+    ln.dropped = (float(ln.parts[i]), float(ln.tpart[i]),
+                  run.st.fit.part_sigmas * float(ln.sigma[i]) + float(ln.spread[i]) + run.tol_px)
     ln.wpart = ln.wpart.copy()
     ln.parts = ln.parts.copy()
     ln.wpart[i] = 0.0

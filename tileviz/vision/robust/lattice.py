@@ -92,6 +92,12 @@ def lattice_offsets(run: ReadingState, lines: list[list[Line]], y3: float) -> No
         g = np.add.accumulate(w_arr[:, None] * np.array([ln.infl for ln in fam]),
                               axis=0)[-1] / w_arr.sum()
         parts_k = float(np.dot(np.abs(g), run.part_bound))
+        if len(fam) == 1 and fam[0].dropped is not None:
+            # a lone line read without a stray part: the part left out may be the right one
+            # (no other line of the family says which), so the term reaches it too
+            p, t, b = fam[0].dropped
+            sign = 1.0 if k == 0 else -1.0
+            parts_k = max(parts_k, abs(p - (fam[0].pos + sign * run.tilt * t)) + b)
         terms.append(parts_k)
         run.details["position_parts"] = max(run.details.get("position_parts", 0.0),
                                              parts_k)

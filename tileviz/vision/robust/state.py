@@ -56,6 +56,9 @@ class Line:
     part_contrast: np.ndarray = field(default_factory=lambda: np.zeros(0))
     pos: float = math.nan  # at tangent coordinate 0, after the common tilt fit
     var: float = math.inf  # variance of pos from the fit's scatter, px^2
+    # the part left out as stray (fit.drop_stray_part): its position and tangent coordinate
+    # and its own bound (px); None when no part was left out
+    dropped: tuple[float, float, float] | None = None
 
 
 @dataclass(frozen=True, eq=False)
