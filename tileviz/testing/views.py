@@ -28,7 +28,8 @@ FAMILY_SALT = {f: i + 1 for i, f in enumerate(floorgen.ALL_FAMILIES)}
 """The second word of every view's seed, by family."""
 
 DETAILS = ("position_se_px", "heading_se", "straightness_px", "spacing_residual_px", "rise",
-           "noise_sigma", "width", "step", "heading_parts", "position_parts", "tilt_gap", "depth")
+           "noise_sigma", "width", "step", "heading_parts", "position_parts", "tilt_gap", "depth",
+           "feasible")
 """The robust extractor's details a study view keeps (NaN where the extractor gave none)."""
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from tileviz.vision.robust.state import ReadingState
 
-__all__ = ["frame_bound"]
+__all__ = ["frame_bound", "part_floor"]
 
 
 def frame_bound(run: ReadingState, se: float, position_parts: float,
@@ -22,9 +22,18 @@ def frame_bound(run: ReadingState, se: float, position_parts: float,
     # a floor's lattice tolerance is in every part's own bound (position_parts): of the
     # spacing and straightness residuals, only what it does not explain is added again
     tol2 = 2.0 * run.tol_px
-    pos = (run.st.fit.sigmas * se + max(d["spacing_residual_px"] - tol2, 0.0)
-           + 0.5 * max(d["straightness_px"] - tol2, 0.0)
-           + position_parts + d["width_excess_px"]
-           + st.floor_px + st.floor_width * d["width"] + st.floor_rise * d["rise"])
+    pos = part_floor(run, run.st.fit.sigmas * se + max(d["spacing_residual_px"] - tol2, 0.0)
+                     + 0.5 * max(d["straightness_px"] - tol2, 0.0)
+                     + position_parts + d["width_excess_px"])
     head = st.heading_sigmas * d["heading_se"] + heading_parts + st.floor_rad
     return pos, head
+
+
+def part_floor(run: ReadingState, base: float = 0.0) -> float:
+    """``base`` (px) plus what the scatter and the parts' own bounds cannot show (px): the
+    warp's interpolation and the pixel grid, a band's width under uneven light, blur:
+    ``bound.floor_px`` plus ``floor_width`` x the grout's half-depth width plus ``floor_rise``
+    x its edge rise."""
+    st = run.st.bound
+    d = run.details
+    return base + st.floor_px + st.floor_width * d["width"] + st.floor_rise * d["rise"]

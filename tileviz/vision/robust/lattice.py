@@ -9,7 +9,7 @@ import numpy as np
 
 from tileviz.vision.geometry import QUARTER, family_normals
 from tileviz.vision.robust import checks, lattice_kernel
-from tileviz.vision.robust.bound import frame_bound
+from tileviz.vision.robust.bound import frame_bound, part_floor
 from tileviz.vision.robust.feasible_kernel import relaxed_ranges
 from tileviz.vision.robust.state import Line, ReadingState
 from tileviz.vision.robust.statistics import list_median
@@ -156,12 +156,15 @@ def feasible_terms(run: ReadingState, lines: list[list[Line]], refs: list[float]
     move the set off the truth, though it moves the fit, so the set may reach farther than
     the fit's terms. ``refs`` are the families' offsets (px, the estimate, as ``s`` in
     :func:`lattice_offsets`) and ``terms`` their parts' terms from the fit (px); each part
-    belongs to the ideal line nearest its own line's offset. ``details["feasible"]``: 1 when
-    the parts of every line but one allow a lattice, 0 when they do not for any line left out,
-    NaN when the tilt is unbounded or a part's input is not finite (for 0 and NaN the terms
-    stay the fit's). A family whose offset is free with its lone line left out takes the larger
-    of the set's reach (any other line wrong) and its fit's term (that line wrong within its
-    band's reach)."""
+    belongs to the ideal line nearest its own line's offset. Where the parts' own bounds allow
+    no lattice with any one line left out, each part is allowed its bound plus the view's floor
+    (:func:`~tileviz.vision.robust.bound.part_floor`: what no part's bound shows, the warp's
+    interpolation, the pixel grid), as the bound allows the whole view. ``details
+    ["feasible"]``: 1 when the parts of every line but one allow a lattice, 0.5 when they do
+    with the floor, 0 when they do not, NaN when the tilt is unbounded or a part's input is not
+    finite (for 0 and NaN the terms stay the fit's). A family whose offset is free with its
+    lone line left out takes the larger of the set's reach (any other line wrong) and its fit's
+    term (that line wrong within its band's reach)."""
     every = lines[0] + lines[1]
     line = run.part_line
     fam = (line >= len(lines[0])).astype(np.intp)
@@ -171,10 +174,14 @@ def feasible_terms(run: ReadingState, lines: list[list[Line]], refs: list[float]
     # from its family's offset o: the part says -o + sign t eps = p - centre + n L ppm
     s_line = -(np.array([ln.pos for ln in every])[line] - centre)
     n = np.rint((s_line - np.asarray(refs)[fam]) / run.lp)
-    status, ranges, opened = relaxed_ranges(sign * run.part_t, run.part_p - centre + n * run.lp,
-                                            run.part_bound, fam, line)
+    a, q = sign * run.part_t, run.part_p - centre + n * run.lp
+    status, ranges, opened = relaxed_ranges(a, q, run.part_bound, fam, line)
+    floored = status == 1
+    if floored:
+        status, ranges, opened = relaxed_ranges(a, q, run.part_bound + part_floor(run), fam,
+                                                line)
     d = run.details
-    d["feasible"] = 1.0 if status == 0 else 0.0 if status == 1 else math.nan
+    d["feasible"] = (0.5 if floored else 1.0) if status == 0 else 0.0 if status == 1 else math.nan
     # the fit's own terms, shown beside the ones the bound takes
     d["position_fit"] = max(terms)
     d["heading_fit"] = d["heading_parts"]

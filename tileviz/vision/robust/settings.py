@@ -309,7 +309,8 @@ class BoundSettings:
     the tilt's error has heavier tails than the positions' (bench/vision_study.py)."""
     floor_px: float = 0.1
     """Smallest position bound of a view, px (with ``floor_width`` x the grout's half-depth
-    width and ``floor_rise`` x its edge rise added)."""
+    width and ``floor_rise`` x its edge rise added: :func:`.bound.part_floor`); where the
+    parts' own bounds allow no lattice, each part is allowed it too."""
     floor_width: float = 0.02
     """Part of the grout's half-depth width (px per px) added to the position bound."""
     floor_rise: float = 0.05
