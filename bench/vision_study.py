@@ -1,6 +1,6 @@
 """Domain-randomised accuracy study of the robust extractor on independently rendered floors.
 
-    python bench/vision_study.py [--views-per-family 500] [--split fresh2|...|fresh19|fresh20]
+    python bench/vision_study.py [--views-per-family 500] [--split fresh2|...|fresh20|fresh21]
                                  [--corrupted-per-family 100] [--jobs 1] [--csv out.csv]
     python bench/vision_study.py --report out.csv     # the tables of a (partial) run
     python -m bench.vision_study --split fresh8 --views-per-family 20 --corrupted-per-family 5
@@ -42,7 +42,8 @@ precision was judged on the fit's sums (commit 45977d5; reported once); ``--spli
 seeds from 20 * 10**6, kept unseen until the view declared the set's reach (commit bc949fc;
 reported once); ``--split fresh19`` seeds from 21 * 10**6, kept unseen
 until a view was imprecise on its declared bound too (commit 8ac0b42; reported once);
-``--split fresh20`` seeds from 22 * 10**6 (unseen).
+``--split fresh20`` seeds from 22 * 10**6, kept unseen until an empty set of lattices took the
+floor (commit b4d6709; reported once); ``--split fresh21`` seeds from 23 * 10**6 (unseen).
 
 For each family: the share of readable clean views accepted (``readable``: each line family
 crosses the view over at least 0.75 x its smaller side, ``floorgen.readable``), the error of the
@@ -74,7 +75,8 @@ SPLITS = {"tuning": 0, "heldout": 10**6, "fresh": 3 * 10**6, "fresh2": 4 * 10**6
           "fresh13": 15 * 10**6, "fresh14": 16 * 10**6,
           "fresh15": 17 * 10**6, "fresh16": 18 * 10**6,
           "fresh17": 19 * 10**6, "fresh18": 20 * 10**6,
-          "fresh19": 21 * 10**6, "fresh20": 22 * 10**6}
+          "fresh19": 21 * 10**6, "fresh20": 22 * 10**6,
+          "fresh21": 23 * 10**6}
 """First seed of each split."""
 
 
