@@ -816,6 +816,23 @@ def test_a_mosaic_panel_laid_off_the_lattice_within_the_tolerance_is_no_foreign_
     assert r["accepted"] and r["inside"], r
 
 
+def test_a_heading_bound_the_declared_tolerance_widens_past_the_limit_is_no_reason_to_refuse(
+) -> None:
+    """A tuning view of the study's mosaic (few lines, each laid up to the declared tolerance
+    off the lattice): the set of lattices its parts allow reaches 0.199 rad in heading, of which
+    the tolerance adds 0.167 (the same set with every part's bound less the tolerance reaches
+    0.032), while the tolerance adds only 0.039 rad to the fit's sum. The limit allows each
+    bound what the tolerance adds to it, so the view is accepted (it was refused as imprecise
+    when the set's reach got the fit's allowance), with the truth inside its bound."""
+    from tileviz.vision.robust.settings import DEFAULT_SETTINGS
+
+    r = study_view(163, "mosaic", None)
+    assert r["accepted"], r
+    assert r["inside"], r
+    # past the largest a view may declare plus what the tolerance adds to the fit's sum
+    assert r["bound_rad"] > DEFAULT_SETTINGS.bound.max_rad + 0.039, r
+
+
 @pytest.mark.parametrize(
     ("seed", "family", "refused", "why"),
     [

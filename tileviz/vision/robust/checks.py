@@ -78,9 +78,11 @@ On the reading whose lines passed, the lattice and the bound:
   to the bound (its part of the parts' term, and ``fit.sigmas`` + 1 times it for the scatter and
   a width's excess: ``imprecise``; a declared tolerance alone is never a reason to refuse).
 - ``bound.heading``: the larger of the declared heading bound and the one with the fit's sum,
-  rad; <= the larger of
-  ``VisionConfig.heading_error`` and ``bound.max_rad``, plus the tolerance's part (as
-  ``bound.position``).
+  rad; each <= the larger of ``VisionConfig.heading_error`` and ``bound.max_rad``, plus what the
+  tolerance adds to it (to the fit's sum: its part of the parts' term; to the declared set's
+  reach: that reach less the reach of the same set with every part's bound less the
+  tolerance, or as to the fit's sum where that set is empty). Shown: the larger bound against
+  the limit plus that bound less the larger of the two bounds' excesses over their allowances.
 - ``foreign_edge``: long straight edges (``foreign.length`` x the smaller side, at least
   ``foreign.min_length`` px) off the lattice (its bands widened by the lattice tolerance each
   side) that no texture explains; <= 0 (``step edge`` when

@@ -141,8 +141,13 @@ def lattice_offsets(run: ReadingState, lines: list[list[Line]], y3: float) -> No
     # 0.36 from the fit's sums: the set's tight parts were blurred alike)
     rec.require(checks.BOUND_POSITION, run, max(pos_fit, d["bound_px"]),
                 d.get("position_tolerance", 0.0) + (run.st.fit.sigmas + 1.0) * run.tol_px)
-    rec.require(checks.BOUND_HEADING, run, max(head_fit, d["bound_rad"]),
-                d.get("heading_tolerance", 0.0))
+    # each heading bound within the limit beyond what the tolerance adds to it (the fit's sum:
+    # heading_tolerance; the set's reach: heading_tolerance_set)
+    fit_share = d.get("heading_tolerance", 0.0)
+    declared = d["bound_rad"]
+    beyond = max(head_fit - fit_share, declared - d.get("heading_tolerance_set", fit_share))
+    head = max(head_fit, declared)
+    rec.require(checks.BOUND_HEADING, run, head, head - beyond)
     run.y = normalise(ys[0], ys[1], y3, run.tile_size)
 
 
@@ -175,11 +180,12 @@ def feasible_terms(run: ReadingState, lines: list[list[Line]], refs: list[float]
     s_line = -(np.array([ln.pos for ln in every])[line] - centre)
     n = np.rint((s_line - np.asarray(refs)[fam]) / run.lp)
     a, q = sign * run.part_t, run.part_p - centre + n * run.lp
-    status, ranges, opened = relaxed_ranges(a, q, run.part_bound, fam, line)
+    b = run.part_bound
+    status, ranges, opened = relaxed_ranges(a, q, b, fam, line)
     floored = status == 1
     if floored:
-        status, ranges, opened = relaxed_ranges(a, q, run.part_bound + part_floor(run), fam,
-                                                line)
+        b = b + part_floor(run)
+        status, ranges, opened = relaxed_ranges(a, q, b, fam, line)
     d = run.details
     d["feasible"] = (0.5 if floored else 1.0) if status == 0 else 0.0 if status == 1 else math.nan
     # the fit's own terms, shown beside the ones the bound takes
@@ -189,6 +195,13 @@ def feasible_terms(run: ReadingState, lines: list[list[Line]], refs: list[float]
         return
     eps = run.tilt
     d["heading_parts"] = max(eps - ranges[0, 0], ranges[0, 1] - eps)
+    if run.tol_px > 0.0:
+        # what the floor's tolerance adds to the set's heading reach: the same set with every
+        # part's bound less the tolerance (none left: as to the fit's sum)
+        status0, ranges0, _ = relaxed_ranges(a, q, b - run.tol_px, fam, line)
+        if status0 == 0:
+            d["heading_tolerance_set"] = d["heading_parts"] - max(eps - ranges0[0, 0],
+                                                                  ranges0[0, 1] - eps)
     # a family's lone line left out leaves its offset free: the set bounds it with any other
     # line wrong, the fit's term (the line's band's reach in its parts' bounds) with that one
     reach = [max(refs[k] - ranges[1 + k, 0], ranges[1 + k, 1] - refs[k]) for k in range(2)]
