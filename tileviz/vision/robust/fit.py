@@ -217,8 +217,11 @@ def drop_stray_part(run: ReadingState, lines: list[list[Line]], eps: float) -> b
     if len(stray) != 1:
         return False
     ln, i = stray[0]
+    # its own bound as the fit bounds every part (the band's shape, a lone line's reach)
+    row = next(j for j, other in enumerate(lines[0] + lines[1]) if other is ln)
+    spread = float(part_spreads(run, lines)[row, i])
     ln.dropped = (float(ln.parts[i]), float(ln.tpart[i]),
-                  run.st.fit.part_sigmas * float(ln.sigma[i]) + float(ln.spread[i]) + run.tol_px)
+                  run.st.fit.part_sigmas * float(ln.sigma[i]) + spread + run.tol_px)
     ln.wpart = ln.wpart.copy()
     ln.parts = ln.parts.copy()
     ln.wpart[i] = 0.0

@@ -94,10 +94,12 @@ def lattice_offsets(run: ReadingState, lines: list[list[Line]], y3: float) -> No
         parts_k = float(np.dot(np.abs(g), run.part_bound))
         if len(fam) == 1 and fam[0].dropped is not None:
             # a lone line read without a stray part: the part left out may be the right one
-            # (no other line of the family says which), so the term reaches it too
+            # (no other line of the family says which), so the term reaches it too, carried
+            # to the view's centre with the tilt's error (its parts' term)
             p, t, b = fam[0].dropped
             sign = 1.0 if k == 0 else -1.0
-            parts_k = max(parts_k, abs(p - (fam[0].pos + sign * run.tilt * t)) + b)
+            parts_k = max(parts_k, abs(p - (fam[0].pos + sign * run.tilt * t)) + b
+                          + abs(t) * run.details["heading_parts"])
         terms.append(parts_k)
         run.details["position_parts"] = max(run.details.get("position_parts", 0.0),
                                              parts_k)
@@ -147,7 +149,8 @@ def lattice_offsets(run: ReadingState, lines: list[list[Line]], y3: float) -> No
     declared = d["bound_rad"]
     beyond = max(head_fit - fit_share, declared - d.get("heading_tolerance_set", fit_share))
     head = max(head_fit, declared)
-    rec.require(checks.BOUND_HEADING, run, head, head - beyond)
+    rec.require(checks.BOUND_HEADING, run, head,
+                head - beyond if math.isfinite(head) else fit_share)
     run.y = normalise(ys[0], ys[1], y3, run.tile_size)
 
 
