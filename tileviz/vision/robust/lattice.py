@@ -197,21 +197,25 @@ def feasible_terms(run: ReadingState, lines: list[list[Line]], refs: list[float]
     if status != 0:
         return
     eps = run.tilt
-    d["heading_parts"] = max(eps - ranges[0, 0], ranges[0, 1] - eps)
+    d["heading_parts"] = _reach(eps, ranges[0])
     if run.tol_px > 0.0:
         # what the floor's tolerance adds to the set's heading reach: the same set with every
         # part's bound less the tolerance (none left: as to the fit's sum)
         status0, ranges0, _ = relaxed_ranges(a, q, b - run.tol_px, fam, line)
         if status0 == 0:
-            d["heading_tolerance_set"] = d["heading_parts"] - max(eps - ranges0[0, 0],
-                                                                  ranges0[0, 1] - eps)
+            d["heading_tolerance_set"] = d["heading_parts"] - _reach(eps, ranges0[0])
     # a family's lone line left out leaves its offset free: the set bounds it with any other
     # line wrong, the fit's term (the line's band's reach in its parts' bounds) with that one
-    reach = [max(refs[k] - ranges[1 + k, 0], ranges[1 + k, 1] - refs[k]) for k in range(2)]
+    reach = [_reach(refs[k], ranges[1 + k]) for k in range(2)]
     d["position_parts"] = max(
         terms[k] if not math.isfinite(r) else max(terms[k], r) if opened[k] else r
         for k, r in enumerate(reach))
 
+
+
+def _reach(x: float, row: np.ndarray) -> float:
+    """The distance from ``x`` to the farther end of the range ``row`` (lower, upper)."""
+    return float(max(x - row[0], row[1] - x))
 
 def measured_period(run: ReadingState, s: np.ndarray, ref: float) -> None:
     """The tile period that one family's lines show (signed offsets ``s``, px, about the
