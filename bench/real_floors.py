@@ -3,7 +3,7 @@
     python bench/real_floors.py [--floors DIR] [--stills 40] [--corrupted 0] [--frames 400]
                                 [--only ID,...] [--scale 1.0] [--camera clean|plain]
                                 [--split tuning|heldout|...|heldout14]
-                                [--declare none|floor] [--csv out.csv] [--keep DIR]
+                                [--declare none|tolerance|floor] [--csv out.csv] [--keep DIR]
 
 The floors are photographs and textures of real floors that this repository does not ship (their
 licences do not all allow it): ``--floors`` is a folder holding them and a ``floors.json`` that
@@ -28,7 +28,9 @@ camera: how many are accepted and how many of those lie outside their bound. ``-
 sees the floor through a plain camera (blur 0.7 px, vignetting, noise of 3 levels).
 ``--declare floor`` declares the floor in the dataset's ``meta.json`` (``floor`` block:
 ``kind`` checker for a checkerboard, ``lattice_tolerance`` from ``lattice_residual_max_px``) and
-passes the same to the stills' extractor; ``none`` declares nothing (a perfect grout lattice).
+passes the same to the stills' extractor; ``tolerance`` declares the tolerance only (the kind is
+left for the extractor to recognise from each view); ``none`` declares nothing (a perfect grout
+lattice).
 
 Views are sampled from the image at 3 x 3 points a pixel (bilinear), so the photograph's own
 pixels are filtered as a camera's would be. Seeds: ``--split tuning`` uses seeds 0..; ``heldout``
@@ -326,6 +328,8 @@ def drive(floor: Floor, frames: int, scale: float, camera: str, seed: int, decla
     if declare == "floor":
         meta["floor"] = {"kind": "checker" if floor.grout == "edge" else "grout",
                          "lattice_tolerance": floor.tolerance_m}
+    elif declare == "tolerance":
+        meta["floor"] = {"lattice_tolerance": floor.tolerance_m}
     tmp = tempfile.TemporaryDirectory() if keep is None else None
     folder = (Path(tmp.name) if tmp is not None else keep or Path(".")) / f"{floor.id}-{seed}"
     try:
@@ -392,7 +396,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--scale", type=float, default=1.0)
     p.add_argument("--camera", choices=("clean", "plain"), default="clean")
     p.add_argument("--split", choices=tuple(SPLITS), default="tuning")
-    p.add_argument("--declare", choices=("none", "floor"), default="none")
+    p.add_argument("--declare", choices=("none", "tolerance", "floor"), default="none")
     p.add_argument("--csv", type=Path, default=None, help="also write the table's rows here")
     p.add_argument("--write-figures", action="store_true",
                    help="write the table into docs/figures.md (block real_floors_CAMERA_xSCALE)")
@@ -420,7 +424,7 @@ def main(argv: list[str] | None = None) -> int:
     table: list[list[str]] = []
     machine = Machine()
     for floor in floors:
-        tol = floor.tolerance_m if args.declare == "floor" else 0.0
+        tol = floor.tolerance_m if args.declare in ("floor", "tolerance") else 0.0
         kind = "checker" if (args.declare == "floor" and floor.grout == "edge") else "grout"
         vision = VisionConfig(extractor="robust")
         s = stills(floor, args.stills, args.scale, args.camera, seed0, vision,

@@ -2,6 +2,7 @@
 
     python bench/vision_study.py [--views-per-family 500] [--split fresh2|...|fresh20|fresh21]
                                  [--corrupted-per-family 100] [--jobs 1] [--csv out.csv]
+                                 [--kind declared|undeclared]
     python bench/vision_study.py --report out.csv     # the tables of a (partial) run
     python -m bench.vision_study --split fresh8 --views-per-family 20 --corrupted-per-family 5
 
@@ -9,7 +10,8 @@ Floors come from ``tileviz/testing/floorgen.py`` (its own renderer, no code shar
 ``tileviz.sim.camera``): nine families (plain, light grout, wide grout, strong shade steps, real
 photographs on the tiles, terrazzo, wood grain, degraded optics, thin grout at a coarse ppm) and
 four declared floors (checkerboard, hand-laid tiles, mosaic panels, faint coloured grout: each
-view extracted with its floor declared, ``floorgen.FloorSpec.model``), a
+view extracted with its floor declared, ``floorgen.FloorSpec.model``; with ``--kind
+undeclared`` its tolerance only, a checkerboard left for the extractor to recognise), a
 new random floor and camera for every view, the camera centre and heading uniform. Corrupted
 views add one of a cable, a box edge, a shadow edge, glare or motion blur.
 
@@ -80,8 +82,8 @@ SPLITS = {"tuning": 0, "heldout": 10**6, "fresh": 3 * 10**6, "fresh2": 4 * 10**6
 """First seed of each split."""
 
 
-def _task(args: tuple[int, str, str | None]) -> dict:
-    return study_view(*args)
+def _task(args: tuple[int, str, str | None, bool]) -> dict:
+    return study_view(args[0], args[1], args[2], declare_kind=args[3])
 
 
 def tasks(split: str, per_family: int, corrupted: int) -> list[tuple[int, str, str | None]]:
@@ -213,6 +215,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--split", choices=tuple(SPLITS), default="fresh2")
     ap.add_argument("--jobs", type=int, default=1)
     ap.add_argument("--families", default=",".join(floorgen.ALL_FAMILIES))
+    ap.add_argument("--kind", choices=("declared", "undeclared"), default="declared",
+                    help="declare each floor's kind (checker), or leave it for the extractor "
+                         "to recognise (the tolerance declared either way)")
     ap.add_argument("--csv", default=None,
                     help="write every view's outcome here, as it comes (an interrupted study "
                          "keeps what it measured)")
@@ -230,7 +235,8 @@ def main(argv: list[str] | None = None) -> int:
             write_figures(rows, machine, f"views of {args.report}")
         return 0
     fams = args.families.split(",")
-    work = [t for t in tasks(args.split, args.views_per_family, args.corrupted_per_family)
+    work = [(*t, args.kind == "declared")
+            for t in tasks(args.split, args.views_per_family, args.corrupted_per_family)
             if t[1] in fams]
     t0 = time.perf_counter()
     rows: list[dict] = []
@@ -254,7 +260,7 @@ def main(argv: list[str] | None = None) -> int:
         if out is not None:
             out.close()
     elapsed = time.perf_counter() - t0
-    print(f"{len(rows)} views ({args.split} split) in {elapsed:.0f} s")
+    print(f"{len(rows)} views ({args.split} split, kind {args.kind}) in {elapsed:.0f} s")
     print(report(rows))
     if args.write_figures:
         write_figures(rows, machine, f"{len(rows)} views of the {args.split} split, "

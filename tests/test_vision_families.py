@@ -116,11 +116,47 @@ def test_an_undeclared_checkerboard_is_recognised_from_its_tile_edges(seed: int)
     assert abs(e3) <= res.observation.heading_error
 
 
-def test_only_one_step_between_two_levels_is_a_tile_edge() -> None:
-    """The profile across a line of a checkerboard is one blurred step; a grout band darker
-    than both tiles, or of a third level between them (two edges), is not one, nor is a step
-    under the noise."""
-    from tileviz.vision.robust.checker import _one_step
+def test_an_undeclared_checkerboard_with_a_thin_grout_is_recognised_and_bounded_by_half_its_band(
+) -> None:
+    """Marble-like squares of two shades with a thin grout (1.5 px, darker than both) along
+    their edges, nothing declared: the grout reading is refused, the edge image is recognised
+    as a checkerboard whose tile edges carry a band, and it is read again with the tolerance
+    widened by half the band: the decision shows ``checker.band``, the bound allows the
+    tolerance (``details["position_tolerance"]``, px) of half the band, and the truth is
+    inside it."""
+    rng = np.random.default_rng([24, 5])
+    dark = float(rng.uniform(40, 90))
+    spec = floorgen.FloorSpec(family="checker", kind="checker", tile_size=0.3,
+                              ppm=float(rng.uniform(300, 500)), grout_px=1.5,
+                              grout_shade=float(rng.uniform(150, 200)), tile_shade=dark,
+                              shade_spread=4.0, surface="terrazzo", surface_amp=0.12, seed=24,
+                              band_shade=dark - 30.0, noise=1.5, blur=0.6)
+    cx, cy, th = (float(rng.uniform(0, 3)), float(rng.uniform(0, 3)),
+                  float(rng.uniform(-3, 3)))
+    img = floorgen.render(spec, cx, cy, th, rng)
+    cam = CameraConfig(ppm=spec.ppm, width=spec.width, height=spec.height, offset=(0.0, 0.0))
+    res = extract(img, camera=cam, tile_size=spec.tile_size,
+                  vision=VisionConfig(extractor="robust"))
+    assert res.accepted and res.observation is not None and res.decision is not None
+    assert res.details["projection"] <= -1 and res.details["checker_band"] > 0.0
+    assert res.decision.shown is not None
+    shown = {c.check for c in res.decision.readings[res.decision.shown].checks}
+    assert shown >= {"checker.pieces", "checker.steps", "checker.band", "checker.sides"}
+    assert res.details["position_tolerance"] >= 0.5 * res.details["checker_band"]
+    e1, e2, e3 = observation_error(res.observation, Pose(cx, cy, th), spec.tile_size,
+                                   (0.0, 0.0))
+    assert max(abs(e1), abs(e2)) <= res.observation.position_error
+    assert abs(e3) <= res.observation.heading_error
+
+
+def test_one_step_between_two_levels_is_a_tile_edge_and_a_thin_band_beside_it_is_measured(
+) -> None:
+    """The profile across a line of a checkerboard is one blurred step (band 0); a thin grout
+    band darker than both tiles along the edge is measured (its far side about its width off
+    the edge); a wide band, a band of a third level between the tiles (two edges the step's
+    way) and a step under the noise are no tile edge; a tile's level drifting gently beside
+    the edge (worn marble) is no band."""
+    from tileviz.vision.robust.checker import step_band
     from tileviz.vision.robust.settings import DEFAULT_SETTINGS
 
     st = DEFAULT_SETTINGS.checker
@@ -129,13 +165,22 @@ def test_only_one_step_between_two_levels_is_a_tile_edge() -> None:
     erf = np.vectorize(math.erf)
 
     def edge(at: float, height: float) -> np.ndarray:
-        return height * 0.5 * (1.0 + erf((u - at) / (1.2 * math.sqrt(2.0))))
+        return height * 0.5 * (1.0 + erf((u - at) / (1.0 * math.sqrt(2.0))))
 
-    assert _one_step(60.0 + edge(0.0, 100.0), u, outer, 0.5, st)
-    assert not _one_step(60.0 + edge(0.0, 100.0) - 100.0 * np.exp(-u * u / 2.0), u, outer,
-                         0.5, st)  # a dark grout band between them
-    assert not _one_step(60.0 + edge(-3.0, 50.0) + edge(3.0, 50.0), u, outer, 0.5, st)
-    assert not _one_step(60.0 + edge(0.0, 4.0), u, outer, 0.5, st)
+    def band(prof: np.ndarray) -> float | None:
+        return step_band(prof, u, outer, 0.5, 4.0, st)
+
+    assert band(60.0 + edge(0.0, 100.0)) == 0.0
+    thin = band(60.0 + edge(0.0, 100.0) - edge(-2.0, 30.0) + edge(0.0, 30.0))
+    assert thin is not None and 1.0 <= thin <= 4.0  # dark grout from -2 to 0 px
+    assert band(60.0 + edge(0.0, 100.0) - edge(-6.0, 40.0) + edge(0.0, 40.0)) is None  # wide
+    dip = band(60.0 + edge(0.0, 100.0) - 100.0 * np.exp(-u * u / 2.0))  # thin, on the edge
+    assert dip is not None and 1.0 <= dip <= 4.0
+    assert band(60.0 + edge(0.0, 100.0) - 100.0 * np.exp(-u * u / 18.0)) is None  # wide
+    assert band(60.0 + edge(-3.0, 50.0) + edge(3.0, 50.0)) is None
+    assert band(60.0 + edge(0.0, 4.0)) is None
+    drift = 60.0 + edge(0.0, 100.0) - np.where(u > 0, 12.0 * np.exp(-u / 6.0), 0.0)
+    assert band(drift) == 0.0
 
 
 def _checker_view(light: np.ndarray, dark: np.ndarray) -> tuple[np.ndarray, np.ndarray,

@@ -108,6 +108,10 @@ class FloorSpec:
     with another material: (n, the share of the joint's width filled, its shade), else None
     (dirt in a paver mosaic's joints). No family draws it. Both only on a floor laid on the
     lattice (no ``lattice_tolerance``, no ``panel``: :func:`render` raises ValueError)."""
+    band_shade: float | None = None
+    """On a checkerboard, the shade of a grout ``grout_px`` wide centred on the tiles' edges
+    (a thin grout between marble squares), else None (``grout_px`` 0: edge to edge). No
+    family draws it."""
 
     @property
     def model(self) -> FloorModel:
@@ -358,13 +362,17 @@ def render(spec: FloorSpec, cx: float, cy: float, theta: float,
                        | (on_y & (np.rint(Y) % n == 0) & (ey < share * half_y))), fill_shade)
     shade0: float | np.ndarray = spec.tile_shade
     hued = grout  # where the second colour of spec.tint is (the grout, or the odd tiles)
-    if spec.kind == "checker":  # two shades alternate, no grout
+    band_shade = spec.grout_shade
+    if spec.kind == "checker":  # two shades alternate, no grout unless band_shade is given
         hued = (i + j) % 2 != 0
         shade0 = np.where(hued, spec.grout_shade, spec.tile_shade)
-        grout = np.zeros_like(grout)
+        if spec.band_shade is None:
+            grout = np.zeros_like(grout)
+        else:
+            band_shade = spec.band_shade
     shade = shade0 + spec.shade_spread * (2.0 * _hash(i, j, spec.seed, 1) - 1.0)
     tile = shade * (1.0 + _surface(spec, i, j, fx, fy))
-    val = np.where(grout, spec.grout_shade, tile)
+    val = np.where(grout, band_shade, tile)
     for mask, level in (m for m in (other, filled) if m is not None):
         val = np.where(mask, level, val)
     img = val.mean(axis=(2, 3)).astype(np.float32)

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from tileviz.config import CameraConfig, VisionConfig
+from tileviz.config import CameraConfig, FloorModel, VisionConfig
 from tileviz.testing import floorgen
 from tileviz.types import Pose
 from tileviz.vision import VisionResult, extract, observation_error
@@ -34,18 +34,22 @@ DETAILS = ("position_se_px", "heading_se", "straightness_px", "spacing_residual_
 
 
 def study_view(seed: int, family: str, corruption: str | None,
-               vision: VisionConfig | None = None) -> dict[str, Any]:
+               vision: VisionConfig | None = None, declare_kind: bool = True) -> dict[str, Any]:
     """A view of ``family`` from ``seed`` (with ``corruption``, one of
     :data:`floorgen.CORRUPTIONS`, or clean), extracted with ``vision`` (default: the robust
-    extractor): the outcome with the view's floor, whether it is readable
-    (:func:`floorgen.readable`), the extraction time (ms) and the extractor's :data:`DETAILS`."""
+    extractor), its floor declared (without its kind when not ``declare_kind``: a
+    checkerboard is then left for the extractor to recognise): the outcome with the view's
+    floor, whether it is readable (:func:`floorgen.readable`), the extraction time (ms) and the
+    extractor's :data:`DETAILS`."""
     rng = np.random.default_rng([seed, FAMILY_SALT[family], 0 if corruption is None else 1])
     spec = floorgen.draw_floor(family, rng)
     cx, cy, th = floorgen.draw_view(rng)
     img = floorgen.render(spec, cx, cy, th, rng, corruption)
     cam = CameraConfig(ppm=spec.ppm, width=spec.width, height=spec.height, offset=(0.0, 0.0))
+    model = (spec.model if declare_kind
+             else FloorModel(lattice_tolerance=spec.model.lattice_tolerance))
     res = extract(img, camera=cam, tile_size=spec.tile_size,
-                  vision=vision or VisionConfig(extractor="robust"), floor=spec.model)
+                  vision=vision or VisionConfig(extractor="robust"), floor=model)
     out: dict[str, Any] = {
         "seed": seed, "family": family, "corruption": corruption or "",
         "readable": floorgen.readable(spec, cx, cy, th), "accepted": res.accepted,

@@ -156,30 +156,49 @@ def _recognise(views: list[Candidate], gray: np.ndarray, ppm: float, lp: float,
                ) -> VisionResult | None:
     """A checkerboard the user did not declare: the edge images of ``views`` read as on a
     floor declared ``checker`` (its tolerance kept), a reading accepted only when every piece
-    of its lines is one step on the view it was made from
+    of its lines is one step on the view it was made from, its band, if any, thin
     (:func:`~tileviz.vision.robust.checker.tile_edges`; ``ppm`` the view's pixels per metre,
-    ``lp`` the tile period, px); the
-    decision then shows the checks ``checker.pieces`` and ``checker.steps``. None when none is
-    recognised."""
+    ``lp`` the tile period, px); the decision then shows the checks ``checker.pieces``,
+    ``checker.steps`` and ``checker.band``. Where a piece has a band (a thin grout along the
+    tiles' edges), the line read may lie off the band's centre by half of it: the edge image
+    is read again with the floor's tolerance widened by half the widest band
+    (``details["checker_band"]``, px), and that reading kept when its own bands are no wider.
+    None when none is recognised."""
     from tileviz.vision.robust.checker import tile_edges
     from tileviz.vision.robust.settings import DEFAULT_SETTINGS
 
     st = DEFAULT_SETTINGS.checker
     source = _edge_sources(views)
+    edges = _edge_images(views, gray)
+    edge_of = dict(edges)
+    as_checker = FloorModel("checker", floor.lattice_tolerance)
 
-    def accept(number: float, got: VisionResult) -> VisionResult:
+    def steps_checked(number: float, got: VisionResult, widest: float) -> tuple[
+            VisionResult, float]:
         view = source[number]()
         steps = tile_edges(view, got.segments, got.bags, lp, st)
         checks = (CheckResult("checker.pieces", steps.measured, st.min_pieces, ">=",
                               steps.measured >= st.min_pieces),
-                  CheckResult("checker.steps", steps.failed, 0, "<=", steps.failed == 0))
+                  CheckResult("checker.steps", steps.failed, 0, "<=", steps.failed == 0),
+                  CheckResult("checker.band", steps.band, widest, "<=",
+                              steps.band <= widest))
         got = replace(got, details={**got.details, "checker": float(steps.measured)})
         got = _with_checks(got, checks)
-        return _sides_swap(view, got, lp) if got.accepted else got
+        return (_sides_swap(view, got, lp) if got.accepted else got), steps.band
 
-    as_checker = FloorModel("checker", floor.lattice_tolerance)
-    got, _ = _first_accepted(_edge_images(views, gray), gray, dict(timings), as_checker, read,
-                             ppm, lp, accept)
+    def accept(number: float, got: VisionResult) -> VisionResult:
+        got, band = steps_checked(number, got, st.max_band * lp)
+        if not got.accepted or band <= 0.0:
+            return got
+        widened = FloorModel("checker", floor.lattice_tolerance + 0.5 * band / ppm)
+        again = read(edge_of[number](), dict(timings), widened)
+        if not again.accepted:
+            return again
+        again = replace(again, details={**again.details, "projection": number,
+                                        "checker_band": band})
+        return steps_checked(number, again, band)[0]
+
+    got, _ = _first_accepted(edges, gray, dict(timings), as_checker, read, ppm, lp, accept)
     return got
 
 

@@ -1,14 +1,17 @@
 """Whether the lines a view's edge image read are the edges between tiles of a checkerboard
 (docs/vision.md, "Colour"): :func:`tile_edges`.
 
-On a checkerboard two shades meet edge to edge: across each line, between two crossings, the
-view steps once from one tile's level to the other's. A grout line is a band: its level lies
-beyond both tiles' (darker or lighter), or, grout of a shade between the two tiles', the view
-steps twice with the band's level between. Read from its edge image, a grout band's ridge is its
-centre only while its two edges are alike, so a view is read as a checkerboard that the user did
-not declare only when every piece of every line it read is one step: the level on either side
-differs, the view stays between the two levels across the line, and it is steep over one
-stretch only (one edge, not two with a band of a third level between).
+On a checkerboard two shades meet edge to edge, or across a thin grout band: across each line,
+between two crossings, the view steps once from one tile's level to the other's. Read from its
+edge image, a line is the ridge of the step's edge; where a band of a third level lies along the
+edge (a thin grout, a bevel), the band's far side is a second edge, and the ridge lies anywhere
+between the two, off the band's centre (the lattice's line) by up to half the band. So a view is
+read as a checkerboard that the user did not declare only when every piece of every line it read
+is one step (the level on either side differs, and the view is steep the step's way over one
+stretch only: not two edges with a band of a third level between) whose band, if any, is thin;
+the reading is then made again with the floor's tolerance widened by half the widest band
+(:func:`tileviz.vision.views.read_robust`). A grout band between two tiles of one shade is no
+step; a wide one is no tile edge.
 """
 
 from __future__ import annotations
@@ -29,11 +32,13 @@ __all__ = ["Steps", "sides_alternate", "tile_edges"]
 
 class Steps:
     """What :func:`tile_edges` found: the pieces of lines measured (between two crossings, or
-    a crossing and the view's border) and how many of them are not one step."""
+    a crossing and the view's border), how many of them are not one step, and the widest band
+    along a step (px: from its edge to the band's far side, 0 where no piece has a band)."""
 
-    def __init__(self, measured: int, failed: int) -> None:
+    def __init__(self, measured: int, failed: int, band: float = 0.0) -> None:
         self.measured = measured
         self.failed = failed
+        self.band = band
 
     def checker(self, st: CheckerSettings) -> bool:
         """Whether the lines are a checkerboard's edges: ``st.min_pieces`` measured or more,
@@ -51,17 +56,27 @@ def tile_edges(view: np.ndarray, segments: np.ndarray, bags: np.ndarray, lp: flo
     crossings' corners) over ``st.reach`` of the period each side (at least ``st.min_reach``
     px), the levels either side the mean of its outer ``st.plateau`` px. A piece is one step
     when the two levels differ by ``st.step_sigmas`` of the profile's noise (the view's noise
-    over the root of the piece's length) and ``st.min_step`` gray levels, the profile stays
-    within ``st.overshoot`` of the step (plus 3 noise) of the two levels, and its slope is at
-    least ``st.single_edge`` of its steepest over one stretch only (by central differences:
-    one edge, not two with a band of a third level between)."""
+    over the root of the piece's length) and ``st.min_step`` gray levels, its slope the step's
+    way is at least ``st.single_edge`` of its steepest over one stretch only (by central
+    differences: one edge, not two with a band of a third level between), and no slope against
+    the step steeper than ``st.second_edge`` of the steepest (and 3 times its noise) lies
+    farther than ``st.max_band`` of the period from that stretch. Within it, a slope against
+    the step steeper than ``st.band_edge`` of the steepest is the far side of a band darker or
+    lighter than both tiles (a thin grout): the piece's band is the distance from the far side
+    of the steep stretch to the farthest such slope, else 0. A tile's level drifting across the
+    profile (worn marble) is gentler."""
     sigma = noise_sigma(view)
     measured = failed = 0
+    band = 0.0
     for piece in _pieces(view, segments, bags, lp, st):
         measured += 1
-        failed += not _one_step(piece.profile, piece.u, piece.outer, sigma / math.sqrt(piece.n),
-                                st)
-    return Steps(measured, failed)
+        got = step_band(piece.profile, piece.u, piece.outer, sigma / math.sqrt(piece.n),
+                        st.max_band * lp, st)
+        if got is None:
+            failed += 1
+        else:
+            band = max(band, got)
+    return Steps(measured, failed, band)
 
 
 def sides_alternate(view: np.ndarray, segments: np.ndarray, bags: np.ndarray, lp: float,
@@ -175,18 +190,30 @@ def _crossing(p0: np.ndarray, t: np.ndarray, other: np.ndarray) -> float | None:
     return float((w[0] * d[1] - w[1] * d[0]) / den)
 
 
-def _one_step(prof: np.ndarray, u: np.ndarray, outer: np.ndarray, noise: float,
-              st: CheckerSettings) -> bool:
-    """Whether a profile across a line (levels at offsets ``u``, px) is one step between its
-    two outer levels (:func:`tile_edges`)."""
+def step_band(prof: np.ndarray, u: np.ndarray, outer: np.ndarray, noise: float,
+              max_band: float, st: CheckerSettings) -> float | None:
+    """A profile across a line (levels at offsets ``u``, px, evenly spaced; ``outer`` the
+    plateau samples; ``noise`` a sample's noise, gray levels) as a tile edge
+    (:func:`tile_edges`): None when it is not one step between its two outer levels, or shows
+    an edge the other way farther than ``max_band`` px from it; else its band (px, 0 without
+    an edge the other way)."""
     left = float(prof[outer & (u < 0)].mean())
     right = float(prof[outer & (u > 0)].mean())
     step = right - left
     if abs(step) < max(st.step_sigmas * noise, st.min_step):
-        return False
-    margin = st.overshoot * abs(step) + 3.0 * noise
-    if prof.min() < min(left, right) - margin or prof.max() > max(left, right) + margin:
-        return False
+        return None
     slope = np.gradient(prof, u) * math.copysign(1.0, step)
-    steep = slope >= st.single_edge * float(slope.max())
-    return int(np.count_nonzero(steep[1:] & ~steep[:-1])) + int(steep[0]) == 1
+    steepest = float(slope.max())
+    steep = slope >= st.single_edge * steepest
+    if int(np.count_nonzero(steep[1:] & ~steep[:-1])) + int(steep[0]) != 1:
+        return None
+    # a central difference of two samples du apart each side: its noise is noise * sqrt(2) / 2du
+    noise_slope = noise * math.sqrt(2.0) / (2.0 * float(u[1] - u[0]))
+    edge = u[steep]
+    off = np.maximum(np.maximum(edge.min() - u, u - edge.max()), 0.0)
+    near = off <= max_band
+    against = -slope
+    if (against[~near] > max(st.second_edge * steepest, 3.0 * noise_slope)).any():
+        return None  # a band's far side beyond the thin bands', or a line of its own
+    back = near & (against > max(st.band_edge * steepest, 3.0 * noise_slope))
+    return float(off[back].max() + (edge.max() - edge.min())) if back.any() else 0.0

@@ -415,12 +415,20 @@ class CheckerSettings:
     ..."""
     min_step: float = 6.0
     """... and at least this many gray levels."""
-    overshoot: float = 0.15
-    """The profile stays within this share of the step (plus 3 noise) of the two levels: a
-    grout band darker or lighter than both tiles leaves them."""
     single_edge: float = 0.5
-    """The profile's slope reaches this share of its steepest over one stretch only: a band of
-    a third level between two edges is two."""
+    """The profile's slope the step's way reaches this share of its steepest over one stretch
+    only: a band of a third level between two edges is two."""
+    band_edge: float = 0.15
+    """Beside the edge, a slope against the step steeper than this share of the steepest (and
+    than 3 times its noise) is the far side of a band darker or lighter than both tiles (a
+    thin grout) ..."""
+    max_band: float = 0.03
+    """... up to this share of the tile period from the edge: the reading is made again with
+    the floor's tolerance widened by half the band ..."""
+    second_edge: float = 0.25
+    """... and farther off, a slope against the step steeper than this share of the steepest
+    is a wide band's far side or a line of its own: no tile edge. A tile's level drifting
+    (worn marble) is gentler."""
     min_pieces: int = 2
     """A view is recognised as a checkerboard from this many pieces, every one a step."""
 
