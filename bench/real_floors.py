@@ -399,7 +399,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--declare", choices=("none", "tolerance", "floor"), default="none")
     p.add_argument("--csv", type=Path, default=None, help="also write the table's rows here")
     p.add_argument("--write-figures", action="store_true",
-                   help="write the table into docs/figures.md (block real_floors_CAMERA_xSCALE)")
+                   help="write the table into docs/figures.md (block real_floors_CAMERA_xSCALE, "
+                        "with _kind_undeclared or _undeclared after it unless --declare floor)")
     p.add_argument("--keep", type=Path, default=None, help="keep the drives' datasets here")
     args = p.parse_args(argv)
     set_opencv_threads()
@@ -461,15 +462,21 @@ def main(argv: list[str] | None = None) -> int:
         print("corrupted views, all floors: " + "; ".join(
             f"{k} {v[1]} of {v[0]} accepted, {v[2]} outside" for k, v in kinds.items()))
     if args.write_figures:
-        write_block(f"real_floors_{args.camera}_x{args.scale:g}",
-                    f"Real floors ({args.camera} camera, x{args.scale:g} resolution)", table,
+        suffix, what = {"floor": ("", "floor (kind, lattice_tolerance from floors.json's "
+                                  "measured departure)"),
+                        "tolerance": ("_kind_undeclared", "the tolerance only (lattice_tolerance "
+                                      "from floors.json's measured departure; a checkerboard "
+                                      "left for the extractor to recognise)"),
+                        "none": ("_undeclared", "nothing (a perfect grout lattice)")}[args.declare]
+        write_block(f"real_floors_{args.camera}_x{args.scale:g}{suffix}",
+                    f"Real floors ({args.camera} camera, x{args.scale:g} resolution, declared: "
+                    f"{args.declare})", table,
                     machine=machine,
                     header=("floor", "stills accepted", "accepted outside own bound",
                             "corrupted accepted", "corrupted outside own bound",
                             "drive: truth inside", "contracted", "lost", "median box (cm)"),
-                    note=f"Split {args.split}; floor declared: {args.declare} (kind, "
-                    "lattice_tolerance from floors.json's measured departure). The photographs "
-                    "are not in the repository (their sources: the floors' SOURCES.md).")
+                    note=f"Split {args.split}; declared: {what}. The photographs are not in the "
+                    "repository (their sources: the floors' SOURCES.md).")
     if args.csv is not None:
         with open(args.csv, "w", newline="") as f:
             wr = csv.DictWriter(f, fieldnames=list(rows[0]))
