@@ -91,15 +91,13 @@ def test_a_checkerboard_of_two_hues_of_one_luma_is_read_from_a_difference_of_cha
             assert abs(e3) <= got.observation.heading_error
 
 
-@pytest.mark.parametrize("seed", [0, 2, 5, 4000003])
+@pytest.mark.parametrize("seed", [0, 2, 5])
 def test_an_undeclared_checkerboard_is_recognised_from_its_tile_edges(seed: int) -> None:
-    """The study's checkerboards (tuning seeds: marble-like, seed 5 two hues of one luma, and
-    seed 4000003 tiles of 192 px whose lines run into the view's corners, each piece's profile
-    measured where it stays in the view) extracted with nothing declared: the grout reading is
-    refused, the edge images read as on a declared checkerboard, and the reading kept because
-    every piece of its lines is one step between two tiles' levels and the tiles beside each
-    line swap shades at its crossings; the decision shows the three checks in the reading kept;
-    within its bound."""
+    """The study's checkerboards (tuning seeds: marble-like, and seed 5 two hues of one luma)
+    extracted with nothing declared: the grout reading is refused, the edge images read as on
+    a declared checkerboard, and the reading kept because every piece of its lines is one step
+    between two tiles' levels and the tiles beside each line swap shades at its crossings; the
+    decision shows the three checks in the reading kept; within its bound."""
     rng = np.random.default_rng([seed, FAMILY_SALT["checker"], 0])
     spec = floorgen.draw_floor("checker", rng)
     cx, cy, th = floorgen.draw_view(rng)

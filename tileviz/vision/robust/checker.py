@@ -50,21 +50,21 @@ def tile_edges(view: np.ndarray, segments: np.ndarray, bags: np.ndarray, lp: flo
                st: CheckerSettings) -> Steps:
     """Each line read (``segments``: (N, 4) image endpoints x1, y1, x2, y2 px; ``bags``: 1 or 2
     its family, 0 not a line) cut at its crossings with the other family's lines, each piece
-    measured on ``view`` (HxW uint8, the image whose edge image was read) where its middle (the
-    ends ``st.piece_margin`` of it left out by the crossings' corners) has a stretch at least
-    ``st.min_piece`` of the period ``lp`` (px) long whose profiles stay in the view: its profile
-    across the line (mean along the longest such stretch) over ``st.reach`` of the period each
-    side (at least ``st.min_reach`` px), the levels either side the mean of its outer
-    ``st.plateau`` px. A piece is one step when the two levels differ by ``st.step_sigmas`` of
-    the profile's noise (the view's noise over the root of the piece's length) and
-    ``st.min_step`` gray levels, its slope the step's way is at least ``st.single_edge`` of its
-    steepest over one stretch only (by central differences: one edge, not two with a band of a
-    third level between), and no slope against the step steeper than ``st.second_edge`` of the
-    steepest (and 3 times its noise) lies farther than ``st.max_band`` of the period from that
-    stretch. Within it, a slope against the step steeper than ``st.band_edge`` of the steepest
-    is the far side of a band darker or lighter than both tiles (a thin grout): the piece's band
-    is the distance from the far side of the steep stretch to the farthest such slope, else 0. A
-    tile's level drifting across the profile (worn marble) is gentler."""
+    whose middle is at least ``st.min_piece`` of the period ``lp`` (px) long measured on
+    ``view`` (HxW uint8, the image whose edge image was read): its profile across the line
+    (mean along the piece's middle, the ends ``st.piece_margin`` of it left out by the
+    crossings' corners) over ``st.reach`` of the period each side (at least ``st.min_reach``
+    px), the levels either side the mean of its outer ``st.plateau`` px. A piece is one step
+    when the two levels differ by ``st.step_sigmas`` of the profile's noise (the view's noise
+    over the root of the piece's length) and ``st.min_step`` gray levels, its slope the step's
+    way is at least ``st.single_edge`` of its steepest over one stretch only (by central
+    differences: one edge, not two with a band of a third level between), and no slope against
+    the step steeper than ``st.second_edge`` of the steepest (and 3 times its noise) lies
+    farther than ``st.max_band`` of the period from that stretch. Within it, a slope against
+    the step steeper than ``st.band_edge`` of the steepest is the far side of a band darker or
+    lighter than both tiles (a thin grout): the piece's band is the distance from the far side
+    of the steep stretch to the farthest such slope, else 0. A tile's level drifting across the
+    profile (worn marble) is gentler."""
     sigma = noise_sigma(view)
     measured = failed = 0
     band = 0.0
@@ -142,9 +142,8 @@ def _levels(piece: _Piece) -> tuple[float, float]:
 def _pieces(view: np.ndarray, segments: np.ndarray, bags: np.ndarray, lp: float,
             st: CheckerSettings) -> Iterator[_Piece]:
     """Every piece of every line (``segments`` (N, 4), ``bags`` its family, 0 not a line)
-    cut at the crossings with the other family's lines, in order along each line
-    (:func:`tile_edges`): of its middle, the longest stretch whose profiles stay in ``view``,
-    when at least ``st.min_piece`` of the period ``lp`` (px) long."""
+    cut at the crossings with the other family's lines whose middle is long enough and whose
+    profile stays in ``view``, in order along each line (:func:`tile_edges`)."""
     keep = (bags == BAG_HORIZONTAL) | (bags == BAG_VERTICAL)
     seg, fam = segments[keep], bags[keep]
     reach = max(st.min_reach, st.reach * lp)
@@ -174,24 +173,9 @@ def _pieces(view: np.ndarray, segments: np.ndarray, bags: np.ndarray, lp: float,
             prof = cv2.remap(src, xs.astype(np.float32), ys.astype(np.float32),
                              cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
                              borderValue=math.nan)
-            inside = _longest_run(np.isfinite(prof).all(axis=1))
-            if inside.stop - inside.start < st.min_piece * lp:
-                continue  # too little of the piece's profile stays in the view
-            yield _Piece(i, k, prof[inside].mean(axis=0), u, outer, inside.stop - inside.start)
-
-
-def _longest_run(ok: np.ndarray) -> slice:
-    """The longest run of True in ``ok`` (1-D bool), the first of equals; empty when none."""
-    best = slice(0, 0)
-    start = None
-    for k, v in enumerate([*ok.tolist(), False]):
-        if v and start is None:
-            start = k
-        elif not v and start is not None:
-            if k - start > best.stop - best.start:
-                best = slice(start, k)
-            start = None
-    return best
+            if not np.isfinite(prof).all():
+                continue  # the piece's profile leaves the view
+            yield _Piece(i, k, prof.mean(axis=0), u, outer, int(s.size))
 
 
 def _crossing(p0: np.ndarray, t: np.ndarray, other: np.ndarray) -> float | None:
