@@ -116,13 +116,13 @@ def test_an_undeclared_checkerboard_is_recognised_from_its_tile_edges(seed: int)
     assert abs(e3) <= res.observation.heading_error
 
 
-def test_an_undeclared_checkerboard_with_a_thin_grout_is_recognised_and_bounded_by_half_its_band(
+def test_an_undeclared_checkerboard_with_a_thin_grout_is_recognised_and_bounded_by_its_reach(
 ) -> None:
     """Marble-like squares of two shades with a thin grout (1.5 px, darker than both) along
     their edges, nothing declared: the grout reading is refused, the edge image is recognised
     as a checkerboard whose tile edges carry a band, and it is read again with the tolerance
-    widened by half the band: the decision shows ``checker.band``, the bound allows the
-    tolerance (``details["position_tolerance"]``, px) of half the band, and the truth is
+    widened by the reach of the band: the decision shows ``checker.band``, the bound allows
+    the tolerance (``details["position_tolerance"]``, px) of that reach, and the truth is
     inside it."""
     rng = np.random.default_rng([24, 5])
     dark = float(rng.uniform(40, 90))
@@ -142,45 +142,53 @@ def test_an_undeclared_checkerboard_with_a_thin_grout_is_recognised_and_bounded_
     assert res.decision.shown is not None
     shown = {c.check for c in res.decision.readings[res.decision.shown].checks}
     assert shown >= {"checker.pieces", "checker.steps", "checker.band", "checker.sides"}
-    assert res.details["position_tolerance"] >= 0.5 * res.details["checker_band"]
+    assert res.details["checker_band"] >= 1.0  # the band's far side, beside the edge
+    assert res.details["position_tolerance"] >= res.details["checker_band"]
     e1, e2, e3 = observation_error(res.observation, Pose(cx, cy, th), spec.tile_size,
                                    (0.0, 0.0))
     assert max(abs(e1), abs(e2)) <= res.observation.position_error
     assert abs(e3) <= res.observation.heading_error
 
 
-def test_one_step_between_two_levels_is_a_tile_edge_and_a_thin_band_beside_it_is_measured(
-) -> None:
-    """The profile across a line of a checkerboard is one blurred step (band 0); a thin grout
-    band darker than both tiles along the edge is measured (its far side about its width off
-    the edge); a wide band, a band of a third level between the tiles (two edges the step's
-    way) and a step under the noise are no tile edge; a tile's level drifting gently beside
-    the edge (worn marble) is no band."""
+def test_one_step_between_two_levels_is_a_tile_edge_and_its_reach_covers_a_thin_band() -> None:
+    """The profile across a line of a checkerboard (offsets from the line read) is one blurred
+    step, its reach (how far from the line its edge and any edge the other way lie) the
+    step's own offset; a thin grout band darker than both tiles along the edge reaches to its
+    far side, which covers the band's centre; a line read on a band's far side reaches to the
+    step's edge; a band's far side beyond the limit (even a faint one of 20 % of the step's
+    edge), a band of a third level between the tiles (two edges the step's way) and a step
+    under the noise are no tile edge; a tile's level drifting gently beside the edge (worn
+    marble) is no band."""
     from tileviz.vision.robust.checker import step_band
     from tileviz.vision.robust.settings import DEFAULT_SETTINGS
 
     st = DEFAULT_SETTINGS.checker
-    u = np.arange(-8.0, 8.25, 0.5)
-    outer = np.abs(u) >= 8.0 - st.plateau
+    u = np.arange(-10.0, 10.25, 0.5)
+    outer = np.abs(u) >= 10.0 - st.plateau
     erf = np.vectorize(math.erf)
 
     def edge(at: float, height: float) -> np.ndarray:
-        return height * 0.5 * (1.0 + erf((u - at) / (1.0 * math.sqrt(2.0))))
+        return height * 0.5 * (1.0 + erf((u - at) / (1.2 * math.sqrt(2.0))))
 
-    def band(prof: np.ndarray) -> float | None:
+    def reach(prof: np.ndarray) -> float | None:
         return step_band(prof, u, outer, 0.5, 4.0, st)
 
-    assert band(60.0 + edge(0.0, 100.0)) == 0.0
-    thin = band(60.0 + edge(0.0, 100.0) - edge(-2.0, 30.0) + edge(0.0, 30.0))
-    assert thin is not None and 1.0 <= thin <= 4.0  # dark grout from -2 to 0 px
-    assert band(60.0 + edge(0.0, 100.0) - edge(-6.0, 40.0) + edge(0.0, 40.0)) is None  # wide
-    dip = band(60.0 + edge(0.0, 100.0) - 100.0 * np.exp(-u * u / 2.0))  # thin, on the edge
-    assert dip is not None and 1.0 <= dip <= 4.0
-    assert band(60.0 + edge(0.0, 100.0) - 100.0 * np.exp(-u * u / 18.0)) is None  # wide
-    assert band(60.0 + edge(-3.0, 50.0) + edge(3.0, 50.0)) is None
-    assert band(60.0 + edge(0.0, 4.0)) is None
+    clean = reach(60.0 + edge(0.0, 100.0))
+    assert clean is not None and clean <= 0.5
+    # dark grout from -2 to 0 px (60 levels below the darker tile): its centre at -1
+    thin = reach(60.0 + edge(0.0, 100.0) - edge(-2.0, 60.0) + edge(0.0, 60.0))
+    assert thin is not None and 1.0 <= thin <= 4.0
+    # the same grout, the line read on its far side: the step's edge 2 px off
+    far = reach(60.0 + edge(2.0, 100.0) - edge(0.0, 60.0) + edge(2.0, 60.0))
+    assert far is not None and far >= 1.5
+    faint_wide = 60.0 + edge(0.0, 100.0) - edge(-6.0, 25.0) + edge(0.0, 25.0)
+    assert reach(faint_wide) is None  # a far side of 20 % of the edge, 6 px off
+    assert reach(60.0 + edge(0.0, 100.0) - 100.0 * np.exp(-u * u / 18.0)) is None  # wide dip
+    assert reach(60.0 + edge(-3.0, 50.0) + edge(3.0, 50.0)) is None
+    assert reach(60.0 + edge(0.0, 4.0)) is None
     drift = 60.0 + edge(0.0, 100.0) - np.where(u > 0, 12.0 * np.exp(-u / 6.0), 0.0)
-    assert band(drift) == 0.0
+    drifted = reach(drift)
+    assert drifted is not None and drifted <= 0.5
 
 
 def _checker_view(light: np.ndarray, dark: np.ndarray) -> tuple[np.ndarray, np.ndarray,

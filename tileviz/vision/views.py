@@ -156,14 +156,13 @@ def _recognise(views: list[Candidate], gray: np.ndarray, ppm: float, lp: float,
                ) -> VisionResult | None:
     """A checkerboard the user did not declare: the edge images of ``views`` read as on a
     floor declared ``checker`` (its tolerance kept), a reading accepted only when every piece
-    of its lines is one step on the view it was made from, its band, if any, thin
+    of its lines is one step on the view it was made from, its reach short
     (:func:`~tileviz.vision.robust.checker.tile_edges`; ``ppm`` the view's pixels per metre,
     ``lp`` the tile period, px); the decision then shows the checks ``checker.pieces``,
-    ``checker.steps`` and ``checker.band``. Where a piece has a band (a thin grout along the
-    tiles' edges), the line read may lie off the band's centre by half of it: the edge image
-    is read again with the floor's tolerance widened by half the widest band
-    (``details["checker_band"]``, px), and that reading kept when its own bands are no wider.
-    None when none is recognised."""
+    ``checker.steps`` and ``checker.band`` (the largest reach, px). The line read may lie off
+    the tile edge, or a thin grout's centre, by the reach: the edge image is read again with
+    the floor's tolerance widened by it (``details["checker_band"]``, px), and that reading
+    kept when its own reach is no larger. None when none is recognised."""
     from tileviz.vision.robust.checker import tile_edges
     from tileviz.vision.robust.settings import DEFAULT_SETTINGS
 
@@ -190,7 +189,7 @@ def _recognise(views: list[Candidate], gray: np.ndarray, ppm: float, lp: float,
         got, band = steps_checked(number, got, st.max_band * lp)
         if not got.accepted or band <= 0.0:
             return got
-        widened = FloorModel("checker", floor.lattice_tolerance + 0.5 * band / ppm)
+        widened = FloorModel("checker", floor.lattice_tolerance + band / ppm)
         again = read(edge_of[number](), dict(timings), widened)
         if not again.accepted:
             return again

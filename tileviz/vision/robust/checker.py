@@ -3,15 +3,19 @@
 
 On a checkerboard two shades meet edge to edge, or across a thin grout band: across each line,
 between two crossings, the view steps once from one tile's level to the other's. Read from its
-edge image, a line is the ridge of the step's edge; where a band of a third level lies along the
-edge (a thin grout, a bevel), the band's far side is a second edge, and the ridge lies anywhere
-between the two, off the band's centre (the lattice's line) by up to half the band. So a view is
-read as a checkerboard that the user did not declare only when every piece of every line it read
-is one step (the level on either side differs, and the view is steep the step's way over one
-stretch only: not two edges with a band of a third level between) whose band, if any, is thin;
-the reading is then made again with the floor's tolerance widened by half the widest band
+edge image, a line is a ridge of the step's edge; where a band of a third level lies along the
+edge (a thin grout), the band's far side is an edge the other way, and the line read may lie on
+either edge (the edge image has a ridge on each), the band's centre (the lattice's line) between
+them. So a view is read as a checkerboard that the user did not declare only when every piece of
+every line it read is one step (the level on either side differs, and the view is steep the
+step's way over one stretch only: not two edges with a band of a third level between) whose
+steepest point and any edge the other way lie near the line read (their reach); the reading is
+then made again with the floor's tolerance widened by the largest reach
 (:func:`tileviz.vision.views.read_robust`). A grout band between two tiles of one shade is no
-step; a wide one is no tile edge.
+step; a wide one is no tile edge. A band whose far side is fainter than ``band_edge`` is not
+seen: a line read along its stronger edge is then off the band's centre by half its width,
+which only the fit's straightness across a crossing (where the light tile, and the stronger
+edge with it, swaps sides) shows. A floor declared ``checker`` declares its tolerance instead.
 """
 
 from __future__ import annotations
@@ -32,8 +36,8 @@ __all__ = ["Steps", "sides_alternate", "tile_edges"]
 
 class Steps:
     """What :func:`tile_edges` found: the pieces of lines measured (between two crossings, or
-    a crossing and the view's border), how many of them are not one step, and the widest band
-    along a step (px: from its edge to the band's far side, 0 where no piece has a band)."""
+    a crossing and the view's border), how many of them are not one step, and the largest
+    reach of those that are (px, :func:`step_band`)."""
 
     def __init__(self, measured: int, failed: int, band: float = 0.0) -> None:
         self.measured = measured
@@ -58,13 +62,10 @@ def tile_edges(view: np.ndarray, segments: np.ndarray, bags: np.ndarray, lp: flo
     when the two levels differ by ``st.step_sigmas`` of the profile's noise (the view's noise
     over the root of the piece's length) and ``st.min_step`` gray levels, its slope the step's
     way is at least ``st.single_edge`` of its steepest over one stretch only (by central
-    differences: one edge, not two with a band of a third level between), and no slope against
-    the step steeper than ``st.second_edge`` of the steepest (and 3 times its noise) lies
-    farther than ``st.max_band`` of the period from that stretch. Within it, a slope against
-    the step steeper than ``st.band_edge`` of the steepest is the far side of a band darker or
-    lighter than both tiles (a thin grout): the piece's band is the distance from the far side
-    of the steep stretch to the farthest such slope, else 0. A tile's level drifting across the
-    profile (worn marble) is gentler."""
+    differences: one edge, not two with a band of a third level between), and its reach
+    (:func:`step_band`: the farther of its steepest point and any slope against the step
+    steeper than ``st.band_edge`` of the steepest, from the line read) is at most
+    ``st.max_band`` of the period. ``Steps.band``: the largest reach."""
     sigma = noise_sigma(view)
     measured = failed = 0
     band = 0.0
@@ -192,11 +193,12 @@ def _crossing(p0: np.ndarray, t: np.ndarray, other: np.ndarray) -> float | None:
 
 def step_band(prof: np.ndarray, u: np.ndarray, outer: np.ndarray, noise: float,
               max_band: float, st: CheckerSettings) -> float | None:
-    """A profile across a line (levels at offsets ``u``, px, evenly spaced; ``outer`` the
-    plateau samples; ``noise`` a sample's noise, gray levels) as a tile edge
-    (:func:`tile_edges`): None when it is not one step between its two outer levels, or shows
-    an edge the other way farther than ``max_band`` px from it; else its band (px, 0 without
-    an edge the other way)."""
+    """A profile across a line read (levels at offsets ``u`` from the line, px, evenly
+    spaced; ``outer`` the plateau samples; ``noise`` a sample's noise, gray levels) as a tile
+    edge (:func:`tile_edges`): None when it is not one step between its two outer levels, or
+    its reach is more than ``max_band`` px; else its reach (px): how far from the line read
+    the step's edge (its steepest point) and any edge the other way (a band's far side) lie,
+    the farther. The tile edge, or the centre of a band along it, lies between the two."""
     left = float(prof[outer & (u < 0)].mean())
     right = float(prof[outer & (u > 0)].mean())
     step = right - left
@@ -209,11 +211,8 @@ def step_band(prof: np.ndarray, u: np.ndarray, outer: np.ndarray, noise: float,
         return None
     # a central difference of two samples du apart each side: its noise is noise * sqrt(2) / 2du
     noise_slope = noise * math.sqrt(2.0) / (2.0 * float(u[1] - u[0]))
-    edge = u[steep]
-    off = np.maximum(np.maximum(edge.min() - u, u - edge.max()), 0.0)
-    near = off <= max_band
-    against = -slope
-    if (against[~near] > max(st.second_edge * steepest, 3.0 * noise_slope)).any():
-        return None  # a band's far side beyond the thin bands', or a line of its own
-    back = near & (against > max(st.band_edge * steepest, 3.0 * noise_slope))
-    return float(off[back].max() + (edge.max() - edge.min())) if back.any() else 0.0
+    back = -slope > max(st.band_edge * steepest, 3.0 * noise_slope)
+    reach = abs(float(u[int(np.argmax(slope))]))
+    if back.any():
+        reach = max(reach, float(np.abs(u[back]).max()))
+    return reach if reach <= max_band else None

@@ -419,16 +419,12 @@ class CheckerSettings:
     """The profile's slope the step's way reaches this share of its steepest over one stretch
     only: a band of a third level between two edges is two."""
     band_edge: float = 0.15
-    """Beside the edge, a slope against the step steeper than this share of the steepest (and
-    than 3 times its noise) is the far side of a band darker or lighter than both tiles (a
-    thin grout) ..."""
+    """A slope against the step steeper than this share of the steepest (and than 3 times its
+    noise) is an edge the other way: a band's far side (a thin grout) ..."""
     max_band: float = 0.03
-    """... up to this share of the tile period from the edge: the reading is made again with
-    the floor's tolerance widened by half the band ..."""
-    second_edge: float = 0.25
-    """... and farther off, a slope against the step steeper than this share of the steepest
-    is a wide band's far side or a line of its own: no tile edge. A tile's level drifting
-    (worn marble) is gentler."""
+    """... and a piece's reach (the farther of its steepest point and such an edge from the
+    line read) is at most this share of the tile period; the reading is made again with the
+    floor's tolerance widened by the largest reach."""
     min_pieces: int = 2
     """A view is recognised as a checkerboard from this many pieces, every one a step."""
 
