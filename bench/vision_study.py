@@ -1,6 +1,6 @@
 """Domain-randomised accuracy study of the robust extractor on independently rendered floors.
 
-    python bench/vision_study.py [--views-per-family 500] [--split fresh2|...|fresh20|fresh21]
+    python bench/vision_study.py [--views-per-family 500] [--split fresh2|...|fresh21|fresh22]
                                  [--corrupted-per-family 100] [--jobs 1] [--csv out.csv]
                                  [--kind declared|undeclared]
     python bench/vision_study.py --report out.csv     # the tables of a (partial) run
@@ -45,7 +45,9 @@ seeds from 20 * 10**6, kept unseen until the view declared the set's reach (comm
 reported once); ``--split fresh19`` seeds from 21 * 10**6, kept unseen
 until a view was imprecise on its declared bound too (commit 8ac0b42; reported once);
 ``--split fresh20`` seeds from 22 * 10**6, kept unseen until an empty set of lattices took the
-floor (commit b4d6709; reported once); ``--split fresh21`` seeds from 23 * 10**6 (unseen).
+floor (commit b4d6709; reported once); ``--split fresh21`` seeds from 23 * 10**6, kept unseen
+until a checkerboard's tile edge could carry a thin grout (commit b498763; reported once);
+``--split fresh22`` seeds from 24 * 10**6 (unseen).
 
 For each family: the share of readable clean views accepted (``readable``: each line family
 crosses the view over at least 0.75 x its smaller side, ``floorgen.readable``), the error of the
@@ -78,7 +80,7 @@ SPLITS = {"tuning": 0, "heldout": 10**6, "fresh": 3 * 10**6, "fresh2": 4 * 10**6
           "fresh15": 17 * 10**6, "fresh16": 18 * 10**6,
           "fresh17": 19 * 10**6, "fresh18": 20 * 10**6,
           "fresh19": 21 * 10**6, "fresh20": 22 * 10**6,
-          "fresh21": 23 * 10**6}
+          "fresh21": 23 * 10**6, "fresh22": 24 * 10**6}
 """First seed of each split."""
 
 
