@@ -120,9 +120,8 @@ def test_an_undeclared_checkerboard_with_a_thin_grout_is_recognised_and_bounded_
 ) -> None:
     """Marble-like squares of two shades with a thin grout (1.5 px, darker than both) along
     their edges, nothing declared: the grout reading is refused, the edge image is recognised
-    as a checkerboard whose tile edges carry a band, and it is read again with the tolerance
-    widened by the reach of the band: the decision shows ``checker.band``, the bound allows
-    the tolerance (``details["position_tolerance"]``, px) of that reach, and the truth is
+    as a checkerboard whose tile edges carry a band; the decision shows ``checker.band``, the
+    bound covers the reach of the band (``details["checker_band"]``, px), and the truth is
     inside it."""
     rng = np.random.default_rng([24, 5])
     dark = float(rng.uniform(40, 90))
@@ -143,11 +142,29 @@ def test_an_undeclared_checkerboard_with_a_thin_grout_is_recognised_and_bounded_
     shown = {c.check for c in res.decision.readings[res.decision.shown].checks}
     assert shown >= {"checker.pieces", "checker.steps", "checker.band", "checker.sides"}
     assert res.details["checker_band"] >= 1.0  # the band's far side, beside the edge
-    assert res.details["position_tolerance"] >= res.details["checker_band"]
+    assert res.observation.position_error * spec.ppm >= res.details["checker_band"]
     e1, e2, e3 = observation_error(res.observation, Pose(cx, cy, th), spec.tile_size,
                                    (0.0, 0.0))
     assert max(abs(e1), abs(e2)) <= res.observation.position_error
     assert abs(e3) <= res.observation.heading_error
+
+
+def test_a_recognised_reading_keeps_its_estimate_and_covers_the_widened_reading() -> None:
+    """The reading kept after a checkerboard's tile edges showed a reach: its own estimate, its
+    bounds widened to cover the second reading's (made with the tolerance widened), in the
+    lattice's quarter-turn symmetry; never narrower than its own."""
+    from tileviz.types import Observation
+    from tileviz.vision.views import _covering
+
+    first = Observation(0.10, 0.20, 0.05, 0.004, 0.010)
+    other = Observation(0.200, 0.197, 0.05 + 0.002 - 0.5 * math.pi, 0.006, 0.015)
+    got = _covering(first, other, 0.3)
+    # a quarter turn of (0.200, 0.197) is (-0.197, 0.200) = (0.103, 0.200) mod 0.3: 3 mm off
+    assert got.y1 == first.y1 and got.y3 == first.y3
+    assert got.position_error == pytest.approx(0.006 + 0.003)
+    assert got.heading_error == pytest.approx(0.015 + 0.002)
+    tight = _covering(first, Observation(0.10, 0.20, 0.05, 0.001, 0.001), 0.3)
+    assert (tight.position_error, tight.heading_error) == (0.004, 0.010)
 
 
 def test_one_step_between_two_levels_is_a_tile_edge_and_its_reach_covers_a_thin_band() -> None:

@@ -19,6 +19,7 @@ from functools import cache
 import numpy as np
 
 from tileviz.config import CameraConfig, FloorModel, VisionConfig
+from tileviz.types import Observation
 from tileviz.vision.colour import (
     PROJECTIONS,
     RETRY_REASONS,
@@ -193,12 +194,36 @@ def _recognise(views: list[Candidate], gray: np.ndarray, ppm: float, lp: float,
         again = read(edge_of[number](), dict(timings), widened)
         if not again.accepted:
             return again
-        again = replace(again, details={**again.details, "projection": number,
-                                        "checker_band": band})
-        return steps_checked(number, again, band)[0]
+        again = steps_checked(number, again, band)[0]
+        if not again.accepted or got.observation is None or again.observation is None:
+            return again
+        # the first reading passed the checks at the declared tolerance: keep it, its bound
+        # widened to cover the second's (a looser tolerance loosens the checks as well)
+        obs = _covering(got.observation, again.observation, lp / ppm)
+        return replace(got, observation=obs, details={**got.details, "checker_band": band})
 
     got, _ = _first_accepted(edges, gray, dict(timings), as_checker, read, ppm, lp, accept)
     return got
+
+
+def _covering(first: Observation, other: Observation, tile_size: float) -> Observation:
+    """``first`` with its bounds widened to cover ``other``'s (an observation of the same
+    view): the truth within ``other``'s bounds of ``other`` is within the returned bounds of
+    ``first``. ``other`` is compared in the symmetry of the lattice nearest ``first``
+    (a quarter turn m, :class:`~tileviz.types.Observation`); metres and radians."""
+    best: tuple[float, float] | None = None
+    for m in range(4):
+        head = abs(math.remainder(other.y3 + m * 0.5 * math.pi - first.y3, 2.0 * math.pi))
+        c, s = math.cos(m * 0.5 * math.pi), math.sin(m * 0.5 * math.pi)
+        x, y = c * other.y1 - s * other.y2, s * other.y1 + c * other.y2
+        pos = max(abs(math.remainder(x - first.y1, tile_size)),
+                  abs(math.remainder(y - first.y2, tile_size)))
+        if best is None or head < best[0]:
+            best = (head, pos)
+    assert best is not None
+    head, pos = best
+    return replace(first, position_error=max(first.position_error, other.position_error + pos),
+                   heading_error=max(first.heading_error, other.heading_error + head))
 
 
 def _sides_swap(view: np.ndarray, got: VisionResult, lp: float) -> VisionResult:
