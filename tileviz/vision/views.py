@@ -162,8 +162,9 @@ def _recognise(views: list[Candidate], gray: np.ndarray, ppm: float, lp: float,
     ``lp`` the tile period, px); the decision then shows the checks ``checker.pieces``,
     ``checker.steps`` and ``checker.band`` (the largest reach, px). The line read may lie off
     the tile edge, or a thin grout's centre, by the reach: the edge image is read again with
-    the floor's tolerance widened by it (``details["checker_band"]``, px), and that reading
-    kept when its own reach is no larger. None when none is recognised."""
+    the floor's tolerance widened by it (``details["checker_band"]``, px), and when that
+    reading passes with no larger reach, the first is kept, its bounds widened to cover the
+    second's (the wider tolerance loosens the checks too). None when none is recognised."""
     from tileviz.vision.robust.checker import tile_edges
     from tileviz.vision.robust.settings import DEFAULT_SETTINGS
 

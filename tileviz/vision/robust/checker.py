@@ -9,8 +9,8 @@ either edge (the edge image has a ridge on each), the band's centre (the lattice
 them. So a view is read as a checkerboard that the user did not declare only when every piece of
 every line it read is one step (the level on either side differs, and the view is steep the
 step's way over one stretch only: not two edges with a band of a third level between) whose
-steepest point and any edge the other way lie near the line read (their reach); the reading is
-then made again with the floor's tolerance widened by the largest reach
+steepest point and any edge the other way lie near the line read (their reach); a second
+reading with the floor's tolerance widened by the largest reach then widens the first's bounds
 (:func:`tileviz.vision.views.read_robust`). A grout band between two tiles of one shade is no
 step; a wide one is no tile edge. A band whose far side is fainter than ``band_edge`` is not
 seen: a line read along its stronger edge is then off the band's centre by half its width,

@@ -423,8 +423,8 @@ class CheckerSettings:
     noise) is an edge the other way: a band's far side (a thin grout) ..."""
     max_band: float = 0.03
     """... and a piece's reach (the farther of its steepest point and such an edge from the
-    line read) is at most this share of the tile period; the reading is made again with the
-    floor's tolerance widened by the largest reach."""
+    line read) is at most this share of the tile period; a second reading with the floor's
+    tolerance widened by the largest reach widens the first's bounds."""
     min_pieces: int = 2
     """A view is recognised as a checkerboard from this many pieces, every one a step."""
 
