@@ -19,7 +19,7 @@ from functools import cache
 import numpy as np
 
 from tileviz.config import CameraConfig, FloorModel, VisionConfig
-from tileviz.types import Observation
+from tileviz.types import Observation, Pose
 from tileviz.vision.colour import (
     PROJECTIONS,
     RETRY_REASONS,
@@ -28,7 +28,7 @@ from tileviz.vision.colour import (
     edges_and_strength,
 )
 from tileviz.vision.decision import CheckResult
-from tileviz.vision.geometry import family_normals, wrap_quarter
+from tileviz.vision.geometry import family_normals, observation_error, wrap_quarter
 from tileviz.vision.result import VisionResult
 
 __all__ = ["VIEW_REASONS", "read_robust"]
@@ -210,19 +210,12 @@ def _recognise(views: list[Candidate], gray: np.ndarray, ppm: float, lp: float,
 def _covering(first: Observation, other: Observation, tile_size: float) -> Observation:
     """``first`` with its bounds widened to cover ``other``'s (an observation of the same
     view): the truth within ``other``'s bounds of ``other`` is within the returned bounds of
-    ``first``. ``other`` is compared in the symmetry of the lattice nearest ``first``
-    (a quarter turn m, :class:`~tileviz.types.Observation`); metres and radians."""
-    best: tuple[float, float] | None = None
-    for m in range(4):
-        head = abs(math.remainder(other.y3 + m * 0.5 * math.pi - first.y3, 2.0 * math.pi))
-        c, s = math.cos(m * 0.5 * math.pi), math.sin(m * 0.5 * math.pi)
-        x, y = c * other.y1 - s * other.y2, s * other.y1 + c * other.y2
-        pos = max(abs(math.remainder(x - first.y1, tile_size)),
-                  abs(math.remainder(y - first.y2, tile_size)))
-        if best is None or head < best[0]:
-            best = (head, pos)
-    assert best is not None
-    head, pos = best
+    ``first``. ``other`` is compared in the quarter turn of the lattice nearest ``first``
+    (:func:`~tileviz.vision.geometry.observation_error`, ``first`` as the truth); metres and
+    radians."""
+    e1, e2, e3 = observation_error(other, Pose(first.y1, first.y2, first.y3), tile_size,
+                                   (0.0, 0.0))
+    head, pos = abs(e3), max(abs(e1), abs(e2))
     return replace(first, position_error=max(first.position_error, other.position_error + pos),
                    heading_error=max(first.heading_error, other.heading_error + head))
 

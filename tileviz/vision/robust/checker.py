@@ -44,11 +44,6 @@ class Steps:
         self.failed = failed
         self.band = band
 
-    def checker(self, st: CheckerSettings) -> bool:
-        """Whether the lines are a checkerboard's edges: ``st.min_pieces`` measured or more,
-        none failed."""
-        return self.measured >= st.min_pieces and self.failed == 0
-
 
 def tile_edges(view: np.ndarray, segments: np.ndarray, bags: np.ndarray, lp: float,
                st: CheckerSettings) -> Steps:
