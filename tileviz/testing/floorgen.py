@@ -227,6 +227,35 @@ _LUMA = np.array([0.299, 0.587, 0.114])
 """The luma's weights of R, G, B."""
 
 
+def banded_checker(seed: int, families: str = "one") -> FloorSpec:
+    """A checkerboard (dark squares 50..110, light 160..220 levels, flat, noise 2, blur
+    0.5..0.8 px, 90..200 px a tile) with a grout band 4..9 px wide centred on the edges between
+    its tiles, along one family of lines (``families`` ``one``: the lines y = kL) or both
+    (``both``), 2..16 levels darker than the dark squares (at most about 15 % of the step
+    between the shades: its far side is a faint edge). The lattice's lines are the bands'
+    centres; a camera that does not see a band sees the edge where the light tile meets it,
+    half its width off the line. Drawn from ``seed`` alone."""
+    rng = np.random.default_rng([seed, 7103])
+    spec = draw_floor("checker", rng)
+    lp = float(rng.uniform(90.0, 200.0))
+    ppm = float(rng.uniform(300.0, 600.0))
+    dark = float(rng.uniform(50.0, 110.0))
+    light = float(rng.uniform(160.0, 220.0))
+    width = float(rng.uniform(4.0, 9.0))
+    band = dark - float(rng.uniform(2.0, 16.0))
+    spec.tile_size, spec.ppm, spec.grout_shade, spec.tile_shade = lp / ppm, ppm, dark, light
+    spec.shade_spread = float(rng.uniform(0.0, 6.0))
+    spec.surface, spec.surface_amp, spec.noise = "flat", 0.0, 2.0
+    spec.blur = float(rng.uniform(0.5, 0.8))
+    spec.vignetting = spec.gradient = 0.0
+    spec.jpeg, spec.tint, spec.band_shade, spec.seed = 0, None, band, seed
+    if families == "one":
+        spec.grout_px, spec.second = 0.0, (width, band)
+    else:
+        spec.grout_px, spec.second = width, None
+    return spec
+
+
 def _hue_shift(rng: np.random.Generator, grey: np.ndarray, lo: float, hi: float
                ) -> np.ndarray:
     """``grey`` (RGB) moved by a random hue of no luma, ``lo``..``hi`` levels in its largest

@@ -9,11 +9,22 @@ through. An accepted view shows two departures from the lattice fitted to it
 (``straightness_px``) and the worst line off the lattice spacing (``spacing_residual_px``).
 Lines that each lie within ``tau`` of the ideal lattice show such residuals up to ``2 tau``, so
 a view shows ``tau >= max(straightness, spacing) / 2``. With the true pose (a dataset's ``x``,
-``y``, ``theta``), the view's offset from the ideal lattice is measured too (its observation's
-error, at most ``tau`` plus the measurement's own error). The tolerance recommended is the
-largest of the two over the views, rounded up to a tenth of a millimetre: what the views showed,
-so a survey should see the whole floor the robot will drive on (a floor may depart more where no
-view looked).
+``y``, ``theta``), each line's own departure from its ideal line is measured too
+(:func:`line_departure`: at most ``tau`` plus the measurement's own error), which a view whose
+lines all depart alike (a panel laid off the lattice; a checkerboard seen on one side of its
+crossings only, whose edges lie half a faint grout band off its centre: docs/vision.md,
+"Colour") shows in no residual. The tolerance recommended is the largest of these over the
+views, rounded up to a tenth of a millimetre: what the views showed, so a survey should see the
+whole floor the robot will drive on (a floor may depart more where no view looked). The report
+names the view that sets it beside the next largest view's departure: the trial tolerance lets
+a line read wrong through, and one view far above all others may show that rather than the
+floor.
+
+A floor whose kind is not given is read as a grout floor, a checkerboard recognised from each
+view; when most accepted views are read as a checkerboard, or too few views are accepted,
+``python -m tileviz survey`` surveys the views again as ``kind: checker`` and, when that
+succeeds, recommends that kind (a declared checkerboard is read on more views, and its lines
+are measured as the edges between its tiles).
 """
 
 from __future__ import annotations
@@ -21,7 +32,7 @@ from __future__ import annotations
 import itertools
 import json
 import math
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -29,9 +40,9 @@ import numpy as np
 
 from tileviz.cliutil import CliError, Parser, positive_float, positive_int, read_json, run_cli
 from tileviz.config import CameraConfig, FloorModel, VisionConfig
-from tileviz.types import Pose
+from tileviz.types import Observation, Pose
 
-__all__ = ["SurveyReport", "main", "survey"]
+__all__ = ["SurveyReport", "line_departure", "main", "survey"]
 
 TRIAL_SHARE = 1.0 / 16.0
 """The trial tolerance the views are read with, as a share of the tile."""
@@ -46,8 +57,9 @@ class SurveyReport:
     """What a survey measured (lengths in metres): the views read and accepted, the departure
     each accepted view shows (rms and max over the views, :func:`survey`), the views' offsets
     from the ideal lattice where the truth was known (None otherwise), the measured over the
-    declared period (median; NaN when no view spans a period), and the recommended
-    ``lattice_tolerance``."""
+    declared period (median; NaN when no view spans a period), the recommended
+    ``lattice_tolerance``, the kind the views were read as (``grout``: a checkerboard left to
+    recognise) and how many accepted views were read as a checkerboard."""
 
     views: int
     accepted: int
@@ -56,17 +68,39 @@ class SurveyReport:
     offset_max: float | None
     period_ratio: float
     tolerance: float
+    kind: str = "grout"
+    checker: int = 0
+    widest: int = 0
+    """The view (0-based, in the order read) whose departure sets the tolerance."""
+    next_widest: float = 0.0
+    """The largest departure any other view showed (m): far below the tolerance, the widest
+    view may hold a line read wrong at the trial tolerance rather than the floor's departure."""
 
-    def lines(self) -> list[str]:
-        """The report, as a person reads it (mm)."""
+    @property
+    def reads_as_checker(self) -> bool:
+        """Whether most accepted views of a floor not declared ``checker`` were read as a
+        checkerboard: the floor is one, and ``kind: checker`` is the one to declare."""
+        return self.kind != "checker" and 2 * self.checker > self.accepted
+
+    def lines(self, name: Callable[[int], str] | None = None) -> list[str]:
+        """The report, as a person reads it (mm); ``name`` names a view by its number
+        (default "view N", counted from 1)."""
         out = [f"views read: {self.views}, accepted: {self.accepted}",
                f"lines off the lattice fitted to each view: rms {self.departure_rms * 1e3:.2f} "
                f"mm, max {self.departure_max * 1e3:.2f} mm (half the worst residual of a view)"]
         if self.offset_max is not None:
-            out.append(f"views' lattice off the ideal lattice at the true pose: max "
+            out.append(f"lines off the ideal lattice at the true pose: max "
                        f"{self.offset_max * 1e3:.2f} mm")
         if math.isfinite(self.period_ratio):
             out.append(f"measured period / declared: {self.period_ratio:.4f}")
+        if self.kind == "checker":
+            out.append("kind: checker (declared)")
+        else:
+            out.append(f"views read as a checkerboard: {self.checker} of {self.accepted}")
+        label = name(self.widest) if name is not None else f"view {self.widest + 1}"
+        out.append(f"the largest departure is {label}'s; the next largest view's: "
+                   f"{self.next_widest * 1e3:.2f} mm (if far less, look at {label}: a line "
+                   "read wrong there sets the tolerance)")
         out.append(f"lattice_tolerance to declare: {self.tolerance:.4f} m")
         out.append("(the largest departure these views showed: the floor may depart more where "
                    "no view looked; survey views over the whole floor the robot drives on)")
@@ -86,22 +120,27 @@ def survey(views: Iterable[tuple[np.ndarray, Pose | None]], *, camera: CameraCon
     trial = FloorModel(kind, TRIAL_SHARE * tile_size)  # type: ignore[arg-type]
     ppm = float(camera.ppm)
     n = 0
+    checker = 0
     dep: list[float] = []
     off: list[float] = []
     ratios: list[float] = []
+    shown: list[tuple[float, int]] = []  # each accepted view's departure, and its number
     for image, truth in views:
         n += 1
         res = extract(image, camera=camera, tile_size=tile_size, vision=vision, floor=trial)
         if not res.accepted or res.observation is None:
             continue
         d = res.details
+        checker += kind == "checker" or "checker" in d
         dep.append(0.5 * max(d.get("straightness_px", 0.0), d.get("spacing_residual_px", 0.0))
                    / ppm)
         if "period_ratio" in d:
             ratios.append(d["period_ratio"])
         if truth is not None:
             e = observation_error(res.observation, truth, tile_size, camera.offset)
-            off.append(max(abs(e[0]), abs(e[1])))
+            off.append(max(abs(e[0]), abs(e[1]), line_departure(
+                res.observation, res.offsets, res.bags, truth, tile_size, camera.offset)))
+        shown.append((max(dep[-1], off[-1] if truth is not None else 0.0), n - 1))
     if len(dep) < MIN_VIEWS:
         raise ValueError(f"too few usable views: {len(dep)} of {n} accepted (at least "
                          f"{MIN_VIEWS} needed; are --tile-size and --ppm the floor's?)")
@@ -111,12 +150,58 @@ def survey(views: Iterable[tuple[np.ndarray, Pose | None]], *, camera: CameraCon
                          f"tile_size x ppm ({tile_size * ppm:.1f} px): check --tile-size and "
                          "--ppm")
     arr = np.array(dep)
-    tol = max(float(arr.max()), max(off, default=0.0))
-    tol = math.ceil(tol * 1e4) / 1e4
+    shown.sort(reverse=True)
+    tol = math.ceil(shown[0][0] * 1e4) / 1e4
     return SurveyReport(views=n, accepted=len(dep), departure_rms=float(np.sqrt(np.mean(arr**2))),
                         departure_max=float(arr.max()),
                         offset_max=float(max(off)) if off else None, period_ratio=ratio,
-                        tolerance=min(tol, 0.999 * tile_size / 4))
+                        tolerance=min(tol, 0.999 * tile_size / 4), kind=kind,
+                        checker=checker, widest=shown[0][1], next_widest=shown[1][0])
+
+
+def line_departure(obs: Observation, offsets: np.ndarray, bags: np.ndarray, truth: Pose,
+                   tile_size: float, offset: tuple[float, float]) -> float:
+    """The farthest any line a view read lies from its ideal line at the true pose ``truth``
+    (metres, at the view's centre; 0 with no line): ``obs`` the view's observation, ``offsets``
+    each line's signed offset from the view's centre (metres, ``VisionResult.offsets``) and
+    ``bags`` its family (1: the family of ``y1`` before the heading is normalised, 2: ``y2``;
+    docs/method.md). Each line alone gives its family's offset (``y_k = -offset`` modulo
+    ``tile_size``); put in place of the view's, the observation's error at the truth
+    (:func:`~tileviz.vision.geometry.observation_error`, ``offset`` the camera's) is that
+    line's departure. The quarter turn by which ``obs`` was normalised is the one under which
+    its lines agree best with its offsets."""
+    from tileviz.vision import observation_error
+    from tileviz.vision.robust.lattice import normalise
+
+    fam = [offsets[bags == b] for b in (1, 2)]
+    if not (fam[0].size or fam[1].size):
+        return 0.0
+    a, b = obs.y1, obs.y2
+    best: tuple[float, int] | None = None
+    for m in range(4):  # the raw offsets (y1, y2) that normalise to (a, b) turned back m times
+        raw = ((a, b), (-b, a), (-a, -b), (b, -a))[m]
+        misfit = sum(float(np.abs(np.remainder(-f - raw[k] + 0.5 * tile_size, tile_size)
+                                  - 0.5 * tile_size).sum()) for k, f in enumerate(fam))
+        if best is None or misfit < best[0]:
+            best = (misfit, m)
+    assert best is not None
+    m = best[1]
+    y3_raw = obs.y3 + m * 0.5 * math.pi
+    raw = ((a, b), (-b, a), (-a, -b), (b, -a))[m]
+
+    def error(k: int, y: float) -> tuple[float, float, float]:
+        line = (y, raw[1]) if k == 0 else (raw[0], y)
+        return observation_error(normalise(*line, y3_raw, tile_size), truth, tile_size, offset)
+
+    worst = 0.0
+    for k, f in enumerate(fam):
+        if not f.size:
+            continue
+        # the error's component that family k's offset moves
+        base, nudged = error(k, raw[k]), error(k, raw[k] + 0.125 * tile_size)
+        moved = 0 if abs(nudged[0] - base[0]) >= abs(nudged[1] - base[1]) else 1
+        worst = max(worst, max(abs(error(k, -o)[moved]) for o in f.tolist()))
+    return worst
 
 
 def _parser(prog: str) -> Parser:
@@ -129,7 +214,9 @@ def _parser(prog: str) -> Parser:
                    help="L, metres (default: the dataset's)")
     p.add_argument("--ppm", type=positive_float("--ppm"), default=None,
                    help="pixels per metre (default: the dataset's)")
-    p.add_argument("--floor-kind", choices=("grout", "checker"), default="grout")
+    p.add_argument("--floor-kind", choices=("grout", "checker"), default=None,
+                   help="the floor's kind (default: grout, or checker when most views read "
+                   "as a checkerboard)")
     p.add_argument("--every", type=positive_int("--every"), default=1,
                    help="a dataset: read every Nth frame (default 1)")
     p.add_argument("--meta", metavar="META", default=None,
@@ -147,11 +234,15 @@ def _images(paths: list[str]) -> Iterator[tuple[np.ndarray, Pose | None]]:
         yield cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB), None
 
 
-def _dataset(folder: str, every: int) -> Iterator[tuple[np.ndarray, Pose | None]]:
+def _dataset(folder: str, every: int, seen: list[int]
+             ) -> Iterator[tuple[np.ndarray, Pose | None]]:
+    """Every ``every``-th frame of the dataset ``folder``, its index appended to ``seen``."""
     from tileviz.datasets import DatasetSource
 
+    seen.clear()
     for frame in DatasetSource(folder):
         if frame.index % every == 0:
+            seen.append(frame.index)
             yield frame.image, frame.truth
 
 
@@ -172,8 +263,13 @@ def main(command: str, argv: list[str]) -> int:
             ppm = args.ppm or meta.ppm
             cam = CameraConfig(ppm=ppm, width=meta.image_width, height=meta.image_height,
                                offset=meta.camera_offset)
-            views: Iterable[tuple[np.ndarray, Pose | None]] = _dataset(
-                str(first), args.every)
+            seen: list[int] = []
+
+            def views() -> Iterable[tuple[np.ndarray, Pose | None]]:
+                return _dataset(str(first), args.every, seen)
+
+            def name(k: int) -> str:
+                return f"frame {seen[k]}"
         else:
             if args.tile_size is None or args.ppm is None:
                 raise CliError("images need --tile-size and --ppm")
@@ -182,14 +278,31 @@ def main(command: str, argv: list[str]) -> int:
             tile, ppm = args.tile_size, args.ppm
             cam = CameraConfig(ppm=ppm, width=view0[0].shape[1], height=view0[0].shape[0],
                                offset=(0.0, 0.0))
-            views = itertools.chain([view0], images)
+            def views() -> Iterable[tuple[np.ndarray, Pose | None]]:
+                return itertools.chain([view0], _images(args.inputs[1:]))
+
+            def name(k: int) -> str:
+                return str(args.inputs[k])
         try:
-            report = survey(views, camera=cam, tile_size=tile, kind=args.floor_kind)
+            report = survey(views(), camera=cam, tile_size=tile,
+                            kind=args.floor_kind or "grout")
         except ValueError as e:
-            raise CliError(str(e)) from None
-        print("\n".join(report.lines()))
+            if args.floor_kind is not None:
+                raise CliError(str(e)) from None
+            # a checkerboard with a thin grout may be recognised on too few views
+            try:
+                report = survey(views(), camera=cam, tile_size=tile, kind="checker")
+            except ValueError:
+                raise CliError(str(e)) from None
+            print(f"read as grout or a recognised checkerboard, {e}: surveyed as kind checker")
+        else:
+            if args.floor_kind is None and report.reads_as_checker:
+                print("\n".join(report.lines(name)))
+                print("most views read as a checkerboard: surveyed again as kind checker")
+                report = survey(views(), camera=cam, tile_size=tile, kind="checker")
+        print("\n".join(report.lines(name)))
         if args.meta is not None:
-            _write_meta(Path(args.meta), args.floor_kind, report.tolerance)
+            _write_meta(Path(args.meta), report.kind, report.tolerance)
             print(f"wrote the floor block into {args.meta}")
         return 0
 
