@@ -91,6 +91,9 @@ class SurveyReport:
         if self.offset_max is not None:
             out.append(f"lines off the ideal lattice at the true pose: max "
                        f"{self.offset_max * 1e3:.2f} mm")
+        else:
+            out.append("no true poses: a departure all lines of a view share (a panel laid "
+                       "off the lattice) shows in no residual and is not measured")
         if math.isfinite(self.period_ratio):
             out.append(f"measured period / declared: {self.period_ratio:.4f}")
         if self.kind == "checker":
