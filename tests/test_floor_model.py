@@ -297,3 +297,26 @@ def test_survey_names_the_view_that_sets_the_tolerance() -> None:
     assert report.accepted == 8 and report.widest == 5
     assert report.tolerance >= 0.006 > 0.003 > report.next_widest
     assert "the largest departure is view 6's" in "\n".join(report.lines())
+
+
+def test_a_run_summary_advises_declaring_a_checkerboard_it_recognised() -> None:
+    """Five views read as a checkerboard the floor does not declare (``details["checker"]``):
+    the summary says to declare its kind and tolerance; four, or views of a declared one, do
+    not."""
+    from types import SimpleNamespace
+
+    from tileviz.summary import RunTally
+    from tileviz.types import BoxSet
+
+    def record(details: dict[str, float]) -> SimpleNamespace:
+        return SimpleNamespace(status="contracted", updated=BoxSet(), truth_inside=lambda: None,
+                               vision=SimpleNamespace(extractor="robust", details=details))
+
+    said = "views were read as a checkerboard the floor does not declare"
+    tally = RunTally()
+    for _ in range(4):
+        tally.add(record({"checker": 3.0, "checker_sides": 2.0}))
+        tally.add(record({"checker_sides": 2.0}))  # a declared checkerboard's view
+    assert not any(said in p for p in tally.parts())
+    tally.add(record({"checker": 4.0}))
+    assert any(f"5 {said}" in p and "python -m tileviz survey" in p for p in tally.parts())

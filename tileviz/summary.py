@@ -53,6 +53,9 @@ class RunTally:
     views with two lines of a family or more: ``details["period_ratio"]``)."""
     extractors: Counter[str] = field(default_factory=Counter)
     """Frames by the extractor that made their view (``VisionResult.extractor``)."""
+    recognised: int = 0
+    """Views read as a checkerboard the floor does not declare (``details["checker"]``:
+    docs/vision.md, "Colour")."""
     outside_region: list[int] = field(default_factory=list)
     """Frame indices at which the localizer held re-localization candidates cut to a region
     (``LocalizerStep.region``) while the true pose, where known, was outside that region: the
@@ -78,9 +81,11 @@ class RunTally:
         extractor = getattr(vision, "extractor", "")
         if extractor:
             self.extractors[extractor] += 1
-        ratio = getattr(vision, "details", {}).get("period_ratio")
+        details = getattr(vision, "details", {})
+        ratio = details.get("period_ratio")
         if ratio is not None and math.isfinite(ratio):
             self.periods.append(float(ratio))
+        self.recognised += "checker" in details
 
     def parts(self) -> list[str]:
         """The summary's pieces: statuses, median set size, containment (when known), what the
@@ -101,10 +106,20 @@ class RunTally:
             out.append(f"the robot was outside the re-localization region at "
                        f"{len(self.outside_region)} frames ({frame_ranges(self.outside_region)}):"
                        f" the set could not vouch for the truth there")
-        scale = self.scale_warning()
-        if scale:
-            out.append(scale)
+        out += [note for note in (self.scale_warning(), self.checker_note()) if note]
         return out
+
+    def checker_note(self) -> str:
+        """Advice when :data:`SCALE_FRAMES` views or more were read as a checkerboard the floor
+        does not declare: declare it, with its surveyed tolerance (a faint grout along a
+        checkerboard's edges moves the edges a view sees off the lattice, which no single view
+        shows: docs/guarantees.md, H4); "" otherwise."""
+        if self.recognised < SCALE_FRAMES:
+            return ""
+        return (f"note: {self.recognised} views were read as a checkerboard the floor does not "
+                f"declare: declare its kind (checker) and tolerance, as `python -m tileviz "
+                f"survey` measures them (a faint grout along its edges moves them off the "
+                f"lattice where no single view shows it)")
 
     def scale_warning(self) -> str:
         """A warning when the grout lines of the run's views lie consistently closer together
