@@ -3,7 +3,8 @@
     python bench/real_floors.py [--floors DIR] [--stills 40] [--corrupted 0] [--frames 400]
                                 [--only ID,...] [--scale 1.0] [--camera clean|plain]
                                 [--split tuning|heldout|...|heldout15]
-                                [--declare none|tolerance|floor] [--csv out.csv] [--keep DIR]
+                                [--declare none|tolerance|floor|survey] [--survey-views 60]
+                                [--csv out.csv] [--keep DIR]
 
 The floors are photographs and textures of real floors that this repository does not ship (their
 licences do not all allow it): ``--floors`` is a folder holding them and a ``floors.json`` that
@@ -30,7 +31,9 @@ sees the floor through a plain camera (blur 0.7 px, vignetting, noise of 3 level
 ``kind`` checker for a checkerboard, ``lattice_tolerance`` from ``lattice_residual_max_px``) and
 passes the same to the stills' extractor; ``tolerance`` declares the tolerance only (the kind is
 left for the extractor to recognise from each view); ``none`` declares nothing (a perfect grout
-lattice).
+lattice); ``survey`` declares what ``python -m tileviz survey`` recommends from
+``--survey-views`` views of the floor (default 60, their own seeds) with their true poses, the
+kind not given, as a user who surveys a floor before driving on it would.
 
 Views are sampled from the image at 3 x 3 points a pixel (bilinear), so the photograph's own
 pixels are filtered as a camera's would be. Seeds: ``--split tuning`` uses seeds 0..; ``heldout``
@@ -311,9 +314,10 @@ def arc(x: float, y: float, th: float, v: float, w: float, dt: float
             y - r * (math.cos(th + w * dt) - math.cos(th)), th + w * dt)
 
 
-def drive(floor: Floor, frames: int, scale: float, camera: str, seed: int, declare: str,
-          keep: Path | None) -> dict:
-    """Write a drive over ``floor`` as a dataset, replay it, and measure the sets."""
+def drive(floor: Floor, frames: int, scale: float, camera: str, seed: int,
+          declared: dict | None, keep: Path | None) -> dict:
+    """Write a drive over ``floor`` as a dataset (``declared``: its meta.json's ``floor``
+    block, or None), replay it, and measure the sets."""
     rng = np.random.default_rng([seed, 11])
     poses = drive_path(floor, frames, rng)
     if poses is None:
@@ -326,11 +330,8 @@ def drive(floor: Floor, frames: int, scale: float, camera: str, seed: int, decla
         "camera_offset": [0.0, 0.0], "dt": DT, "initial_pose": list(poses[0][:3]),
         "initial_pose_error": [0.02, 0.02, 0.02], **BOUNDS,
     }
-    if declare == "floor":
-        meta["floor"] = {"kind": "checker" if floor.grout == "edge" else "grout",
-                         "lattice_tolerance": floor.tolerance_m}
-    elif declare == "tolerance":
-        meta["floor"] = {"lattice_tolerance": floor.tolerance_m}
+    if declared is not None:
+        meta["floor"] = declared
     tmp = tempfile.TemporaryDirectory() if keep is None else None
     folder = (Path(tmp.name) if tmp is not None else keep or Path(".")) / f"{floor.id}-{seed}"
     try:
@@ -379,6 +380,38 @@ def drive(floor: Floor, frames: int, scale: float, camera: str, seed: int, decla
             "box_cm": 100 * statistics.median(widths) if widths else math.nan}
 
 
+def survey_floor(floor: Floor, n: int, scale: float, camera: str, seed0: int
+                 ) -> tuple[str, float]:
+    """The kind and tolerance (m) ``python -m tileviz survey`` recommends for ``floor`` from
+    ``n`` views at random poses (their own seeds), each with its true pose, the kind not given
+    (:func:`tileviz.vision.survey.survey_kind`); ("grout", 0) when the survey fails."""
+    from tileviz.vision.survey import survey_kind
+
+    ppm = floor.view_period_px * scale / floor.tile_size
+    width, height = round(WIDTH * scale), round(HEIGHT * scale)
+    cam = CameraConfig(ppm=ppm, width=width, height=height, offset=(0.0, 0.0))
+
+    def views() -> list[tuple[np.ndarray, Pose | None]]:
+        out: list[tuple[np.ndarray, Pose | None]] = []
+        tries = 0
+        while len(out) < n and tries < 50 * n:
+            rng = np.random.default_rng([seed0 + tries, 7, 3])
+            tries += 1
+            cx, cy, th = random_pose(floor, rng)
+            img = render(floor, ppm, width, height, cx, cy, th, camera, rng)
+            if img is not None:
+                out.append((img, Pose(cx, cy, th)))
+        return out
+
+    made = views()
+    try:
+        report, _ = survey_kind(lambda: made, camera=cam, tile_size=floor.tile_size)
+    except ValueError as e:
+        print(f"{floor.id}: survey failed ({e}): declared as a perfect grout lattice")
+        return "grout", 0.0
+    return report.kind, report.tolerance
+
+
 def _pct(a: int, b: int) -> str:
     return f"{100 * a / b:.0f} %" if b else "—"
 
@@ -397,7 +430,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--scale", type=float, default=1.0)
     p.add_argument("--camera", choices=("clean", "plain"), default="clean")
     p.add_argument("--split", choices=tuple(SPLITS), default="tuning")
-    p.add_argument("--declare", choices=("none", "tolerance", "floor"), default="none")
+    p.add_argument("--declare", choices=("none", "tolerance", "floor", "survey"),
+                   default="none")
+    p.add_argument("--survey-views", type=int, default=60,
+                   help="--declare survey: views with their true poses surveyed per floor")
     p.add_argument("--csv", type=Path, default=None, help="also write the table's rows here")
     p.add_argument("--write-figures", action="store_true",
                    help="write the table into docs/figures.md (block real_floors_CAMERA_xSCALE, "
@@ -422,21 +458,29 @@ def main(argv: list[str] | None = None) -> int:
           "corrupted accepted | outside | drive inside | contracted | lost | median box cm |")
     print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     kinds: dict[str, list[int]] = {}
+    surveyed: dict[str, tuple[str, float]] = {}
     rows = []
     table: list[list[str]] = []
     machine = Machine()
     for floor in floors:
+        vision = VisionConfig(extractor="robust")
         tol = floor.tolerance_m if args.declare in ("floor", "tolerance") else 0.0
         kind = "checker" if (args.declare == "floor" and floor.grout == "edge") else "grout"
-        vision = VisionConfig(extractor="robust")
-        s = stills(floor, args.stills, args.scale, args.camera, seed0, vision,
-                   FloorModel(kind, tol))
-        c = (stills(floor, args.corrupted, args.scale, args.camera, seed0, vision,
-                    FloorModel(kind, tol), corrupted=True)
+        declared: dict | None = (
+            {"kind": kind, "lattice_tolerance": tol} if args.declare == "floor" else
+            {"lattice_tolerance": tol} if args.declare == "tolerance" else None)
+        if args.declare == "survey":
+            kind, tol = survey_floor(floor, args.survey_views, args.scale, args.camera, seed0)
+            declared = {"kind": kind, "lattice_tolerance": tol}
+            surveyed[floor.id] = (kind, tol)
+        model = FloorModel("checker" if kind == "checker" else "grout", tol)
+        s = stills(floor, args.stills, args.scale, args.camera, seed0, vision, model)
+        c = (stills(floor, args.corrupted, args.scale, args.camera, seed0, vision, model,
+                    corrupted=True)
              if args.corrupted > 0 else None)
         for k, v in (c["by_kind"] if c is not None else {}).items():
             kinds[k] = [a + b for a, b in zip(kinds.get(k, [0, 0, 0]), v, strict=True)]
-        d = (drive(floor, args.frames, args.scale, args.camera, seed0, args.declare, args.keep)
+        d = (drive(floor, args.frames, args.scale, args.camera, seed0, declared, args.keep)
              if args.frames > 0 else {"frames": 0})
         top = ", ".join(f"{k} {v}" for k, v in sorted(s["reasons"].items(),
                                                        key=lambda kv: -kv[1])[:3])
@@ -458,7 +502,11 @@ def main(argv: list[str] | None = None) -> int:
                       _pct(d.get("inside", 0), d.get("vouched", 0)) if n else "-",
                       _pct(d.get("contracted", 0), n) if n else "-",
                       str(d.get("lost", 0)) if n else "-",
-                      f"{d['box_cm']:.2f}" if n and "box_cm" in d else "-"])
+                      f"{d['box_cm']:.2f}" if n and "box_cm" in d else "-",
+                      f"{200.0 * tol:.2f}"])
+    if surveyed:
+        print("surveyed: " + ", ".join(f"{k} {v[0]} {1e3 * v[1]:.1f} mm"
+                                       for k, v in surveyed.items()))
     if kinds:
         print("corrupted views, all floors: " + "; ".join(
             f"{k} {v[1]} of {v[0]} accepted, {v[2]} outside" for k, v in kinds.items()))
@@ -468,16 +516,25 @@ def main(argv: list[str] | None = None) -> int:
                         "tolerance": ("_kind_undeclared", "the tolerance only (lattice_tolerance "
                                       "from floors.json's measured departure; a checkerboard "
                                       "left for the extractor to recognise)"),
-                        "none": ("_undeclared", "nothing (a perfect grout lattice)")}[args.declare]
+                        "none": ("_undeclared", "nothing (a perfect grout lattice)"),
+                        "survey": ("_surveyed", "the kind and lattice_tolerance that `survey` "
+                                   f"recommends from {args.survey_views} views of each floor "
+                                   "with their true poses, the kind not given (" + ", ".join(
+                                       f"{k} {v[0]} {1e3 * v[1]:.1f} mm"
+                                       for k, v in surveyed.items()) + ")")}[args.declare]
         write_block(f"real_floors_{args.camera}_x{args.scale:g}{suffix}",
                     f"Real floors ({args.camera} camera, x{args.scale:g} resolution, declared: "
                     f"{args.declare})", table,
                     machine=machine,
                     header=("floor", "stills accepted", "accepted outside own bound",
                             "corrupted accepted", "corrupted outside own bound",
-                            "drive: truth inside", "contracted", "lost", "median box (cm)"),
-                    note=f"Split {args.split}; declared: {what}. The photographs are not in the "
-                    "repository (their sources: the floors' SOURCES.md).")
+                            "drive: truth inside", "contracted", "lost", "median box (cm)",
+                            "2 x tolerance (cm)"),
+                    note=f"Split {args.split}; declared: {what}. 2 x tolerance: the narrowest "
+                    "box any set that holds the truth on every floor within the tolerance "
+                    "can have (the floor shifted by +- the tolerance shows the same views). "
+                    "The photographs are not in the repository (their sources: the floors' "
+                    "SOURCES.md).")
     if args.csv is not None:
         with open(args.csv, "w", newline="") as f:
             wr = csv.DictWriter(f, fieldnames=list(rows[0]))

@@ -42,7 +42,7 @@ from tileviz.cliutil import CliError, Parser, positive_float, positive_int, read
 from tileviz.config import CameraConfig, FloorModel, VisionConfig
 from tileviz.types import Observation, Pose
 
-__all__ = ["SurveyReport", "line_departure", "main", "survey"]
+__all__ = ["SurveyReport", "line_departure", "main", "survey", "survey_kind"]
 
 TRIAL_SHARE = 1.0 / 16.0
 """The trial tolerance the views are read with, as a share of the tile."""
@@ -160,6 +160,38 @@ def survey(views: Iterable[tuple[np.ndarray, Pose | None]], *, camera: CameraCon
                         offset_max=float(max(off)) if off else None, period_ratio=ratio,
                         tolerance=min(tol, 0.999 * tile_size / 4), kind=kind,
                         checker=checker, widest=shown[0][1], next_widest=shown[1][0])
+
+
+def survey_kind(views: Callable[[], Iterable[tuple[np.ndarray, Pose | None]]], *,
+                camera: CameraConfig, tile_size: float, kind: str | None = None,
+                vision: VisionConfig | None = None
+                ) -> tuple[SurveyReport, list[tuple[SurveyReport | None, str]]]:
+    """:func:`survey` of the views ``views()`` makes (called once per survey) as the floor
+    ``kind``; with no kind, as grout (a checkerboard recognised), then again as ``checker``
+    when most accepted views were read as a checkerboard (:attr:`SurveyReport.reads_as_checker`)
+    or too few were accepted. Returns the report and what was surveyed first and why it was
+    surveyed again (the first report, or None where it failed; a sentence). ValueError (one
+    line) as :func:`survey`'s, the first survey's where both fail."""
+    try:
+        report = survey(views(), camera=camera, tile_size=tile_size, vision=vision,
+                        kind=kind or "grout")
+    except ValueError as e:
+        if kind is not None:
+            raise
+        # a checkerboard with a thin grout may be recognised on too few views
+        try:
+            report = survey(views(), camera=camera, tile_size=tile_size, vision=vision,
+                            kind="checker")
+        except ValueError:
+            raise e from None
+        return report, [(None, f"read as grout or a recognised checkerboard, {e}: surveyed "
+                               "as kind checker")]
+    if kind is None and report.reads_as_checker:
+        again = survey(views(), camera=camera, tile_size=tile_size, vision=vision,
+                       kind="checker")
+        return again, [(report, "most views read as a checkerboard: surveyed again as kind "
+                                "checker")]
+    return report, []
 
 
 def line_departure(obs: Observation, offsets: np.ndarray, bags: np.ndarray, truth: Pose,
@@ -287,22 +319,13 @@ def main(command: str, argv: list[str]) -> int:
             def name(k: int) -> str:
                 return str(args.inputs[k])
         try:
-            report = survey(views(), camera=cam, tile_size=tile,
-                            kind=args.floor_kind or "grout")
+            report, said = survey_kind(views, camera=cam, tile_size=tile, kind=args.floor_kind)
         except ValueError as e:
-            if args.floor_kind is not None:
-                raise CliError(str(e)) from None
-            # a checkerboard with a thin grout may be recognised on too few views
-            try:
-                report = survey(views(), camera=cam, tile_size=tile, kind="checker")
-            except ValueError:
-                raise CliError(str(e)) from None
-            print(f"read as grout or a recognised checkerboard, {e}: surveyed as kind checker")
-        else:
-            if args.floor_kind is None and report.reads_as_checker:
-                print("\n".join(report.lines(name)))
-                print("most views read as a checkerboard: surveyed again as kind checker")
-                report = survey(views(), camera=cam, tile_size=tile, kind="checker")
+            raise CliError(str(e)) from None
+        for before, why in said:
+            if before is not None:
+                print("\n".join(before.lines(name)))
+            print(why)
         print("\n".join(report.lines(name)))
         if args.meta is not None:
             _write_meta(Path(args.meta), report.kind, report.tolerance)
