@@ -6,9 +6,9 @@
 
 Each floor is a checkerboard (``floorgen.banded_checker``: dark squares 50-110, light 160-220
 gray levels) with a grout band 4-9 px wide centred on the edges between its tiles, along one
-family of lines (``--families one``) or both, 2-16 levels darker than the dark squares: at most
-about 15 % of the step between the two shades, so the band's far side (grout to dark tile) is a
-faint edge. The lattice's lines are the bands' centres. A camera
+family of lines (``--families one``) or both, 2-16 levels darker than the dark squares (1-32 %
+of the step between the two shades, mostly under 15 %), so the band's far side (grout to dark
+tile) is a faint edge. The lattice's lines are the bands' centres. A camera
 that does not see the band sees an edge where the light tile meets the band, half the band's
 width off the line: on such a floor the edges a camera sees depart from the lattice by that
 much, which is what ``lattice_tolerance`` declares (docs/vision.md, "Colour").

@@ -383,10 +383,11 @@ def drive(floor: Floor, frames: int, scale: float, camera: str, seed: int,
 
 
 def survey_floor(floor: Floor, n: int, scale: float, camera: str, seed0: int
-                 ) -> tuple[str, float]:
+                 ) -> tuple[str, float, str]:
     """The kind and tolerance (m) ``python -m tileviz survey`` recommends for ``floor`` from
     ``n`` views at random poses (their own seeds), each with its true pose, the kind not given
-    (:func:`tileviz.vision.survey.survey_kind`); ("grout", 0) when the survey fails."""
+    (:func:`tileviz.vision.survey.survey_kind`) and ""; ("grout", 0, why) when the survey
+    fails."""
     from tileviz.vision.survey import survey_kind
 
     ppm = floor.view_period_px * scale / floor.tile_size
@@ -410,8 +411,8 @@ def survey_floor(floor: Floor, n: int, scale: float, camera: str, seed0: int
         report, _ = survey_kind(lambda: made, camera=cam, tile_size=floor.tile_size)
     except ValueError as e:
         print(f"{floor.id}: survey failed ({e}): declared as a perfect grout lattice")
-        return "grout", 0.0
-    return report.kind, report.tolerance
+        return "grout", 0.0, f"survey failed ({e}), declared a perfect grout lattice"
+    return report.kind, report.tolerance, ""
 
 
 def _pct(a: int, b: int) -> str:
@@ -460,7 +461,7 @@ def main(argv: list[str] | None = None) -> int:
           "corrupted accepted | outside | drive inside | contracted | lost | median box cm |")
     print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     kinds: dict[str, list[int]] = {}
-    surveyed: dict[str, tuple[str, float]] = {}
+    surveyed: dict[str, str] = {}
     rows = []
     table: list[list[str]] = []
     machine = Machine()
@@ -472,9 +473,10 @@ def main(argv: list[str] | None = None) -> int:
             {"kind": kind, "lattice_tolerance": tol} if args.declare == "floor" else
             {"lattice_tolerance": tol} if args.declare == "tolerance" else None)
         if args.declare == "survey":
-            kind, tol = survey_floor(floor, args.survey_views, args.scale, args.camera, seed0)
+            kind, tol, failed = survey_floor(floor, args.survey_views, args.scale,
+                                             args.camera, seed0)
             declared = {"kind": kind, "lattice_tolerance": tol}
-            surveyed[floor.id] = (kind, tol)
+            surveyed[floor.id] = failed or f"{kind} {1e3 * tol:.1f} mm"
         model = FloorModel("checker" if kind == "checker" else "grout", tol)
         s = stills(floor, args.stills, args.scale, args.camera, seed0, vision, model)
         c = (stills(floor, args.corrupted, args.scale, args.camera, seed0, vision, model,
@@ -507,8 +509,7 @@ def main(argv: list[str] | None = None) -> int:
                       f"{d['box_cm']:.2f}" if n and "box_cm" in d else "-",
                       f"{200.0 * tol:.2f}"])
     if surveyed:
-        print("surveyed: " + ", ".join(f"{k} {v[0]} {1e3 * v[1]:.1f} mm"
-                                       for k, v in surveyed.items()))
+        print("surveyed: " + ", ".join(f"{k} {v}" for k, v in surveyed.items()))
     if kinds:
         print("corrupted views, all floors: " + "; ".join(
             f"{k} {v[1]} of {v[0]} accepted, {v[2]} outside" for k, v in kinds.items()))
@@ -522,8 +523,8 @@ def main(argv: list[str] | None = None) -> int:
                         "survey": ("_surveyed", "the kind and lattice_tolerance that `survey` "
                                    f"recommends from {args.survey_views} views of each floor "
                                    "with their true poses, the kind not given (" + ", ".join(
-                                       f"{k} {v[0]} {1e3 * v[1]:.1f} mm"
-                                       for k, v in surveyed.items()) + ")")}[args.declare]
+                                       f"{k} {v}" for k, v in surveyed.items()) + ")")
+                        }[args.declare]
         write_block(f"real_floors_{args.camera}_x{args.scale:g}{suffix}",
                     f"Real floors ({args.camera} camera, x{args.scale:g} resolution, declared: "
                     f"{args.declare})", table,

@@ -250,7 +250,7 @@ def test_survey_of_a_checkerboard_left_undeclared_recommends_the_kind(
     capsys.readouterr()
     assert tileviz(["survey", str(ds), "--every", "4", "--meta", str(meta)]) == 0
     out = capsys.readouterr().out
-    assert "surveyed again as kind checker" in out and "kind: checker (declared)" in out
+    assert "surveyed again as kind checker" in out and "kind: checker (its edge images read)" in out
     assert json.loads(meta.read_text())["floor"]["kind"] == "checker"
 
 
@@ -280,23 +280,59 @@ def test_survey_reads_a_checkerboard_recognised_on_too_few_views_as_checker(
     assert json.loads(meta.read_text())["floor"]["kind"] == "checker"
 
 
+def _perfect_views(shift: float, n: int = 8, at: int = 5) -> list[tuple[np.ndarray, Pose]]:
+    """``n`` views of the default perfect floor with their true poses, view ``at``'s given
+    ``shift`` m off in x."""
+    cfg = preset("default")
+    r = FloorRenderer(cfg.floor, cfg.camera)
+    rng = np.random.default_rng(5)
+    views = []
+    for k in range(n):
+        pose = Pose(*rng.uniform(-9, 9, 2), rng.uniform(-4, 4))
+        told = Pose(pose.x + (shift if k == at else 0.0), pose.y, pose.theta)
+        views.append((r.render(pose, rng), told))
+    return views
+
+
 def test_survey_names_the_view_that_sets_the_tolerance() -> None:
     """Eight views of a perfect floor, one given a true pose 6 mm off: that view alone sets
     the tolerance, and the report names it beside the next largest view's departure."""
     from tileviz.vision.survey import survey
 
-    cfg = preset("default")
-    r = FloorRenderer(cfg.floor, cfg.camera)
-    rng = np.random.default_rng(5)
-    views = []
-    for k in range(8):
-        pose = Pose(*rng.uniform(-9, 9, 2), rng.uniform(-4, 4))
-        told = Pose(pose.x + (0.006 if k == 5 else 0.0), pose.y, pose.theta)
-        views.append((r.render(pose, rng), told))
-    report = survey(views, camera=cfg.camera, tile_size=1.0)
-    assert report.accepted == 8 and report.widest == 5
+    report = survey(_perfect_views(0.006), camera=preset("default").camera, tile_size=1.0)
+    assert report.accepted == 8 and report.widest == 5 and not report.capped
     assert report.tolerance >= 0.006 > 0.003 > report.next_widest
     assert "the largest departure is view 6's" in "\n".join(report.lines())
+
+
+def test_survey_says_when_the_views_showed_more_than_a_quarter_tile() -> None:
+    from tileviz.vision.survey import survey
+
+    report = survey(_perfect_views(0.3), camera=preset("default").camera, tile_size=1.0)
+    assert report.capped and report.shown >= 0.3 > 0.25 > report.tolerance
+    assert any("more than tileviz accepts" in line for line in report.lines())
+
+
+def test_a_failed_checker_survey_leaves_the_grout_survey_standing(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """Most views read as a checkerboard but too few accepted as one: the survey as grout is
+    the one recommended, and the reason is given."""
+    import tileviz.vision.survey as sv
+
+    views = _perfect_views(0.0)
+    grout = sv.survey(views, camera=preset("default").camera, tile_size=1.0)
+    made = replace(grout, checker=grout.accepted)  # as if every view read as a checkerboard
+
+    def fake(_views: object, *, kind: str = "grout", **_: object) -> sv.SurveyReport:
+        if kind == "checker":
+            raise ValueError("too few usable views: 2 of 8 accepted")
+        return made
+
+    monkeypatch.setattr(sv, "survey", fake)
+    report, said = sv.survey_kind(lambda: views, camera=preset("default").camera,
+                                  tile_size=1.0)
+    assert report is made and report.kind == "grout"
+    assert said and said[0][0] is None and "the survey as grout stands" in said[0][1]
 
 
 def test_a_run_summary_advises_declaring_a_checkerboard_it_recognised() -> None:

@@ -231,8 +231,8 @@ def banded_checker(seed: int, families: str = "one") -> FloorSpec:
     """A checkerboard (dark squares 50..110, light 160..220 levels, flat, noise 2, blur
     0.5..0.8 px, 90..200 px a tile) with a grout band 4..9 px wide centred on the edges between
     its tiles, along one family of lines (``families`` ``one``: the lines y = kL) or both
-    (``both``), 2..16 levels darker than the dark squares (at most about 15 % of the step
-    between the shades: its far side is a faint edge). The lattice's lines are the bands'
+    (``both``), 2..16 levels darker than the dark squares (1..32 % of the step between the
+    shades, mostly under 15 %: its far side is a faint edge). The lattice's lines are the bands'
     centres; a camera that does not see a band sees the edge where the light tile meets it,
     half its width off the line. Drawn from ``seed`` alone."""
     rng = np.random.default_rng([seed, 7103])

@@ -40,7 +40,7 @@ import numpy as np
 
 from tileviz.cliutil import CliError, Parser, positive_float, positive_int, read_json, run_cli
 from tileviz.config import CameraConfig, FloorModel, VisionConfig
-from tileviz.types import Observation, Pose
+from tileviz.types import Pose
 
 __all__ = ["SurveyReport", "line_departure", "main", "survey", "survey_kind"]
 
@@ -75,6 +75,15 @@ class SurveyReport:
     next_widest: float = 0.0
     """The largest departure any other view showed (m): far below the tolerance, the widest
     view may hold a line read wrong at the trial tolerance rather than the floor's departure."""
+    shown: float = 0.0
+    """The largest departure the views showed (m), rounded up to 0.1 mm; the tolerance is it
+    unless :attr:`capped`."""
+
+    @property
+    def capped(self) -> bool:
+        """Whether the views showed a quarter tile or more, so that the tolerance recommended
+        (just under a quarter tile, the most tileviz accepts) is less than they showed."""
+        return self.tolerance < self.shown
 
     @property
     def reads_as_checker(self) -> bool:
@@ -97,13 +106,17 @@ class SurveyReport:
         if math.isfinite(self.period_ratio):
             out.append(f"measured period / declared: {self.period_ratio:.4f}")
         if self.kind == "checker":
-            out.append("kind: checker (declared)")
+            out.append("kind: checker (its edge images read)")
         else:
             out.append(f"views read as a checkerboard: {self.checker} of {self.accepted}")
         label = name(self.widest) if name is not None else f"view {self.widest + 1}"
         out.append(f"the largest departure is {label}'s; the next largest view's: "
                    f"{self.next_widest * 1e3:.2f} mm (if far less, look at {label}: a line "
                    "read wrong there sets the tolerance)")
+        if self.capped:
+            out.append(f"the views showed a departure of {self.shown * 1e3:.1f} mm, a quarter "
+                       "tile or more: more than tileviz accepts (is the floor a lattice of this "
+                       "tile size?)")
         out.append(f"lattice_tolerance to declare: {self.tolerance:.4f} m")
         out.append("(the largest departure these views showed: the floor may depart more where "
                    "no view looked; survey views over the whole floor the robot drives on)")
@@ -127,7 +140,7 @@ def survey(views: Iterable[tuple[np.ndarray, Pose | None]], *, camera: CameraCon
     dep: list[float] = []
     off: list[float] = []
     ratios: list[float] = []
-    shown: list[tuple[float, int]] = []  # each accepted view's departure, and its number
+    by_view: list[tuple[float, int]] = []  # each accepted view's departure, and its number
     for image, truth in views:
         n += 1
         res = extract(image, camera=camera, tile_size=tile_size, vision=vision, floor=trial)
@@ -142,8 +155,8 @@ def survey(views: Iterable[tuple[np.ndarray, Pose | None]], *, camera: CameraCon
         if truth is not None:
             e = observation_error(res.observation, truth, tile_size, camera.offset)
             off.append(max(abs(e[0]), abs(e[1]), line_departure(
-                res.observation, res.offsets, res.bags, truth, tile_size, camera.offset)))
-        shown.append((max(dep[-1], off[-1] if truth is not None else 0.0), n - 1))
+                res.segments, res.bags, truth, tile_size, camera)))
+        by_view.append((max(dep[-1], off[-1] if truth is not None else 0.0), n - 1))
     if len(dep) < MIN_VIEWS:
         raise ValueError(f"too few usable views: {len(dep)} of {n} accepted (at least "
                          f"{MIN_VIEWS} needed; are --tile-size and --ppm the floor's?)")
@@ -153,13 +166,14 @@ def survey(views: Iterable[tuple[np.ndarray, Pose | None]], *, camera: CameraCon
                          f"tile_size x ppm ({tile_size * ppm:.1f} px): check --tile-size and "
                          "--ppm")
     arr = np.array(dep)
-    shown.sort(reverse=True)
-    tol = math.ceil(shown[0][0] * 1e4) / 1e4
+    by_view.sort(reverse=True)
+    tol = math.ceil(by_view[0][0] * 1e4) / 1e4
     return SurveyReport(views=n, accepted=len(dep), departure_rms=float(np.sqrt(np.mean(arr**2))),
                         departure_max=float(arr.max()),
                         offset_max=float(max(off)) if off else None, period_ratio=ratio,
                         tolerance=min(tol, 0.999 * tile_size / 4), kind=kind,
-                        checker=checker, widest=shown[0][1], next_widest=shown[1][0])
+                        checker=checker, widest=by_view[0][1], next_widest=by_view[1][0],
+                        shown=tol)
 
 
 def survey_kind(views: Callable[[], Iterable[tuple[np.ndarray, Pose | None]]], *,
@@ -169,8 +183,10 @@ def survey_kind(views: Callable[[], Iterable[tuple[np.ndarray, Pose | None]]], *
     """:func:`survey` of the views ``views()`` makes (called once per survey) as the floor
     ``kind``; with no kind, as grout (a checkerboard recognised), then again as ``checker``
     when most accepted views were read as a checkerboard (:attr:`SurveyReport.reads_as_checker`)
-    or too few were accepted. Returns the report and what was surveyed first and why it was
-    surveyed again (the first report, or None where it failed; a sentence). ValueError (one
+    or too few were accepted; when that second survey fails, the first stands. The report
+    returned is one survey's, as one kind: a checkerboard's edges read as grout (a view not
+    recognised) are no departure of its edges. Returns the report and the other survey with
+    why it was not kept (that report, or None where it failed; a sentence). ValueError (one
     line) as :func:`survey`'s, the first survey's where both fail."""
     try:
         report = survey(views(), camera=camera, tile_size=tile_size, vision=vision,
@@ -187,55 +203,46 @@ def survey_kind(views: Callable[[], Iterable[tuple[np.ndarray, Pose | None]]], *
         return report, [(None, f"read as grout or a recognised checkerboard, {e}: surveyed "
                                "as kind checker")]
     if kind is None and report.reads_as_checker:
-        again = survey(views(), camera=camera, tile_size=tile_size, vision=vision,
-                       kind="checker")
+        try:
+            again = survey(views(), camera=camera, tile_size=tile_size, vision=vision,
+                           kind="checker")
+        except ValueError as e:
+            return report, [(None, f"most views read as a checkerboard, but surveyed as kind "
+                                   f"checker, {e}: the survey as grout stands")]
         return again, [(report, "most views read as a checkerboard: surveyed again as kind "
                                 "checker")]
     return report, []
 
 
-def line_departure(obs: Observation, offsets: np.ndarray, bags: np.ndarray, truth: Pose,
-                   tile_size: float, offset: tuple[float, float]) -> float:
+def line_departure(segments: np.ndarray, bags: np.ndarray, truth: Pose, tile_size: float,
+                   camera: CameraConfig) -> float:
     """The farthest any line a view read lies from its ideal line at the true pose ``truth``
-    (metres, at the view's centre; 0 with no line): ``obs`` the view's observation, ``offsets``
-    each line's signed offset from the view's centre (metres, ``VisionResult.offsets``) and
-    ``bags`` its family (1: the family of ``y1`` before the heading is normalised, 2: ``y2``;
-    docs/method.md). Each line alone gives its family's offset (``y_k = -offset`` modulo
-    ``tile_size``); put in place of the view's, the observation's error at the truth
-    (:func:`~tileviz.vision.geometry.observation_error`, ``offset`` the camera's) is that
-    line's departure. The quarter turn by which ``obs`` was normalised is the one under which
-    its lines agree best with its offsets."""
-    from tileviz.vision import observation_error
-    from tileviz.vision.robust.lattice import normalise
-
-    fam = [offsets[bags == b] for b in (1, 2)]
-    if not (fam[0].size or fam[1].size):
-        return 0.0
-    a, b = obs.y1, obs.y2
-    best: tuple[float, int] | None = None
-    for m in range(4):  # the raw offsets (y1, y2) that normalise to (a, b) turned back m times
-        raw = ((a, b), (-b, a), (-a, -b), (b, -a))[m]
-        misfit = sum(float(np.abs(np.remainder(-f - raw[k] + 0.5 * tile_size, tile_size)
-                                  - 0.5 * tile_size).sum()) for k, f in enumerate(fam))
-        if best is None or misfit < best[0]:
-            best = (misfit, m)
-    assert best is not None
-    m = best[1]
-    y3_raw = obs.y3 + m * 0.5 * math.pi
-    raw = ((a, b), (-b, a), (-a, -b), (b, -a))[m]
-
-    def error(k: int, y: float) -> tuple[float, float, float]:
-        line = (y, raw[1]) if k == 0 else (raw[0], y)
-        return observation_error(normalise(*line, y3_raw, tile_size), truth, tile_size, offset)
-
+    (metres; 0 with no line). ``segments``: each line's image endpoints (N, 4: x1, y1, x2, y2
+    px, ``VisionResult.segments``), ``bags`` its family (0: not a line). Each line's point
+    nearest the view's centre is put on the floor as ``camera`` sees it (docs/dataset-format.md:
+    an orthographic view, ``camera.ppm`` pixels a metre, centred ``camera.offset`` ahead of and
+    left of the robot at ``truth``); its departure is that point's distance to the nearest line
+    of the ideal lattice (x = kL or y = kL, ``tile_size`` L) that the line runs along."""
+    ct, st = math.cos(truth.theta), math.sin(truth.theta)
+    fwd, left = camera.offset
+    ox, oy = truth.x + fwd * ct - left * st, truth.y + fwd * st + left * ct
+    centre = np.array([(camera.width - 1) / 2.0, (camera.height - 1) / 2.0])
     worst = 0.0
-    for k, f in enumerate(fam):
-        if not f.size:
+    for seg, bag in zip(np.asarray(segments, float), np.asarray(bags).tolist(), strict=True):
+        if bag == 0:
             continue
-        # the error's component that family k's offset moves
-        base, nudged = error(k, raw[k]), error(k, raw[k] + 0.125 * tile_size)
-        moved = 0 if abs(nudged[0] - base[0]) >= abs(nudged[1] - base[1]) else 1
-        worst = max(worst, max(abs(error(k, -o)[moved]) for o in f.tolist()))
+        p, d = seg[:2], seg[2:] - seg[:2]
+        length = float(np.hypot(*d))
+        if length == 0.0:
+            continue
+        d = d / length
+        foot = p + d * float(np.dot(centre - p, d))
+        # an image offset (d col, d row) is (-d row, -d col) / ppm ahead and left of the camera
+        af, al = -(foot[1] - centre[1]) / camera.ppm, -(foot[0] - centre[0]) / camera.ppm
+        x, y = ox + af * ct - al * st, oy + af * st + al * ct
+        wx, wy = -d[1] * ct + d[0] * st, -d[1] * st - d[0] * ct  # its direction on the floor
+        along_x = abs(wx) >= abs(wy)
+        worst = max(worst, abs(math.remainder(y if along_x else x, tile_size)))
     return worst
 
 
