@@ -141,10 +141,12 @@ def load_floors(folder: Path, only: set[str] | None = None) -> list[Floor]:
         if bgr is None:
             raise SystemExit(f"real_floors: cannot read {folder / f['file']}")
         rgb = cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB).astype(np.float32)
-        valid = None
+        valid: np.ndarray | None = None
         if f.get("valid_mask"):
             m = cv2.imread(str(folder / f["valid_mask"]), cv2.IMREAD_GRAYSCALE)
-            valid = m > 127
+            if m is None:
+                raise SystemExit(f"real_floors: cannot read {folder / f['valid_mask']}")
+            valid = np.asarray(m) > 127
         out.append(Floor(f["id"], rgb, np.array(f["tile_to_photo_affine"], np.float64),
                          float(f["tile_size_m"]), float(f["view_period_px"]), bool(f["wrap"]),
                          valid, str(f["grout"]), float(f["lattice_residual_max_px"])))
