@@ -452,8 +452,7 @@ FLOOR_STYLES: dict[str, dict[str, Any]] = {
     "checker": {"kind": "checker", "grout_width": 0.0, "tile_rgb": (222, 216, 204),
                 "tile2_rgb": (52, 50, 48), "stains_per_tile": 0.1},
     "hand_laid": {"grout_width": 0.014, "lattice_tolerance": 0.005},
-    "mosaic": {"grout_width": 0.008, "panel_tiles": 4, "seam_width": 0.03,
-               "lattice_tolerance": 0.008},
+    "mosaic": {"panel_tiles": 4, "seam_width": 0.03, "lattice_tolerance": 0.008},
     "faint_colour": {"tile_rgb": (150, 110, 80), "grout_rgb": (172, 92, 72),
                      "grout_width": 0.006, "texture_strength": 0.03},
 }

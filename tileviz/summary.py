@@ -51,6 +51,10 @@ class RunTally:
     periods: list[float] = field(default_factory=list)
     """The tile period each view's lines showed over the declared one (robust extractor,
     views with two lines of a family or more: ``details["period_ratio"]``)."""
+    period_slack: float = 0.0
+    """The most the floor's declared lattice tolerance can move any of those views' ratios
+    (``details["period_slack"]``: lines within the tolerance of the lattice are not exactly
+    a period apart), the largest over the views."""
     extractors: Counter[str] = field(default_factory=Counter)
     """Frames by the extractor that made their view (``VisionResult.extractor``)."""
     recognised: int = 0
@@ -85,6 +89,9 @@ class RunTally:
         ratio = details.get("period_ratio")
         if ratio is not None and math.isfinite(ratio):
             self.periods.append(float(ratio))
+            slack = details.get("period_slack", 0.0)
+            if math.isfinite(slack):
+                self.period_slack = max(self.period_slack, float(slack))
         self.recognised += "checker" in details
 
     def parts(self) -> list[str]:
@@ -124,12 +131,13 @@ class RunTally:
     def scale_warning(self) -> str:
         """A warning when the grout lines of the run's views lie consistently closer together
         or farther apart than ``tile_size`` x ``ppm`` says (:data:`SCALE_FRAMES` views or more
-        measured it, their median off by more than :data:`SCALE_TOLERANCE`); "" otherwise.
-        The views' bounds assume the scale exact (docs/vision.md, "What it reads")."""
+        measured it, their median off by more than :data:`SCALE_TOLERANCE` plus what the
+        floor's declared tolerance can explain, ``period_slack``); "" otherwise. The views'
+        bounds assume the scale exact (docs/vision.md, "What it reads")."""
         if len(self.periods) < SCALE_FRAMES:
             return ""
         ratio = statistics.median(self.periods)
-        if abs(ratio - 1.0) <= SCALE_TOLERANCE:
+        if abs(ratio - 1.0) <= SCALE_TOLERANCE + self.period_slack:
             return ""
         way = "farther apart" if ratio > 1.0 else "closer together"
         return (f"WARNING: the grout lines of {len(self.periods)} views lie "
