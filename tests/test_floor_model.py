@@ -356,3 +356,31 @@ def test_a_run_summary_advises_declaring_a_checkerboard_it_recognised() -> None:
     assert not any(said in p for p in tally.parts())
     tally.add(record({"checker": 4.0}))
     assert any(f"5 {said}" in p and "python -m tileviz survey" in p for p in tally.parts())
+
+
+def test_survey_never_lowers_a_declared_tolerance_and_checks_meta_first(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A meta.json that already declares a larger tolerance than the survey measures keeps it
+    (docs/dataset-format.md: never taken smaller), and says so; a smaller one is raised to the
+    survey's. A --meta in no folder is one line before any view is read."""
+    ds = _recorded(tmp_path, "hand_laid")
+    meta = tmp_path / "meta.json"
+    meta.write_text(json.dumps({"floor": {"kind": "grout", "lattice_tolerance": 0.02},
+                                "note": "kept"}))
+    capsys.readouterr()
+    assert tileviz(["survey", str(ds), "--every", "4", "--meta", str(meta)]) == 0
+    out = capsys.readouterr().out
+    doc = json.loads(meta.read_text())
+    assert doc["floor"] == {"kind": "grout", "lattice_tolerance": 0.02} and doc["note"] == "kept"
+    assert "declared lattice_tolerance 0.0200 m, more than this survey's: kept" in out
+    measured = float(out.split("lattice_tolerance to declare: ")[1].split()[0])
+    assert 0.0 < measured < 0.02
+    meta.write_text(json.dumps({"floor": {"kind": "grout", "lattice_tolerance": 0.0}}))
+    assert tileviz(["survey", str(ds), "--every", "4", "--meta", str(meta)]) == 0
+    assert "kept" not in capsys.readouterr().out
+    assert json.loads(meta.read_text())["floor"]["lattice_tolerance"] == measured
+    nowhere = tmp_path / "no" / "meta.json"
+    assert tileviz(["survey", "missing.png", "--tile-size", "1", "--ppm", "200",
+                    "--meta", str(nowhere)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--meta: cannot write" in err[0] and "no folder" in err[0]

@@ -92,3 +92,14 @@ def test_the_demo_restarts_with_a_floor_style_and_back() -> None:
     assert s.cfg.vision == preset("default").vision
     with pytest.raises(ValueError, match="floor style"):
         C.Restart(1.0, 200.0, "marble")
+
+
+def test_record_refuses_a_grout_floor_without_grout(tmp_path, capsys) -> None:
+    """``--floor-kind grout`` over the checker style (tiles edge to edge, no grout) would draw
+    a floor with no visible lattice: one line naming the problem, nothing written."""
+    out = tmp_path / "ds"
+    assert main("record", [str(out), "--duration", "0.2", "--floor-style", "checker",
+                           "--floor-kind", "grout"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "kind grout needs grout_width > 0" in err[0]
+    assert not out.exists()

@@ -160,6 +160,9 @@ class FloorConfig:
                 f"grout_width must be < tile_size/2, got {self.grout_width} for L={self.tile_size}"
             )
         FloorModel(self.kind, self.lattice_tolerance)  # validates both
+        if self.kind == "grout" and not self.grout_width > 0:
+            raise ValueError(f"kind grout needs grout_width > 0, got {self.grout_width} (tiles "
+                             f"edge to edge, as the checker style draws them, are kind checker)")
         if self.lattice_tolerance >= self.tile_size / 4:
             raise ValueError(f"lattice_tolerance must be < tile_size/4, got "
                              f"{self.lattice_tolerance} for L={self.tile_size}")

@@ -159,7 +159,8 @@ def survey(views: Iterable[tuple[np.ndarray, Pose | None]], *, camera: CameraCon
         by_view.append((max(dep[-1], off[-1] if truth is not None else 0.0), n - 1))
     if len(dep) < MIN_VIEWS:
         raise ValueError(f"too few usable views: {len(dep)} of {n} accepted (at least "
-                         f"{MIN_VIEWS} needed; are --tile-size and --ppm the floor's?)")
+                         f"{MIN_VIEWS} needed: more views of the floor, or check the tile size "
+                         f"and ppm)")
     ratio = float(np.median(ratios)) if ratios else math.nan
     if math.isfinite(ratio) and abs(ratio - 1.0) > SCALE_TOLERANCE:
         raise ValueError(f"inconsistent scale: the views' tile period is {ratio:.3f} x "
@@ -198,8 +199,10 @@ def survey_kind(views: Callable[[], Iterable[tuple[np.ndarray, Pose | None]]], *
         try:
             report = survey(views(), camera=camera, tile_size=tile_size, vision=vision,
                             kind="checker")
-        except ValueError:
-            raise e from None
+        except ValueError as again:
+            if str(again) == str(e):
+                raise e from None
+            raise ValueError(f"{e}; read as kind checker: {again}") from None
         return report, [(None, f"read as grout or a recognised checkerboard, {e}: surveyed "
                                "as kind checker")]
     if kind is None and report.reads_as_checker:
@@ -294,6 +297,8 @@ def main(command: str, argv: list[str]) -> int:
     args = _parser(prog).parse_args(argv)
 
     def body() -> int:
+        if args.meta is not None:  # a meta.json that cannot be written is said before reading
+            _meta_doc(Path(args.meta))
         first = Path(args.inputs[0])
         if first.is_dir():
             from tileviz.datasets import DatasetSource
@@ -335,19 +340,40 @@ def main(command: str, argv: list[str]) -> int:
             print(why)
         print("\n".join(report.lines(name)))
         if args.meta is not None:
-            _write_meta(Path(args.meta), report.kind, report.tolerance)
+            kept = _write_meta(Path(args.meta), report.kind, report.tolerance)
+            if kept is not None:
+                print(f"{args.meta} declared lattice_tolerance {kept:.4f} m, more than this "
+                      f"survey's: kept (a survey measures the views it saw, the floor's maker "
+                      f"may know more)")
             print(f"wrote the floor block into {args.meta}")
         return 0
 
     return run_cli(prog, body)
 
 
-def _write_meta(path: Path, kind: str, tolerance: float) -> None:
-    """Set the ``floor`` block of the meta.json ``path`` (created when missing), written to a
-    temporary file and renamed."""
+def _meta_doc(path: Path) -> dict:
+    """The JSON object in ``path`` ({} when missing); CliError when it is not one or its folder
+    does not exist."""
+    if not path.parent.is_dir():
+        raise CliError(f"--meta: cannot write {path} (no folder {path.parent})")
     doc = read_json(str(path), "--meta") if path.exists() else {}
     if not isinstance(doc, dict):
         raise CliError(f"--meta: {path} is not a JSON object")
+    return doc
+
+
+def _write_meta(path: Path, kind: str, tolerance: float) -> float | None:
+    """Set the ``floor`` block of the meta.json ``path`` (created when missing), written to a
+    temporary file and renamed: ``kind`` and the larger of ``tolerance`` (metres) and the
+    tolerance the block already declared (docs/dataset-format.md: a declared tolerance is never
+    taken smaller). Returns the declared tolerance when it was kept, else None."""
+    doc = _meta_doc(path)
+    old = doc.get("floor")
+    declared = old.get("lattice_tolerance") if isinstance(old, dict) else None
+    kept = None
+    if (isinstance(declared, int | float) and not isinstance(declared, bool)
+            and math.isfinite(declared) and declared > tolerance):
+        kept = tolerance = float(declared)
     doc["floor"] = {"kind": kind, "lattice_tolerance": tolerance}
     tmp = path.with_name(path.name + ".tmp")
     try:
@@ -355,3 +381,4 @@ def _write_meta(path: Path, kind: str, tolerance: float) -> None:
         tmp.replace(path)
     except OSError as e:
         raise CliError(f"--meta: cannot write {path} ({e.strerror or e})") from None
+    return kept
