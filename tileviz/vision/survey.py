@@ -188,7 +188,7 @@ def survey_kind(views: Callable[[], Iterable[tuple[np.ndarray, Pose | None]]], *
     returned is one survey's, as one kind: a checkerboard's edges read as grout (a view not
     recognised) are no departure of its edges. Returns the report and the other survey with
     why it was not kept (that report, or None where it failed; a sentence). ValueError (one
-    line) as :func:`survey`'s, the first survey's where both fail."""
+    line) as :func:`survey`'s; where both fail, the first's and the second's in one line."""
     try:
         report = survey(views(), camera=camera, tile_size=tile_size, vision=vision,
                         kind=kind or "grout")
@@ -199,10 +199,10 @@ def survey_kind(views: Callable[[], Iterable[tuple[np.ndarray, Pose | None]]], *
         try:
             report = survey(views(), camera=camera, tile_size=tile_size, vision=vision,
                             kind="checker")
-        except ValueError as again:
-            if str(again) == str(e):
+        except ValueError as second:
+            if str(second) == str(e):
                 raise e from None
-            raise ValueError(f"{e}; read as kind checker: {again}") from None
+            raise ValueError(f"{e}; read as kind checker: {second}") from None
         return report, [(None, f"read as grout or a recognised checkerboard, {e}: surveyed "
                                "as kind checker")]
     if kind is None and report.reads_as_checker:
