@@ -291,3 +291,28 @@ def test_explain_of_an_accepted_view_shows_every_check_passed(capsys, images) ->
     assert all(r[-1] == "pass" for r in rows)
     rc, out, _ = _run(capsys, "--explain", "--extractor", "faithful", images["default"])
     assert "records no decision path" in out
+
+
+def test_an_option_error_is_said_once_naming_no_image(capsys, images) -> None:
+    """A tolerance of more than a quarter tile is the option's fault, not an image's: one line
+    for the whole command."""
+    rc, out, err = _run(capsys, images["default"], images["constant"],
+                        "--lattice-tolerance", "0.3")
+    assert rc == 2 and out == ""
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "lattice_tolerance must be < tile_size/4" in lines[0]
+    assert images["default"] not in lines[0]
+
+
+def test_a_reader_that_stops_early_ends_the_command_quietly(images) -> None:
+    """``extract ... | head -1``: once the reader has gone, no error and no traceback."""
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "tileviz", "extract", "--explain",
+         *([images["default"], images["constant"]] * 200)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=REPO)
+    assert proc.stdout is not None and proc.stderr is not None
+    first = proc.stdout.readline()
+    proc.stdout.close()
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=600) == 1
+    assert first.startswith(images["default"].encode()) and err == ""

@@ -89,7 +89,9 @@ def record_parser() -> Parser:
                    "still but lossy: it changes the views)")
     p.add_argument("--floor-style", choices=tuple(FLOOR_STYLES), default="default",
                    help="the floor's look: light grout, wide grout, a photograph on the tiles, "
-                   "uneven lighting (default: the preset's floor)")
+                   "uneven lighting, a checkerboard (no grout), hand-laid tiles, a mosaic in "
+                   "panels, faint coloured grout (checker, hand_laid and mosaic declare their kind "
+                   "or tolerance; default: the preset's floor)")
     add_floor_options(p)
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     return p

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
 import threading
 from collections.abc import Callable, Iterator
@@ -251,7 +252,8 @@ def run_cli(prog: str, body: Callable[[], int]) -> int:
     """Run ``body`` as the command ``prog`` (every ``python -m tileviz`` command and ``serve.py``
     go through here): first the process set-up (:func:`tileviz.vision.set_opencv_threads`: OpenCV
     on one thread, so observations do not depend on the core count), then ``body``; expected
-    errors become one line on stderr and exit status 2. OpenCV's own log lines below errors
+    errors become one line on stderr and exit status 2; a closed stdout (``| head``) ends the
+    command quietly with status 1. OpenCV's own log lines below errors
     (e.g. a warning when it converts an image's samples) are silenced: the command's one-line
     error names the problem."""
     import cv2.utils.logging as cv_log
@@ -265,6 +267,11 @@ def run_cli(prog: str, body: Callable[[], int]) -> int:
     except KeyboardInterrupt:
         sys.stderr.write(f"{prog}: interrupted\n")
         return 130
+    except BrokenPipeError:
+        # the reader of stdout went away (``| head``): stop quietly, and keep Python's exit
+        # from reporting the flush of the closed pipe
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 1
     except (CliError, ValueError, OSError) as e:
         sys.stderr.write(f"{prog}: error: {one_line(str(e))}\n")
         return 2

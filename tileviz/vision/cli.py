@@ -73,9 +73,10 @@ def _parser(prog: str) -> Parser:
                    help="camera/vision constants; given, every image must have the "
                    "preset's size (default: the 'default' constants with each image's own size)")
     p.add_argument("--ppm", type=positive_float("--ppm"), default=None,
-                   help="pixels per metre on the floor")
+                   help="pixels per metre on the floor (default: the preset's, 200 for "
+                   "'default'; the positions in metres scale with it)")
     p.add_argument("--tile-size", type=positive_float("--tile-size"), default=None,
-                   help="tile size L, metres")
+                   help="tile size L, metres (default: the preset's, 1 for 'default')")
     add_floor_options(p)
     p.add_argument("--extractor", choices=EXTRACTORS, default=None,
                    help=f"{EXTRACTOR_HELP} (default: the preset's)")
@@ -215,6 +216,9 @@ def main(command: str, argv: list[str]) -> int:
         base, rectify = None, None
         if args.camera_model is not None:
             base, rectify = _camera_model(args.camera_model, preset(args.preset or "default"))
+        # the options' own errors once, before any image (a bad --lattice-tolerance is no
+        # image's fault)
+        _config(args, np.zeros((16, 16, 3), np.uint8), base)
         status = 0
         refused = False
         stems: dict[str, int] = {}
