@@ -316,3 +316,29 @@ def test_a_reader_that_stops_early_ends_the_command_quietly(images) -> None:
     err = proc.stderr.read().decode()
     assert proc.wait(timeout=600) == 1
     assert first.startswith(images["default"].encode()) and err == ""
+
+
+def test_explain_names_the_image_read_and_every_image_tried_before(capsys,
+                                                                    tmp_path: Path) -> None:
+    """Faint coloured grout: the luma shows no lattice and a colour projection is read.
+    --explain says which image its readings read, and lists every image of the view read,
+    in order, with its outcome (the luma's refusal first); --json carries the same."""
+    from tileviz.config import with_floor_style
+
+    cfg = with_floor_style(preset("default"), "faint_colour")
+    img = FloorRenderer(cfg.floor, cfg.camera).render(Pose(2.3, -4.1, 0.7),
+                                                      np.random.default_rng(1))
+    path = _write(tmp_path / "faint.png", img)
+    rc, out, _ = _run(capsys, path, "--explain")
+    lines = out.splitlines()
+    assert rc == 0 and "accepted" in lines[1]
+    read = lines[2].strip()
+    assert read.startswith("the readings below read the colour projection ")
+    assert lines[3].strip() == "images of the view read, in order:"
+    assert lines[4].strip().startswith("luma: refused (")
+    name = read.removeprefix("the readings below read the ")
+    assert lines[5].strip() == f"{name}: accepted"
+    rc, out, _ = _run(capsys, path, "--json")
+    decision = json.loads(out)["decision"]
+    assert decision["image"] == name and decision["images"][-1] == f"{name}: accepted"
+    assert decision["images"][0].startswith("luma: refused (")

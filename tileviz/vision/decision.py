@@ -84,7 +84,10 @@ class Decision:
     any reading), the ``readings`` tried in order, which of them the result shows (``shown``:
     its lines are the result's segments; None when none was read), the final ``reason`` and
     the check that refused the view (``refusal``, None when accepted) in reading
-    ``refused_in`` (None: a check on the whole view)."""
+    ``refused_in`` (None: a check on the whole view). ``image``: which image of the view the
+    readings read (the luma, a colour projection, an edge image; empty: not said), and
+    ``images``: every image of the view read, in order, each with its outcome in one line
+    (empty: only this one)."""
 
     view_checks: tuple[CheckResult, ...]
     readings: tuple[Tried, ...]
@@ -92,9 +95,12 @@ class Decision:
     reason: str
     refusal: CheckResult | None
     refused_in: int | None
+    image: str = ""
+    images: tuple[str, ...] = ()
 
     def as_dict(self) -> dict[str, object]:
-        """JSON-able: ``reason``, ``refusal`` ({check, value, limit, relation, subject,
+        """JSON-able: ``reason``, ``image``, ``images``, ``refusal`` ({check, value, limit,
+        relation, subject,
         reading} or null), ``view_checks``, ``readings`` (each: heading in rad, source,
         polarity, stray, shoulder, reason, checks) and ``shown``; a value or limit that is not
         finite is null."""
@@ -104,6 +110,8 @@ class Decision:
             del ref["passed"]
         return {
             "reason": self.reason,
+            "image": self.image,
+            "images": list(self.images),
             "refusal": ref,
             "view_checks": [_check_dict(c) for c in self.view_checks],
             "readings": [
@@ -153,6 +161,18 @@ def _rows(decision: Decision) -> list[tuple[str, list[CheckResult], CheckResult 
     return out
 
 
+def _image_lines(decision: Decision) -> list[str]:
+    """Which image of the view the readings below read, and, when several were read, each of
+    them with its outcome (indented lines; none when the image is not said)."""
+    if not decision.image:
+        return []
+    out = [f"  the readings below read the {decision.image}"]
+    if len(decision.images) > 1:
+        out.append("  images of the view read, in order:")
+        out += [f"    {line}" for line in decision.images]
+    return out
+
+
 def summary(decision: Decision) -> str:
     """One line: accepted, or which check refused the view with its value and limit."""
     ref = decision.refusal
@@ -167,7 +187,8 @@ def summary(decision: Decision) -> str:
 def explain_lines(decision: Decision) -> list[str]:
     """The decision path as text lines: a summary, then per block (the view, each reading)
     one row per check: id, value, relation and limit, pass / fail."""
-    out = [summary(decision), f"    {'check':<34} {'value':>10}  limit{'':<8} result"]
+    out = [summary(decision), *_image_lines(decision),
+           f"    {'check':<34} {'value':>10}  limit{'':<8} result"]
     for head, checks, ref in _rows(decision):
         out.append(f"  {head}")
         for c in checks:
@@ -181,6 +202,8 @@ def explain_markdown(decision: Decision) -> str:
     """The decision path as Markdown: the summary, then one table per block (the view, each
     reading) with the check, value, limit and result; the refusing check in bold."""
     parts = [f"**{summary(decision)}**"]
+    if decision.image:
+        parts.append("\n".join(line.strip() + "  " for line in _image_lines(decision)))
     for head, checks, ref in _rows(decision):
         if not checks:
             continue

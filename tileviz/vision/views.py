@@ -27,7 +27,7 @@ from tileviz.vision.colour import (
     correlation,
     edges_and_strength,
 )
-from tileviz.vision.decision import CheckResult
+from tileviz.vision.decision import CheckResult, summary
 from tileviz.vision.geometry import family_normals, observation_error, wrap_quarter
 from tileviz.vision.result import VisionResult
 
@@ -81,15 +81,51 @@ def read_robust(gray: np.ndarray, image: np.ndarray, camera: CameraConfig, tile_
     if got is not None or first.reason in VIEW_REASONS or (
             refusal is not None and refusal.check == FIRST_LINES):
         return got or first
-    recognised = _recognise(views, gray, camera.ppm, lp, timings, floor, read)
-    return recognised or first
+    recognised, tried = _recognise(views, gray, camera.ppm, lp, timings, floor, read)
+    before = first.decision.images if first.decision is not None else ()
+    return _with_images(recognised or first, before + tried)
+
+
+def image_name(number: float) -> str:
+    """The image of a view that ``number`` names (``details["projection"]``): 0 the luma,
+    1.. the colour projections in order, -1 the luma's edge image, -2.. the projections'."""
+    names = ["luma", *(f"colour projection {name}" for name in PROJECTIONS)]
+    if number >= 0:
+        return names[int(number)]
+    return f"edge image of the {names[int(-1 - number)]}"
+
+
+def _outcome(number: float, got: VisionResult, recognising: bool) -> str:
+    """One line: the image ``number`` and what reading it gave."""
+    name = image_name(number) + (" (as an undeclared checkerboard)" if recognising else "")
+    if got.accepted:
+        return f"{name}: accepted"
+    if got.decision is None:
+        return f"{name}: refused ({got.reason})"
+    return f"{name}: {summary(got.decision)}"
+
+
+def _with_images(got: VisionResult, images: tuple[str, ...]) -> VisionResult:
+    """``got`` with its decision's list of the view's images read (``Decision.images``)."""
+    if got.decision is None:
+        return got
+    return replace(got, decision=replace(got.decision, images=images))
+
+
+def _named(got: VisionResult, number: float, recognising: bool) -> VisionResult:
+    """``got`` with its decision naming the image ``number`` it read (``Decision.image``)."""
+    if got.decision is None:
+        return got
+    name = image_name(number) + (", read as an undeclared checkerboard" if recognising else "")
+    return replace(got, decision=replace(got.decision, image=name))
 
 
 def _first_accepted(candidates: list[Candidate], gray: np.ndarray, timings: dict[str, float],
                     floor: FloorModel,
                     read: Callable[[np.ndarray, dict[str, float], FloorModel], VisionResult],
                     ppm: float, lp: float,
-                    accept: Callable[[float, VisionResult], VisionResult] | None = None
+                    accept: Callable[[float, VisionResult], VisionResult] | None = None,
+                    recognising: bool = False
                     ) -> tuple[VisionResult | None, VisionResult]:
     """The ``candidates`` read in turn while refused for not showing the lattice
     (:data:`~tileviz.vision.colour.RETRY_REASONS`; a projection nearly the luma again,
@@ -98,8 +134,17 @@ def _first_accepted(candidates: list[Candidate], gray: np.ndarray, timings: dict
     refused for inconsistent spacing, :func:`_explains_first` too), and the refusal to report:
     a later reading's refused by those further checks (final: a foreign line), else the first
     reading's (its timings join ``timings``). ``ppm``: the view's pixels per metre, ``lp`` the
-    tile period, px."""
+    tile period, px. Each result's decision names the image it read, and both returned list
+    every image read with its outcome (``Decision.image``, ``images``; ``recognising``: the
+    edge images are read as an undeclared checkerboard)."""
     first: VisionResult | None = None
+    tried: list[str] = []
+
+    def done(got: VisionResult | None, shown: VisionResult) -> tuple[VisionResult | None,
+                                                                      VisionResult]:
+        lines = tuple(tried)
+        return (None if got is None else _with_images(got, lines)), _with_images(shown, lines)
+
     for number, make in candidates:
         t1 = time.perf_counter()
         view = make()
@@ -108,26 +153,29 @@ def _first_accepted(candidates: list[Candidate], gray: np.ndarray, timings: dict
         tm = dict(timings)
         if number != 0.0:
             tm["projection"] = (time.perf_counter() - t1) * 1e3
-        got = read(view, tm, floor)
+        got = _named(read(view, tm, floor), number, recognising)
         if got.accepted:
             if number != 0.0:
                 got = replace(got, details={**got.details, "projection": number})
             if accept is not None:
-                got = accept(number, got)
+                got = _named(accept(number, got), number, recognising)
             if got.accepted and first is not None and first.reason == "inconsistent spacing":
                 got = _explains_first(first, got, gray.shape, ppm, lp, floor)
+            tried.append(_outcome(number, got, recognising))
             if got.accepted:
-                return got, first or got
+                return done(got, first or got)
             if first is not None:
                 timings.update(tm)
-                return None, got
+                return done(None, got)
+        else:
+            tried.append(_outcome(number, got, recognising))
         if first is None:
             first = got
             timings.update(tm)
         if got.reason not in RETRY_REASONS:
             break
     assert first is not None
-    return None, first
+    return done(None, first)
 
 
 def _edge_images(candidates: list[Candidate], gray: np.ndarray) -> list[Candidate]:
@@ -154,7 +202,7 @@ def _edge_sources(views: list[Candidate]) -> dict[float, Callable[[], np.ndarray
 def _recognise(views: list[Candidate], gray: np.ndarray, ppm: float, lp: float,
                timings: dict[str, float], floor: FloorModel,
                read: Callable[[np.ndarray, dict[str, float], FloorModel], VisionResult]
-               ) -> VisionResult | None:
+               ) -> tuple[VisionResult | None, tuple[str, ...]]:
     """A checkerboard the user did not declare: the edge images of ``views`` read as on a
     floor declared ``checker`` (its tolerance kept), a reading accepted only when every piece
     of its lines is one step on the view it was made from, its reach short
@@ -164,7 +212,8 @@ def _recognise(views: list[Candidate], gray: np.ndarray, ppm: float, lp: float,
     the tile edge, or a thin grout's centre, by the reach: the edge image is read again with
     the floor's tolerance widened by it (``details["checker_band"]``, px), and when that
     reading passes with no larger reach, the first is kept, its bounds widened to cover the
-    second's (the wider tolerance loosens the checks too). None when none is recognised."""
+    second's (the wider tolerance loosens the checks too). None when none is recognised;
+    with the edge images read and their outcomes (``Decision.images``)."""
     from tileviz.vision.robust.checker import tile_edges
     from tileviz.vision.robust.settings import DEFAULT_SETTINGS
 
@@ -203,8 +252,9 @@ def _recognise(views: list[Candidate], gray: np.ndarray, ppm: float, lp: float,
         obs = _covering(got.observation, again.observation, lp / ppm)
         return replace(got, observation=obs, details={**got.details, "checker_band": band})
 
-    got, _ = _first_accepted(edges, gray, dict(timings), as_checker, read, ppm, lp, accept)
-    return got
+    got, shown = _first_accepted(edges, gray, dict(timings), as_checker, read, ppm, lp, accept,
+                                 recognising=True)
+    return got, (shown.decision.images if shown.decision is not None else ())
 
 
 def _covering(first: Observation, other: Observation, tile_size: float) -> Observation:
