@@ -117,3 +117,36 @@ def test_replay_of_a_mosaic_laid_within_its_tolerance_warns_of_no_scale_error(
         assert tileviz_main(["replay", str(folder), "--quiet", "--jobs", "1"]) == 0
         out = capsys.readouterr().out
         assert ("WARNING: the grout lines of" in out) is warns, out
+
+
+class _RefusedVision:
+    accepted = False
+    extractor = "robust"
+
+    def __init__(self, reason: str, check: str | None) -> None:
+        from tileviz.vision.decision import CheckResult, Decision
+
+        self.reason = reason
+        self.details: dict[str, float] = {}
+        self.decision = None if check is None else Decision(
+            (), (), None, reason, CheckResult(check, 2.0, 1.0, "<=", False), 0)
+
+
+def test_the_summary_counts_the_views_refused_by_the_check_that_refused_them() -> None:
+    """A run whose views were refused says how many, by which checks (most frequent first),
+    and where to look; a run with none refused says nothing of it."""
+    tally = RunTally()
+    for reason, check, n in (("foreign line", "foreign_line.contrast", 3),
+                             ("low contrast", "contrast.depth", 2),
+                             ("no lines", None, 1), ("glare", "glare.patches", 1)):
+        for _ in range(n):
+            rec = _Rec(None)
+            rec.vision = _RefusedVision(reason, check)  # type: ignore[assignment]
+            tally.add(rec)
+    tally.add(_Rec(1.0))
+    part = next(p for p in tally.parts() if p.startswith("views refused"))
+    assert part == ("views refused: 7 (foreign_line.contrast 3, contrast.depth 2, no lines 1, "
+                    "...; extract IMAGE --explain says why)")
+    clean = RunTally()
+    clean.add(_Rec(1.0))
+    assert not any(p.startswith("views refused") for p in clean.parts())

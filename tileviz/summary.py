@@ -57,6 +57,9 @@ class RunTally:
     a period apart), the largest over the views."""
     extractors: Counter[str] = field(default_factory=Counter)
     """Frames by the extractor that made their view (``VisionResult.extractor``)."""
+    refused: Counter[str] = field(default_factory=Counter)
+    """Views the extractor refused, by the check that refused them (the robust extractor's
+    ``decision.refusal.check``, e.g. ``foreign_line.contrast``; else the reason)."""
     recognised: int = 0
     """Views read as a checkerboard the floor does not declare (``details["checker"]``:
     docs/vision.md, "Colour")."""
@@ -85,6 +88,9 @@ class RunTally:
         extractor = getattr(vision, "extractor", "")
         if extractor:
             self.extractors[extractor] += 1
+        if extractor and getattr(vision, "accepted", True) is False:  # a view read, refused
+            refusal = getattr(getattr(vision, "decision", None), "refusal", None)
+            self.refused[getattr(refusal, "check", None) or getattr(vision, "reason", "?")] += 1
         details = getattr(vision, "details", {})
         ratio = details.get("period_ratio")
         if ratio is not None and math.isfinite(ratio):
@@ -95,11 +101,18 @@ class RunTally:
         self.recognised += "checker" in details
 
     def parts(self) -> list[str]:
-        """The summary's pieces: statuses, median set size, containment (when known), what the
+        """The summary's pieces: statuses, the views refused by the check that refused them
+        (the three most frequent), median set size, containment (when known), what the
         extractor's views promise (:func:`extractor_note`), the frames outside the
         re-localization region, the scale warning."""
         out = [f"statuses: {', '.join(f'{n} {k}' for k, n in self.statuses.most_common())}"
                if self.statuses else "no frame"]
+        if self.refused:
+            top = self.refused.most_common(3)
+            more = ", ..." if len(self.refused) > len(top) else ""
+            out.append(f"views refused: {sum(self.refused.values())} ("
+                       f"{', '.join(f'{k} {n}' for k, n in top)}{more}; extract IMAGE --explain "
+                       f"says why)")
         finite = [w for w in self.widths if all(math.isfinite(v) for v in w)]
         if finite:
             wx, wy, wt = (statistics.median(w[i] for w in finite) for i in range(3))
