@@ -90,7 +90,7 @@ class RunTally:
             self.extractors[extractor] += 1
         if extractor and getattr(vision, "accepted", True) is False:  # a view read, refused
             refusal = getattr(getattr(vision, "decision", None), "refusal", None)
-            self.refused[getattr(refusal, "check", None) or getattr(vision, "reason", "?")] += 1
+            self.refused[str(getattr(refusal, "check", "") or getattr(vision, "reason", "?"))] += 1
         details = getattr(vision, "details", {})
         ratio = details.get("period_ratio")
         if ratio is not None and math.isfinite(ratio):
