@@ -100,8 +100,19 @@ def test_record_options_out_of_range(args: list[str], needle: str, tmp_path: Pat
 def test_record_into_a_file(tmp_path: Path) -> None:
     (tmp_path / "afile").write_text("keep me")
     _one_line_error(_cli(["record", "afile", "--duration", "0.1", "--quiet"], tmp_path),
-                    "afile")
+                    "afile: is a file, not an output folder")
+    _one_line_error(_cli(["record", "afile/meta.json", "--duration", "0.1", "--quiet"],
+                         tmp_path), "afile/meta.json: a part of that path is a file")
     assert (tmp_path / "afile").read_text() == "keep me"
+
+
+def test_survey_of_a_missing_file_or_a_folder_that_is_no_dataset(tmp_path: Path) -> None:
+    """The file's absence, or the folder's missing meta.json, is what the one line names (not
+    the scale options, not a meta.json that cannot be read)."""
+    _one_line_error(_cli(["survey", "nowhere.png"], tmp_path), "nowhere.png: no such file")
+    (tmp_path / "shots").mkdir()
+    _one_line_error(_cli(["survey", "shots"], tmp_path),
+                    "shots: a folder with no meta.json, not a dataset (give its images as files")
 
 
 @pytest.mark.slow

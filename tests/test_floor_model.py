@@ -181,7 +181,7 @@ def test_survey_measures_a_hand_laid_floor_and_writes_the_floor_block(
     assert json.loads(meta.read_text())["floor"]["kind"] == "grout"
     tol = json.loads(meta.read_text())["floor"]["lattice_tolerance"]
     assert f"lattice_tolerance to declare: {tol:.4f} m" in out
-    assert "the largest departure is frame " in out
+    assert "the largest departure, " in out and "mm, is frame " in out
     assert tileviz(["survey", str(perfect), "--every", "4"]) == 0
     line = capsys.readouterr().out.strip().splitlines()[-2]
     assert 0.0 <= float(line.split(": ")[1].split()[0]) < tol <= 0.005 + 1e-9
@@ -302,7 +302,9 @@ def test_survey_names_the_view_that_sets_the_tolerance() -> None:
     report = survey(_perfect_views(0.006), camera=preset("default").camera, tile_size=1.0)
     assert report.accepted == 8 and report.widest == 5 and not report.capped
     assert report.tolerance >= 0.006 > 0.003 > report.next_widest
-    assert "the largest departure is view 6's" in "\n".join(report.lines())
+    text = "\n".join(report.lines())
+    assert f"the largest departure, {report.shown * 1e3:.1f} mm, is view 6's" in text
+    assert "extract IMAGE --explain" in text
 
 
 def test_survey_says_when_the_views_showed_more_than_a_quarter_tile() -> None:

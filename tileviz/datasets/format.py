@@ -144,7 +144,7 @@ class DatasetMeta:
             raise DatasetError(f"{where}: must be a JSON object")
         if d.get("format") != FORMAT:
             raise DatasetError(
-                f"{where}: format must be {FORMAT!r}, got {d.get('format', '(missing)')!r}"
+                f"{where}: format must be {FORMAT!r}, got {as_json(d.get('format', '(missing)'))}"
             )
         known = {
             "format", "name", "tile_size", "ppm", "image_width", "image_height", "camera_offset",
@@ -159,18 +159,19 @@ class DatasetMeta:
         def number(key: str, *, positive: bool) -> float:
             v = d[key]
             if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
-                raise DatasetError(f"{where}: {key} must be a finite number, got {v!r}")
+                raise DatasetError(f"{where}: {key} must be a finite number, got {as_json(v)}")
             if abs(v) > MAX_MAGNITUDE:
-                raise DatasetError(f"{where}: {key} must be within +-{MAX_MAGNITUDE:g}, got {v!r}")
+                raise DatasetError(f"{where}: {key} must be within +-{MAX_MAGNITUDE:g}, "
+                                   f"got {as_json(v)}")
             if positive and v <= 0 or not positive and v < 0:
                 raise DatasetError(f"{where}: {key} must be {'> 0' if positive else '>= 0'}, "
-                                   f"got {v!r}")
+                                   f"got {as_json(v)}")
             return float(v)
 
         def integer(key: str) -> int:
             v = d[key]
             if isinstance(v, bool) or not isinstance(v, int) or v <= 0:
-                raise DatasetError(f"{where}: {key} must be an integer > 0, got {v!r}")
+                raise DatasetError(f"{where}: {key} must be an integer > 0, got {as_json(v)}")
             return v
 
         def vector(key: str, n: int, *, nonneg: bool = False) -> tuple[float, ...]:
@@ -182,11 +183,11 @@ class DatasetMeta:
             if not ok:
                 what = "non-negative " if nonneg else ""
                 raise DatasetError(f"{where}: {key} must be a list of {n} finite {what}numbers "
-                                   f"within +-{MAX_MAGNITUDE:g}, got {v!r}")
+                                   f"within +-{MAX_MAGNITUDE:g}, got {as_json(v)}")
             return tuple(float(e) for e in v)
 
         if number("ppm", positive=True) > MAX_PPM:
-            raise DatasetError(f"{where}: ppm must be <= {MAX_PPM:g}, got {d['ppm']!r}")
+            raise DatasetError(f"{where}: ppm must be <= {MAX_PPM:g}, got {as_json(d['ppm'])}")
         tile_px = number("tile_size", positive=True) * number("ppm", positive=True)
         if not MIN_TILE_PX <= tile_px <= MAX_TILE_PX:
             most = (f"at least {MIN_TILE_PX:g}" if tile_px < MIN_TILE_PX
@@ -196,11 +197,11 @@ class DatasetMeta:
         name = d.get("name", "")
         complete = d.get("complete")
         if complete is not None and not isinstance(complete, bool):
-            raise DatasetError(f"{where}: complete must be true or false, got {complete!r}")
+            raise DatasetError(f"{where}: complete must be true or false, got {as_json(complete)}")
         frames = d.get("frames")
         if frames is not None and (isinstance(frames, bool) or not isinstance(frames, int)
                                    or frames < 0):
-            raise DatasetError(f"{where}: frames must be an integer >= 0, got {frames!r}")
+            raise DatasetError(f"{where}: frames must be an integer >= 0, got {as_json(frames)}")
         width, height = integer("image_width"), integer("image_height")
         if max(width, height) > MAX_IMAGE_SIDE or width * height > MAX_IMAGE_PIXELS:
             # before anything is sized by them (the rectification's tables, the views)
@@ -283,24 +284,33 @@ class DatasetMeta:
         )
 
 
+def as_json(value: Any) -> str:
+    """``value`` (read from a JSON file) as JSON writes it (``null``, ``true``, ``"text"``),
+    for an error naming what the file holds; ``repr`` for what JSON cannot write."""
+    try:
+        return json.dumps(value, allow_nan=True)
+    except (TypeError, ValueError):
+        return repr(value)
+
+
 def floor_block(block: Any, tile_size: float, where: str) -> FloorModel:
     """The ``floor`` block of a meta.json (``docs/dataset-format.md``): ``kind`` (default
     ``grout``) and ``lattice_tolerance`` (metres, default 0, below a quarter of ``tile_size``);
     other keys are ignored. DatasetError naming the key otherwise."""
     if not isinstance(block, dict):
-        raise DatasetError(f"{where}: floor must be a JSON object, got {block!r}")
+        raise DatasetError(f"{where}: floor must be a JSON object, got {as_json(block)}")
     kind = block.get("kind", "grout")
     if kind not in FLOOR_KINDS:
         raise DatasetError(f"{where}: floor.kind must be one of {', '.join(FLOOR_KINDS)}, got "
-                           f"{kind!r}")
+                           f"{as_json(kind)}")
     tol = block.get("lattice_tolerance", 0.0)
     if (isinstance(tol, bool) or not isinstance(tol, int | float) or not math.isfinite(tol)
             or tol < 0):
         raise DatasetError(f"{where}: floor.lattice_tolerance must be a finite number >= 0 "
-                           f"(metres), got {tol!r}")
+                           f"(metres), got {as_json(tol)}")
     if tol >= tile_size / 4:
         raise DatasetError(f"{where}: floor.lattice_tolerance must be below a quarter of the "
-                           f"tile ({tile_size / 4:g} m), got {tol!r}")
+                           f"tile ({tile_size / 4:g} m), got {as_json(tol)}")
     return FloorModel(kind, float(tol))
 
 

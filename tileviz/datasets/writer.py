@@ -71,6 +71,10 @@ class DatasetWriter:
         if not isinstance(png_level, int) or not 0 <= png_level <= 9:
             raise ValueError(f"png_level must be an integer 0..9, got {png_level!r}")
         self.folder = Path(folder)
+        if self.folder.exists() and not self.folder.is_dir():
+            raise ValueError(f"{self.folder}: is a file, not an output folder")
+        if any(p.exists() and not p.is_dir() for p in self.folder.parents):
+            raise ValueError(f"{self.folder}: a part of that path is a file, not a folder")
         if self.folder.exists() and any(self.folder.iterdir()) and not overwrite:
             raise ValueError(f"{self.folder}: output folder exists and is not empty")
         (self.folder / "images").mkdir(parents=True, exist_ok=True)

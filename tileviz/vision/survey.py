@@ -110,9 +110,10 @@ class SurveyReport:
         else:
             out.append(f"views read as a checkerboard: {self.checker} of {self.accepted}")
         label = name(self.widest) if name is not None else f"view {self.widest + 1}"
-        out.append(f"the largest departure is {label}'s; the next largest view's: "
-                   f"{self.next_widest * 1e3:.2f} mm (if far less, look at {label}: a line "
-                   "read wrong there sets the tolerance)")
+        out.append(f"the largest departure, {self.shown * 1e3:.1f} mm, is {label}'s; the next "
+                   f"largest view's: {self.next_widest * 1e3:.2f} mm (if far less, look at "
+                   f"{label} with python -m tileviz extract IMAGE --explain: a line read wrong "
+                   "there would set the tolerance)")
         if self.capped:
             out.append(f"the views showed a departure of {self.shown * 1e3:.1f} mm, a quarter "
                        "tile or more: more than tileviz accepts (is the floor a lattice of this "
@@ -300,6 +301,12 @@ def main(command: str, argv: list[str]) -> int:
         if args.meta is not None:  # a meta.json that cannot be written is said before reading
             _meta_doc(Path(args.meta))
         first = Path(args.inputs[0])
+        for path in args.inputs:
+            if not Path(path).exists():
+                raise CliError(f"{path}: no such file")
+        if first.is_dir() and not (first / "meta.json").is_file():
+            raise CliError(f"{first}: a folder with no meta.json, not a dataset (give its "
+                           f"images as files, e.g. {first}/*.png)")
         if first.is_dir():
             from tileviz.datasets import DatasetSource
 
