@@ -251,6 +251,9 @@ def test_survey_of_a_checkerboard_left_undeclared_recommends_the_kind(
     assert tileviz(["survey", str(ds), "--every", "4", "--meta", str(meta)]) == 0
     out = capsys.readouterr().out
     assert "surveyed again as kind checker" in out and "kind: checker (its edge images read)" in out
+    # the survey not kept is one line, not a second report
+    assert out.count("lattice_tolerance to declare") == 1
+    assert "read as grout, a checkerboard recognised: " in out
     assert json.loads(meta.read_text())["floor"]["kind"] == "checker"
 
 

@@ -342,8 +342,10 @@ def main(command: str, argv: list[str]) -> int:
         except ValueError as e:
             raise CliError(str(e)) from None
         for before, why in said:
-            if before is not None:
-                print("\n".join(before.lines(name)))
+            if before is not None:  # the survey not kept, in one line
+                print(f"read as grout, a checkerboard recognised: {before.accepted} of "
+                      f"{before.views} views accepted, {before.checker} of them read as a "
+                      f"checkerboard")
             print(why)
         print("\n".join(report.lines(name)))
         if args.meta is not None:
