@@ -389,3 +389,17 @@ def test_survey_never_lowers_a_declared_tolerance_and_checks_meta_first(
                     "--meta", str(nowhere)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--meta: cannot write" in err[0] and "no folder" in err[0]
+
+
+def test_survey_every_nth_frame_decodes_only_those(tmp_path: Path,
+                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    """A damaged image among the frames ``--every`` skips is never read: the survey of the
+    others stands; one among those it reads is a one-line error naming its row."""
+    ds = _recorded(tmp_path, "hand_laid")
+    (ds / "images" / "000001.png").write_bytes(b"\\x89PNG damaged")
+    capsys.readouterr()
+    assert tileviz(["survey", str(ds), "--every", "4"]) == 0
+    assert "lattice_tolerance to declare: " in capsys.readouterr().out
+    assert tileviz(["survey", str(ds), "--every", "1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "(frame 1)" in err[0]
