@@ -239,13 +239,13 @@ def cable_view(tmp_path_factory: pytest.TempPathFactory) -> str:
 
 def _rows(out: str) -> list[list[str]]:
     """The check rows of an --explain table: [id (and subject), value, relation, limit,
-    result]."""
+    result ("pass", "fail" or "refused")], without the column saying what the value is."""
     rows = []
     for line in out.splitlines():
         parts = line.split()
-        if line.startswith("      ") and len(parts) >= 5 and parts[-1] in ("pass", "fail",
-                                                                          "refused"):
-            rows.append(parts)
+        at = next((i for i, p in enumerate(parts) if p in ("pass", "fail", "FAIL:")), None)
+        if line.startswith("      ") and at is not None and at >= 4:
+            rows.append(parts[:at] + ["refused" if parts[at] == "FAIL:" else parts[at]])
     return rows
 
 
@@ -289,6 +289,9 @@ def test_explain_of_an_accepted_view_shows_every_check_passed(capsys, images) ->
     ids = [r[0] for r in rows]
     assert {"blur.rise", "angle.straight", "spacing", "bound.position", "foreign_edge"} <= set(ids)
     assert all(r[-1] == "pass" for r in rows)
+    # each row says what its value is, with its unit
+    depth = next(line for line in out.splitlines() if line.strip().startswith("contrast.depth"))
+    assert depth.rstrip().endswith("pass           deepest dip (gray levels)")
     rc, out, _ = _run(capsys, "--explain", "--extractor", "faithful", images["default"])
     assert "records no decision path" in out
 

@@ -160,11 +160,16 @@ def _line(path: str, res: VisionResult) -> str:
 
 def _explain(res: VisionResult) -> list[str]:
     """The decision path of ``res`` as indented lines (:func:`~tileviz.vision.decision.
-    explain_lines`), or one line saying the extractor records none."""
+    explain_lines`, with what each check's value is and its unit), or one line saying the
+    extractor records none."""
     if res.decision is None:
         return [f"  the {res.extractor} extractor records no decision path "
                 "(--extractor robust does)"]
-    return ["  " + line for line in explain_lines(res.decision)]
+    from tileviz.vision.robust.checks import CHECKS
+    from tileviz.vision.views import VIEW_CHECKS_WHAT
+
+    what = {**{c.id: c.what for c in CHECKS.values()}, **VIEW_CHECKS_WHAT}
+    return ["  " + line for line in explain_lines(res.decision, what)]
 
 
 def _stage_stem(path: str, used: dict[str, int]) -> str:

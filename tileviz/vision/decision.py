@@ -13,6 +13,7 @@ none. This module imports neither numba nor OpenCV.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -184,17 +185,21 @@ def summary(decision: Decision) -> str:
             f"{number(ref.value)}, must be {ref.relation} {number(ref.limit)}")
 
 
-def explain_lines(decision: Decision) -> list[str]:
+def explain_lines(decision: Decision, what: Mapping[str, str] | None = None) -> list[str]:
     """The decision path as text lines: a summary, then per block (the view, each reading)
-    one row per check: id, value, relation and limit, pass / fail."""
+    one row per check: id, value, relation and limit, pass / fail, and, with ``what`` (check
+    id -> what its value is, with its unit), that."""
+    what = what or {}
     out = [summary(decision), *_image_lines(decision),
-           f"    {'check':<34} {'value':>10}  limit{'':<8} result"]
+           f"    {'check':<34} {'value':>10}  limit{'':<8} {'result':<13}"
+           + ("  value is" if what else "")]
     for head, checks, ref in _rows(decision):
         out.append(f"  {head}")
         for c in checks:
             name = c.check + (f" ({c.subject})" if c.subject else "")
-            out.append(f"    {name:<34} {number(c.value):>10}  {c.relation:>2} "
-                       f"{number(c.limit):<10} {_outcome(c, ref)}")
+            row = (f"    {name:<34} {number(c.value):>10}  {c.relation:>2} "
+                   f"{number(c.limit):<10} {_outcome(c, ref):<13}")
+            out.append((row + "  " + what[c.check]) if c.check in what else row.rstrip())
     return out
 
 

@@ -40,6 +40,15 @@ FIRST_LINES = "first.lines"
 """The check that a reading accepted on another image explains the first reading's lines
 (:func:`_explains_first`); its refusal is final."""
 
+VIEW_CHECKS_WHAT = {
+    FIRST_LINES: "worst line of the first reading off this lattice / its limit",
+    "checker.pieces": "pieces of the lines measured",
+    "checker.steps": "pieces that are no one step between two tiles",
+    "checker.band": "farthest steepest point or back slope from a line (px)",
+    "checker.sides": "least swap of the tiles' sides at a crossing / least step",
+}
+"""What the value of each check run here is (``extract --explain``), with its unit."""
+
 Candidate = tuple[float, Callable[[], np.ndarray]]
 """A view to read: its number (``details["projection"]``) and how to make it (HxW uint8)."""
 
