@@ -102,7 +102,7 @@ def test_record_into_a_file(tmp_path: Path) -> None:
     _one_line_error(_cli(["record", "afile", "--duration", "0.1", "--quiet"], tmp_path),
                     "afile: is a file, not an output folder")
     _one_line_error(_cli(["record", "afile/meta.json", "--duration", "0.1", "--quiet"],
-                         tmp_path), "afile/meta.json: a part of that path is a file")
+                         tmp_path), "afile/meta.json: afile is a file, not a folder")
     assert (tmp_path / "afile").read_text() == "keep me"
 
 
@@ -135,7 +135,7 @@ def test_replay_options_out_of_range(args: list[str], needle: str, recorded: Pat
     ("args", "needle"),
     [
         (["--dataset", "no/such/folder"], "no/such/folder: no such directory"),
-        (["--dataset", "{bad_meta}"], "meta.json: format must be 'tileviz-dataset/1'"),
+        (["--dataset", "{bad_meta}"], 'meta.json: format must be "tileviz-dataset/1"'),
         (["--dataset", "{recorded}", "--tile-size", "0.5"],
          "--tile-size cannot be used with --dataset"),
         (["--dataset", "{recorded}", "--lattice-tolerance", "0.002"],

@@ -317,7 +317,7 @@ def test_a_reader_that_stops_early_ends_the_command_quietly(images) -> None:
     first = proc.stdout.readline()
     proc.stdout.close()
     err = proc.stderr.read().decode()
-    assert proc.wait(timeout=600) == 1
+    assert proc.wait(timeout=600) == 141  # as a process the pipe signal ends
     assert first.startswith(images["default"].encode()) and err == ""
 
 
@@ -345,3 +345,18 @@ def test_explain_names_the_image_read_and_every_image_tried_before(capsys,
     decision = json.loads(out)["decision"]
     assert decision["image"] == name and decision["images"][-1] == f"{name}: accepted"
     assert decision["images"][0].startswith("luma: refused (")
+
+
+def test_a_broken_pipe_other_than_stdout_is_an_error(capsys) -> None:
+    """Only stdout's reader going away ends a command quietly; a broken pipe elsewhere (a
+    worker's connection) is one line of error, status 2, and stdout still works."""
+    from tileviz.cliutil import run_cli
+
+    def body() -> int:
+        raise BrokenPipeError(32, "Broken pipe (a worker's connection)")
+
+    assert run_cli("tileviz x", body) == 2
+    print("still here")
+    cap = capsys.readouterr()
+    assert cap.err.strip() == "tileviz x: error: [Errno 32] Broken pipe (a worker's connection)"
+    assert cap.out == "still here\n"

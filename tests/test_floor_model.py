@@ -384,6 +384,18 @@ def test_survey_never_lowers_a_declared_tolerance_and_checks_meta_first(
     assert tileviz(["survey", str(ds), "--every", "4", "--meta", str(meta)]) == 0
     assert "kept" not in capsys.readouterr().out
     assert json.loads(meta.read_text())["floor"]["lattice_tolerance"] == measured
+    # a declaration tileviz would refuse (a quarter tile or more) is not kept; another kind is
+    # replaced, and said; the block's other keys stay: the file written replays
+    from tileviz.datasets.format import floor_block
+
+    meta.write_text(json.dumps({"floor": {"kind": "checker", "lattice_tolerance": 0.3,
+                                          "by": "another program"}}))
+    assert tileviz(["survey", str(ds), "--every", "4", "--meta", str(meta)]) == 0
+    out = capsys.readouterr().out
+    assert "kept" not in out and "declared kind checker: replaced by the survey's, grout" in out
+    block = json.loads(meta.read_text())["floor"]
+    assert block == {"kind": "grout", "lattice_tolerance": measured, "by": "another program"}
+    assert floor_block(block, 1.0, "meta.json").lattice_tolerance == measured
     nowhere = tmp_path / "no" / "meta.json"
     assert tileviz(["survey", "missing.png", "--tile-size", "1", "--ppm", "200",
                     "--meta", str(nowhere)]) == 2

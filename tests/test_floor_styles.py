@@ -101,5 +101,5 @@ def test_record_refuses_a_grout_floor_without_grout(tmp_path, capsys) -> None:
     assert main("record", [str(out), "--duration", "0.2", "--floor-style", "checker",
                            "--floor-kind", "grout"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "kind grout needs grout_width > 0" in err[0]
+    assert len(err) == 1 and "--floor-kind grout: this floor has no grout" in err[0]
     assert not out.exists()

@@ -127,6 +127,9 @@ def declared_floor(floor: FloorConfig, args: argparse.Namespace) -> FloorConfig:
     gave (:func:`add_floor_options`; absent or None: unchanged); ValueError naming a bad one."""
     kind = getattr(args, "floor_kind", None)
     tol = getattr(args, "lattice_tolerance", None)
+    if kind == "grout" and not floor.grout_width > 0:
+        raise ValueError("--floor-kind grout: this floor has no grout (the checker style lays its "
+                         "tiles edge to edge): give --floor-kind checker, or another --floor-style")
     if kind is not None:
         floor = replace(floor, kind=kind)
     if tol is not None:
@@ -253,7 +256,7 @@ def run_cli(prog: str, body: Callable[[], int]) -> int:
     go through here): first the process set-up (:func:`tileviz.vision.set_opencv_threads`: OpenCV
     on one thread, so observations do not depend on the core count), then ``body``; expected
     errors become one line on stderr and exit status 2; a closed stdout (``| head``) ends the
-    command quietly with status 1. OpenCV's own log lines below errors
+    command quietly with :data:`EXIT_PIPE`. OpenCV's own log lines below errors
     (e.g. a warning when it converts an image's samples) are silenced: the command's one-line
     error names the problem."""
     import cv2.utils.logging as cv_log
@@ -265,16 +268,48 @@ def run_cli(prog: str, body: Callable[[], int]) -> int:
     try:
         return body()
     except KeyboardInterrupt:
-        sys.stderr.write(f"{prog}: interrupted\n")
+        _say(f"{prog}: interrupted")
         return 130
-    except BrokenPipeError:
-        # the reader of stdout went away (``| head``): stop quietly, and keep Python's exit
-        # from reporting the flush of the closed pipe
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-        return 1
-    except (CliError, ValueError, OSError) as e:
-        sys.stderr.write(f"{prog}: error: {one_line(str(e))}\n")
+    except BrokenPipeError as e:
+        if _stdout_closed():
+            # the reader of stdout went away (``| head``): stop quietly, as a process the pipe
+            # signal ends does, and keep Python's exit from reporting the closed pipe's flush
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+            return EXIT_PIPE
+        _say(f"{prog}: error: {one_line(str(e))}")
         return 2
+    except (CliError, ValueError, OSError) as e:
+        _say(f"{prog}: error: {one_line(str(e))}")
+        return 2
+
+
+EXIT_PIPE = 141
+"""The exit status of a command whose stdout's reader stopped reading (128 + SIGPIPE, what a
+shell reports for a process the pipe signal ended)."""
+
+
+def _stdout_closed() -> bool:
+    """Whether stdout is a pipe whose reader has gone (polling its end reports an error)."""
+    import select
+
+    if sys.stdout.closed:
+        return True
+    try:
+        fd = sys.stdout.fileno()
+    except (ValueError, OSError):  # not a file (a capture): no pipe to lose
+        return False
+    poll = select.poll()
+    poll.register(fd, select.POLLOUT)
+    return any(ev & (select.POLLERR | select.POLLHUP) for _, ev in poll.poll(0))
+
+
+def _say(line: str) -> None:
+    """``line`` on stderr, unless stderr's reader has gone too."""
+    try:
+        sys.stderr.write(line + "\n")
+        sys.stderr.flush()
+    except (BrokenPipeError, ValueError):
+        pass
 
 
 def one_line(text: str) -> str:

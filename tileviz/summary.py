@@ -51,10 +51,6 @@ class RunTally:
     periods: list[float] = field(default_factory=list)
     """The tile period each view's lines showed over the declared one (robust extractor,
     views with two lines of a family or more: ``details["period_ratio"]``)."""
-    period_slack: float = 0.0
-    """The most the floor's declared lattice tolerance can move any of those views' ratios
-    (``details["period_slack"]``: lines within the tolerance of the lattice are not exactly
-    a period apart), the largest over the views."""
     extractors: Counter[str] = field(default_factory=Counter)
     """Frames by the extractor that made their view (``VisionResult.extractor``)."""
     refused: Counter[str] = field(default_factory=Counter)
@@ -95,9 +91,6 @@ class RunTally:
         ratio = details.get("period_ratio")
         if ratio is not None and math.isfinite(ratio):
             self.periods.append(float(ratio))
-            slack = details.get("period_slack", 0.0)
-            if math.isfinite(slack):
-                self.period_slack = max(self.period_slack, float(slack))
         self.recognised += "checker" in details
 
     def parts(self) -> list[str]:
@@ -111,7 +104,7 @@ class RunTally:
             top = self.refused.most_common(3)
             more = ", ..." if len(self.refused) > len(top) else ""
             out.append(f"views refused: {sum(self.refused.values())} ("
-                       f"{', '.join(f'{k} {n}' for k, n in top)}{more}; extract IMAGE --explain "
+                       f"{', '.join(f'{k} {n}' for k, n in top)}{more}: extract IMAGE --explain "
                        f"says why)")
         finite = [w for w in self.widths if all(math.isfinite(v) for v in w)]
         if finite:
@@ -144,13 +137,14 @@ class RunTally:
     def scale_warning(self) -> str:
         """A warning when the grout lines of the run's views lie consistently closer together
         or farther apart than ``tile_size`` x ``ppm`` says (:data:`SCALE_FRAMES` views or more
-        measured it, their median off by more than :data:`SCALE_TOLERANCE` plus what the
-        floor's declared tolerance can explain, ``period_slack``); "" otherwise. The views'
-        bounds assume the scale exact (docs/vision.md, "What it reads")."""
+        measured it, their median off by more than :data:`SCALE_TOLERANCE`); "" otherwise.
+        The views' bounds assume the scale exact (docs/vision.md, "What it reads"). A short run
+        over a floor laid off the lattice (a mosaic's panels) can show the same few lines in
+        every view: their departure is not averaged out, and may read as a scale error."""
         if len(self.periods) < SCALE_FRAMES:
             return ""
         ratio = statistics.median(self.periods)
-        if abs(ratio - 1.0) <= SCALE_TOLERANCE + self.period_slack:
+        if abs(ratio - 1.0) <= SCALE_TOLERANCE:
             return ""
         way = "farther apart" if ratio > 1.0 else "closer together"
         return (f"WARNING: the grout lines of {len(self.periods)} views lie "

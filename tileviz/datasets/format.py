@@ -143,9 +143,8 @@ class DatasetMeta:
         if not isinstance(d, dict):
             raise DatasetError(f"{where}: must be a JSON object")
         if d.get("format") != FORMAT:
-            raise DatasetError(
-                f"{where}: format must be {FORMAT!r}, got {as_json(d.get('format', '(missing)'))}"
-            )
+            got = as_json(d["format"]) if "format" in d else "nothing (no format key)"
+            raise DatasetError(f"{where}: format must be {as_json(FORMAT)}, got {got}")
         known = {
             "format", "name", "tile_size", "ppm", "image_width", "image_height", "camera_offset",
             "dt", "initial_pose", "initial_pose_error", "speed_error", "yaw_rate_error",

@@ -73,8 +73,9 @@ class DatasetWriter:
         self.folder = Path(folder)
         if self.folder.exists() and not self.folder.is_dir():
             raise ValueError(f"{self.folder}: is a file, not an output folder")
-        if any(p.exists() and not p.is_dir() for p in self.folder.parents):
-            raise ValueError(f"{self.folder}: a part of that path is a file, not a folder")
+        blocking = next((p for p in self.folder.parents if p.exists() and not p.is_dir()), None)
+        if blocking is not None:
+            raise ValueError(f"{self.folder}: {blocking} is a file, not a folder")
         if self.folder.exists() and any(self.folder.iterdir()) and not overwrite:
             raise ValueError(f"{self.folder}: output folder exists and is not empty")
         (self.folder / "images").mkdir(parents=True, exist_ok=True)

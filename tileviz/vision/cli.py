@@ -51,6 +51,7 @@ from tileviz.cliutil import (
     run_cli,
 )
 from tileviz.config import EXTRACTORS, PRESETS, Config, preset
+from tileviz.core.constants import MAX_TILE_PX, MIN_TILE_PX
 from tileviz.vision import VisionResult, extract
 from tileviz.vision.decision import explain_lines
 
@@ -61,7 +62,8 @@ __all__ = ["EXIT_HELP", "main"]
 
 EXIT_HELP = ("exit status: 0 when every image gave an observation, 1 when an image gave none "
              "(the extractor refused it: the line says why), 2 when an image or an option could "
-             "not be used (one line on stderr each; the other images are still read)")
+             "not be used (one line on stderr each; the other images are still read), 141 when "
+             "the output's reader stopped early (| head)")
 """What ``extract --help`` says of its exit status."""
 
 
@@ -73,10 +75,12 @@ def _parser(prog: str) -> Parser:
                    help="camera/vision constants; given, every image must have the "
                    "preset's size (default: the 'default' constants with each image's own size)")
     p.add_argument("--ppm", type=positive_float("--ppm"), default=None,
-                   help="pixels per metre on the floor (default: the preset's, 200 for "
-                   "'default'; the positions in metres scale with it)")
+                   help="pixels per metre on the floor (default: --camera-model's meta.json, "
+                   "else the preset's, 200 for 'default'; the positions in metres scale with "
+                   "it)")
     p.add_argument("--tile-size", type=positive_float("--tile-size"), default=None,
-                   help="tile size L, metres (default: the preset's, 1 for 'default')")
+                   help="tile size L, metres (default: --camera-model's meta.json, else the "
+                   "preset's, 1 for 'default')")
     add_floor_options(p)
     p.add_argument("--extractor", choices=EXTRACTORS, default=None,
                    help=f"{EXTRACTOR_HELP} (default: the preset's)")
@@ -223,7 +227,11 @@ def main(command: str, argv: list[str]) -> int:
             base, rectify = _camera_model(args.camera_model, preset(args.preset or "default"))
         # the options' own errors once, before any image (a bad --lattice-tolerance is no
         # image's fault)
-        _config(args, np.zeros((16, 16, 3), np.uint8), base)
+        early = _config(args, np.zeros((16, 16, 3), np.uint8), base)
+        tile_px = early.floor.tile_size * early.camera.ppm
+        if not MIN_TILE_PX <= tile_px <= MAX_TILE_PX:
+            raise CliError(f"--tile-size x --ppm: a tile must span {MIN_TILE_PX:g} to "
+                           f"{MAX_TILE_PX:g} pixels, got {tile_px:g}")
         status = 0
         refused = False
         stems: dict[str, int] = {}

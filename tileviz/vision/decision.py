@@ -88,7 +88,7 @@ class Decision:
     ``refused_in`` (None: a check on the whole view). ``image``: which image of the view the
     readings read (the luma, a colour projection, an edge image; empty: not said), and
     ``images``: every image of the view read, in order, each with its outcome in one line
-    (empty: only this one)."""
+    (empty: not said)."""
 
     view_checks: tuple[CheckResult, ...]
     readings: tuple[Tried, ...]
@@ -167,7 +167,8 @@ def _image_lines(decision: Decision) -> list[str]:
     them with its outcome (indented lines; none when the image is not said)."""
     if not decision.image:
         return []
-    out = [f"  the readings below read the {decision.image}"]
+    out = [f"  the readings below read the {decision.image}" if decision.readings
+           else f"  the image read: the {decision.image}"]
     if len(decision.images) > 1:
         out.append("  images of the view read, in order:")
         out += [f"    {line}" for line in decision.images]

@@ -110,8 +110,9 @@ class SurveyReport:
         else:
             out.append(f"views read as a checkerboard: {self.checker} of {self.accepted}")
         label = name(self.widest) if name is not None else f"view {self.widest + 1}"
+        following = math.ceil(round(self.next_widest * 1e4, 6)) / 10.0  # mm, rounded up too
         out.append(f"the largest departure, {self.shown * 1e3:.1f} mm, is {label}'s; the next "
-                   f"largest view's: {self.next_widest * 1e3:.2f} mm (if far less, look at "
+                   f"largest view's: {following:.1f} mm (if far less, look at "
                    f"{label} with python -m tileviz extract IMAGE --explain: a line read wrong "
                    "there would set the tolerance)")
         if self.capped:
@@ -351,11 +352,8 @@ def main(command: str, argv: list[str]) -> int:
             print(why)
         print("\n".join(report.lines(name)))
         if args.meta is not None:
-            kept = _write_meta(Path(args.meta), report.kind, report.tolerance)
-            if kept is not None:
-                print(f"{args.meta} declared lattice_tolerance {kept:.4f} m, more than this "
-                      f"survey's: kept (a survey measures the views it saw, the floor's maker "
-                      f"may know more)")
+            for note in _write_meta(Path(args.meta), report.kind, report.tolerance, tile):
+                print(f"{args.meta} {note}")
             print(f"wrote the floor block into {args.meta}")
         return 0
 
@@ -373,23 +371,32 @@ def _meta_doc(path: Path) -> dict:
     return doc
 
 
-def _write_meta(path: Path, kind: str, tolerance: float) -> float | None:
+def _write_meta(path: Path, kind: str, tolerance: float, tile_size: float) -> list[str]:
     """Set the ``floor`` block of the meta.json ``path`` (created when missing), written to a
     temporary file and renamed: ``kind`` and the larger of ``tolerance`` (metres) and the
-    tolerance the block already declared (docs/dataset-format.md: a declared tolerance is never
-    taken smaller). Returns the declared tolerance when it was kept, else None."""
+    tolerance the block already declared, when that is valid (below a quarter of
+    ``tile_size``, metres; docs/dataset-format.md: a declared tolerance is never taken
+    smaller); the block's other keys kept. Returns what a user should be told: a declared
+    tolerance kept, a declared kind replaced."""
     doc = _meta_doc(path)
     old = doc.get("floor")
     declared = old.get("lattice_tolerance") if isinstance(old, dict) else None
-    kept = None
+    notes = []
     if (isinstance(declared, int | float) and not isinstance(declared, bool)
-            and math.isfinite(declared) and declared > tolerance):
-        kept = tolerance = float(declared)
-    doc["floor"] = {"kind": kind, "lattice_tolerance": tolerance}
+            and math.isfinite(declared) and tolerance < declared < tile_size / 4):
+        tolerance = float(declared)  # a valid declaration, larger than the survey's
+        notes.append(f"declared lattice_tolerance {tolerance:.4f} m, more than this survey's: "
+                     "kept (a survey measures the views it saw, the floor's maker may know more)")
+    was = old.get("kind") if isinstance(old, dict) else None
+    if isinstance(was, str) and was != kind:
+        notes.append(f"declared kind {was}: replaced by the survey's, {kind}")
+    # the block's other keys (another program's) stay
+    doc["floor"] = {**(old if isinstance(old, dict) else {}), "kind": kind,
+                    "lattice_tolerance": tolerance}
     tmp = path.with_name(path.name + ".tmp")
     try:
         tmp.write_text(json.dumps(doc, indent=2) + "\n", encoding="utf-8")
         tmp.replace(path)
     except OSError as e:
         raise CliError(f"--meta: cannot write {path} ({e.strerror or e})") from None
-    return kept
+    return notes

@@ -106,7 +106,7 @@ def image_name(number: float) -> str:
 
 def _outcome(number: float, got: VisionResult, recognising: bool) -> str:
     """One line: the image ``number`` and what reading it gave."""
-    name = image_name(number) + (" (as an undeclared checkerboard)" if recognising else "")
+    name = image_name(number) + (", read as an undeclared checkerboard" if recognising else "")
     if got.accepted:
         return f"{name}: accepted"
     if got.decision is None:

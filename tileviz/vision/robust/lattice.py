@@ -222,10 +222,7 @@ def measured_period(run: ReadingState, s: np.ndarray, ref: float) -> None:
     family's phase ``ref``), over the declared one (``tile_size`` x ``ppm``): the slope of a
     least-squares line through the offsets against their lattice indices, when they span at
     least one period; kept in ``details["period_ratio"]`` (with ``period_span``, the indices
-    spanned, and ``period_slack``, the most the floor's lattice tolerance can move that ratio:
-    two lines ``span`` periods apart, each within the tolerance of its ideal line, are at most
-    2 tol / (span L) of their spacing off) when it spans more periods than the family read
-    before. Lines a period apart
+    spanned) when it spans more periods than the family read before. Lines a period apart
     are read 2 % of a period closer or farther when ``ppm`` or ``tile_size`` is 2 % off;
     such a view is refused (``inconsistent spacing``) or, with one line per family in view,
     cannot show it: the ratio over many frames can (:class:`tileviz.summary.RunTally`)."""
@@ -237,7 +234,6 @@ def measured_period(run: ReadingState, s: np.ndarray, ref: float) -> None:
     dn = n - n.mean()
     run.details["period_ratio"] = float(np.dot(dn, s - s.mean()) / np.dot(dn, dn)) / lp
     run.details["period_span"] = span
-    run.details["period_slack"] = 2.0 * run.tol_px / (span * lp)
 
 
 def missing_lines(run: ReadingState, k: int, ref: float, found: np.ndarray, y3: float) -> None:
