@@ -49,9 +49,20 @@ def set_opencv_threads(threads: int = OPENCV_THREADS) -> None:
 
 
 __all__ = [
-    "OPENCV_THREADS", "REASONS", "VisionResult", "extract", "observation_error",
-    "set_opencv_threads", "to_gray",
+    "OPENCV_THREADS", "REASONS", "VisionResult", "check_tile_span", "extract",
+    "observation_error", "set_opencv_threads", "to_gray",
 ]
+
+
+def check_tile_span(tile_size: float, ppm: float) -> None:
+    """ValueError unless a tile of ``tile_size`` metres spans ``MIN_TILE_PX`` to ``MAX_TILE_PX``
+    pixels at ``ppm`` pixels per metre (what the extractor can read)."""
+    tile_px = tile_size * ppm
+    if not MIN_TILE_PX <= tile_px <= MAX_TILE_PX:
+        raise ValueError(
+            f"a tile must span {MIN_TILE_PX:g} to {MAX_TILE_PX:g} pixels (tile_size * ppm), "
+            f"got {tile_px:g}"
+        )
 
 
 def to_gray(image: np.ndarray) -> np.ndarray:
@@ -105,12 +116,7 @@ def extract(
         or tile_size <= 0
     ):
         raise ValueError(f"tile_size must be a finite number > 0, got {tile_size!r}")
-    tile_px = tile_size * camera.ppm
-    if not MIN_TILE_PX <= tile_px <= MAX_TILE_PX:
-        raise ValueError(
-            f"a tile must span {MIN_TILE_PX:g} to {MAX_TILE_PX:g} pixels (tile_size * ppm), "
-            f"got {tile_px:g}"
-        )
+    check_tile_span(tile_size, camera.ppm)
     t0 = time.perf_counter()
     gray = to_gray(image)
     if gray.shape != (camera.height, camera.width):

@@ -51,8 +51,7 @@ from tileviz.cliutil import (
     run_cli,
 )
 from tileviz.config import EXTRACTORS, PRESETS, Config, preset
-from tileviz.core.constants import MAX_TILE_PX, MIN_TILE_PX
-from tileviz.vision import VisionResult, extract
+from tileviz.vision import VisionResult, check_tile_span, extract
 from tileviz.vision.decision import explain_lines
 
 if TYPE_CHECKING:
@@ -228,10 +227,10 @@ def main(command: str, argv: list[str]) -> int:
         # the options' own errors once, before any image (a bad --lattice-tolerance is no
         # image's fault)
         early = _config(args, np.zeros((16, 16, 3), np.uint8), base)
-        tile_px = early.floor.tile_size * early.camera.ppm
-        if not MIN_TILE_PX <= tile_px <= MAX_TILE_PX:
-            raise CliError(f"--tile-size x --ppm: a tile must span {MIN_TILE_PX:g} to "
-                           f"{MAX_TILE_PX:g} pixels, got {tile_px:g}")
+        try:
+            check_tile_span(early.floor.tile_size, early.camera.ppm)
+        except ValueError as e:
+            raise CliError(f"--tile-size x --ppm: {e}") from None
         status = 0
         refused = False
         stems: dict[str, int] = {}

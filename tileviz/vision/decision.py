@@ -101,10 +101,9 @@ class Decision:
 
     def as_dict(self) -> dict[str, object]:
         """JSON-able: ``reason``, ``image``, ``images``, ``refusal`` ({check, value, limit,
-        relation, subject,
-        reading} or null), ``view_checks``, ``readings`` (each: heading in rad, source,
-        polarity, stray, shoulder, reason, checks) and ``shown``; a value or limit that is not
-        finite is null."""
+        relation, subject, reading} or null), ``view_checks``, ``readings`` (each: heading in
+        rad, source, polarity, stray, shoulder, reason, checks) and ``shown``; a value or limit
+        that is not finite is null."""
         ref = None
         if self.refusal is not None:
             ref = {**_check_dict(self.refusal), "reading": self.refused_in}

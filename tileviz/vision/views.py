@@ -104,9 +104,15 @@ def image_name(number: float) -> str:
     return f"edge image of the {names[int(-1 - number)]}"
 
 
+def _label(number: float, recognising: bool) -> str:
+    """The image ``number`` (:func:`image_name`), said to be read as an undeclared
+    checkerboard when ``recognising``."""
+    return image_name(number) + (", read as an undeclared checkerboard" if recognising else "")
+
+
 def _outcome(number: float, got: VisionResult, recognising: bool) -> str:
     """One line: the image ``number`` and what reading it gave."""
-    name = image_name(number) + (", read as an undeclared checkerboard" if recognising else "")
+    name = _label(number, recognising)
     if got.accepted:
         return f"{name}: accepted"
     if got.decision is None:
@@ -125,8 +131,7 @@ def _named(got: VisionResult, number: float, recognising: bool) -> VisionResult:
     """``got`` with its decision naming the image ``number`` it read (``Decision.image``)."""
     if got.decision is None:
         return got
-    name = image_name(number) + (", read as an undeclared checkerboard" if recognising else "")
-    return replace(got, decision=replace(got.decision, image=name))
+    return replace(got, decision=replace(got.decision, image=_label(number, recognising)))
 
 
 def _first_accepted(candidates: list[Candidate], gray: np.ndarray, timings: dict[str, float],
