@@ -360,3 +360,31 @@ def test_a_broken_pipe_other_than_stdout_is_an_error(capsys) -> None:
     cap = capsys.readouterr()
     assert cap.err.strip() == "tileviz x: error: [Errno 32] Broken pipe (a worker's connection)"
     assert cap.out == "still here\n"
+
+
+def test_a_refused_views_line_count_names_the_reading_it_comes_from(
+        capsys, tmp_path: Path) -> None:
+    """A view with a cable across it, refused (one family) by its first reading, whose result
+    shows the lines of a later reading: its line says which reading those lines are from, the
+    one --explain marks shown."""
+    from tileviz.sim.camera import Fault
+
+    cfg = preset("default")
+    rng = np.random.default_rng(4)
+    pose = Pose(float(rng.uniform(0, 2)), float(rng.uniform(0, 2)), float(rng.uniform(-3, 3)))
+    params = {"angle": float(rng.uniform(0, 3)), "offset": float(rng.uniform(-40, 40)),
+              "width": 4.0}
+    img = FloorRenderer(cfg.floor, cfg.camera).render(pose, rng, faults=[Fault("cable", params)])
+    path = _write(tmp_path / "cable.png", img)
+    rc, out, err = _run(capsys, path, "--extractor", "robust", "--json")
+    got = json.loads(out)
+    decision = got["decision"]
+    assert rc == 1 and err == "" and not got["accepted"]
+    assert decision["shown"] is not None and decision["shown"] != decision["refusal"]["reading"]
+    rc, out, err = _run(capsys, path, "--extractor", "robust", "--explain")
+    first = out.splitlines()[0]
+    shown = decision["shown"] + 1
+    assert first == (f"{path}: no observation ({got['reason']}); {got['lines']} lines in "
+                     f"reading {shown}")
+    assert f"  reading {shown}: " in out and "(shown)" in out.split(f"  reading {shown}: ")[1]\
+        .splitlines()[0]

@@ -154,11 +154,20 @@ def _config(args: argparse.Namespace, image: np.ndarray, base: Config | None = N
 def _line(path: str, res: VisionResult) -> str:
     obs = res.observation
     if obs is None:
-        return f"{path}: no observation ({res.reason}); {res.lines} lines"
+        return f"{path}: no observation ({res.reason}); {_refused_lines(res)}"
     return (
         f"{path}: y1={obs.y1:.6f} m y2={obs.y2:.6f} m y3={obs.y3:.6f} rad "
         f"(+-{obs.position_error:.6f} m, +-{obs.heading_error:.6f} rad); {res.lines} lines"
     )
+
+
+def _refused_lines(res: VisionResult) -> str:
+    """The line count of a refused view, naming the reading whose lines they are (its number
+    in ``--explain``) when that is not the reading that refused the view."""
+    d = res.decision
+    if d is None or d.shown is None or d.shown == d.refused_in:
+        return f"{res.lines} lines"
+    return f"{res.lines} lines in reading {d.shown + 1}"
 
 
 def _explain(res: VisionResult) -> list[str]:
