@@ -271,7 +271,7 @@ def test_explain_names_the_check_that_refused_a_view_with_its_value_and_limit(
     assert not CHECKS[check].relation.passes(value, float(limit))  # the numbers break it
     refused = [r for r in _rows(out) if r[-1] == "refused"]
     assert len(refused) == 1 and refused[0][0] == check
-    assert "reading 1: first heading" in out and "view" in lines[3]
+    assert "reading 1: first heading" in out and "view" in lines[4]
     assert {r[0] for r in _rows(out)} >= {"constant.range", "heading.gradients",
                                            "lines.found", check}
     rc, out, _ = _run(capsys, cable_view, "--json")
@@ -335,12 +335,13 @@ def test_explain_names_the_image_read_and_every_image_tried_before(capsys,
     rc, out, _ = _run(capsys, path, "--explain")
     lines = out.splitlines()
     assert rc == 0 and "accepted" in lines[1]
-    read = lines[2].strip()
+    assert lines[2].strip().startswith("scale: ")
+    read = lines[3].strip()
     assert read.startswith("the readings below read the colour projection ")
-    assert lines[3].strip() == "images of the view read, in order:"
-    assert lines[4].strip().startswith("luma: refused (")
+    assert lines[4].strip() == "images of the view read, in order:"
+    assert lines[5].strip().startswith("luma: refused (")
     name = read.removeprefix("the readings below read the ")
-    assert lines[5].strip() == f"{name}: accepted"
+    assert lines[6].strip() == f"{name}: accepted"
     rc, out, _ = _run(capsys, path, "--json")
     decision = json.loads(out)["decision"]
     assert decision["image"] == name and decision["images"][-1] == f"{name}: accepted"
@@ -388,3 +389,17 @@ def test_a_refused_views_line_count_names_the_reading_it_comes_from(
                      f"reading {shown}")
     assert f"  reading {shown}: " in out and "(shown)" in out.split(f"  reading {shown}: ")[1]\
         .splitlines()[0]
+
+
+def test_explain_says_the_scale_read_and_that_it_was_not_given(capsys, images) -> None:
+    """Without --tile-size and --ppm, extract reads at the preset's scale: --explain says so,
+    with the period in px; given, it says the scale alone."""
+    rc, out, _ = _run(capsys, images["default"], "--explain")
+    assert rc == 0
+    assert out.splitlines()[2] == ("  scale: tiles of 1 m at 200 px/m (a period of 200.0 px); "
+                                   "--tile-size and --ppm not given: the default preset's")
+    rc, out, _ = _run(capsys, images["default"], "--explain", "--tile-size", "0.5", "--ppm",
+                      "400")
+    assert out.splitlines()[2] == "  scale: tiles of 0.5 m at 400 px/m (a period of 200.0 px)"
+    rc, out, _ = _run(capsys, images["default"], "--explain", "--ppm", "200")
+    assert out.splitlines()[2].endswith("; --tile-size not given: the default preset's")

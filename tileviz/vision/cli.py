@@ -8,8 +8,9 @@ with the robust extractor also ``decision``: every check run with its value and 
 readings tried and the refusing check, :meth:`tileviz.vision.decision.Decision.as_dict`),
 ``--explain`` (after each image's line, the robust extractor's decision path as a table: the
 readings tried and, for the view and each reading, every check with its id, value, limit and
-pass / fail; the check that refused the view is named first, with its value and limit; the
-check ids and their settings are listed in :mod:`tileviz.vision.robust.checks`; with
+pass / fail; the check that refused the view is named first, with its value and limit, then
+the scale read, saying when ``--tile-size`` or ``--ppm`` was not given; the check ids and
+their settings are listed in :mod:`tileviz.vision.robust.checks`; with
 ``--json`` the same data is the ``decision`` key), ``--stages DIR`` (every stage image as
 ``DIR/<image stem>_<nn>_<stage>.png``; a stem met again in the same run becomes ``<stem>-2``,
 ``<stem>-3``...), ``--camera-model META`` (a dataset's meta.json with a ``camera_model`` block:
@@ -170,6 +171,21 @@ def _refused_lines(res: VisionResult) -> str:
     return f"{res.lines} lines in reading {d.shown + 1}"
 
 
+def _scale_line(args: argparse.Namespace, cfg: Config) -> str:
+    """The scale a view was read at (tile size, ppm, the period in px), and where it came from
+    when ``--tile-size`` or ``--ppm`` was not given (a wrong scale refuses views for their
+    spacing or reads them a period off: ``--explain`` says which was read)."""
+    tile, ppm = cfg.floor.tile_size, float(cfg.camera.ppm)
+    missing = [name for name, v in (("--tile-size", args.tile_size), ("--ppm", args.ppm))
+               if v is None]
+    line = f"  scale: tiles of {tile:g} m at {ppm:g} px/m (a period of {tile * ppm:.1f} px)"
+    if missing:
+        source = ("the camera model's" if args.camera_model is not None
+                  else f"the {args.preset or 'default'} preset's")
+        line += f"; {' and '.join(missing)} not given: {source}"
+    return line
+
+
 def _explain(res: VisionResult) -> list[str]:
     """The decision path of ``res`` as indented lines (:func:`~tileviz.vision.decision.
     explain_lines`, with what each check's value is and its unit), or one line saying the
@@ -266,7 +282,8 @@ def main(command: str, argv: list[str]) -> int:
                 else:
                     print(_line(path, res))
                     if args.explain:
-                        print("\n".join(_explain(res)))
+                        said = _explain(res)
+                        print("\n".join([said[0], _scale_line(args, early), *said[1:]]))
         return status or int(refused)
 
     return run_cli(prog, body)
