@@ -365,8 +365,8 @@ def test_faint_thin_grout_whose_gradients_point_anywhere_is_read_at_its_sharpest
         seed: int) -> None:
     """On such a view every heading from the gradients and the tile period is a degree or two
     off, which smears a 2 px line into the noise (no lines); the headings near them at which the
-    lines are sharpest are read, and read the view (seed 32: the sharpest heading with the
-    grout's polarity imposed, or the lattice heading so, before it), within its bound."""
+    lines are sharpest are read, and read the view (the sharpest heading with the grout's
+    polarity imposed, or the lattice heading so, before it), within its bound."""
     img, spec, pose = faint_thin_grout_view(seed)
     cam = CameraConfig(ppm=spec.ppm, width=spec.width, height=spec.height, offset=(0.0, 0.0))
     res = extract(img, camera=cam, tile_size=spec.tile_size,
@@ -374,8 +374,6 @@ def test_faint_thin_grout_whose_gradients_point_anywhere_is_read_at_its_sharpest
     assert res.accepted and res.observation is not None and res.decision is not None
     tried = [t.reading.source for t in res.decision.readings]
     assert "sharpened heading" in tried and "first heading" in tried, tried
-    if seed == 47:
-        assert tried[-1] == "sharpened heading", tried
     e1, e2, e3 = observation_error(res.observation, pose, spec.tile_size, (0.0, 0.0))
     assert max(abs(e1), abs(e2)) <= res.observation.position_error
     assert abs(e3) <= res.observation.heading_error
@@ -1207,3 +1205,35 @@ def test_the_other_polarity_refused_too_leaves_the_first_readings_refusal() -> N
     assert _pass(done, [0, 1]) == ("ok", 1, None, [0, 1])  # type: ignore[arg-type]
     done = [outcome("first", False, "no lines"), outcome("polarity", True, "imprecise")]
     assert _pass(done, [0, 1]) == ("imprecise", 1, 1, [0, 1])  # type: ignore[arg-type]
+
+
+def test_faint_grout_above_the_views_noise_is_read_without_a_fixed_floor() -> None:
+    """Dark grout 6 gray levels under plain tiles, 2 px wide, through a camera with noise of 3
+    levels, a 0.7 px blur and vignetting: its dips are 3.5-5.5 levels deep, well above a part
+    profile's noise (0.7 levels) and under any fixed floor of 6 levels. Most views are read,
+    each within its own bound (``contrast.depth`` follows the view's noise alone)."""
+    accepted = shallow = 0
+    for seed in range(12):
+        rng = np.random.default_rng([seed, 4242])
+        spec = dataclasses.replace(
+            floorgen.draw_floor("plain", rng), grout_px=2.0, tile_shade=100.0, grout_shade=94.0,
+            shade_spread=2.0, noise=3.0, blur=0.7, vignetting=0.15, surface="flat",
+            surface_amp=0.0, ppm=106 / 0.3, tile_size=0.3, jpeg=0, gradient=0.0)
+        cx, cy, th = floorgen.draw_view(rng)
+        img = floorgen.render(spec, cx, cy, th, rng)
+        cam = CameraConfig(ppm=spec.ppm, width=spec.width, height=spec.height,
+                           offset=(0.0, 0.0))
+        res = extract(img, camera=cam, tile_size=spec.tile_size,
+                      vision=VisionConfig(extractor="robust"))
+        if not res.accepted:
+            continue
+        assert res.observation is not None and res.decision is not None
+        accepted += 1
+        e1, e2, e3 = observation_error(res.observation, Pose(cx, cy, th), spec.tile_size,
+                                       (0.0, 0.0))
+        assert max(abs(e1), abs(e2)) <= res.observation.position_error
+        assert abs(e3) <= res.observation.heading_error
+        shown = res.decision.readings[res.decision.shown].checks
+        depth = next(c.value for c in shown if c.check == "contrast.depth")
+        shallow += depth < 6.0
+    assert accepted >= 9 and shallow >= 6, (accepted, shallow)

@@ -329,3 +329,52 @@ def test_noise_free_drawings_are_read(angle: float, blur: float) -> None:
     # coordinates (y down), i.e. y3 = -angle modulo 90 degrees
     turn = math.remainder(res.observation.y3 - math.radians(-angle), math.pi / 2)
     assert abs(turn) <= res.observation.heading_error
+
+
+@pytest.mark.parametrize("off", [0.02, 0.04])
+def test_a_line_read_off_its_heading_widens_no_familys_window(off: float) -> None:
+    """Thin grout (about 4 px) read at a heading ``off`` rad from the gradients' first heading:
+    a long line read so spreads over its length x off across its profile, a band wider than
+    the measurement window. That is the heading's error, not a wide grout: the next warp (at
+    the corrected heading) measures every line in the standard window, at the grout's width,
+    as a reading at the right heading does."""
+    from tileviz.testing import floorgen
+    from tileviz.vision import to_gray
+    from tileviz.vision.decision import Reading
+    from tileviz.vision.robust import extractor, profiles
+    from tileviz.vision.robust.readings import read_lines
+    from tileviz.vision.robust.settings import DEFAULT_SETTINGS
+    from tileviz.vision.robust.state import ReadingState
+
+    rng = np.random.default_rng([0, 99])
+    spec = replace(floorgen.draw_floor("plain", rng), width=512, height=384)
+    cx, cy, th = floorgen.draw_view(rng)
+    img = floorgen.render(spec, cx, cy, th, rng)
+    cam = CameraConfig(ppm=spec.ppm, width=spec.width, height=spec.height, offset=(0.0, 0.0))
+    dips = profiles.dips
+    flagged: list[tuple[float, float]] = []
+
+    def recording(run, proj, *, every=False):  # type: ignore[no-untyped-def]
+        out = dips(run, proj, every=every)
+        flagged.append(run.unmeasured_family)
+        return out
+
+    widths = []
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        view, refusal = extractor.prepare(to_gray(img), cam, spec.tile_size, ROBUST,
+                                          DEFAULT_SETTINGS, {})
+        assert refusal is None
+        for heading in (view.heading, view.heading + off):
+            run = ReadingState(view, Reading(heading, "votes"))
+            flagged.clear()
+            profiles.dips = recording
+            try:
+                lines, _, _ = read_lines(run, heading, 0.0)
+            finally:
+                profiles.dips = dips
+            assert run.family_window == (0, 0)
+            widths.append(sorted(round(ln.width, 1) for f in lines for ln in f))
+    # read off the heading, the first warp saw a family's bands too wide for its window
+    assert any(math.isfinite(w) for w in flagged[0]), flagged
+    assert widths[1] == pytest.approx(widths[0], abs=0.3)
+    assert max(widths[1]) <= spec.grout_px + 1.5

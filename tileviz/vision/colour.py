@@ -88,10 +88,12 @@ PROJECTIONS: dict[str, Callable[[np.ndarray], np.ndarray]] = {
 RGB(A) to HxW uint8."""
 
 RETRY_REASONS = frozenset({"constant image", "no lines", "low contrast", "one family",
-                           "too few segments", "inconsistent spacing"})
+                           "too few segments", "inconsistent spacing", "imprecise",
+                           "inconsistent angle"})
 """Refusals of the luma's reading after which the projections are tried: the grout did not
-show, or not all of it (a predicted line missing); a refusal for what the view shows, a foreign
-line, blur or glare, is final."""
+show, not all of it (a predicted line missing), or too faintly for straight lines and a tight
+bound (``inconsistent angle``, ``imprecise``: another image may show it clearly); a refusal for
+what the view shows, a foreign line, a step edge, blur or glare, is final."""
 
 
 SAME_AS_LUMA = 0.95

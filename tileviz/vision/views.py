@@ -49,6 +49,10 @@ VIEW_CHECKS_WHAT = {
 }
 """What the value of each check run here is (``extract --explain``), with its unit."""
 
+LINES_PASSED = frozenset({"inconsistent spacing", "too few segments", "imprecise"})
+"""Refusals of a reading whose lines passed the line checks (refused by the lattice or the
+bound): grout-like lines, which a later reading on another image must explain (``first.lines``)."""
+
 Candidate = tuple[float, Callable[[], np.ndarray]]
 """A view to read: its number (``details["projection"]``) and how to make it (HxW uint8)."""
 
@@ -173,7 +177,7 @@ def _first_accepted(candidates: list[Candidate], gray: np.ndarray, timings: dict
                 got = replace(got, details={**got.details, "projection": number})
             if accept is not None:
                 got = _named(accept(number, got), number, recognising)
-            if got.accepted and first is not None and first.reason == "inconsistent spacing":
+            if got.accepted and first is not None and first.reason in LINES_PASSED:
                 got = _explains_first(first, got, gray.shape, ppm, lp, floor)
             tried.append(_outcome(number, got, recognising))
             if got.accepted:

@@ -27,8 +27,7 @@ Per reading (:mod:`.readings`), on its lines:
 - ``lines.found``: lines found (both families); >= 1 (``no lines``).
 - ``contrast.depth``: the deepest dip, gray levels; >= ``lines.depth_noise`` x the noise std of
   a part's profile (the view's noise over the square root of ``profiles.min_part``, the fewest
-  pixels a part averages along its line), within ``lines.min_depth_floor`` ..
-  ``lines.min_depth`` (``low contrast``).
+  pixels a part averages along its line), at most ``lines.min_depth`` (``low contrast``).
 - ``lines.families``: lines of the family with fewer; >= 1 (``one family``).
 - ``foreign_line.left_out`` (a reading that leaves out the line most unlike the others,
   ``Reading.unlike``): the other lines of its family; >= ``lines.unlike_others``
@@ -206,10 +205,10 @@ LINES_FOUND = Check("lines.found", "no lines", AT_LEAST, lambda c: 1.0, "",
                     "lines found")
 CONTRAST_DEPTH = Check("contrast.depth", "low contrast", AT_LEAST,
                        lambda c: c.st.lines.min_depth if not c.noise <= c.st.lines.min_depth
-                       else min(c.st.lines.min_depth, max(
-                           c.st.lines.min_depth_floor, c.st.lines.depth_noise * c.noise
-                           / math.sqrt(c.st.profiles.min_part))),
-                       "lines.min_depth, depth_noise, min_depth_floor, profiles.min_part",
+                       else min(c.st.lines.min_depth, c.st.lines.depth_noise * max(
+                           c.noise, c.st.lines.rounding_noise)
+                           / math.sqrt(c.st.profiles.min_part)),
+                       "lines.min_depth, depth_noise, rounding_noise, profiles.min_part",
                        "deepest dip (gray levels)")
 LINES_FAMILIES = Check("lines.families", "one family", AT_LEAST, lambda c: 1.0, "",
                        "lines of the sparser family")

@@ -177,8 +177,9 @@ def read_lines(run: ReadingState, y3: float, t: float) -> tuple[list[list[Line]]
     """Measure and select the lines at heading ``y3``, fit the residual tilt, and measure again
     (up to ``heading.max_warps`` warps) while the correction exceeds ``heading.refine_tilt``;
     the lines, the corrected heading and the time (perf_counter) after the "profiles" lap. A
-    band wider than the measurement window is measured again with a wider one. Sets
-    ``run.lines``, ``run.y3`` and ``run.not_straight``."""
+    band wider than the measurement window is measured again with a wider one (for one family
+    alone only at a settled heading, :func:`_settled`, or at the last warp). Sets ``run.lines``,
+    ``run.y3`` and ``run.not_straight``."""
     last = run.st.heading.max_warps - 1
     for attempt in range(last + 1):
         lines = on_lattice(run, select_lines(run, measure(run, y3, attempt)))
@@ -193,9 +194,11 @@ def read_lines(run: ReadingState, y3: float, t: float) -> tuple[list[list[Line]]
             run.window = need
             lines = on_lattice(run, select_lines(run, measure(run, y3, attempt + 1)))
         # a family whose strong bands the window could not measure (its grout wider than the
-        # other family's): that family alone is measured again in a window fitting them
+        # other family's), at a heading needing no further warp: that family alone is
+        # measured again in a window fitting them
         wider = tuple(_fitting(run, w) for w in run.unmeasured_family)
-        if any(r > run.window_of(k) for k, r in enumerate(wider)):
+        if any(r > run.window_of(k) for k, r in enumerate(wider)) and (
+                attempt == last or _settled(run, lines)):
             run.family_window = (max(run.family_window[0], wider[0]),
                                  max(run.family_window[1], wider[1]))
             lines = on_lattice(run, select_lines(run, measure(run, y3, attempt + 1)))
@@ -213,6 +216,18 @@ def read_lines(run: ReadingState, y3: float, t: float) -> tuple[list[list[Line]]
     run.lines = lines
     run.y3 = y3
     return lines, y3, t
+
+
+def _settled(run: ReadingState, lines: list[list[Line]]) -> bool:
+    """Whether the heading the lines were measured at needs no further warp (the tilt their
+    fit finds is within ``heading.refine_tilt``): a long line measured at a heading off by
+    eps spreads over its length x eps across its profile, so a band reads wide for the window
+    only once the heading is settled. The fit's results on ``run`` are those of a provisional
+    fit, which the reading's own fit replaces."""
+    kept = [list(f) for f in lines]
+    if run.reading.unlike:
+        leave_out_unlike(run, kept)
+    return abs(fit_tilt(run, kept)) <= run.st.heading.refine_tilt
 
 
 def _fitting(run: ReadingState, width: float) -> int:

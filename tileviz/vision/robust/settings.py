@@ -188,10 +188,13 @@ class LineSettings:
     contrast`` when the deepest is weaker) ..."""
     depth_noise: float = 5.0
     """... in a quieter view the deepest dip must reach this many times the noise std of a
-    part's profile (the camera's noise measured on the view, over the square root of
-    ``profiles.min_part``: a part averages at least that many pixels along its line), ..."""
-    min_depth_floor: float = 6.0
-    """... and at least this many gray levels."""
+    part's profile (the camera's noise measured on the view, at least the 8-bit rounding's,
+    over the square root of ``profiles.min_part``: a part averages at least that many pixels
+    along its line): no fixed number of levels, so faint grout through a plain camera is read
+    where it stands above the view's own noise."""
+    rounding_noise: float = 0.2887
+    """The least noise std a view has, gray levels: the 8-bit rounding's, 1 / sqrt(12) (a view
+    with no camera noise measured)."""
     max_rise: float = 6.0
     """Median 20-80 % edge rise of the lines above which the view is ``blurred``, px (a blur
     costs bound, not soundness: a softer edge widens each part's own bound and the floor term
