@@ -337,8 +337,9 @@ def test_a_reading_of_another_image_must_explain_the_lines_the_first_read() -> N
     gray = np.random.default_rng(5).integers(0, 256, shape, dtype=np.uint8)
     ramp = np.tile((np.arange(640) // 3).astype(np.uint8), (480, 1))  # unlike the luma
 
-    def read(view: np.ndarray, tm: dict[str, float], as_floor: FloorModel) -> VisionResult:
-        return answers[0.0 if view is gray else 1.0]
+    def read(view: np.ndarray, tm: dict[str, float], as_floor: FloorModel,
+             number: float) -> VisionResult:
+        return answers[number]
 
     accepted, reported = _first_accepted([(0.0, lambda: gray), (1.0, lambda: ramp)], gray, {},
                                          floor, read, ppm, lp)

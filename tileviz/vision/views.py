@@ -53,6 +53,10 @@ LINES_PASSED = frozenset({"inconsistent spacing", "too few segments", "imprecise
 """Refusals of a reading whose lines passed the line checks (refused by the lattice or the
 bound): grout-like lines, which a later reading on another image must explain (``first.lines``)."""
 
+Reader = Callable[[np.ndarray, dict[str, float], FloorModel, float], VisionResult]
+"""Reads an image of a view (the robust extractor): the image, its stage timings (ms), the
+floor declared and the image's number (``details["projection"]``)."""
+
 Candidate = tuple[float, Callable[[], np.ndarray]]
 """A view to read: its number (``details["projection"]``) and how to make it (HxW uint8)."""
 
@@ -71,11 +75,18 @@ def read_robust(gray: np.ndarray, image: np.ndarray, camera: CameraConfig, tile_
     luma, 1.. the colour projections in order, -1 the luma's edge image, -2.. the
     projections' edge images in order); otherwise the first reading's refusal."""
     from tileviz.vision.robust import extract_robust
+    from tileviz.vision.robust.statistics import noise_sigma
 
-    def read(view: np.ndarray, tm: dict[str, float], as_floor: FloorModel) -> VisionResult:
+    luma_noise = cache(lambda: noise_sigma(gray))
+
+    def read(view: np.ndarray, tm: dict[str, float], as_floor: FloorModel,
+             number: float) -> VisionResult:
+        # a colour projection cancels the noise its channels share, not the camera's: it is
+        # read with the luma's noise at least (a dip is trusted in no image of the view that
+        # the camera's noise explains)
         return extract_robust(view, camera=camera, tile_size=tile_size, vision=vision,
                               keep_stages=keep_stages, image=image, timings=tm,
-                              floor=as_floor)
+                              floor=as_floor, noise_floor=luma_noise() if number > 0 else 0.0)
 
     views: list[Candidate] = [(0.0, lambda: gray)]
     if image.ndim == 3:
@@ -140,7 +151,7 @@ def _named(got: VisionResult, number: float, recognising: bool) -> VisionResult:
 
 def _first_accepted(candidates: list[Candidate], gray: np.ndarray, timings: dict[str, float],
                     floor: FloorModel,
-                    read: Callable[[np.ndarray, dict[str, float], FloorModel], VisionResult],
+                    read: Reader,
                     ppm: float, lp: float,
                     accept: Callable[[float, VisionResult], VisionResult] | None = None,
                     recognising: bool = False
@@ -171,7 +182,7 @@ def _first_accepted(candidates: list[Candidate], gray: np.ndarray, timings: dict
         tm = dict(timings)
         if number != 0.0:
             tm["projection"] = (time.perf_counter() - t1) * 1e3
-        got = _named(read(view, tm, floor), number, recognising)
+        got = _named(read(view, tm, floor, number), number, recognising)
         if got.accepted:
             if number != 0.0:
                 got = replace(got, details={**got.details, "projection": number})
@@ -219,7 +230,7 @@ def _edge_sources(views: list[Candidate]) -> dict[float, Callable[[], np.ndarray
 
 def _recognise(views: list[Candidate], gray: np.ndarray, ppm: float, lp: float,
                timings: dict[str, float], floor: FloorModel,
-               read: Callable[[np.ndarray, dict[str, float], FloorModel], VisionResult]
+               read: Reader
                ) -> tuple[VisionResult | None, tuple[str, ...]]:
     """A checkerboard the user did not declare: the edge images of ``views`` read as on a
     floor declared ``checker`` (its tolerance kept), a reading accepted only when every piece
@@ -259,7 +270,7 @@ def _recognise(views: list[Candidate], gray: np.ndarray, ppm: float, lp: float,
         if not got.accepted or band <= 0.0:
             return got
         widened = FloorModel("checker", floor.lattice_tolerance + band / ppm)
-        again = read(edge_of[number](), dict(timings), widened)
+        again = read(edge_of[number](), dict(timings), widened, number)
         if not again.accepted:
             return again
         again = steps_checked(number, again, band)[0]

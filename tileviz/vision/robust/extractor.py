@@ -44,19 +44,22 @@ def extract_robust(
     timings: dict[str, float] | None = None,
     settings: RobustSettings = DEFAULT_SETTINGS,
     floor: FloorModel = PERFECT_FLOOR,
+    noise_floor: float = 0.0,
 ) -> VisionResult:
     """Run the robust extractor on ``gray`` (HxW uint8); see the package docstring.
 
     ``floor``: what is declared of the floor (its lattice tolerance widens the checks that compare
     lines with the lattice and is part of the view's bound: docs/vision.md). ``image`` (the RGB
     input) is only used for the overlays when ``keep_stages``; ``timings`` (ms) may already hold
-    the gray conversion's time."""
+    the gray conversion's time. ``noise_floor``: the least noise std (gray levels) the view is
+    read with (the camera's, measured on the luma, for an image that cancels some of it)."""
     tm = {} if timings is None else timings
     # missing data is NaN throughout (profiles beyond the view, unmeasured parts): arithmetic
     # on it is expected and its warnings are noise
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
         view, refusal = prepare(gray, camera, tile_size, vision, settings, tm,
-                                tol_px=floor.lattice_tolerance * float(camera.ppm))
+                                tol_px=floor.lattice_tolerance * float(camera.ppm),
+                                noise_floor=noise_floor)
         done = [] if refusal is not None else decide(view, tm)
     t0 = time.perf_counter()
     end = conclude(view, refusal, done)
@@ -71,12 +74,13 @@ def extract_robust(
 
 
 def prepare(gray: np.ndarray, camera: CameraConfig, tile_size: float, vision: VisionConfig,
-            settings: RobustSettings, tm: dict[str, float], tol_px: float = 0.0
-            ) -> tuple[View, Refusal | None]:
+            settings: RobustSettings, tm: dict[str, float], tol_px: float = 0.0,
+            noise_floor: float = 0.0) -> tuple[View, Refusal | None]:
     """The view, measured once for every reading: the gray statistics (refusing a
     ``constant image`` or ``glare``), the Scharr gradients, the noise level and the first
     heading (refusing ``no lines`` when no gradient votes); the refusal, if any. Stage times
-    are added to ``tm`` (ms); ``tol_px``: the floor's lattice tolerance in the view, px."""
+    are added to ``tm`` (ms); ``tol_px``: the floor's lattice tolerance in the view, px;
+    ``noise_floor``: the least noise std the view is read with, gray levels."""
     h, w = gray.shape
     ctx = Scale(settings, check_scale(vision, settings)[0], float(min(h, w)), vision, math.nan,
                 tol_px)
@@ -91,7 +95,7 @@ def prepare(gray: np.ndarray, camera: CameraConfig, tile_size: float, vision: Vi
         dx = cv2.Scharr(gray, cv2.CV_16S, 1, 0)
         dy = cv2.Scharr(gray, cv2.CV_16S, 0, 1)
         dxy = (dx, dy)
-        noise = noise_sigma(gray)
+        noise = max(noise_sigma(gray), noise_floor)
         details["noise_sigma"] = noise
         t = _lap(tm, "edges", t)
         heading = first_heading(ctx, dx, dy, rec, details)
