@@ -378,3 +378,44 @@ def test_a_line_read_off_its_heading_widens_no_familys_window(off: float) -> Non
     assert any(math.isfinite(w) for w in flagged[0]), flagged
     assert widths[1] == pytest.approx(widths[0], abs=0.3)
     assert max(widths[1]) <= spec.grout_px + 1.5
+
+
+def test_a_reading_of_the_other_polarity_shallower_than_the_decided_one_is_refused() -> None:
+    """A first reading at the polarity the profiles decided that saw its lines in one family
+    only (a motion blur wiped the other), deeper than the lines a reading with the other
+    polarity imposed then accepts: those are something beside the grout (a bevel's shadow
+    along a light ridge), and the view is refused (``foreign_line.polarity``, the ratio of the
+    deepest dips as value). Lines of the other polarity as deep or deeper pass the check."""
+    from types import MappingProxyType
+
+    from tileviz.testing import floorgen
+    from tileviz.vision import to_gray
+    from tileviz.vision.decision import Reading
+    from tileviz.vision.robust import extractor
+    from tileviz.vision.robust.readings import _deeper_than, read
+    from tileviz.vision.robust.settings import DEFAULT_SETTINGS
+
+    rng = np.random.default_rng([1, 99])
+    spec = floorgen.draw_floor("plain", rng)
+    img = floorgen.render(spec, *floorgen.draw_view(rng), rng)
+    cam = CameraConfig(ppm=spec.ppm, width=spec.width, height=spec.height, offset=(0.0, 0.0))
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        view, _ = extractor.prepare(to_gray(img), cam, spec.tile_size, ROBUST,
+                                    DEFAULT_SETTINGS, {})
+        out = read(view, Reading(view.heading, "first heading", polarity="dark",
+                                 kind="polarity"))
+    assert out.reason == "ok"
+    depth = out.details["depth"]
+    for ratio, refused in ((2.0, True), (0.5, False), (1.0, False)):
+        first = replace(out, reason="one family", refusal=None,
+                        details=MappingProxyType({**out.details, "depth": ratio * depth}))
+        got = _deeper_than(first, out)
+        check = got.checks[-1]
+        assert check.check == "foreign_line.polarity"
+        assert check.value == pytest.approx(ratio) and check.passed is not refused
+        assert (got.reason, got.refusal) == (("foreign line", check) if refused
+                                             else ("ok", None))
+        end = extractor.conclude(view, None, [first, got])
+        assert end.reason == got.reason
+        if refused:
+            assert end.decision.refusal == check and end.decision.refused_in == 1

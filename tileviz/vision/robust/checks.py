@@ -82,6 +82,11 @@ On the reading whose lines passed, the lattice and the bound:
   reach: that reach less the reach of the same set with every part's bound less the
   tolerance, or as to the fit's sum where that set is empty). Shown: the larger bound against
   the limit plus that bound less the larger of the two bounds' excesses over their allowances.
+- ``foreign_line.polarity`` (a reading with the grout's polarity imposed, accepted after a
+  first reading at the polarity the profiles decided saw its lines in part, ``no lines``,
+  ``low contrast`` or ``one family``): the first reading's deepest dip over this reading's;
+  <= 1 (``foreign line``): the polarity showing the deeper lines is the grout's, and lines of
+  the other one beside it (a bevel's shadow along a light ridge) are not.
 - ``foreign_edge``: long straight edges (``foreign.length`` x the smaller side, at least
   ``foreign.min_length`` px) off the lattice (its bands widened by the lattice tolerance each
   side) that no texture explains; <= 0 (``step edge`` when
@@ -267,6 +272,8 @@ BOUND_HEADING = Check("bound.heading", "imprecise", AT_MOST,
                       + tolerance,
                       "bound.max_rad, VisionConfig.heading_error",
                       "the view's heading bound, declared or from the fit's sum (rad)")
+FOREIGN_POLARITY = Check("foreign_line.polarity", "foreign line", AT_MOST, lambda c: 1.0, "",
+                         "the decided polarity's deepest dip / this reading's")
 FOREIGN_EDGE = Check("foreign_edge", "foreign line", AT_MOST, lambda c: 0.0,
                      "foreign.length, min_length, contrast",
                      "long straight edges off the lattice")
@@ -276,7 +283,7 @@ CHECKS: dict[str, Check] = {c.id: c for c in (
     LINES_FOUND, CONTRAST_DEPTH, LINES_FAMILIES, FOREIGN_LEFT_OUT, BLUR_RISE, STEP_LEVELS,
     ANGLE_STRAIGHT, ANGLE_PERPENDICULAR, FOREIGN_WIDTH, FOREIGN_CONTRAST, CROSSINGS_READ, CROSSINGS,
     CROSSINGS_UNREAD, FOREIGN_BESIDE, FOREIGN_SHOULDER, SPACING_MISSING, SPACING, EVIDENCE,
-    BOUND_POSITION, BOUND_HEADING, FOREIGN_EDGE)}
+    BOUND_POSITION, BOUND_HEADING, FOREIGN_POLARITY, FOREIGN_EDGE)}
 """Every check by id, in the order they run."""
 
 

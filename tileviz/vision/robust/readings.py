@@ -70,6 +70,7 @@ from tileviz.vision.robust.checks import (
     CROSSINGS_READ,
     CROSSINGS_UNREAD,
     FOREIGN_CONTRAST,
+    FOREIGN_POLARITY,
     FOREIGN_SHOULDER,
     FOREIGN_WIDTH,
     Refusal,
@@ -393,12 +394,34 @@ def plan(view: View, done: Sequence[Outcome], timings: dict[str, float]) -> Iter
                 break
 
 
+def _deeper_than(first: Outcome, out: Outcome) -> Outcome:
+    """``out`` (a reading with the grout's polarity imposed, accepted) refused
+    (``foreign_line.polarity``) when the pass's first reading, at the polarity the profiles
+    decided, saw deeper lines: that polarity is the grout's (its reading failed for a family
+    not seen, blurred or covered), and the lines of the other polarity are something beside
+    the grout (a bevel's shadow along a light ridge)."""
+    value = first.details.get("depth", math.nan) / out.details.get("depth", math.nan)
+    check = FOREIGN_POLARITY
+    limit = float(check.limit(None))
+    result = CheckResult(check.id, value, limit, check.relation.symbol,
+                         check.relation.passes(value, limit))
+    if result.passed:
+        return replace(out, checks=(*out.checks, result))
+    return replace(out, checks=(*out.checks, result), refusal=result, reason=check.reason)
+
+
 def decide(view: View, timings: dict[str, float]) -> list[Outcome]:
     """Every reading of :func:`plan` read in turn (:func:`read`): their outcomes, in order.
     The readings' stage times are added to ``timings`` (ms)."""
     done: list[Outcome] = []
+    first: Outcome | None = None
     for reading in plan(view, done, timings):
         out = read(view, reading)
+        if reading.kind == "first":
+            first = out
+        elif (reading.polarity != "auto" and out.reason == "ok" and first is not None
+              and first.reason in UNSEEN_REASONS):
+            out = _deeper_than(first, out)
         done.append(out)
         for k, v in out.timings.items():
             timings[k] = timings.get(k, 0.0) + v
