@@ -64,8 +64,10 @@ branch floor0-attempt 8fb12c5, not merged: a view of the anti-skid tiles at x1.6
 bound; a tuning split since); ``heldout18`` from 18 * 10**6 (run once with the contrast limit
 without its fixed floor and a family's window widened at a settled heading: every clean view
 read, none outside; a motion-blurred view of floor_tiles_09 through the plain camera accepted
-outside its bound, as the code before it does; a tuning split since); ``heldout19`` and
-``heldout20`` from 19 and 20 * 10**6 (unseen).
+outside its bound, as the code before it does; a tuning split since); ``heldout19`` from
+19 * 10**6 (run once with commit 026221b, which refuses that view: none outside, clean or
+corrupted; the x1.6 mosaic 36 and the plain white ceramic 37 of 40); ``heldout20`` from
+20 * 10**6 (unseen).
 """
 
 from __future__ import annotations
