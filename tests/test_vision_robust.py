@@ -419,3 +419,46 @@ def test_a_reading_of_the_other_polarity_shallower_than_the_decided_one_is_refus
         assert end.reason == got.reason
         if refused:
             assert end.decision.refusal == check and end.decision.refused_in == 1
+
+
+@pytest.mark.parametrize(("ratio", "refused"), [(3.0, True), (0.5, False)])
+def test_the_plan_refuses_an_imposed_polarity_shallower_than_the_decided_one(
+        monkeypatch: pytest.MonkeyPatch, ratio: float, refused: bool) -> None:
+    """Through :func:`~tileviz.vision.robust.readings.decide`: every reading at the decided
+    polarity sees one family only (stubbed, its deepest dip ``ratio`` x the grout's), so the
+    plan reads the other polarity, which reads the grout: refused by
+    ``foreign_line.polarity`` when the decided polarity's lines were deeper, else accepted."""
+    from types import MappingProxyType
+
+    from tileviz.testing import floorgen
+    from tileviz.vision import to_gray
+    from tileviz.vision.decision import CheckResult
+    from tileviz.vision.robust import extractor, readings
+    from tileviz.vision.robust.settings import DEFAULT_SETTINGS
+
+    rng = np.random.default_rng([1, 99])
+    spec = floorgen.draw_floor("plain", rng)
+    img = floorgen.render(spec, *floorgen.draw_view(rng), rng)
+    cam = CameraConfig(ppm=spec.ppm, width=spec.width, height=spec.height, offset=(0.0, 0.0))
+    real = readings.read
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        view, _ = extractor.prepare(to_gray(img), cam, spec.tile_size, ROBUST,
+                                    DEFAULT_SETTINGS, {})
+        grout = real(view, readings.Reading(view.heading, "first heading")).details["depth"]
+        one_family = CheckResult("lines.families", 0.0, 1.0, ">=", False)
+
+        def decided_sees_one_family(v, reading):  # type: ignore[no-untyped-def]
+            out = real(v, reading)
+            if reading.polarity != "auto":
+                return out
+            return replace(out, reason="one family", refusal=one_family, lines_passed=False,
+                           inverted=True,  # read as light grout: the other polarity is dark
+                           details=MappingProxyType({**out.details, "depth": ratio * grout}))
+
+        monkeypatch.setattr(readings, "read", decided_sees_one_family)
+        done = readings.decide(view, {})
+    last = done[-1]
+    assert last.reading.polarity == "dark" and last.lines_passed
+    check = last.checks[-1]
+    assert check.check == "foreign_line.polarity" and check.passed is not refused
+    assert last.reason == ("foreign line" if refused else "ok")

@@ -81,9 +81,9 @@ def read_robust(gray: np.ndarray, image: np.ndarray, camera: CameraConfig, tile_
 
     def read(view: np.ndarray, tm: dict[str, float], as_floor: FloorModel,
              number: float) -> VisionResult:
-        # a colour projection cancels the noise its channels share, not the camera's: it is
-        # read with the luma's noise at least (a dip is trusted in no image of the view that
-        # the camera's noise explains)
+        # a colour projection cancels the noise its channels share, not the camera's: its
+        # contrast limit assumes the luma's noise at least (a dip is trusted in no image of the
+        # view that the camera's noise explains)
         return extract_robust(view, camera=camera, tile_size=tile_size, vision=vision,
                               keep_stages=keep_stages, image=image, timings=tm,
                               floor=as_floor, noise_floor=luma_noise() if number > 0 else 0.0)
@@ -160,7 +160,8 @@ def _first_accepted(candidates: list[Candidate], gray: np.ndarray, timings: dict
     (:data:`~tileviz.vision.colour.RETRY_REASONS`; a projection nearly the luma again,
     :data:`~tileviz.vision.colour.SAME_AS_LUMA`, is skipped): the first accepted (``accept``,
     when given, checks an accepted reading further and may refuse it; after a first reading
-    refused for inconsistent spacing, :func:`_explains_first` too), and the refusal to report:
+    whose lines passed the line checks, :data:`LINES_PASSED`, :func:`_explains_first` too), and
+    the refusal to report:
     a later reading's refused by those further checks (final: a foreign line), else the first
     reading's (its timings join ``timings``). ``ppm``: the view's pixels per metre, ``lp`` the
     tile period, px. Each result's decision names the image it read, and both returned list
@@ -321,8 +322,9 @@ def _explains_first(first: VisionResult, got: VisionResult, shape: tuple[int, ..
                     ppm: float, lp: float, floor: FloorModel) -> VisionResult:
     """``got``, a reading accepted on another image of the view (``shape``: its rows and
     columns; ``ppm`` its pixels per metre, ``lp`` the tile period, px) after the ``first`` was
-    refused for inconsistent spacing (its lines were read, and one the lattice predicts was not
-    seen, or one lay off the lattice), checked by ``first.lines``: every line the first reading
+    refused with its lines past the line checks (:data:`LINES_PASSED`: a line the lattice
+    predicts not seen, one off the lattice, too little of them, or too wide a bound), checked
+    by ``first.lines``: every line the first reading
     measured lies on the lattice ``got`` reads. Were it a grout line, it would lie within the
     largest bound a view may declare (the limits of ``got``'s checks ``bound.position`` and
     ``bound.heading``) of the true lattice, which lies within ``got``'s own bound of ``got``'s:

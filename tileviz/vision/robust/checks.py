@@ -82,15 +82,15 @@ On the reading whose lines passed, the lattice and the bound:
   reach: that reach less the reach of the same set with every part's bound less the
   tolerance, or as to the fit's sum where that set is empty). Shown: the larger bound against
   the limit plus that bound less the larger of the two bounds' excesses over their allowances.
-- ``foreign_line.polarity`` (a reading with the grout's polarity imposed, accepted after a
-  first reading at the polarity the profiles decided saw its lines in part, ``no lines``,
-  ``low contrast`` or ``one family``): the first reading's deepest dip over this reading's;
-  <= 1 (``foreign line``): the polarity showing the deeper lines is the grout's, and lines of
-  the other one beside it (a bevel's shadow along a light ridge) are not.
 - ``foreign_edge``: long straight edges (``foreign.length`` x the smaller side, at least
   ``foreign.min_length`` px) off the lattice (its bands widened by the lattice tolerance each
   side) that no texture explains; <= 0 (``step edge`` when
   the longest separates two levels, else ``foreign line``).
+- ``foreign_line.polarity`` (a reading with the grout's polarity imposed, accepted after a
+  first reading at the polarity the profiles decided saw its lines in part, ``low contrast``
+  or ``one family``; not run after ``no lines``): the first reading's deepest dip over this
+  reading's; <= 1 (``foreign line``, final): the polarity showing the deeper lines is the
+  grout's, and lines of the other one beside it (a bevel's shadow along a light ridge) are not.
 
 The position check scale is the smaller of ``VisionConfig.position_error_px`` and
 ``scale.position_px``. The lattice tolerance is the declared floor's (``FloorModel``,
@@ -121,8 +121,10 @@ __all__ = ["CHECKS", "Check", "Context", "Record", "Refusal", "Relation"]
 class Context(Protocol):
     """What a limit is computed from: the settings (``st``) and the view's context: the
     position check scale (``bound_px``, px), the smaller side of the view (``side``, px), the
-    declared bounds (``vision``), the view's noise std (``noise``, gray levels) and the floor's
-    lattice tolerance in the view (``tol_px``, px: 0 for a perfect lattice).
+    declared bounds (``vision``), the view's noise std (``noise``, gray levels), the least noise
+    std its contrast limit assumes (``noise_floor``: the camera's, measured on the luma, for a
+    colour projection; else 0) and the floor's lattice tolerance in the view (``tol_px``, px: 0
+    for a perfect lattice).
     :class:`~tileviz.vision.robust.state.View` and
     :class:`~tileviz.vision.robust.state.ReadingState` are contexts."""
 
@@ -136,6 +138,8 @@ class Context(Protocol):
     def vision(self) -> VisionConfig: ...
     @property
     def noise(self) -> float: ...
+    @property
+    def noise_floor(self) -> float: ...
     @property
     def tol_px(self) -> float: ...
 
@@ -211,7 +215,7 @@ LINES_FOUND = Check("lines.found", "no lines", AT_LEAST, lambda c: 1.0, "",
 CONTRAST_DEPTH = Check("contrast.depth", "low contrast", AT_LEAST,
                        lambda c: c.st.lines.min_depth if not c.noise <= c.st.lines.min_depth
                        else min(c.st.lines.min_depth, c.st.lines.depth_noise * max(
-                           c.noise, c.st.lines.rounding_noise)
+                           c.noise, c.noise_floor, c.st.lines.rounding_noise)
                            / math.sqrt(c.st.profiles.min_part)),
                        "lines.min_depth, depth_noise, rounding_noise, profiles.min_part",
                        "deepest dip (gray levels)")
@@ -283,7 +287,7 @@ CHECKS: dict[str, Check] = {c.id: c for c in (
     LINES_FOUND, CONTRAST_DEPTH, LINES_FAMILIES, FOREIGN_LEFT_OUT, BLUR_RISE, STEP_LEVELS,
     ANGLE_STRAIGHT, ANGLE_PERPENDICULAR, FOREIGN_WIDTH, FOREIGN_CONTRAST, CROSSINGS_READ, CROSSINGS,
     CROSSINGS_UNREAD, FOREIGN_BESIDE, FOREIGN_SHOULDER, SPACING_MISSING, SPACING, EVIDENCE,
-    BOUND_POSITION, BOUND_HEADING, FOREIGN_POLARITY, FOREIGN_EDGE)}
+    BOUND_POSITION, BOUND_HEADING, FOREIGN_EDGE, FOREIGN_POLARITY)}
 """Every check by id, in the order they run."""
 
 

@@ -51,8 +51,8 @@ def extract_robust(
     ``floor``: what is declared of the floor (its lattice tolerance widens the checks that compare
     lines with the lattice and is part of the view's bound: docs/vision.md). ``image`` (the RGB
     input) is only used for the overlays when ``keep_stages``; ``timings`` (ms) may already hold
-    the gray conversion's time. ``noise_floor``: the least noise std (gray levels) the view is
-    read with (the camera's, measured on the luma, for an image that cancels some of it)."""
+    the gray conversion's time. ``noise_floor``: the least noise std (gray levels) the contrast
+    limit assumes (the camera's, measured on the luma, for an image that cancels some of it)."""
     tm = {} if timings is None else timings
     # missing data is NaN throughout (profiles beyond the view, unmeasured parts): arithmetic
     # on it is expected and its warnings are noise
@@ -80,7 +80,8 @@ def prepare(gray: np.ndarray, camera: CameraConfig, tile_size: float, vision: Vi
     ``constant image`` or ``glare``), the Scharr gradients, the noise level and the first
     heading (refusing ``no lines`` when no gradient votes); the refusal, if any. Stage times
     are added to ``tm`` (ms); ``tol_px``: the floor's lattice tolerance in the view, px;
-    ``noise_floor``: the least noise std the view is read with, gray levels."""
+    ``noise_floor``: the least noise std the contrast limit assumes, gray levels (the view's
+    own noise still scales the foreign-edge and grout-level searches)."""
     h, w = gray.shape
     ctx = Scale(settings, check_scale(vision, settings)[0], float(min(h, w)), vision, math.nan,
                 tol_px)
@@ -95,14 +96,17 @@ def prepare(gray: np.ndarray, camera: CameraConfig, tile_size: float, vision: Vi
         dx = cv2.Scharr(gray, cv2.CV_16S, 1, 0)
         dy = cv2.Scharr(gray, cv2.CV_16S, 0, 1)
         dxy = (dx, dy)
-        noise = max(noise_sigma(gray), noise_floor)
+        noise = noise_sigma(gray)
         details["noise_sigma"] = noise
         t = _lap(tm, "edges", t)
         heading = first_heading(ctx, dx, dy, rec, details)
         _lap(tm, "heading", t)
     except Refusal as r:
         refusal = r
+    if noise_floor > 0.0:
+        details["noise_floor"] = noise_floor
     view = View.of(gray, camera, tile_size, vision, settings, tol_px, mean=mean, noise=noise,
+                   noise_floor=noise_floor,
                    dxy=dxy, heading=heading, details=MappingProxyType(details),
                    checks=tuple(rec.results))
     return view, refusal

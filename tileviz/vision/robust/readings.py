@@ -38,7 +38,8 @@ measured beside the grout in one part). In each pass:
    without a line left out, is preferred.
 
 A pass stops at the first reading whose lines pass the line checks: its lattice, bound and
-foreign-edge checks decide the pass; when that is the first reading and its lines miss the
+foreign-edge checks decide the pass (a reading of the imposed polarity also
+``foreign_line.polarity``, :func:`decide`); when that is the first reading and its lines miss the
 lattice (:data:`OFF_LATTICE_REASONS`), the view is read once more at the other polarity, which
 decides the pass when accepted (else the first reading's refusal stands). The result is the
 first pass's unless the second accepts the view. When no reading of a pass passes, the pass
@@ -396,11 +397,14 @@ def plan(view: View, done: Sequence[Outcome], timings: dict[str, float]) -> Iter
 
 def _deeper_than(first: Outcome, out: Outcome) -> Outcome:
     """``out`` (a reading with the grout's polarity imposed, accepted) refused
-    (``foreign_line.polarity``) when the pass's first reading, at the polarity the profiles
-    decided, saw deeper lines: that polarity is the grout's (its reading failed for a family
-    not seen, blurred or covered), and the lines of the other polarity are something beside
-    the grout (a bevel's shadow along a light ridge)."""
-    value = first.details.get("depth", math.nan) / out.details.get("depth", math.nan)
+    (``foreign_line.polarity``, final) when the pass's first reading, at the polarity the
+    profiles decided, saw deeper lines (unchecked when it measured none): that polarity is the
+    grout's (its reading failed for a family not seen, blurred or covered), and the lines of
+    the other polarity are something beside the grout (a bevel's shadow along a light ridge)."""
+    decided, own = first.details.get("depth", math.nan), out.details.get("depth", math.nan)
+    if not (math.isfinite(decided) and own > 0.0):
+        return out  # the first reading measured no line: no depth to compare
+    value = decided / own
     check = FOREIGN_POLARITY
     limit = float(check.limit(None))
     result = CheckResult(check.id, value, limit, check.relation.symbol,
@@ -411,7 +415,9 @@ def _deeper_than(first: Outcome, out: Outcome) -> Outcome:
 
 
 def decide(view: View, timings: dict[str, float]) -> list[Outcome]:
-    """Every reading of :func:`plan` read in turn (:func:`read`): their outcomes, in order.
+    """Every reading of :func:`plan` read in turn (:func:`read`): their outcomes, in order;
+    a reading of the imposed polarity accepted after a first reading that saw its lines in part
+    (:data:`UNSEEN_REASONS`) is checked against it (:func:`_deeper_than`).
     The readings' stage times are added to ``timings`` (ms)."""
     done: list[Outcome] = []
     first: Outcome | None = None

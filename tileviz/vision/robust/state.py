@@ -71,7 +71,8 @@ class View:
     / ``bound_rad`` (the smaller of the declared bounds and ``st.scale``); the profiles' grey
     ``closing`` (samples), the first measurement ``window`` and the ``widest`` (half-sizes,
     samples). Measured on the whole view (:func:`~tileviz.vision.robust.extractor.prepare`): the
-    gray ``mean``, the ``noise`` std (gray levels), the Scharr gradients ``dxy`` (CV_16S), the
+    gray ``mean``, the ``noise`` std (gray levels; the contrast limit assumes at least
+    ``noise_floor``, the luma's for a colour projection), the Scharr gradients ``dxy`` (CV_16S), the
     first ``heading`` (rad, modulo pi/2), their ``details`` and the ``checks`` run on the view."""
 
     gray: np.ndarray
@@ -91,6 +92,7 @@ class View:
     widest: int
     mean: float = 0.0
     noise: float = math.nan
+    noise_floor: float = 0.0
     dxy: tuple[np.ndarray, np.ndarray] | None = None
     heading: float = math.nan
     details: Mapping[str, float] = field(default_factory=lambda: MappingProxyType({}))
@@ -137,6 +139,7 @@ class Scale(NamedTuple):
     vision: VisionConfig
     noise: float
     tol_px: float
+    noise_floor: float = 0.0
 
 
 class ReadingState:
@@ -157,6 +160,7 @@ class ReadingState:
         self.closing, self.widest = view.closing, view.widest
         self.dxy = view.dxy
         self.noise = view.noise
+        self.noise_floor = view.noise_floor
         # this reading's
         self.tm: dict[str, float] = {}
         self.details: dict[str, float] = {}
