@@ -409,7 +409,7 @@ def test_a_reading_of_the_other_polarity_shallower_than_the_decided_one_is_refus
     for ratio, refused in ((2.0, True), (0.5, False), (1.0, False)):
         first = replace(out, reason="one family", refusal=None,
                         details=MappingProxyType({**out.details, "depth": ratio * depth}))
-        got = _deeper_than(first, out)
+        got = _deeper_than(view, first, out)
         check = got.checks[-1]
         assert check.check == "foreign_line.polarity"
         assert check.value == pytest.approx(ratio) and check.passed is not refused

@@ -77,16 +77,27 @@ def read_robust(gray: np.ndarray, image: np.ndarray, camera: CameraConfig, tile_
     from tileviz.vision.robust import extract_robust
     from tileviz.vision.robust.statistics import noise_sigma
 
-    luma_noise = cache(lambda: noise_sigma(gray))
+    luma_noise: list[float] = []  # measured once: by the luma's reading, or here
 
-    def read(view: np.ndarray, tm: dict[str, float], as_floor: FloorModel,
-             number: float) -> VisionResult:
+    def noise_floor(number: float) -> float:
         # a colour projection cancels the noise its channels share, not the camera's: its
         # contrast limit assumes the luma's noise at least (a dip is trusted in no image of the
         # view that the camera's noise explains)
-        return extract_robust(view, camera=camera, tile_size=tile_size, vision=vision,
-                              keep_stages=keep_stages, image=image, timings=tm,
-                              floor=as_floor, noise_floor=luma_noise() if number > 0 else 0.0)
+        if number <= 0.0:
+            return 0.0
+        if not luma_noise:
+            luma_noise.append(noise_sigma(gray))
+        return luma_noise[0]
+
+    def read(view: np.ndarray, tm: dict[str, float], as_floor: FloorModel,
+             number: float) -> VisionResult:
+        got = extract_robust(view, camera=camera, tile_size=tile_size, vision=vision,
+                             keep_stages=keep_stages, image=image, timings=tm,
+                             floor=as_floor, noise_floor=noise_floor(number))
+        noise = got.details.get("noise_sigma", math.nan)
+        if number == 0.0 and not luma_noise and math.isfinite(noise):
+            luma_noise.append(noise)
+        return got
 
     views: list[Candidate] = [(0.0, lambda: gray)]
     if image.ndim == 3:

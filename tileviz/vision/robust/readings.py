@@ -74,6 +74,7 @@ from tileviz.vision.robust.checks import (
     FOREIGN_POLARITY,
     FOREIGN_SHOULDER,
     FOREIGN_WIDTH,
+    Record,
     Refusal,
 )
 from tileviz.vision.robust.fit import check_lines, drop_stray_part, fit_tilt, leave_out_unlike
@@ -395,7 +396,7 @@ def plan(view: View, done: Sequence[Outcome], timings: dict[str, float]) -> Iter
                 break
 
 
-def _deeper_than(first: Outcome, out: Outcome) -> Outcome:
+def _deeper_than(view: View, first: Outcome, out: Outcome) -> Outcome:
     """``out`` (a reading with the grout's polarity imposed, accepted) refused
     (``foreign_line.polarity``, final) when the pass's first reading, at the polarity the
     profiles decided, saw deeper lines (unchecked when it measured none): that polarity is the
@@ -404,14 +405,12 @@ def _deeper_than(first: Outcome, out: Outcome) -> Outcome:
     decided, own = first.details.get("depth", math.nan), out.details.get("depth", math.nan)
     if not (math.isfinite(decided) and own > 0.0):
         return out  # the first reading measured no line: no depth to compare
-    value = decided / own
-    check = FOREIGN_POLARITY
-    limit = float(check.limit(None))
-    result = CheckResult(check.id, value, limit, check.relation.symbol,
-                         check.relation.passes(value, limit))
-    if result.passed:
-        return replace(out, checks=(*out.checks, result))
-    return replace(out, checks=(*out.checks, result), refusal=result, reason=check.reason)
+    record = Record()
+    passed = record.check(FOREIGN_POLARITY, view, decided / own)
+    checks = (*out.checks, *record.results)
+    if passed:
+        return replace(out, checks=checks)
+    return replace(out, checks=checks, refusal=record.results[-1], reason=FOREIGN_POLARITY.reason)
 
 
 def decide(view: View, timings: dict[str, float]) -> list[Outcome]:
@@ -427,7 +426,7 @@ def decide(view: View, timings: dict[str, float]) -> list[Outcome]:
             first = out
         elif (reading.polarity != "auto" and out.reason == "ok" and first is not None
               and first.reason in UNSEEN_REASONS):
-            out = _deeper_than(first, out)
+            out = _deeper_than(view, first, out)
         done.append(out)
         for k, v in out.timings.items():
             timings[k] = timings.get(k, 0.0) + v
