@@ -17,6 +17,7 @@ from tileviz.sim.camera import Fault, FloorRenderer, random_camera, random_floor
 from tileviz.types import Pose
 from tileviz.vision import extract, observation_error
 from tileviz.vision.robust import normalise
+from tileviz.vision.robust.readings import Outcome
 
 ROBUST = VisionConfig(extractor="robust")
 CFG = preset("default")
@@ -380,14 +381,26 @@ def test_a_line_read_off_its_heading_widens_no_familys_window(off: float) -> Non
     assert max(widths[1]) <= spec.grout_px + 1.5
 
 
-def test_a_reading_of_the_other_polarity_shallower_than_the_decided_one_is_refused() -> None:
-    """A first reading at the polarity the profiles decided that saw its lines in one family
-    only (a motion blur wiped the other), deeper than the lines a reading with the other
-    polarity imposed then accepts: those are something beside the grout (a bevel's shadow
-    along a light ridge), and the view is refused (``foreign_line.polarity``, the ratio of the
-    deepest dips as value). Lines of the other polarity as deep or deeper pass the check."""
+def _shifted(out: Outcome, shift: float, depth: float) -> Outcome:
+    """``out`` as a first reading at the decided polarity that saw one family only: its lines
+    ``shift`` px along their normal (the positions on its warp), its deepest dip ``depth``."""
     from types import MappingProxyType
 
+    return replace(out, reason="one family", refusal=None, lines_passed=False,
+                   positions=(tuple(p - shift for p in out.positions[0]), ()),
+                   details=MappingProxyType({**out.details, "depth": depth}))
+
+
+def test_a_reading_of_the_other_polarity_beside_the_decided_ones_deeper_lines_is_refused(
+        ) -> None:
+    """A first reading at the polarity the profiles decided saw its lines in one family only (a
+    motion blur wiped the other), deeper than the lines a reading with the other polarity
+    imposed then accepts. Off that reading's lattice, the deeper lines are the grout and the
+    accepted ones something beside it (a bevel's shadow along a light ridge): the view is
+    refused (``foreign_line.polarity``, their distance from the lattice as value, the
+    reading's bound as limit). On it they are the same joints, filled with something of the
+    other polarity (light dirt in a mosaic's joints): accepted. Shallower ones are not
+    checked."""
     from tileviz.testing import floorgen
     from tileviz.vision import to_gray
     from tileviz.vision.decision import Reading
@@ -406,13 +419,17 @@ def test_a_reading_of_the_other_polarity_shallower_than_the_decided_one_is_refus
                                  kind="polarity"))
     assert out.reason == "ok"
     depth = out.details["depth"]
-    for ratio, refused in ((2.0, True), (0.5, False), (1.0, False)):
-        first = replace(out, reason="one family", refusal=None,
-                        details=MappingProxyType({**out.details, "depth": ratio * depth}))
+    third = view.lp / 3.0
+    for shift, ratio, refused in ((third, 2.0, True), (0.0, 2.0, False), (third, 0.5, None)):
+        first = _shifted(out, shift, ratio * depth)
         got = _deeper_than(view, first, out)
+        if refused is None:  # shallower: not checked
+            assert got is out
+            continue
         check = got.checks[-1]
-        assert check.check == "foreign_line.polarity"
-        assert check.value == pytest.approx(ratio) and check.passed is not refused
+        assert check.check == "foreign_line.polarity" and check.passed is not refused
+        assert check.value == pytest.approx(shift, abs=0.5)
+        assert check.limit < third
         assert (got.reason, got.refusal) == (("foreign line", check) if refused
                                              else ("ok", None))
         end = extractor.conclude(view, None, [first, got])
@@ -421,15 +438,15 @@ def test_a_reading_of_the_other_polarity_shallower_than_the_decided_one_is_refus
             assert end.decision.refusal == check and end.decision.refused_in == 1
 
 
-@pytest.mark.parametrize(("ratio", "refused"), [(3.0, True), (0.5, False)])
-def test_the_plan_refuses_an_imposed_polarity_shallower_than_the_decided_one(
-        monkeypatch: pytest.MonkeyPatch, ratio: float, refused: bool) -> None:
+@pytest.mark.parametrize(("third", "ratio", "refused"),
+                         [(1.0, 3.0, True), (0.0, 3.0, False), (1.0, 0.5, False)])
+def test_the_plan_refuses_an_imposed_polarity_beside_the_decided_ones_deeper_lines(
+        monkeypatch: pytest.MonkeyPatch, third: float, ratio: float, refused: bool) -> None:
     """Through :func:`~tileviz.vision.robust.readings.decide`: every reading at the decided
-    polarity sees one family only (stubbed, its deepest dip ``ratio`` x the grout's), so the
-    plan reads the other polarity, which reads the grout: refused by
-    ``foreign_line.polarity`` when the decided polarity's lines were deeper, else accepted."""
-    from types import MappingProxyType
-
+    polarity sees one family only (stubbed: its deepest dip ``ratio`` x the grout's, its lines
+    ``third`` x a third of the period off), so the plan reads the other polarity, which reads
+    the grout: refused by ``foreign_line.polarity`` when the decided polarity's lines were
+    deeper and off its lattice, else accepted."""
     from tileviz.testing import floorgen
     from tileviz.vision import to_gray
     from tileviz.vision.decision import CheckResult
@@ -451,14 +468,14 @@ def test_the_plan_refuses_an_imposed_polarity_shallower_than_the_decided_one(
             out = real(v, reading)
             if reading.polarity != "auto":
                 return out
-            return replace(out, reason="one family", refusal=one_family, lines_passed=False,
-                           inverted=True,  # read as light grout: the other polarity is dark
-                           details=MappingProxyType({**out.details, "depth": ratio * grout}))
+            return replace(_shifted(out, third * v.lp / 3.0, ratio * grout),
+                           refusal=one_family,
+                           inverted=True)  # read as light grout: the other polarity is dark
 
         monkeypatch.setattr(readings, "read", decided_sees_one_family)
         done = readings.decide(view, {})
     last = done[-1]
     assert last.reading.polarity == "dark" and last.lines_passed
-    check = last.checks[-1]
-    assert check.check == "foreign_line.polarity" and check.passed is not refused
+    polarity = [c for c in last.checks if c.check == "foreign_line.polarity"]
+    assert [c.passed for c in polarity] == ([] if ratio < 1.0 else [not refused])
     assert last.reason == ("foreign line" if refused else "ok")

@@ -88,9 +88,14 @@ On the reading whose lines passed, the lattice and the bound:
   the longest separates two levels, else ``foreign line``).
 - ``foreign_line.polarity`` (a reading with the grout's polarity imposed, accepted after a
   first reading at the polarity the profiles decided saw its lines in part, ``low contrast``
-  or ``one family``; not run after ``no lines``): the first reading's deepest dip over this
-  reading's; <= 1 (``foreign line``, final): the polarity showing the deeper lines is the
-  grout's, and lines of the other one beside it (a bevel's shadow along a light ridge) are not.
+  or ``one family``; run only when that reading's deepest dip is deeper than this reading's):
+  the farthest of the first reading's lines from this reading's lattice, at the view's
+  centre, modulo the period (px; infinite for a line parallel to neither family within this
+  reading's heading bound); <= this reading's position bound less the lattice tolerance
+  (``foreign line``, final). Deeper lines of the other polarity on the lattice are the same
+  joints (filled with light dirt along part of them): a line of them within that distance
+  leaves this reading's observation within its bound. Deeper lines off it are the grout, and
+  this reading's lines are something beside them (a bevel's shadow along a light ridge).
 
 The position check scale is the smaller of ``VisionConfig.position_error_px`` and
 ``scale.position_px``. The lattice tolerance is the declared floor's (``FloorModel``,
@@ -276,8 +281,9 @@ BOUND_HEADING = Check("bound.heading", "imprecise", AT_MOST,
                       + tolerance,
                       "bound.max_rad, VisionConfig.heading_error",
                       "the view's heading bound, declared or from the fit's sum (rad)")
-FOREIGN_POLARITY = Check("foreign_line.polarity", "foreign line", AT_MOST, lambda c: 1.0, "",
-                         "the decided polarity's deepest dip / this reading's")
+FOREIGN_POLARITY = Check("foreign_line.polarity", "foreign line", AT_MOST,
+                         lambda c, bound: max(bound - c.tol_px, 0.0), "",
+                         "the decided polarity's deeper lines' farthest from this lattice, px")
 FOREIGN_EDGE = Check("foreign_edge", "foreign line", AT_MOST, lambda c: 0.0,
                      "foreign.length, min_length, contrast",
                      "long straight edges off the lattice")

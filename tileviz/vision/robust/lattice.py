@@ -122,6 +122,7 @@ def lattice_offsets(run: ReadingState, lines: list[list[Line]], y3: float) -> No
         measured_period(run, s_arr, ref)
         missing_lines(run, k, ref, s_arr, y3)
     run.details["spacing_residual_px"] = worst
+    run.offsets = (refs[0], refs[1])
     rec = run.record
     rec.require(checks.SPACING, run, worst)
     for k, fam in enumerate(lines):

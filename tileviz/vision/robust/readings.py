@@ -64,7 +64,7 @@ from types import MappingProxyType
 import numpy as np
 
 from tileviz.vision.decision import CheckResult, Reading
-from tileviz.vision.geometry import QUARTER
+from tileviz.vision.geometry import QUARTER, family_normals
 from tileviz.vision.robust.checks import (
     ANGLE_STRAIGHT,
     CROSSINGS,
@@ -122,8 +122,10 @@ class Outcome:
     straight (``not_straight``), the polarity read (``inverted``: lighter grout), its
     ``details`` and stage ``timings`` (ms). For the result and the stage images: the heading
     after the fit ``y3`` (rad; None when no line was measured), the warp ``centre``, each
-    family's line positions on the warp (``positions``, px), the observation ``y`` (when the
-    lattice was read), the ``warped`` view, the Canny ``edges``, the ``free_edges`` off the
+    family's line positions on the warp (``positions``, px), each family's lattice offset at
+    the view's centre (``offsets``, px, as ``s`` in
+    :func:`~tileviz.vision.robust.lattice.lattice_offsets`) and the observation ``y`` (both
+    when the lattice was read), the ``warped`` view, the Canny ``edges``, the ``free_edges`` off the
     lattice and the ``foreign`` straight edges among them (rows x1, y1, x2, y2, px)."""
 
     reading: Reading
@@ -138,6 +140,7 @@ class Outcome:
     y3: float | None
     centre: tuple[float, float]
     positions: tuple[tuple[float, ...], tuple[float, ...]]
+    offsets: tuple[float, float] | None
     y: tuple[float, float, float] | None
     warped: np.ndarray | None
     edges: np.ndarray | None
@@ -172,7 +175,7 @@ def read(view: View, reading: Reading) -> Outcome:
         details=MappingProxyType(run.details), timings=MappingProxyType(run.tm), y3=run.y3,
         centre=run.centre,
         positions=(tuple(ln.pos for ln in run.lines[0]), tuple(ln.pos for ln in run.lines[1])),
-        y=run.y, warped=run.warped, edges=run.edges, free_edges=run.free_edges,
+        offsets=run.offsets, y=run.y, warped=run.warped, edges=run.edges, free_edges=run.free_edges,
         foreign=run.foreign)
 
 
@@ -396,17 +399,45 @@ def plan(view: View, done: Sequence[Outcome], timings: dict[str, float]) -> Iter
                 break
 
 
+def _off_lattice(view: View, first: Outcome, out: Outcome) -> float:
+    """The farthest of ``first``'s lines from ``out``'s lattice (px): each line's signed offset
+    at the view's centre (``s = -(pos - centre)`` on its warp) against the offset of ``out``'s
+    family whose normal is nearest its own, modulo the period; infinite when that normal is
+    farther than ``out``'s heading bound (the line is on neither family) or ``out`` read no
+    lattice."""
+    if first.y3 is None or out.y3 is None or out.offsets is None:
+        return math.inf
+    theirs = family_normals(out.y3)
+    far = 0.0
+    for j, n in enumerate(family_normals(first.y3)):
+        if not first.positions[j]:
+            continue
+        dots = [n[0] * m[0] + n[1] * m[1] for m in theirs]
+        k = 0 if abs(dots[0]) >= abs(dots[1]) else 1
+        if math.acos(min(abs(dots[k]), 1.0)) > out.details["bound_rad"]:
+            return math.inf
+        sign = 1.0 if dots[k] > 0.0 else -1.0
+        centre = first.centre[1] if j == 0 else first.centre[0]
+        for pos in first.positions[j]:
+            far = max(far, abs(math.remainder(sign * (centre - pos) - out.offsets[k], view.lp)))
+    return far
+
+
 def _deeper_than(view: View, first: Outcome, out: Outcome) -> Outcome:
-    """``out`` (a reading with the grout's polarity imposed, accepted) refused
-    (``foreign_line.polarity``, final) when the pass's first reading, at the polarity the
-    profiles decided, saw deeper lines (unchecked when it measured none): that polarity is the
-    grout's (its reading failed for a family not seen, blurred or covered), and the lines of
-    the other polarity are something beside the grout (a bevel's shadow along a light ridge)."""
+    """``out`` (a reading with the grout's polarity imposed, accepted) checked against the
+    pass's first reading, at the polarity the profiles decided, when that one saw deeper lines
+    (``foreign_line.polarity``, final; unchecked when it measured none or shallower ones): the
+    deeper lines must lie on ``out``'s lattice (:func:`_off_lattice`), within ``out``'s
+    position bound less the lattice tolerance. On it they are the same joints, of the other
+    polarity along part of them (light dirt in a mosaic's dark joints); off it they are the
+    grout (its reading failed for a family not seen, blurred or covered), and ``out``'s lines
+    are something beside it (a bevel's shadow along a light ridge)."""
     decided, own = first.details.get("depth", math.nan), out.details.get("depth", math.nan)
-    if not (math.isfinite(decided) and own > 0.0):
-        return out  # the first reading measured no line: no depth to compare
+    if not (math.isfinite(decided) and own > 0.0) or decided <= own:
+        return out  # no line measured at the decided polarity, or shallower ones
     record = Record()
-    passed = record.check(FOREIGN_POLARITY, view, decided / own)
+    passed = record.check(FOREIGN_POLARITY, view, _off_lattice(view, first, out),
+                          out.details["bound_px"])
     checks = (*out.checks, *record.results)
     if passed:
         return replace(out, checks=checks)

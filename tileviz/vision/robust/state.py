@@ -187,6 +187,9 @@ class ReadingState:
         self.lines: list[list[Line]] = [[], []]
         self.y3: float | None = None
         self.y: tuple[float, float, float] | None = None
+        # each family's lattice offset at the image centre (px, the signed s of
+        # lattice.lattice_offsets; None before the lattice is read)
+        self.offsets: tuple[float, float] | None = None
         self.foreign: np.ndarray = np.zeros((0, 4))
         # each measured part's own error bound (px), in the fit's order of parts (set by it)
         self.part_bound: np.ndarray = np.zeros(0)
