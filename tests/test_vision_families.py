@@ -1114,12 +1114,29 @@ def test_a_blank_floor_is_a_constant_image_and_one_thin_line_is_not(sigma: float
 
 
 def test_a_wide_blurred_lone_band_declares_no_more_than_a_view_may() -> None:
-    """A 16 px band under 1.8 px of blur, JPEG 62 and noise 10 (its edges rise 5.7 px), its
-    family's only line in view: its bound holds the band's reach at a quarter of its depth,
-    more than a view may declare, so it is refused as imprecise rather than read with a bound
-    it cannot vouch for."""
-    r = study_view(4_000_058, "degraded", None)
-    assert r["readable"] and not r["accepted"] and r["reason"] == "imprecise", r
+    """A 16 px band under 1.8 px of blur, JPEG 62 and noise 10 (its edges rise 5.7 px) on
+    unevenly lit tiles, its family's only line in view: in the luma its bound holds the band's
+    reach at a quarter of its depth, more than a view may declare, so the luma's reading is
+    refused as imprecise rather than read with a bound it cannot vouch for. The joints image,
+    the band's difference from the tiles' level around it, shows it on an even background:
+    read there within its own bound."""
+    from tileviz.testing.views import FAMILY_SALT
+    from tileviz.vision.views import JOINTS
+
+    rng = np.random.default_rng([4_000_058, FAMILY_SALT["degraded"], 0])
+    spec = floorgen.draw_floor("degraded", rng)
+    cx, cy, th = floorgen.draw_view(rng)
+    img = floorgen.render(spec, cx, cy, th, rng, None)
+    cam = CameraConfig(ppm=spec.ppm, width=spec.width, height=spec.height, offset=(0.0, 0.0))
+    res = extract(img, camera=cam, tile_size=spec.tile_size,
+                  vision=VisionConfig(extractor="robust"), floor=spec.model)
+    assert floorgen.readable(spec, cx, cy, th)
+    assert res.decision is not None
+    luma = res.decision.images[0]
+    assert luma.startswith("luma: refused (imprecise) by bound.position"), luma
+    assert res.accepted and res.details["projection"] == JOINTS, res.reason
+    assert res.decision.images[-1] == "joints image: accepted"
+    assert _inside(res, Pose(cx, cy, th), spec.tile_size)
 
 
 def _inside(res: object, pose: Pose, tile_size: float) -> bool:
@@ -1154,36 +1171,61 @@ def test_joints_of_two_widths_are_each_measured_in_a_window_that_fits_them() -> 
         assert _inside(res, Pose(cx, cy, th), spec.tile_size), seed
 
 
+def test_the_joints_image_shows_a_dark_and_a_light_joint_alike() -> None:
+    """The joints image: a dark joint and a light one (30 gray levels either way, 6 px wide)
+    on tiles lit unevenly (a ramp of 80 levels across the view) are two light bands of the
+    same depth and width, centred where the joints are; the tiles are dark."""
+    from tileviz.vision.colour import joints_image
+
+    x = np.arange(320, dtype=np.float64)
+    row = 90.0 + 80.0 * x / 319.0
+    row[77:83] -= 30.0  # a dark joint centred at x = 79.5
+    row[237:243] += 30.0  # a light one centred at x = 239.5
+    gray = np.tile(np.rint(row).astype(np.uint8), (240, 1))
+    out = joints_image(gray, 160.0)[120].astype(np.float64)
+    for lo, hi in ((77, 83), (237, 243)):
+        band = out[lo - 6:hi + 6]
+        assert band.max() >= 29.0 and np.count_nonzero(band >= 15.0) == 6, band
+        centre = float(np.dot(np.arange(lo - 6, hi + 6), band) / band.sum())
+        assert centre == pytest.approx(0.5 * (lo + hi - 1), abs=0.5)
+    tiles = np.r_[out[10:70], out[90:230], out[250:310]]
+    assert tiles.max() <= 2.0, tiles.max()
+
+
 def test_joints_filled_with_light_dirt_are_read_at_the_grouts_own_polarity() -> None:
     """Dark grout, every fifth joint filled along its centre with light dirt: the filled
     joints make the strongest narrow peaks, so the profiles call the grout lighter, and the
     lines read at that polarity (the filled joints) miss the lattice (``spacing.missing``).
     The view is then read once more at the other polarity: accepted there, within its bound.
-    When that reading is refused too, the view's refusal is the first reading's."""
+    When that reading is refused too, the luma's refusal is the first reading's, and the
+    joints image, where dirt and grout are alike one light band, reads the view within its
+    bound."""
+    from tileviz.vision.views import JOINTS
+
     spec = floorgen.FloorSpec(family="plain", tile_size=0.1, ppm=1000.0, grout_px=8.0,
                               grout_shade=125.0, tile_shade=150.0, shade_spread=3.0,
                               surface="flat", surface_amp=0.0, seed=1, width=512, height=384,
                               fill=(5, 0.6, 240.0))
     cam = CameraConfig(ppm=spec.ppm, width=spec.width, height=spec.height, offset=(0.0, 0.0))
-    for th, edge, accepted in ((0.01, 110, True), (-0.01, 70, True), (0.0, 40, False)):
+    for th, edge, in_luma in ((0.01, 110, True), (-0.01, 70, True), (0.0, 40, False)):
         # the filled joints x = 0 and y = 0 ``edge`` px inside the view's top and left sides
         cx, cy = -(191.5 - edge) / spec.ppm, -(255.5 - edge) / spec.ppm
         res = extract(floorgen.render(spec, cx, cy, th, np.random.default_rng(1)),
                       camera=cam, tile_size=spec.tile_size, vision=VisionConfig())
         dec = res.decision
-        assert dec is not None
+        assert dec is not None and res.accepted, (th, edge, res.reason)
+        assert _inside(res, Pose(cx, cy, th), spec.tile_size), (th, edge)
+        if not in_luma:  # refused in the luma: read by the joints image instead
+            assert res.details["projection"] == JOINTS
+            assert dec.images[0] == ("luma: refused (inconsistent spacing) by spacing.missing "
+                                     "(family 1) in reading 1: value 1, must be <= 0"), dec.images
+            continue
         first = dec.readings[0]
         assert first.reading.polarity == "auto" and first.reason == "inconsistent spacing"
         assert first.checks[-1].check == "spacing.missing", first
         other = dec.readings[1].reading
         assert other.kind == "polarity" and other.polarity == "dark", other
-        assert res.accepted == accepted, (th, edge, res.reason)
-        if accepted:
-            assert dec.shown == 1
-            assert _inside(res, Pose(cx, cy, th), spec.tile_size), (th, edge)
-        else:
-            assert dec.refused_in == 0 and dec.refusal is not None
-            assert dec.refusal.check == "spacing.missing", dec.refusal
+        assert dec.shown == 1
 
 
 def test_the_other_polarity_refused_too_leaves_the_first_readings_refusal() -> None:

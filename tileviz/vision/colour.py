@@ -21,6 +21,13 @@ edge image's ridge is the grout's centre only while its two edges are alike (a m
 smears one edge more than the other moves it off the centre, beyond what the reading's bound
 can see), so it is not read there.
 
+The joints image (:func:`joints_image`) shows joints of either polarity: how far each pixel lies
+from the tiles' level around it, whichever the sign. Dark grout filled with light dirt along
+part of its joints (a paver mosaic), or lighter along one edge and darker along the other, is
+one light band there, centred on the joint. It is read on a grout floor last, after every
+image above refused the view, and only when the luma did not show the lattice
+(:data:`RETRY_REASONS`; :func:`tileviz.vision.views.read_robust`).
+
 The projections are tried in that order, after the luma, each only when it differs from the
 luma (:data:`SAME_AS_LUMA`: a projection that is nearly the luma again, a channel of a gray
 floor under a tinted light, shows nothing new); the first whose reading the extractor accepts is
@@ -37,13 +44,18 @@ from collections.abc import Callable
 import cv2
 import numpy as np
 
-__all__ = ["EDGE_BLUR", "EDGE_QUANTILE", "PROJECTIONS", "RETRY_REASONS", "SAME_AS_LUMA",
-           "correlation", "edge_image", "edges_and_strength", "project"]
+__all__ = ["EDGE_BLUR", "EDGE_QUANTILE", "JOINT_WINDOW", "PROJECTIONS", "RETRY_REASONS",
+           "SAME_AS_LUMA", "correlation", "edge_image", "edges_and_strength", "joints_image",
+           "project"]
 
 EDGE_BLUR = 1.0
 """Gaussian std (px) of the blur before the edge image's gradient."""
 EDGE_QUANTILE = 0.995
 """The edge image maps this quantile of the gradient magnitude to 255."""
+JOINT_WINDOW = 1.0
+"""The side of the square over which :func:`joints_image` takes the tiles' level (the median),
+as a share of the tile period: such a square holds one crossing of two joints, a small share
+of it (under half while the grout is narrower than 0.29 of the period), the tiles the rest."""
 
 
 def _channel(k: int) -> Callable[[np.ndarray], np.ndarray]:
@@ -77,6 +89,16 @@ def edges_and_strength(gray: np.ndarray) -> tuple[np.ndarray, float]:
     flat = np.sort(m, axis=None)
     hi = max(1, int(flat[min(flat.size - 1, int(EDGE_QUANTILE * flat.size))]))
     return np.minimum(255, m * 255 // hi).astype(np.uint8), float(hi)
+
+
+def joints_image(gray: np.ndarray, period_px: float) -> np.ndarray:
+    """The joints image of ``gray`` (HxW uint8; ``period_px`` the tile period, px): each
+    pixel's absolute difference from the median of ``gray`` over a square :data:`JOINT_WINDOW`
+    x the period wide (odd, at least 3 px), HxW uint8, gray levels. A joint darker or lighter
+    than its tiles, or both along its length, is a light band on dark tiles; a texture's
+    noise is folded to its magnitude as well (the reading's noise is measured on this image)."""
+    side = max(3, int(JOINT_WINDOW * period_px) | 1)
+    return cv2.absdiff(gray, cv2.medianBlur(gray, side))
 
 
 PROJECTIONS: dict[str, Callable[[np.ndarray], np.ndarray]] = {

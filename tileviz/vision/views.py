@@ -2,7 +2,8 @@
 luma, then, while it shows no grout, the colour projections; on a floor declared ``checker``,
 their edge images instead; on a floor not declared so whose grout reading was refused, their
 edge images again, a reading of them kept only when its lines are a checkerboard's tile edges
-(:func:`tileviz.vision.robust.checker.tile_edges`).
+(:func:`tileviz.vision.robust.checker.tile_edges`); last, when the luma's reading did not show
+the lattice, the luma's joints image (joints of either polarity, or of both along them).
 
 Importing this module loads neither numba nor the robust extractor: they are imported on the
 first reading (:func:`read_robust`).
@@ -26,6 +27,7 @@ from tileviz.vision.colour import (
     SAME_AS_LUMA,
     correlation,
     edges_and_strength,
+    joints_image,
 )
 from tileviz.vision.decision import CheckResult, summary
 from tileviz.vision.geometry import family_normals, observation_error, wrap_quarter
@@ -53,6 +55,9 @@ LINES_PASSED = frozenset({"inconsistent spacing", "too few segments", "imprecise
 """Refusals of a reading whose lines passed the line checks (refused by the lattice or the
 bound): grout-like lines, which a later reading on another image must explain (``first.lines``)."""
 
+JOINTS = float(len(PROJECTIONS) + 1)
+"""The number of the joints image (``details["projection"]``): after the colour projections."""
+
 Reader = Callable[[np.ndarray, dict[str, float], FloorModel, float], VisionResult]
 """Reads an image of a view (the robust extractor): the image, its stage timings (ms), the
 floor declared and the image's number (``details["projection"]``)."""
@@ -71,9 +76,12 @@ def read_robust(gray: np.ndarray, image: np.ndarray, camera: CameraConfig, tile_
     grout floor whose reading was refused for its lines (not :data:`VIEW_REASONS`), the edge
     images are read too, and one accepted only when every piece of its lines is one step
     between two tiles' levels (a checkerboard not declared: ``details["checker"]``, the pieces
-    measured). The first accepted reading is the result (its ``details["projection"]``: 0 the
-    luma, 1.. the colour projections in order, -1 the luma's edge image, -2.. the
-    projections' edge images in order); otherwise the first reading's refusal."""
+    measured); last, the joints image of the luma (:func:`_joints`: joints of either
+    polarity), when the luma's reading did not show the lattice. The first accepted
+    reading is the result
+    (its ``details["projection"]``: 0 the luma, 1.. the colour projections in order, then the
+    joints image, -1 the luma's edge image, -2.. the projections' edge images in order);
+    otherwise the first reading's refusal."""
     from tileviz.vision.robust import extract_robust
     from tileviz.vision.robust.statistics import noise_sigma
 
@@ -117,14 +125,44 @@ def read_robust(gray: np.ndarray, image: np.ndarray, camera: CameraConfig, tile_
             refusal is not None and refusal.check == FIRST_LINES):
         return got or first
     recognised, tried = _recognise(views, gray, camera.ppm, lp, timings, floor, read)
-    before = first.decision.images if first.decision is not None else ()
-    return _with_images(recognised or first, before + tried)
+    before = (first.decision.images if first.decision is not None else ()) + tried
+    if recognised is not None or first.reason not in RETRY_REASONS:
+        return _with_images(recognised or first, before)
+    joints = _joints(gray, first, timings, floor, read, camera.ppm, lp)
+    return _with_images(joints if joints.accepted else first,
+                        before + (_outcome(JOINTS, joints, False),))
+
+
+def _joints(gray: np.ndarray, first: VisionResult, timings: dict[str, float],
+            floor: FloorModel, read: Reader, ppm: float, lp: float) -> VisionResult:
+    """The joints image of the luma ``gray`` (:func:`~tileviz.vision.colour.joints_image`:
+    joints of either polarity, or of both along their length) read on a grout floor after
+    every other image refused the view, the luma's reading (``first``) for not showing the
+    lattice (:data:`~tileviz.vision.colour.RETRY_REASONS`: a refusal for what the view shows,
+    a foreign line, a step edge, blur or glare, is final); accepted, it explains the
+    first reading's lines when they passed the line checks (``first.lines``,
+    :func:`_explains_first`). Its stage timings join ``timings`` when it is accepted (ms);
+    ``ppm`` the view's pixels per metre, ``lp`` the tile period, px."""
+    t1 = time.perf_counter()
+    view = joints_image(gray, lp)
+    tm = dict(timings)
+    tm["projection"] = (time.perf_counter() - t1) * 1e3
+    got = _named(read(view, tm, floor, JOINTS), JOINTS, False)
+    if not got.accepted:
+        return got
+    got = replace(got, details={**got.details, "projection": JOINTS})
+    if first.reason in LINES_PASSED:
+        got = _explains_first(first, got, gray.shape, ppm, lp, floor)
+    if got.accepted:
+        timings.update(tm)
+    return got
 
 
 def image_name(number: float) -> str:
     """The image of a view that ``number`` names (``details["projection"]``): 0 the luma,
-    1.. the colour projections in order, -1 the luma's edge image, -2.. the projections'."""
-    names = ["luma", *(f"colour projection {name}" for name in PROJECTIONS)]
+    1.. the colour projections in order, then the joints image (:data:`JOINTS`), -1 the
+    luma's edge image, -2.. the projections'."""
+    names = ["luma", *(f"colour projection {name}" for name in PROJECTIONS), "joints image"]
     if number >= 0:
         return names[int(number)]
     return f"edge image of the {names[int(-1 - number)]}"
