@@ -44,9 +44,9 @@ from collections.abc import Callable
 import cv2
 import numpy as np
 
-__all__ = ["EDGE_BLUR", "EDGE_QUANTILE", "JOINT_WINDOW", "PROJECTIONS", "RETRY_REASONS",
-           "SAME_AS_LUMA", "correlation", "edge_image", "edges_and_strength", "joints_image",
-           "project"]
+__all__ = ["EDGE_BLUR", "EDGE_QUANTILE", "JOINT_MAX_SIDE", "JOINT_WINDOW", "PROJECTIONS",
+           "RETRY_REASONS", "SAME_AS_LUMA", "correlation", "edge_image", "edges_and_strength",
+           "joints_image", "project"]
 
 EDGE_BLUR = 1.0
 """Gaussian std (px) of the blur before the edge image's gradient."""
@@ -56,6 +56,9 @@ JOINT_WINDOW = 1.0
 """The side of the square over which :func:`joints_image` takes the tiles' level (the median),
 as a share of the tile period: such a square holds one crossing of two joints, a small share
 of it (under half while the grout is narrower than 0.29 of the period), the tiles the rest."""
+JOINT_MAX_SIDE = 255
+"""The largest side of that square, px: OpenCV's median of 8-bit pixels over a wider square is
+some 15 times slower (a period over 255 px: grout under 0.29 of this side still holds)."""
 
 
 def _channel(k: int) -> Callable[[np.ndarray], np.ndarray]:
@@ -94,10 +97,11 @@ def edges_and_strength(gray: np.ndarray) -> tuple[np.ndarray, float]:
 def joints_image(gray: np.ndarray, period_px: float) -> np.ndarray:
     """The joints image of ``gray`` (HxW uint8; ``period_px`` the tile period, px): each
     pixel's absolute difference from the median of ``gray`` over a square :data:`JOINT_WINDOW`
-    x the period wide (odd, at least 3 px), HxW uint8, gray levels. A joint darker or lighter
-    than its tiles, or both along its length, is a light band on dark tiles; a texture's
-    noise is folded to its magnitude as well (the reading's noise is measured on this image)."""
-    side = max(3, int(JOINT_WINDOW * period_px) | 1)
+    x the period wide (odd, 3 to :data:`JOINT_MAX_SIDE` px), HxW uint8, gray levels. A joint
+    darker or lighter than its tiles, or both along its length, is a light band on dark tiles;
+    a texture's noise is folded to its magnitude as well (the reading's noise is measured on
+    this image)."""
+    side = min(max(3, int(JOINT_WINDOW * period_px) | 1), JOINT_MAX_SIDE)
     return cv2.absdiff(gray, cv2.medianBlur(gray, side))
 
 
