@@ -110,6 +110,8 @@ def test_an_undeclared_checkerboard_is_recognised_from_its_tile_edges(seed: int)
     assert res.decision.shown is not None
     shown = {c.check for c in res.decision.readings[res.decision.shown].checks}
     assert shown >= {"checker.pieces", "checker.steps", "checker.sides"}
+    # recognised: the joints image, read last, is not read
+    assert not any(i.startswith("joints image") for i in res.decision.images)
     e1, e2, e3 = observation_error(res.observation, Pose(cx, cy, th), spec.tile_size,
                                    (0.0, 0.0))
     assert max(abs(e1), abs(e2)) <= res.observation.position_error
@@ -1113,7 +1115,7 @@ def test_a_blank_floor_is_a_constant_image_and_one_thin_line_is_not(sigma: float
     assert not res.accepted and res.reason != "constant image", res.reason
 
 
-def test_a_wide_blurred_lone_band_declares_no_more_than_a_view_may() -> None:
+def test_a_wide_blurred_lone_band_refused_in_the_luma_is_read_in_the_joints_image() -> None:
     """A 16 px band under 1.8 px of blur, JPEG 62 and noise 10 (its edges rise 5.7 px) on
     unevenly lit tiles, its family's only line in view: in the luma its bound holds the band's
     reach at a quarter of its depth, more than a view may declare, so the luma's reading is
@@ -1219,6 +1221,10 @@ def test_joints_filled_with_light_dirt_are_read_at_the_grouts_own_polarity() -> 
             assert res.details["projection"] == JOINTS
             assert dec.images[0] == ("luma: refused (inconsistent spacing) by spacing.missing "
                                      "(family 1) in reading 1: value 1, must be <= 0"), dec.images
+            # the luma's lines passed the line checks: the joints image's lattice explains them
+            assert dec.shown is not None
+            explained = [c for c in dec.readings[dec.shown].checks if c.check == "first.lines"]
+            assert len(explained) == 1 and explained[0].passed, explained
             continue
         first = dec.readings[0]
         assert first.reading.polarity == "auto" and first.reason == "inconsistent spacing"

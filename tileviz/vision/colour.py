@@ -1,5 +1,6 @@
 """Other gray images of a view for the robust extractor to read when the luma (OpenCV's RGB to
-gray) shows no grout: colour projections and the edge image (docs/vision.md, "Colour").
+gray) shows no grout: colour projections, the edge image and the joints image (docs/vision.md,
+"Colour").
 
 Grout may differ from its tiles more in hue than in brightness (reddish grout on brown tiles):
 the luma then shows dips of a few gray levels, under the camera's noise, while one channel or
@@ -26,7 +27,8 @@ from the tiles' level around it, whichever the sign. Dark grout filled with ligh
 part of its joints (a paver mosaic), or lighter along one edge and darker along the other, is
 one light band there, centred on the joint. It is read on a grout floor last, after every
 image above refused the view, and only when the luma did not show the lattice
-(:data:`RETRY_REASONS`; :func:`tileviz.vision.views.read_robust`).
+(:data:`RETRY_REASONS`; :func:`tileviz.vision.views.read_robust`). Grout 0.29 of the period
+wide or wider fills half the median's square: the median is then no longer the tiles' level.
 
 The projections are tried in that order, after the luma, each only when it differs from the
 luma (:data:`SAME_AS_LUMA`: a projection that is nearly the luma again, a channel of a gray

@@ -81,7 +81,7 @@ def read_robust(gray: np.ndarray, image: np.ndarray, camera: CameraConfig, tile_
     reading is the result
     (its ``details["projection"]``: 0 the luma, 1.. the colour projections in order, then the
     joints image, -1 the luma's edge image, -2.. the projections' edge images in order);
-    otherwise the first reading's refusal."""
+    otherwise the first reading's refusal, or a later image's refused by ``first.lines``."""
     from tileviz.vision.robust import extract_robust
     from tileviz.vision.robust.statistics import noise_sigma
 
@@ -129,7 +129,9 @@ def read_robust(gray: np.ndarray, image: np.ndarray, camera: CameraConfig, tile_
     if recognised is not None or first.reason not in RETRY_REASONS:
         return _with_images(recognised or first, before)
     joints = _joints(gray, first, timings, floor, read, camera.ppm, lp)
-    return _with_images(joints if joints.accepted else first,
+    refused = joints.decision.refusal if joints.decision is not None else None
+    final = refused is not None and refused.check == FIRST_LINES  # as for the other images
+    return _with_images(joints if joints.accepted or final else first,
                         before + (_outcome(JOINTS, joints, False),))
 
 
@@ -141,7 +143,8 @@ def _joints(gray: np.ndarray, first: VisionResult, timings: dict[str, float],
     lattice (:data:`~tileviz.vision.colour.RETRY_REASONS`: a refusal for what the view shows,
     a foreign line, a step edge, blur or glare, is final); accepted, it explains the
     first reading's lines when they passed the line checks (``first.lines``,
-    :func:`_explains_first`). Its stage timings join ``timings`` when it is accepted (ms);
+    :func:`_explains_first`; refused by it, its refusal is the view's, as for the other
+    images). Its stage timings join ``timings`` when it is accepted (ms);
     ``ppm`` the view's pixels per metre, ``lp`` the tile period, px."""
     t1 = time.perf_counter()
     view = joints_image(gray, lp)

@@ -91,11 +91,11 @@ On the reading whose lines passed, the lattice and the bound:
   or ``one family``; run only when that reading's deepest dip is deeper than this reading's):
   the farthest of the first reading's lines from this reading's lattice, at the view's
   centre, modulo the period (px; infinite for a line parallel to neither family within this
-  reading's heading bound); <= this reading's position bound less the lattice tolerance
-  (``foreign line``, final). Deeper lines of the other polarity on the lattice are the same
-  joints (filled with light dirt along part of them): a line of them within that distance
-  leaves this reading's observation within its bound. Deeper lines off it are the grout, and
-  this reading's lines are something beside them (a bevel's shadow along a light ridge).
+  reading's heading bound, or when the first reading kept no line); <= this reading's position
+  bound less the lattice tolerance (``foreign line``, final). Deeper lines of the other
+  polarity on the lattice are the same joints (filled with light dirt along part of them);
+  off it they are the grout, and this reading's lines something beside them (a bevel's
+  shadow along a light ridge).
 
 The position check scale is the smaller of ``VisionConfig.position_error_px`` and
 ``scale.position_px``. The lattice tolerance is the declared floor's (``FloorModel``,

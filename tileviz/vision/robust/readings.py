@@ -124,9 +124,10 @@ class Outcome:
     after the fit ``y3`` (rad; None when no line was measured), the warp ``centre``, each
     family's line positions on the warp (``positions``, px), each family's lattice offset at
     the view's centre (``offsets``, px, as ``s`` in
-    :func:`~tileviz.vision.robust.lattice.lattice_offsets`) and the observation ``y`` (both
-    when the lattice was read), the ``warped`` view, the Canny ``edges``, the ``free_edges`` off the
-    lattice and the ``foreign`` straight edges among them (rows x1, y1, x2, y2, px)."""
+    :func:`~tileviz.vision.robust.lattice.lattice_offsets`: set once measured, before the
+    spacing checks, None before), the observation ``y`` (when the lattice was read), the
+    ``warped`` view, the Canny ``edges``, the ``free_edges`` off the lattice and the
+    ``foreign`` straight edges among them (rows x1, y1, x2, y2, px)."""
 
     reading: Reading
     checks: tuple[CheckResult, ...]
@@ -402,10 +403,13 @@ def plan(view: View, done: Sequence[Outcome], timings: dict[str, float]) -> Iter
 def _off_lattice(view: View, first: Outcome, out: Outcome) -> float:
     """The farthest of ``first``'s lines from ``out``'s lattice (px): each line's signed offset
     at the view's centre (``s = -(pos - centre)`` on its warp) against the offset of ``out``'s
-    family whose normal is nearest its own, modulo the period; infinite when that normal is
-    farther than ``out``'s heading bound (the line is on neither family) or ``out`` read no
-    lattice."""
+    family whose normal is nearest its own (sign by the normals' product), modulo the period.
+    Infinite when ``first`` kept no line or a line's position is not finite (its deepest dip
+    is then on no line to compare), when a line's normal is farther than ``out``'s heading
+    bound from both families (it is on neither), or when ``out`` read no lattice."""
     if first.y3 is None or out.y3 is None or out.offsets is None:
+        return math.inf
+    if not (first.positions[0] or first.positions[1]):
         return math.inf
     theirs = family_normals(out.y3)
     far = 0.0
@@ -419,6 +423,8 @@ def _off_lattice(view: View, first: Outcome, out: Outcome) -> float:
         sign = 1.0 if dots[k] > 0.0 else -1.0
         centre = first.centre[1] if j == 0 else first.centre[0]
         for pos in first.positions[j]:
+            if not math.isfinite(pos):
+                return math.inf
             far = max(far, abs(math.remainder(sign * (centre - pos) - out.offsets[k], view.lp)))
     return far
 
@@ -427,11 +433,15 @@ def _deeper_than(view: View, first: Outcome, out: Outcome) -> Outcome:
     """``out`` (a reading with the grout's polarity imposed, accepted) checked against the
     pass's first reading, at the polarity the profiles decided, when that one saw deeper lines
     (``foreign_line.polarity``, final; unchecked when it measured none or shallower ones): the
-    deeper lines must lie on ``out``'s lattice (:func:`_off_lattice`), within ``out``'s
-    position bound less the lattice tolerance. On it they are the same joints, of the other
-    polarity along part of them (light dirt in a mosaic's dark joints); off it they are the
+    deeper lines must agree with ``out``'s lattice (:func:`_off_lattice`): parallel to a family
+    within ``out``'s heading bound and, at the view's centre, within ``out``'s position bound
+    less the lattice tolerance (the most a grout line may lie off the lattice). On it they are
+    the same joints, of the other polarity along part of them (light dirt in a mosaic's dark
+    joints), and ``out`` stands on its own checks as any reading does; off it they are the
     grout (its reading failed for a family not seen, blurred or covered), and ``out``'s lines
-    are something beside it (a bevel's shadow along a light ridge)."""
+    are something beside it (a bevel's shadow along a light ridge). The check compares the two
+    readings' estimates, not their errors: it refuses what contradicts ``out``, it does not
+    prove ``out`` right."""
     decided, own = first.details.get("depth", math.nan), out.details.get("depth", math.nan)
     if not (math.isfinite(decided) and own > 0.0) or decided <= own:
         return out  # no line measured at the decided polarity, or shallower ones
