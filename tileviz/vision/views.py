@@ -58,6 +58,12 @@ bound): grout-like lines, which a later reading on another image must explain (`
 JOINTS = float(len(PROJECTIONS) + 1)
 """The number of the joints image (``details["projection"]``): after the colour projections."""
 
+BESIDE = "foreign_line.beside"
+"""The line check after whose refusal in the luma the joints image is read too: a second dip
+beside a line. In the joints image the two are one band only when what lies between them
+differs from the tiles as well (light dirt between a joint's dark edges); a cable beside the
+grout, the tiles between them, stays two bands there, refused again."""
+
 Reader = Callable[[np.ndarray, dict[str, float], FloorModel, float], VisionResult]
 """Reads an image of a view (the robust extractor): the image, its stage timings (ms), the
 floor declared and the image's number (``details["projection"]``)."""
@@ -126,7 +132,8 @@ def read_robust(gray: np.ndarray, image: np.ndarray, camera: CameraConfig, tile_
         return got or first
     recognised, tried = _recognise(views, gray, camera.ppm, lp, timings, floor, read)
     before = (first.decision.images if first.decision is not None else ()) + tried
-    if recognised is not None or first.reason not in RETRY_REASONS:
+    if recognised is not None or not (first.reason in RETRY_REASONS or (
+            refusal is not None and refusal.check == BESIDE)):
         return _with_images(recognised or first, before)
     joints = _joints(gray, first, timings, floor, read, camera.ppm, lp)
     refused = joints.decision.refusal if joints.decision is not None else None
