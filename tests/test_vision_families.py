@@ -1194,6 +1194,54 @@ def test_the_joints_image_shows_a_dark_and_a_light_joint_alike() -> None:
     assert tiles.max() <= 2.0, tiles.max()
 
 
+@pytest.mark.parametrize("seed", [1, 56, 135, 195])
+def test_a_cable_beside_the_grout_stays_two_bands_in_the_joints_image(seed: int) -> None:
+    """A dark cable parallel to a grout line, tiles between them (gaps of 1.3 to 10.6 px): the
+    luma's reading is refused for a second dip beside a line (``foreign_line.beside``), after
+    which the joints image is read too; there the cable and the grout stay two bands, the
+    tiles between them, and the view is refused again."""
+    rng = np.random.default_rng([seed, FAMILY_SALT["plain"], 2])  # cable_view's draws
+    spec = floorgen.draw_floor("plain", rng)
+    cx, cy, th = floorgen.draw_view(rng)
+    k = int(rng.integers(2))
+    delta, width = float(rng.uniform(-25.0, 25.0)), float(rng.uniform(2.0, 10.0))
+    shade = float(rng.uniform(10, 60) if rng.uniform() < 0.7 else rng.uniform(200, 250))
+    normal, s0 = floorgen.line_offset(spec, cx, cy, th, k)
+    img = floorgen.render(spec, cx, cy, th, rng,
+                          overlay=floorgen.band(spec, normal, s0 + delta, width, shade))
+    assert shade < 128.0 and abs(delta) - 0.5 * (width + spec.grout_px) > 1.0
+    cam = CameraConfig(ppm=spec.ppm, width=spec.width, height=spec.height, offset=(0.0, 0.0))
+    res = extract(img, camera=cam, tile_size=spec.tile_size, vision=VisionConfig())
+    assert not res.accepted and res.decision is not None
+    images = res.decision.images
+    assert "by foreign_line.beside" in images[0], images
+    assert images[-1].startswith("joints image: refused"), images
+
+
+def test_a_joint_with_a_light_fill_between_dark_edges_is_read_in_the_joints_image() -> None:
+    """Dark grout 18 px wide, every third joint filled along its middle (30 % of its width)
+    with something lighter than the tiles: that joint shows in the luma as two dark dips side
+    by side, refused as a second dip beside a line (``foreign_line.beside``); in the joints
+    image its dark edges and its light fill are one band, and the view is read there, within
+    its bound."""
+    from tileviz.vision.views import JOINTS
+
+    spec = floorgen.FloorSpec(family="plain", tile_size=0.1, ppm=1000.0, grout_px=18.0,
+                              grout_shade=100.0, tile_shade=150.0, shade_spread=3.0,
+                              surface="flat", surface_amp=0.0, seed=1, width=512, height=384,
+                              fill=(3, 0.3, 175.0))
+    cam = CameraConfig(ppm=spec.ppm, width=spec.width, height=spec.height, offset=(0.0, 0.0))
+    rng = np.random.default_rng(5)
+    for _ in range(2):
+        cx, cy, th = rng.uniform(0, 0.1), rng.uniform(0, 0.1), rng.uniform(-0.7, 0.7)
+    res = extract(floorgen.render(spec, cx, cy, th, np.random.default_rng(1)), camera=cam,
+                  tile_size=spec.tile_size, vision=VisionConfig())
+    assert res.decision is not None
+    assert "by foreign_line.beside" in res.decision.images[0], res.decision.images
+    assert res.accepted and res.details["projection"] == JOINTS, res.reason
+    assert _inside(res, Pose(cx, cy, th), spec.tile_size)
+
+
 def test_joints_filled_with_light_dirt_are_read_at_the_grouts_own_polarity() -> None:
     """Dark grout, every fifth joint filled along its centre with light dirt: the filled
     joints make the strongest narrow peaks, so the profiles call the grout lighter, and the
