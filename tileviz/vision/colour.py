@@ -27,7 +27,8 @@ from the tiles' level around it, whichever the sign. Dark grout filled with ligh
 part of its joints (a paver mosaic), or lighter along one edge and darker along the other, is
 one light band there, centred on the joint. It is read on a grout floor last, after every
 image above refused the view, and only when the luma did not show the lattice
-(:data:`RETRY_REASONS`; :func:`tileviz.vision.views.read_robust`). Grout 0.29 of the period
+(:data:`RETRY_REASONS`) or saw a second dip beside a line
+(:func:`tileviz.vision.views.read_robust`). Grout 0.29 of the period
 wide or wider fills half the median's square: the median is then no longer the tiles' level.
 
 The projections are tried in that order, after the luma, each only when it differs from the

@@ -3,7 +3,8 @@ luma, then, while it shows no grout, the colour projections; on a floor declared
 their edge images instead; on a floor not declared so whose grout reading was refused, their
 edge images again, a reading of them kept only when its lines are a checkerboard's tile edges
 (:func:`tileviz.vision.robust.checker.tile_edges`); last, when the luma's reading did not show
-the lattice, the luma's joints image (joints of either polarity, or of both along them).
+the lattice or saw a second dip beside a line, the luma's joints image (joints of either
+polarity, or of both along them).
 
 Importing this module loads neither numba nor the robust extractor: they are imported on the
 first reading (:func:`read_robust`).
@@ -83,7 +84,8 @@ def read_robust(gray: np.ndarray, image: np.ndarray, camera: CameraConfig, tile_
     images are read too, and one accepted only when every piece of its lines is one step
     between two tiles' levels (a checkerboard not declared: ``details["checker"]``, the pieces
     measured); last, the joints image of the luma (:func:`_joints`: joints of either
-    polarity), when the luma's reading did not show the lattice. The first accepted
+    polarity), when the luma's reading did not show the lattice or saw a second dip beside a
+    line. The first accepted
     reading is the result
     (its ``details["projection"]``: 0 the luma, 1.. the colour projections in order, then the
     joints image, -1 the luma's edge image, -2.. the projections' edge images in order);
@@ -147,8 +149,9 @@ def _joints(gray: np.ndarray, first: VisionResult, timings: dict[str, float],
     """The joints image of the luma ``gray`` (:func:`~tileviz.vision.colour.joints_image`:
     joints of either polarity, or of both along their length) read on a grout floor after
     every other image refused the view, the luma's reading (``first``) for not showing the
-    lattice (:data:`~tileviz.vision.colour.RETRY_REASONS`: a refusal for what the view shows,
-    a foreign line, a step edge, blur or glare, is final); accepted, it explains the
+    lattice (:data:`~tileviz.vision.colour.RETRY_REASONS`) or for a second dip beside a line
+    (:data:`BESIDE`: a refusal for anything else the view shows, a foreign line, a step edge,
+    blur or glare, is final); accepted, it explains the
     first reading's lines when they passed the line checks (``first.lines``,
     :func:`_explains_first`; refused by it, its refusal is the view's, as for the other
     images). Its stage timings join ``timings`` when it is accepted (ms);
