@@ -2,7 +2,7 @@
 
     python bench/real_floors.py [--floors DIR] [--stills 40] [--corrupted 0] [--frames 400]
                                 [--only ID,...] [--scale 1.0] [--camera clean|plain]
-                                [--split tuning|heldout|...|heldout21]
+                                [--split tuning|heldout|...|heldout22]
                                 [--declare none|tolerance|floor|survey] [--survey-views 60]
                                 [--csv out.csv] [--keep DIR]
 
@@ -70,7 +70,9 @@ corrupted; the x1.6 mosaic 36 and the plain white ceramic 37 of 40); ``heldout20
 20 * 10**6 (run once with commit a5da481, the joints image and ``foreign_line.polarity`` by
 the lattice: none outside, clean or corrupted; the x1.6 mosaic 37 and the x1 mosaic 38 of 40,
 every other floor and camera 39 or 40; a tuning split since); ``heldout21`` from 21 * 10**6
-(unseen).
+(run once with commit 929e82f, the joints image read after ``foreign_line.beside`` too: none
+outside; every floor 38 to 40 of 40 at x1, x1.6 and through the plain camera; a tuning split
+since); ``heldout22`` from 22 * 10**6 (unseen).
 """
 
 from __future__ import annotations
@@ -105,7 +107,7 @@ SPLITS = {"tuning": 0, "heldout": 10**6, "heldout2": 2 * 10**6, "heldout3": 3 * 
           "heldout11": 11 * 10**6, "heldout12": 12 * 10**6, "heldout13": 13 * 10**6,
           "heldout14": 14 * 10**6, "heldout15": 15 * 10**6, "heldout16": 16 * 10**6,
           "heldout17": 17 * 10**6, "heldout18": 18 * 10**6, "heldout19": 19 * 10**6,
-          "heldout20": 20 * 10**6, "heldout21": 21 * 10**6}
+          "heldout20": 20 * 10**6, "heldout21": 21 * 10**6, "heldout22": 22 * 10**6}
 SPEED = 0.25
 """Metres per second along the drive."""
 DT = 0.05
