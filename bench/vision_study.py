@@ -1,6 +1,6 @@
 """Domain-randomised accuracy study of the robust extractor on independently rendered floors.
 
-    python bench/vision_study.py [--views-per-family 500] [--split fresh2|...|fresh25|fresh26]
+    python bench/vision_study.py [--views-per-family 500] [--split fresh2|...|fresh26|fresh27]
                                  [--corrupted-per-family 100] [--jobs 1] [--csv out.csv]
                                  [--kind declared|undeclared]
     python bench/vision_study.py --report out.csv     # the tables of a (partial) run
@@ -52,7 +52,8 @@ floor (reported once: mosaic 94.0 %, none outside); ``--split fresh23`` seeds fr
 kept unseen until commit 026221b (reported once); ``--split fresh24`` seeds from 26 * 10**6,
 kept unseen until commit a5da481, the joints image (reported once); ``--split fresh25`` seeds
 from 27 * 10**6, kept unseen until commit 929e82f (reported once, then run again to write the
-figures); ``--split fresh26`` seeds from 28 * 10**6 (unseen).
+figures); ``--split fresh26`` seeds from 28 * 10**6, kept unseen until commit 929e82f (reported
+once, 500 views per family); ``--split fresh27`` seeds from 29 * 10**6 (unseen).
 
 For each family: the share of readable clean views accepted (``readable``: each line family
 crosses the view over at least 0.75 x its smaller side, ``floorgen.readable``), the error of the
@@ -87,7 +88,7 @@ SPLITS = {"tuning": 0, "heldout": 10**6, "fresh": 3 * 10**6, "fresh2": 4 * 10**6
           "fresh19": 21 * 10**6, "fresh20": 22 * 10**6,
           "fresh21": 23 * 10**6, "fresh22": 24 * 10**6,
           "fresh23": 25 * 10**6, "fresh24": 26 * 10**6,
-          "fresh25": 27 * 10**6, "fresh26": 28 * 10**6}
+          "fresh25": 27 * 10**6, "fresh26": 28 * 10**6, "fresh27": 29 * 10**6}
 """First seed of each split."""
 
 
