@@ -507,20 +507,12 @@ def test_the_plan_refuses_an_imposed_polarity_beside_the_decided_ones_deeper_lin
     ``third`` x a third of the period off), so the plan reads the other polarity, which reads
     the grout: refused by ``foreign_line.polarity`` when the decided polarity's lines were
     deeper and off its lattice, else accepted."""
-    from tileviz.testing import floorgen
-    from tileviz.vision import to_gray
     from tileviz.vision.decision import CheckResult
-    from tileviz.vision.robust import extractor, readings
-    from tileviz.vision.robust.settings import DEFAULT_SETTINGS
+    from tileviz.vision.robust import readings
 
-    rng = np.random.default_rng([1, 99])
-    spec = floorgen.draw_floor("plain", rng)
-    img = floorgen.render(spec, *floorgen.draw_view(rng), rng)
-    cam = CameraConfig(ppm=spec.ppm, width=spec.width, height=spec.height, offset=(0.0, 0.0))
+    view, _ = _polarity_view()
     real = readings.read
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        view, _ = extractor.prepare(to_gray(img), cam, spec.tile_size, ROBUST,
-                                    DEFAULT_SETTINGS, {})
         grout = real(view, readings.Reading(view.heading, "first heading")).details["depth"]
         one_family = CheckResult("lines.families", 0.0, 1.0, ">=", False)
 

@@ -83,10 +83,12 @@ def read_robust(gray: np.ndarray, image: np.ndarray, camera: CameraConfig, tile_
     grout floor whose reading was refused for its lines (not :data:`VIEW_REASONS`), the edge
     images are read too, and one accepted only when every piece of its lines is one step
     between two tiles' levels (a checkerboard not declared: ``details["checker"]``, the pieces
-    measured); last, the joints image of the luma (:func:`_joints`: joints of either
-    polarity), when the luma's reading did not show the lattice or saw a second dip beside a
-    line. The first accepted
-    reading is the result
+    measured); last, the joints image of the luma
+    (:func:`~tileviz.vision.colour.joints_image`: joints of either polarity, or of both along
+    them), when the luma's reading did not show the lattice
+    (:data:`~tileviz.vision.colour.RETRY_REASONS`) or saw a second dip beside a line
+    (:data:`BESIDE`: a refusal for anything else the view shows, a foreign line, a step edge,
+    blur or glare, is final). The first accepted reading is the result
     (its ``details["projection"]``: 0 the luma, 1.. the colour projections in order, then the
     joints image, -1 the luma's edge image, -2.. the projections' edge images in order);
     otherwise the first reading's refusal, or a later image's refused by ``first.lines``."""
@@ -137,38 +139,11 @@ def read_robust(gray: np.ndarray, image: np.ndarray, camera: CameraConfig, tile_
     if recognised is not None or not (first.reason in RETRY_REASONS or (
             refusal is not None and refusal.check == BESIDE)):
         return _with_images(recognised or first, before)
-    joints = _joints(gray, first, timings, floor, read, camera.ppm, lp)
-    refused = joints.decision.refusal if joints.decision is not None else None
-    final = refused is not None and refused.check == FIRST_LINES  # as for the other images
-    return _with_images(joints if joints.accepted or final else first,
-                        before + (_outcome(JOINTS, joints, False),))
-
-
-def _joints(gray: np.ndarray, first: VisionResult, timings: dict[str, float],
-            floor: FloorModel, read: Reader, ppm: float, lp: float) -> VisionResult:
-    """The joints image of the luma ``gray`` (:func:`~tileviz.vision.colour.joints_image`:
-    joints of either polarity, or of both along their length) read on a grout floor after
-    every other image refused the view, the luma's reading (``first``) for not showing the
-    lattice (:data:`~tileviz.vision.colour.RETRY_REASONS`) or for a second dip beside a line
-    (:data:`BESIDE`: a refusal for anything else the view shows, a foreign line, a step edge,
-    blur or glare, is final); accepted, it explains the
-    first reading's lines when they passed the line checks (``first.lines``,
-    :func:`_explains_first`; refused by it, its refusal is the view's, as for the other
-    images). Its stage timings join ``timings`` when it is accepted (ms);
-    ``ppm`` the view's pixels per metre, ``lp`` the tile period, px."""
-    t1 = time.perf_counter()
-    view = joints_image(gray, lp)
-    tm = dict(timings)
-    tm["projection"] = (time.perf_counter() - t1) * 1e3
-    got = _named(read(view, tm, floor, JOINTS), JOINTS, False)
-    if not got.accepted:
-        return got
-    got = replace(got, details={**got.details, "projection": JOINTS})
-    if first.reason in LINES_PASSED:
-        got = _explains_first(first, got, gray.shape, ppm, lp, floor)
-    if got.accepted:
-        timings.update(tm)
-    return got
+    # the joints image: read as the other images are, after the luma's refusal (``first``)
+    got, shown = _first_accepted([(JOINTS, lambda: joints_image(gray, lp))], gray, timings,
+                                 floor, read, camera.ppm, lp, earlier=first)
+    out = got or shown
+    return _with_images(out, before + (out.decision.images if out.decision is not None else ()))
 
 
 def image_name(number: float) -> str:
@@ -216,7 +191,7 @@ def _first_accepted(candidates: list[Candidate], gray: np.ndarray, timings: dict
                     read: Reader,
                     ppm: float, lp: float,
                     accept: Callable[[float, VisionResult], VisionResult] | None = None,
-                    recognising: bool = False
+                    recognising: bool = False, earlier: VisionResult | None = None
                     ) -> tuple[VisionResult | None, VisionResult]:
     """The ``candidates`` read in turn while refused for not showing the lattice
     (:data:`~tileviz.vision.colour.RETRY_REASONS`; a projection nearly the luma again,
@@ -228,8 +203,9 @@ def _first_accepted(candidates: list[Candidate], gray: np.ndarray, timings: dict
     reading's (its timings join ``timings``). ``ppm``: the view's pixels per metre, ``lp`` the
     tile period, px. Each result's decision names the image it read, and both returned list
     every image read with its outcome (``Decision.image``, ``images``; ``recognising``: the
-    edge images are read as an undeclared checkerboard)."""
-    first: VisionResult | None = None
+    edge images are read as an undeclared checkerboard). ``earlier``: the refusal of an image
+    read before (by another call), which stands as the first reading's."""
+    first: VisionResult | None = earlier
     tried: list[str] = []
 
     def done(got: VisionResult | None, shown: VisionResult) -> tuple[VisionResult | None,
@@ -240,8 +216,8 @@ def _first_accepted(candidates: list[Candidate], gray: np.ndarray, timings: dict
     for number, make in candidates:
         t1 = time.perf_counter()
         view = make()
-        if number > 0 and abs(correlation(view, gray)) >= SAME_AS_LUMA:
-            continue  # the luma again: nothing new to read
+        if 0.0 < number < JOINTS and abs(correlation(view, gray)) >= SAME_AS_LUMA:
+            continue  # a colour projection that is the luma again: nothing new to read
         tm = dict(timings)
         if number != 0.0:
             tm["projection"] = (time.perf_counter() - t1) * 1e3
